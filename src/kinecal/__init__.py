@@ -1,0 +1,10 @@
+"""kinecal: kinematic and joint-compliance calibration of robots and robotic vision systems.
+
+The method follows Ye et al., "Kinematic and Joint Compliance Modeling Method to Improve
+Position Accuracy of a Robotic Vision System", Sensors 24(8), 2559 (2024).
+Subpackages are imported on demand so ``kinecal --help`` starts fast.
+"""
+
+from kinecal._version import __version__
+
+__all__ = ["__version__"]

@@ -1,0 +1,35 @@
+"""Exception hierarchy of kinecal.
+
+Every error a user can trigger with bad input derives from :class:`CalibError`, so the
+CLI can catch one type and turn it into a one-line message and a non-zero exit code.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "CalibError",
+    "ConfigError",
+    "DataError",
+    "IdentifiabilityError",
+    "ModelError",
+]
+
+
+class CalibError(Exception):
+    """Base class of all kinecal errors."""
+
+
+class ConfigError(CalibError, ValueError):
+    """A robot description, model file or option is invalid."""
+
+
+class DataError(CalibError, ValueError):
+    """A measurement file or array is invalid (missing column, NaN, wrong units...)."""
+
+
+class ModelError(CalibError, ValueError):
+    """A model cannot be built or evaluated as asked (unknown parameter, wrong size)."""
+
+
+class IdentifiabilityError(CalibError, ValueError):
+    """The data cannot determine the model asked for (too few poses, rank too low)."""

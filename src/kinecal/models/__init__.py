@@ -1,0 +1,30 @@
+"""Models: parameter layout, unified kinematic model (Eq. 6-10), compliance (Eq. 11-26)."""
+
+from kinecal.models._chain import ChainFrames, chain_frames
+from kinecal.models._compliance import (
+    link_torque_basis,
+    load_torques,
+    ntm_basis,
+    ntm_names,
+)
+from kinecal.models._layout import KINDS, ParameterLayout, ParamKind, ParamSpec
+from kinecal.models._model import CalibrationModel, ModelInputs, ModelOutput
+from kinecal.models._spec import PRESETS, ModelSpec
+
+__all__ = [
+    "KINDS",
+    "PRESETS",
+    "CalibrationModel",
+    "ChainFrames",
+    "ModelInputs",
+    "ModelOutput",
+    "ModelSpec",
+    "ParamKind",
+    "ParamSpec",
+    "ParameterLayout",
+    "chain_frames",
+    "link_torque_basis",
+    "load_torques",
+    "ntm_basis",
+    "ntm_names",
+]

@@ -1,0 +1,170 @@
+"""Joint compliance terms (paper Sec. 3): transmission errors, payload and link weight.
+
+All terms are joint-angle errors added to the kinematic angles before forward kinematics,
+``theta = C q_ctrl + dtheta_C + dtheta_F + dtheta_Link`` (DESIGN §4):
+
+.. math::
+    \\delta\\theta_{C,j} = k_0 + \\sum_{h=1}^{N} k_{a h} \\cos(h q_j) + k_{b h} \\sin(h q_j)
+    \\qquad \\text{(Eq. 16)}
+
+    \\tau_F = J_v(\\theta)^T \\hat g, \\qquad
+    \\tau_{Link, j} = z_j \\cdot (M_j \\times \\hat g), \\qquad
+    \\delta\\theta_{F} + \\delta\\theta_{Link} = \\lambda^* \\odot (\\tau_F + \\tau_{Link})
+    \\qquad \\text{(Eq. 21-26)}
+
+Torques are per unit payload weight (``|F| = 1``): ``lambda* = |F| lambda`` [rad/m] and
+``s* = s / |F|`` [m], as in Eq. 24 and Eq. 26. ``ĝ`` is the unit gravity direction in
+the robot base frame. The torques are evaluated at the undeflected configuration; the
+difference is second order in the deflection (~1e-8 rad).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinecal.models._chain import ChainFrames, cross
+from kinecal.typing import Float
+
+__all__ = [
+    "general_link_names",
+    "general_link_torque_basis",
+    "link_torque_basis",
+    "load_torques",
+    "ntm_basis",
+    "ntm_names",
+]
+
+
+def ntm_names(order: int, offset: bool) -> list[str]:
+    """Coefficient names of one joint's series: ``k0, ka1, kb1, ka2, kb2, ...``."""
+    names = ["k0"] if offset else []
+    for h in range(1, order + 1):
+        names += [f"ka{h}", f"kb{h}"]
+    return names
+
+
+def ntm_basis(q: Float, order: int, offset: bool) -> Float:
+    """Fourier basis of Eq. (16) at encoder angles ``q`` (N,) [rad], shape (N, nb).
+
+    Columns follow :func:`ntm_names` (``w`` of Eq. 16 is 1).
+    """
+    cols = [np.ones_like(q)] if offset else []
+    for h in range(1, order + 1):
+        cols += [np.cos(h * q), np.sin(h * q)]  # Eq. (16)
+    return np.stack(cols, axis=-1)
+
+
+def load_torques(
+    frames: ChainFrames, p_load: Float, g_hat: Float, prismatic: np.ndarray
+) -> Float:
+    """Joint torques of a unit weight along ``g_hat`` acting at ``p_load``, shape (N, n).
+
+    ``tau = J_v^T g_hat`` (Eq. 21 with the wrench of Eq. 19-20 moved to the load point),
+    where column j of ``J_v`` is ``z_{j-1} x (p - o_{j-1})`` (revolute) or ``z_{j-1}``
+    (prismatic). Units: N·m per N = m.
+
+    Parameters
+    ----------
+    frames : ChainFrames
+    p_load : ndarray, shape (N, 3)
+        Load point in the chain base frame [m].
+    g_hat : ndarray, shape (3,)
+        Unit gravity direction in the chain base frame.
+    prismatic : ndarray of bool, shape (n,)
+    """
+    z = frames.R[:, :-1, :, 2]  # (N, n, 3) joint axes
+    lever = p_load[:, None, :] - frames.o[:, :-1, :]
+    # (z x r) . g == z . (r x g): one cross product with the constant g.
+    rxg = cross(lever, g_hat)
+    tau = np.einsum("nji,nji->nj", z, rxg)  # Eq. (21)
+    if np.any(prismatic):
+        tau[:, prismatic] = z[:, prismatic] @ g_hat
+    return tau
+
+
+def link_torque_basis(
+    frames: ChainFrames,
+    g_hat: Float,
+    shoulder: int,
+    elbow: int,
+    wrist_frame: int,
+    x_sign: float,
+    model: str,
+) -> Float:
+    """Torque on every joint per unit of each link moment, shape (N, n, n_moments).
+
+    The paper's lumped model (Eq. 25-26, Table 1) with moments as vectors:
+    ``M_shoulder = s1 x̂ + s2 û`` about the shoulder axis and ``M_elbow = s2 û`` about
+    the elbow axis, with ``x̂`` the DH x-axis from the shoulder axis to the elbow axis and
+    ``û`` the direction from the elbow axis to the wrist centre (origin of ``wrist_frame``)
+    normal to the elbow axis. ``tau_j = z_j · (M_j × ĝ)``.
+
+    Parameters
+    ----------
+    shoulder, elbow : int
+        1-based joints (LR Mate: 2, 3); joint j turns about ``z_{j-1}``.
+    wrist_frame : int
+        Standard-DH frame whose origin is the wrist centre (LR Mate: 4).
+    x_sign : float
+        Sign of the shoulder row's ``a`` so ``x̂`` points from shoulder to elbow axis.
+    model : {'paper', 'rfcm'}
+        'paper': moments ``[s1, s2]`` with s2 shared by both joints (2 columns).
+        'rfcm': ``[s1, s2_shoulder, s2_elbow]`` independent (3 columns).
+    """
+    N, n = frames.o.shape[0], frames.n
+    z_sh = frames.z(shoulder - 1)
+    z_el = frames.z(elbow - 1)
+    x_hat = x_sign * frames.R[:, shoulder, :, 0]
+    w = frames.o[:, wrist_frame] - frames.o[:, elbow - 1]
+    w = w - np.sum(w * z_el, axis=-1, keepdims=True) * z_el
+    u_hat = w / np.linalg.norm(w, axis=-1, keepdims=True)
+    # tau = z . (M x g) for a unit moment along each direction
+    t_x_sh = np.sum(z_sh * cross(x_hat, g_hat), axis=-1)  # Table 1: s1 on the shoulder
+    t_u_sh = np.sum(z_sh * cross(u_hat, g_hat), axis=-1)  # Table 1: s2 on the shoulder
+    t_u_el = np.sum(z_el * cross(u_hat, g_hat), axis=-1)  # Table 1: s2 on the elbow
+    ncol = 2 if model == "paper" else 3
+    out = np.zeros((N, n, ncol))
+    out[:, shoulder - 1, 0] = t_x_sh
+    if model == "paper":
+        out[:, shoulder - 1, 1] = t_u_sh  # Eq. (25): N_23(theta) (s1, s2, s2)
+        out[:, elbow - 1, 1] = t_u_el
+    else:
+        out[:, shoulder - 1, 1] = t_u_sh
+        out[:, elbow - 1, 2] = t_u_el
+    return out
+
+
+def general_link_names(bodies: tuple[int, ...]) -> list[str]:
+    """Parameter names of the general link model: mass and first moment per body."""
+    return [f"link{k}.{c}" for k in bodies for c in ("m", "mx", "my", "mz")]
+
+
+def general_link_torque_basis(
+    frames: ChainFrames, g_hat: Float, bodies: tuple[int, ...], prismatic: np.ndarray
+) -> Float:
+    """Torque on every joint per unit of each body's mass and first moment (N, n, 4 nb).
+
+    The general form of Eq. (25) for any serial robot and any base tilt: body k (rigid
+    with DH frame k) has mass ``m_k`` and first moment ``m_k c_k`` (frame k axes), both per
+    unit payload weight. Joint j <= k carries
+    ``tau_j = z_{j-1} · ((R_k (m c)_k + m_k (o_k - o_{j-1})) × ĝ)``.
+    """
+    N, n = frames.o.shape[0], frames.n
+    out = np.zeros((N, n, 4 * len(bodies)))
+    z = frames.R[:, :-1, :, 2]  # (N, n, 3)
+    for b, k in enumerate(bodies):
+        Rk = frames.R[:, k]
+        for j in range(k):  # joints 1..k move body k
+            zj = z[:, j]
+            if prismatic[j]:
+                out[:, j, 4 * b] = (
+                    zj @ g_hat
+                )  # a force along the axis; moments give none
+                continue
+            lever = frames.o[:, k] - frames.o[:, j]
+            out[:, j, 4 * b] = np.sum(zj * cross(lever, g_hat), axis=-1)
+            for c in range(3):
+                out[:, j, 4 * b + 1 + c] = np.sum(
+                    zj * cross(Rk[:, :, c], g_hat), axis=-1
+                )
+    return out

@@ -1,0 +1,660 @@
+"""The unified kinematic and joint compliance model (paper Sec. 2.3 and 3).
+
+.. math::
+    p_{user} = T_{user,base}\\; \\prod_{i=1}^{n} A_i(\\theta_i)\\; T_{flange,cam}\\; p_{cam},
+    \\qquad \\theta = C q_{ctrl} + \\delta\\theta_C + \\delta\\theta_F + \\delta\\theta_{Link}
+
+``T_user_base`` and ``T_flange_cam`` are Euler frames (Eq. 8, 9). Row 1 keeps only ``a1,
+alpha1`` and row n only its rotation (Eq. 10): 6 + 2 + 4 (n - 2) + 6 parameters, 30 for six
+joints, 27 when the cam rotation is not observable (position-only data). Compliance terms
+are in :mod:`kinecal.models._compliance`.
+
+Symbols: ``q_ctrl`` controller angles (N, n) [rad]; ``theta`` kinematic angles; ``p_cam``
+the measured point in the cam frame (zero for a reflector at the cam origin).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinecal.errors import DataError, ModelError
+from kinecal.geometry import (
+    euler_zyx_to_matrix,
+    make_transform,
+    matrix_to_euler_zyx,
+    rot_x,
+    rot_z,
+    transform_to_euler,
+)
+from kinecal.models._chain import ChainFrames, chain_frames, cross
+from kinecal.models._compliance import (
+    general_link_names,
+    general_link_torque_basis,
+    link_torque_basis,
+    load_torques,
+    ntm_basis,
+    ntm_names,
+)
+from kinecal.models._layout import ParameterLayout, ParamSpec
+from kinecal.models._spec import ModelSpec
+from kinecal.robot import RobotDescription
+from kinecal.typing import ArrayLike, Float
+
+__all__ = ["CalibrationModel", "ModelInputs", "ModelOutput"]
+
+_FRAME = ("x", "y", "z", "r", "w", "p")
+# Columns of the per-row value table.
+_OFF, _D, _A, _ALPHA, _BETA = range(5)
+_ROW_NAMES = ("theta_offset", "d", "a", "alpha", "beta")
+_ROW_KINDS = ("angle", "length", "length", "angle", "angle")
+
+
+def _label(group: str, label: str) -> str:
+    return group if label == "" else f"{group}@{label}"
+
+
+@dataclass(frozen=True)
+class ModelInputs:
+    """Per-sample inputs of the model (all SI).
+
+    Attributes
+    ----------
+    q_ctrl : (N, n) controller joint values [rad, m].
+    set_index : (N,) int, index into ``spec.sets`` (user frame per session).
+    marker_index : (N,) int, index into ``spec.markers`` (cam frame per marker).
+    p_cam : (N, 3) point in the cam frame [m] (zeros for a reflector at the cam origin).
+    load_scale : (N,) payload of the row relative to the reference payload (1 by default).
+    """
+
+    q_ctrl: Float
+    set_index: np.ndarray
+    marker_index: np.ndarray
+    p_cam: Float
+    load_scale: Float
+
+    @classmethod
+    def make(
+        cls,
+        q_ctrl: ArrayLike,
+        *,
+        set_index: ArrayLike | None = None,
+        marker_index: ArrayLike | None = None,
+        p_cam: ArrayLike | None = None,
+        load_scale: ArrayLike | None = None,
+    ) -> ModelInputs:
+        q = np.atleast_2d(np.asarray(q_ctrl, dtype=np.float64))
+        N = q.shape[0]
+        si = (
+            np.zeros(N, np.intp)
+            if set_index is None
+            else np.asarray(set_index, np.intp)
+        )
+        mi = (
+            np.zeros(N, np.intp)
+            if marker_index is None
+            else np.asarray(marker_index, np.intp)
+        )
+        pc = (
+            np.zeros((N, 3))
+            if p_cam is None
+            else np.asarray(p_cam, np.float64).reshape(N, 3)
+        )
+        ls = (
+            np.ones(N)
+            if load_scale is None
+            else np.asarray(load_scale, np.float64).reshape(N)
+        )
+        if si.shape != (N,) or mi.shape != (N,):
+            raise DataError("set_index and marker_index must have one entry per pose.")
+        return cls(q, si, mi, pc, ls)
+
+    @property
+    def n(self) -> int:
+        return int(self.q_ctrl.shape[0])
+
+    def subset(self, rows: np.ndarray) -> ModelInputs:
+        """The inputs of the selected rows (index or boolean mask)."""
+        return ModelInputs(
+            self.q_ctrl[rows],
+            self.set_index[rows],
+            self.marker_index[rows],
+            self.p_cam[rows],
+            self.load_scale[rows],
+        )
+
+
+@dataclass(frozen=True)
+class ModelOutput:
+    """Model prediction for N poses.
+
+    Attributes
+    ----------
+    p_user : (N, 3) predicted point in the user frame [m].
+    R_user_cam : (N, 3, 3) or None, predicted cam orientation (if asked).
+    J_p : (N, 3, P) or None, ``d p_user / d params``.
+    J_w : (N, 3, P) or None, rotation Jacobian: ``dR = [J_w dparams] R`` (user frame).
+    theta : (N, n) kinematic joint angles actually used (with all error terms) [rad].
+    """
+
+    p_user: Float
+    R_user_cam: Float | None
+    J_p: Float | None
+    J_w: Float | None
+    theta: Float
+
+
+class CalibrationModel:
+    """Unified kinematic model plus joint compliance terms for one robot.
+
+    Parameters
+    ----------
+    robot : RobotDescription
+    spec : ModelSpec
+        Terms and options (see :meth:`ModelSpec.preset`).
+
+    Attributes
+    ----------
+    layout : ParameterLayout
+    nominal : ndarray, shape (P,)
+        Parameters reproducing the robot's nominal kinematics with the user frame equal to
+        the robot base frame and compliance terms zero.
+    """
+
+    def __init__(self, robot: RobotDescription, spec: ModelSpec) -> None:
+        self.robot = robot
+        self.spec = spec
+        n = robot.n_joints
+        self.n_joints = n
+        for j in spec.hayati:
+            if not 2 <= j <= n - 1:
+                raise ModelError(
+                    f"Hayati rows are for joints 2..{n - 1}; got joint {j}."
+                )
+        for j in spec.ntm_joints:
+            if not 1 <= j <= n:
+                raise ModelError(
+                    f"NTM joint {j} does not exist; the robot has joints 1..{n}."
+                )
+            if robot.joints[j - 1].kind != "revolute":
+                raise ModelError(
+                    f"NTM joint {j} is prismatic; a Fourier series needs a revolute joint."
+                )
+        for k in spec.link_bodies:
+            if not 1 <= k <= n:
+                raise ModelError(f"link body {k} does not exist; bodies are 1..{n}.")
+        if spec.link in ("paper", "rfcm") and robot.self_weight is None:
+            raise ModelError(
+                f"{robot.name} has no self_weight section; link self-weight terms need one."
+            )
+        chain = robot.dh_chain()
+        self._prismatic = chain.prismatic.copy()
+        specs: list[ParamSpec] = []
+        nominal: list[float] = []
+
+        # ---------------------------------------------------------- frames: user <- base
+        # Joint 1's theta offset and d are absorbed by the base frame (Eq. 10).
+        off1, d1 = chain.theta_offset[0], chain.d[0]
+        T_base_b0 = chain.T_base_0 @ make_transform(rot_z(off1), [0.0, 0.0, d1])
+        self.T_robotbase_modelbase = T_base_b0
+        base0 = transform_to_euler(T_base_b0)
+        for set_label in spec.sets:
+            grp = _label("base", set_label)
+            for key, v in zip(_FRAME, base0):
+                specs.append(
+                    ParamSpec(
+                        f"{grp}.{key}", "length" if key in "xyz" else "angle", "base"
+                    )
+                )
+                nominal.append(float(v))
+
+        # ---------------------------------------------------------- joint rows
+        row_const = np.zeros((n, 5))
+        row_idx = -np.ones((n, 5), dtype=np.intp)
+        d_shift = np.zeros(n + 1)  # d moved out of Hayati rows into the next row
+        for i in range(n):
+            j = i + 1
+            off, d, a, al = (
+                chain.theta_offset[i],
+                chain.d[i],
+                chain.a[i],
+                chain.alpha[i],
+            )
+            d = d + d_shift[i]
+            if j == 1:
+                fields = {"a": a, "alpha": al}
+            elif j == n:
+                fields = {}
+            elif j in spec.hayati:
+                if abs(np.sin(al)) > 1e-6:
+                    raise ModelError(
+                        f"joint {j}: a Hayati row needs axis {j} parallel to axis {j + 1} "
+                        f"(alpha = 0 or 180 deg); nominal alpha is {np.degrees(al):.3f} deg."
+                    )
+                d_shift[i + 1] += d * np.cos(
+                    al
+                )  # Tz(d) slides to the next parallel axis
+                fields = {"theta_offset": off, "a": a, "alpha": al, "beta": 0.0}
+            else:
+                fields = {"theta_offset": off, "d": d, "a": a, "alpha": al}
+            for c, key in enumerate(_ROW_NAMES):
+                if key in fields:
+                    row_idx[i, c] = len(specs)
+                    specs.append(ParamSpec(f"joint{j}.{key}", _ROW_KINDS[c], "joint"))
+                    nominal.append(float(fields[key]))
+        self._row_const = row_const
+        self._row_idx = row_idx
+        self._row_mask = row_idx >= 0
+        self._has_beta = bool(np.any(row_idx[:, _BETA] >= 0))
+
+        # ---------------------------------------------------------- frames: flange <- cam
+        # The last row keeps only its rotation; its offset, d, a, alpha, the physical
+        # flange and the nominal tool become the starting value of T_flange_cam (Eq. 9).
+        T_fc = (
+            make_transform(
+                rot_z(chain.theta_offset[-1]), [0.0, 0.0, chain.d[-1] + d_shift[n - 1]]
+            )
+            @ make_transform(rot_x(chain.alpha[-1]), [chain.a[-1], 0.0, 0.0])
+            @ chain.T_n_flange
+            @ robot.T_flange_tool
+        )
+        cam0 = transform_to_euler(T_fc)
+        self._cam_keys = _FRAME if spec.cam_rotation else _FRAME[:3]
+        for marker in spec.markers:
+            grp = _label("cam", marker)
+            for key in self._cam_keys:
+                v = cam0[_FRAME.index(key)]
+                specs.append(
+                    ParamSpec(
+                        f"{grp}.{key}", "length" if key in "xyz" else "angle", "cam"
+                    )
+                )
+                nominal.append(float(v))
+        # Reference rotations (fixed): identity for identified rotations; the nominal
+        # rotation when the cam rotation is not identified.
+        self.R_ref_base = np.broadcast_to(np.eye(3), (len(spec.sets), 3, 3)).copy()
+        R_cam_fixed = T_fc[:3, :3] if not spec.cam_rotation else np.eye(3)
+        self.R_ref_cam = np.broadcast_to(R_cam_fixed, (len(spec.markers), 3, 3)).copy()
+
+        # ---------------------------------------------------------- compliance
+        self._ntm_cols = (
+            ntm_names(spec.ntm_order, spec.ntm_offset) if spec.ntm_joints else []
+        )
+        self._ntm_start = len(specs)
+        for j in spec.ntm_joints:
+            for coef in self._ntm_cols:
+                specs.append(ParamSpec(f"joint{j}.{coef}", "ntm", "ntm"))
+                nominal.append(0.0)
+        self._load_start = len(specs)
+        if spec.load:
+            for j in range(1, n + 1):
+                specs.append(ParamSpec(f"joint{j}.lambda", "compliance", "load"))
+                nominal.append(0.0)
+        self._link_start = len(specs)
+        self._link_names: list[str] = []
+        if spec.link == "paper":
+            self._link_names = ["link.s1", "link.s2"]
+        elif spec.link == "rfcm":
+            self._link_names = ["link.s1", "link.s2_shoulder", "link.s2_elbow"]
+        elif spec.link == "general":
+            self._link_names = general_link_names(spec.link_bodies)
+        for nm in self._link_names:
+            specs.append(
+                ParamSpec(nm, "ratio" if nm.endswith(".m") else "moment", "link")
+            )
+            nominal.append(0.0)
+        self.layout = ParameterLayout(specs)
+        self.nominal = np.array(nominal)
+
+        # Gravity direction in the model base frame (the robot base rotated by joint 1's
+        # absorbed offset).
+        g_unit = robot.gravity / np.linalg.norm(robot.gravity)
+        self.g_hat = T_base_b0[:3, :3].T @ g_unit
+        sw = robot.self_weight
+        self._sw = sw
+        if sw is not None and spec.link in ("paper", "rfcm"):
+            a_sh = chain.a[sw.shoulder - 1]
+            self._x_sign = 1.0 if a_sh >= 0 else -1.0
+
+        # Index tables.
+        self._base_idx = np.array(
+            [
+                [self.layout.index(f"{_label('base', s)}.{k}") for k in _FRAME]
+                for s in spec.sets
+            ]
+        )
+        self._cam_idx = np.array(
+            [
+                [self.layout.index(f"{_label('cam', m)}.{k}") for k in self._cam_keys]
+                for m in spec.markers
+            ]
+        )
+        self._lam_idx = (
+            np.arange(self._load_start, self._load_start + n)
+            if spec.load
+            else np.zeros(0, np.intp)
+        )
+
+    # ------------------------------------------------------------------ helpers
+    @property
+    def size(self) -> int:
+        return self.layout.size
+
+    def _rows(self, params: Float) -> Float:
+        rows = self._row_const.copy()
+        rows[self._row_mask] = params[self._row_idx[self._row_mask]]
+        return rows
+
+    def base_frames(self, params: Float) -> tuple[Float, Float]:
+        """User frames ``(R_user_base (S, 3, 3), t_user_base (S, 3))`` of every set."""
+        v = params[self._base_idx]  # (S, 6)
+        R = self.R_ref_base @ euler_zyx_to_matrix(v[:, 3:])
+        return R, v[:, :3].copy()
+
+    def cam_frames(self, params: Float) -> tuple[Float, Float]:
+        """Cam frames ``(R_flange_cam (M, 3, 3), t_flange_cam (M, 3))`` of every marker."""
+        v = params[self._cam_idx]
+        if self.spec.cam_rotation:
+            R = self.R_ref_cam @ euler_zyx_to_matrix(v[:, 3:])
+        else:
+            R = self.R_ref_cam.copy()
+        return R, v[:, :3].copy()
+
+    def frame_euler(self, params: Float, which: str) -> Float:
+        """Total Euler values ``[x, y, z, r, w, p]`` (K, 6) of 'base' or 'cam' frames.
+
+        Differs from the raw parameters only where a reference rotation is set.
+        """
+        R, t = self.base_frames(params) if which == "base" else self.cam_frames(params)
+        return np.concatenate([t, matrix_to_euler_zyx(R)], axis=1)
+
+    def _ntm(self, params: Float, q_ctrl: Float) -> tuple[Float, list[Float]]:
+        """NTM joint-angle errors (N, n) and the basis per NTM joint."""
+        N = q_ctrl.shape[0]
+        dth = np.zeros((N, self.n_joints))
+        bases = []
+        nb = len(self._ntm_cols)
+        for k, j in enumerate(self.spec.ntm_joints):
+            B = ntm_basis(q_ctrl[:, j - 1], self.spec.ntm_order, self.spec.ntm_offset)
+            coef = params[self._ntm_start + k * nb : self._ntm_start + (k + 1) * nb]
+            dth[:, j - 1] += B @ coef  # Eq. (17)
+            bases.append(B)
+        return dth, bases
+
+    def _link_basis(self, frames: ChainFrames) -> Float:
+        """Link-weight torque per unit of each link parameter, (N, n, n_link)."""
+        if self.spec.link == "general":
+            return general_link_torque_basis(
+                frames, self.g_hat, self.spec.link_bodies, self._prismatic
+            )
+        sw = self._sw
+        if sw is None:  # pragma: no cover - rejected in __init__
+            raise ModelError("no self_weight section")
+        return link_torque_basis(
+            frames,
+            self.g_hat,
+            sw.shoulder,
+            sw.elbow,
+            sw.wrist_frame,
+            self._x_sign,
+            self.spec.link,
+        )
+
+    def _frames(self, theta: Float, rows: Float) -> ChainFrames:
+        pr = self._prismatic
+        th = rows[:, _OFF] + np.where(pr, 0.0, theta)
+        d = rows[:, _D] + np.where(pr, theta, 0.0)
+        beta = rows[:, _BETA] if self._has_beta else None
+        return chain_frames(th, d, rows[:, _A], rows[:, _ALPHA], beta)
+
+    # ------------------------------------------------------------------ evaluation
+    def evaluate(
+        self,
+        params: ArrayLike,
+        inputs: ModelInputs,
+        *,
+        orientation: bool = False,
+        jacobian: bool = False,
+    ) -> ModelOutput:
+        """Predict the measured point (and cam orientation) for every pose.
+
+        Parameters
+        ----------
+        params : array_like, shape (P,)
+            Flat parameter vector of :attr:`layout` (SI).
+        inputs : ModelInputs
+        orientation : bool
+            Also return ``R_user_cam`` (and its Jacobian).
+        jacobian : bool
+            Also return analytic Jacobians with respect to every parameter. The dependence
+            of the compliance torques on the kinematic parameters is neglected (a relative
+            effect of order lambda* ~ 1e-4; see ``docs/theory.md``).
+
+        Returns
+        -------
+        ModelOutput
+        """
+        p = np.asarray(params, dtype=np.float64)
+        if p.shape != (self.size,):
+            raise ModelError(f"params must have shape ({self.size},); got {p.shape}.")
+        q = inputs.q_ctrl
+        if q.ndim != 2 or q.shape[1] != self.n_joints:
+            raise DataError(
+                f"q_ctrl must have shape (N, {self.n_joints}) for {self.robot.name}; got {q.shape}."
+            )
+        spec = self.spec
+        N, n = q.shape
+        rows = self._rows(p)
+        theta = q @ self.robot.coupling.T
+        dth_c, ntm_bases = self._ntm(p, q) if spec.ntm_joints else (None, [])
+        th_a = theta if dth_c is None else theta + dth_c
+
+        R_c, t_c = self.cam_frames(p)
+        tau = None
+        link_T = None
+        if spec.load:
+            fr0 = self._frames(th_a, rows)
+            # Load point: origin of the first marker's cam frame (Eq. 19 with Delta = 0).
+            p_load = fr0.o[:, n] + fr0.R[:, n] @ t_c[0]
+            tau = (
+                load_torques(fr0, p_load, self.g_hat, self._prismatic)
+                * inputs.load_scale[:, None]
+            )
+            if self._link_names:
+                link_T = self._link_basis(fr0)
+                s = p[self._link_start : self._link_start + len(self._link_names)]
+                tau = tau + link_T @ s  # Eq. (25)
+            lam = p[self._lam_idx]
+            th = th_a + lam * tau  # Eq. (22), (24), (26)
+        else:
+            th = th_a
+        fr = self._frames(th, rows)
+
+        # Point in the model base frame.
+        single_m = len(spec.markers) == 1
+        mi = inputs.marker_index
+        Rc = R_c[0] if single_m else R_c[mi]
+        tc = t_c[0] if single_m else t_c[mi]
+        R_fl = fr.R[:, n]
+        o_fl = fr.o[:, n]
+        p_fl = tc + _mv(Rc, inputs.p_cam)  # point in the flange frame
+        p_b = o_fl + _mv(R_fl, p_fl)
+
+        R_b, t_b = self.base_frames(p)
+        single_s = len(spec.sets) == 1
+        si = inputs.set_index
+        Rb = R_b[0] if single_s else R_b[si]
+        tb = t_b[0] if single_s else t_b[si]
+        p_u = _mv(Rb, p_b) + tb
+
+        R_uc = None
+        if orientation:
+            R_uc = Rb @ R_fl @ Rc
+
+        if not jacobian:
+            return ModelOutput(p_u, R_uc, None, None, th)
+
+        P = self.size
+        Jb = np.zeros((N, 3, P))  # columns expressed in the model base frame
+        Wb = np.zeros((N, 3, P)) if orientation else None
+        pr = self._prismatic
+        z_prev = fr.R[:, :-1, :, 2]  # (N, n, 3)
+        rel_prev = p_b[:, None, :] - fr.o[:, :-1, :]
+        rot_cols = cross(z_prev, rel_prev)  # rotation about z_{i-1}
+        J_theta = np.where(
+            pr[None, :, None], z_prev, rot_cols
+        )  # (N, n, 3) d p / d theta_i
+        rel_i = p_b[:, None, :] - fr.o[:, 1:, :]
+        for i in range(n):
+            idx = self._row_idx[i]
+            if idx[_OFF] >= 0:
+                Jb[:, :, idx[_OFF]] = rot_cols[:, i]
+                if Wb is not None:
+                    Wb[:, :, idx[_OFF]] = z_prev[:, i]
+            if idx[_D] >= 0:
+                Jb[:, :, idx[_D]] = z_prev[:, i]
+            ax = fr.a_axis[:, i]
+            if idx[_A] >= 0:
+                Jb[:, :, idx[_A]] = ax
+            if idx[_ALPHA] >= 0:
+                Jb[:, :, idx[_ALPHA]] = cross(ax, rel_i[:, i])
+                if Wb is not None:
+                    Wb[:, :, idx[_ALPHA]] = ax
+            if idx[_BETA] >= 0:
+                y_i = fr.R[:, i + 1, :, 1]
+                Jb[:, :, idx[_BETA]] = cross(y_i, rel_i[:, i])
+                if Wb is not None:
+                    Wb[:, :, idx[_BETA]] = y_i
+
+        # Cam frame parameters (Eq. 9), per marker.
+        rel_cam = p_b - (o_fl + _mv(R_fl, tc))
+        cam_v = p[self._cam_idx]
+        for m in range(len(spec.markers)):
+            mask = None if single_m else (mi == m)
+            cols = self._cam_idx[m]
+            for k in range(3):
+                col = R_fl[:, :, k]
+                Jb[:, :, cols[k]] = col if mask is None else col * mask[:, None]
+            if spec.cam_rotation:
+                axes = _euler_axes(
+                    self.R_ref_cam[m], cam_v[m, 3:]
+                )  # (3, 3) columns r, w, p
+                ax_b = np.einsum("nij,jk->nik", R_fl, axes)  # (N, 3, 3)
+                for k in range(3):
+                    col = cross(ax_b[:, :, k], rel_cam)
+                    wcol = ax_b[:, :, k]
+                    if mask is not None:
+                        col = col * mask[:, None]
+                        wcol = wcol * mask[:, None]
+                    Jb[:, :, cols[3 + k]] = col
+                    if Wb is not None:
+                        Wb[:, :, cols[3 + k]] = wcol
+
+        # Parameters acting through the joint angles.
+        W_theta = np.where(pr[None, :, None], 0.0, z_prev)
+        if spec.ntm_joints:
+            nb = len(self._ntm_cols)
+            for k, j in enumerate(spec.ntm_joints):
+                sl = slice(self._ntm_start + k * nb, self._ntm_start + (k + 1) * nb)
+                B = ntm_bases[k]
+                Jb[:, :, sl] = J_theta[:, j - 1, :, None] * B[:, None, :]
+                if Wb is not None:
+                    Wb[:, :, sl] = W_theta[:, j - 1, :, None] * B[:, None, :]
+        if spec.load:
+            assert tau is not None
+            Jb[:, :, self._lam_idx] = np.swapaxes(J_theta, 1, 2) * tau[:, None, :]
+            if Wb is not None:
+                Wb[:, :, self._lam_idx] = np.swapaxes(W_theta, 1, 2) * tau[:, None, :]
+            if link_T is not None:
+                lam = p[self._lam_idx]
+                dth_ds = lam[None, :, None] * link_T  # (N, n, ns)
+                sl = slice(self._link_start, self._link_start + len(self._link_names))
+                Jb[:, :, sl] = np.einsum("nji,njs->nis", J_theta, dth_ds)
+                if Wb is not None:
+                    Wb[:, :, sl] = np.einsum("nji,njs->nis", W_theta, dth_ds)
+
+        # Rotate everything into the user frame.
+        if single_s:
+            J = np.einsum("ij,njp->nip", Rb, Jb)
+            W = None if Wb is None else np.einsum("ij,njp->nip", Rb, Wb)
+        else:
+            J = np.einsum("nij,njp->nip", Rb, Jb)
+            W = None if Wb is None else np.einsum("nij,njp->nip", Rb, Wb)
+
+        # User frame parameters (Eq. 8), per set.
+        base_v = p[self._base_idx]
+        for k_set in range(len(spec.sets)):
+            mask = None if single_s else (si == k_set)
+            cols = self._base_idx[k_set]
+            rel = p_u - t_b[k_set]
+            for k in range(3):
+                e = np.zeros(3)
+                e[k] = 1.0
+                J[:, :, cols[k]] = e if mask is None else e * mask[:, None]
+            axes = _euler_axes(self.R_ref_base[k_set], base_v[k_set, 3:])
+            for k in range(3):
+                col = cross(axes[:, k], rel)
+                if mask is not None:
+                    col = col * mask[:, None]
+                J[:, :, cols[3 + k]] = col
+                if W is not None:
+                    W[:, :, cols[3 + k]] = (
+                        axes[:, k] if mask is None else axes[:, k] * mask[:, None]
+                    )
+        return ModelOutput(p_u, R_uc, J, W, th)
+
+    def joint_jacobian(self, params: ArrayLike, inputs: ModelInputs) -> Float:
+        """Geometric Jacobian of the cam origin w.r.t. the kinematic joint angles.
+
+        Returns
+        -------
+        ndarray, shape (N, 6, n)
+            Rows ``[v; omega]`` (translation first) in the user frame: ``d p_user/d theta``
+            and the angular velocity per unit joint rate, at the model's deflected angles.
+            Multiply by ``robot.coupling`` for the derivative w.r.t. ``q_ctrl``.
+        """
+        p = np.asarray(params, dtype=np.float64)
+        out = self.evaluate(p, inputs)
+        fr = self._frames(out.theta, self._rows(p))
+        n = self.n_joints
+        _, t_c = self.cam_frames(p)
+        tc = t_c[inputs.marker_index] if len(self.spec.markers) > 1 else t_c[0]
+        p_b = fr.o[:, n] + _mv(fr.R[:, n], tc)
+        z = fr.R[:, :-1, :, 2]
+        lin = np.where(
+            self._prismatic[None, :, None], z, cross(z, p_b[:, None, :] - fr.o[:, :-1])
+        )
+        ang = np.where(self._prismatic[None, :, None], 0.0, z)
+        R_b, _ = self.base_frames(p)
+        Rb = R_b[inputs.set_index] if len(self.spec.sets) > 1 else R_b[0]
+        J = np.concatenate([lin, ang], axis=2)  # (N, n, 6)
+        J = np.swapaxes(J, 1, 2)  # (N, 6, n)
+        return np.concatenate([Rb @ J[:, :3], Rb @ J[:, 3:]], axis=1)
+
+    def with_spec(self, spec: ModelSpec) -> CalibrationModel:
+        """A model of the same robot with other terms (reference rotations are kept)."""
+        m = CalibrationModel(self.robot, spec)
+        if spec.sets == self.spec.sets:
+            m.R_ref_base = self.R_ref_base.copy()
+        if (
+            spec.markers == self.spec.markers
+            and spec.cam_rotation == self.spec.cam_rotation
+        ):
+            m.R_ref_cam = self.R_ref_cam.copy()
+        return m
+
+
+def _mv(R: Float, v: Float) -> Float:
+    """``R @ v`` for R (3, 3) or (N, 3, 3) and v (3,) or (N, 3); result (N, 3)."""
+    if R.ndim == 2:
+        return v @ R.T
+    return np.einsum("nij,nj->ni", R, np.broadcast_to(v, (R.shape[0], 3)))
+
+
+def _euler_axes(R_ref: Float, rwp: Float) -> Float:
+    """Rotation axes (columns r, w, p) of ``R_ref Rz(r) Ry(w) Rx(p)`` in the parent frame."""
+    r, w = rwp[0], rwp[1]
+    Rz = euler_zyx_to_matrix(np.array([r, 0.0, 0.0]))
+    Rzy = euler_zyx_to_matrix(np.array([r, w, 0.0]))
+    return np.stack([R_ref[:, 2], (R_ref @ Rz)[:, 1], (R_ref @ Rzy)[:, 0]], axis=1)

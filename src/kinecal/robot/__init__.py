@@ -1,0 +1,24 @@
+"""Robot descriptions: DH/MDH joint tables, coupling, limits, frames, built-in robots."""
+
+from kinecal.robot._builtin import builtin_robot_names, load_robot
+from kinecal.robot._description import (
+    DHChain,
+    JointSpec,
+    RobotDescription,
+    SelfWeightSpec,
+    dh_transforms,
+)
+from kinecal.robot._schema import dump_robot, load_robot_file, robot_from_dict
+
+__all__ = [
+    "DHChain",
+    "JointSpec",
+    "RobotDescription",
+    "SelfWeightSpec",
+    "builtin_robot_names",
+    "dh_transforms",
+    "dump_robot",
+    "load_robot",
+    "load_robot_file",
+    "robot_from_dict",
+]

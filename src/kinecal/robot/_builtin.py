@@ -1,0 +1,49 @@
+"""Built-in robot descriptions shipped with the package (``robot/data/*.yaml``)."""
+
+from __future__ import annotations
+
+from functools import cache
+from importlib import resources
+from pathlib import Path
+
+import yaml
+
+from kinecal.errors import ConfigError
+from kinecal.robot._description import RobotDescription
+from kinecal.robot._schema import load_robot_file, robot_from_dict
+
+__all__ = ["builtin_robot_names", "load_robot"]
+
+
+def builtin_robot_names() -> list[str]:
+    """Names of the robots shipped with kinecal, sorted."""
+    data = resources.files("kinecal.robot") / "data"
+    return sorted(p.name[:-5] for p in data.iterdir() if p.name.endswith(".yaml"))
+
+
+@cache
+def _load_builtin(name: str) -> RobotDescription:
+    res = resources.files("kinecal.robot") / "data" / f"{name}.yaml"
+    return robot_from_dict(yaml.safe_load(res.read_text(encoding="utf-8")), source=name)
+
+
+def load_robot(name_or_path: str | Path) -> RobotDescription:
+    """A built-in robot by name (e.g. ``'fanuc-lrmate200id'``) or a robot YAML file.
+
+    Raises
+    ------
+    ConfigError
+        Unknown name and no such file, or an invalid file.
+    """
+    s = str(name_or_path)
+    if s in builtin_robot_names():
+        return _load_builtin(s)
+    p = Path(s)
+    if p.suffix.lower() in (".yaml", ".yml") or p.exists():
+        if not p.exists():
+            raise ConfigError(f"{p}: robot file not found.")
+        return load_robot_file(p)
+    raise ConfigError(
+        f"unknown robot {s!r}: not a built-in ({', '.join(builtin_robot_names())}) "
+        "and not a YAML file."
+    )

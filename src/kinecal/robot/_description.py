@@ -1,0 +1,251 @@
+"""Robot description: joint table (standard DH or Craig MDH), coupling, limits, frames.
+
+A :class:`RobotDescription` holds everything in SI (m, rad). It can always be turned into a
+standard-DH chain (:meth:`RobotDescription.dh_chain`), which the models use:
+
+.. math:: T_{base,flange}(\\theta) = T_{base,0} \\prod_i R_z(\\theta_i + o_i) T_z(d_i) T_x(a_i)
+          R_x(\\alpha_i) \\; T_{n,flange}
+
+A Craig (modified) DH row ``Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i)`` is re-grouped
+exactly into standard rows: the first ``Rx Tx`` becomes the fixed prefix ``T_base_0`` and
+row i takes ``a``, ``alpha`` of MDH row i + 1.
+
+Controller angles ``q_ctrl`` (what the data holds) map to kinematic angles through the
+coupling matrix: ``theta = C @ q_ctrl`` (FANUC: ``theta3 = J3 + J2``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from kinecal.errors import ConfigError
+from kinecal.geometry import make_transform, rot_x
+from kinecal.typing import ArrayLike, Float, Pose
+
+__all__ = [
+    "DHChain",
+    "JointSpec",
+    "RobotDescription",
+    "SelfWeightSpec",
+    "dh_transforms",
+]
+
+NDArrayBool = np.ndarray  # (n,) bool
+
+
+@dataclass(frozen=True)
+class JointSpec:
+    """One joint row, SI units.
+
+    For ``convention='dh'`` the row is ``Rz(q + theta_offset) Tz(d) Tx(a) Rx(alpha)``;
+    for ``'mdh'`` (Craig) it is ``Rx(alpha) Tx(a) Rz(q + theta_offset) Tz(d)``, i.e. ``a``
+    and ``alpha`` belong to the previous link. A prismatic joint adds ``q`` to ``d``.
+    """
+
+    name: str
+    theta_offset: float
+    d: float
+    a: float
+    alpha: float
+    kind: str = "revolute"  # or "prismatic"
+    limits: tuple[float, float] = (-np.inf, np.inf)
+
+
+@dataclass(frozen=True)
+class SelfWeightSpec:
+    """Which joints carry the paper's lumped link self-weight model (Eq. 25-26).
+
+    ``shoulder`` and ``elbow`` are 1-based joint numbers of the two parallel pitch axes
+    (LR Mate: J2 and J3); the forearm moment points from the elbow axis towards the origin
+    of standard-DH frame ``wrist_frame`` (the wrist centre of a spherical wrist).
+    """
+
+    shoulder: int = 2
+    elbow: int = 3
+    wrist_frame: int = 4
+
+
+@dataclass(frozen=True)
+class DHChain:
+    """A robot as a standard-DH chain between two fixed frames (all SI).
+
+    Attributes
+    ----------
+    T_base_0 : (4, 4) fixed transform from the robot base to the first DH frame.
+    theta_offset, d, a, alpha : (n,) standard DH rows.
+    prismatic : (n,) bool, joint variable adds to ``d`` instead of ``theta``.
+    T_n_flange : (4, 4) physical flange in the last DH frame.
+    """
+
+    T_base_0: Pose
+    theta_offset: Float
+    d: Float
+    a: Float
+    alpha: Float
+    prismatic: NDArrayBool
+    T_n_flange: Pose
+
+    @property
+    def n_joints(self) -> int:
+        return int(self.theta_offset.shape[0])
+
+
+def dh_transforms(
+    theta: ArrayLike, d: ArrayLike, a: ArrayLike, alpha: ArrayLike
+) -> Pose:
+    """Standard DH row transforms ``Rz(theta) Tz(d) Tx(a) Rx(alpha)``, broadcast (..., 4, 4)."""
+    theta, d, a, alpha = np.broadcast_arrays(
+        *(np.asarray(x, dtype=np.float64) for x in (theta, d, a, alpha))
+    )
+    ct, st = np.cos(theta), np.sin(theta)
+    ca, sa = np.cos(alpha), np.sin(alpha)
+    T = np.zeros((*theta.shape, 4, 4))
+    T[..., 0, 0] = ct
+    T[..., 0, 1] = -st * ca
+    T[..., 0, 2] = st * sa
+    T[..., 0, 3] = a * ct
+    T[..., 1, 0] = st
+    T[..., 1, 1] = ct * ca
+    T[..., 1, 2] = -ct * sa
+    T[..., 1, 3] = a * st
+    T[..., 2, 1] = sa
+    T[..., 2, 2] = ca
+    T[..., 2, 3] = d
+    T[..., 3, 3] = 1.0
+    return T
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """A serial robot, SI units throughout.
+
+    Attributes
+    ----------
+    name : str
+    convention : {'dh', 'mdh'}
+        Convention of ``joints`` (how the rows were given).
+    joints : tuple of JointSpec
+    coupling : (n, n) ndarray
+        ``theta = coupling @ q_ctrl``; identity when the controller reports DH angles.
+    T_flange_tool : (4, 4) ndarray
+        Nominal tool (reflector, sensor) in the physical flange frame.
+    T_n_flange : (4, 4) ndarray
+        Physical flange in the last joint frame of ``convention`` (e.g. a FANUC faceplate).
+    gravity : (3,) ndarray
+        Gravity acceleration in the base frame [m/s^2].
+    payload_kg : float or None
+        Mass of the payload at the tool, if known (converts compliance to rad/(N·m)).
+    self_weight : SelfWeightSpec or None
+        Joints of the paper's link self-weight model; ``None`` if it does not apply.
+    source : str
+        Where the data came from (file path or built-in name).
+    """
+
+    name: str
+    convention: str
+    joints: tuple[JointSpec, ...]
+    coupling: Float
+    T_flange_tool: Pose = field(default_factory=lambda: np.eye(4))
+    T_n_flange: Pose = field(default_factory=lambda: np.eye(4))
+    gravity: Float = field(default_factory=lambda: np.array([0.0, 0.0, -9.80665]))
+    payload_kg: float | None = None
+    self_weight: SelfWeightSpec | None = None
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        n = len(self.joints)
+        if n < 2:
+            raise ConfigError(f"{self.name}: a robot needs at least 2 joints; got {n}.")
+        if self.convention not in ("dh", "mdh"):
+            raise ConfigError(
+                f"{self.name}: convention must be 'dh' or 'mdh'; got {self.convention!r}."
+            )
+        if self.coupling.shape != (n, n):
+            raise ConfigError(
+                f"{self.name}: coupling must be {n}x{n}; got {self.coupling.shape}."
+            )
+        if abs(np.linalg.det(self.coupling)) < 1e-9:
+            raise ConfigError(f"{self.name}: the joint coupling matrix is singular.")
+        g = np.linalg.norm(self.gravity)
+        if not np.isfinite(g) or g <= 0:
+            raise ConfigError(
+                f"{self.name}: gravity must be a non-zero vector; got {self.gravity}."
+            )
+
+    # ------------------------------------------------------------------ joint spaces
+    @property
+    def n_joints(self) -> int:
+        return len(self.joints)
+
+    @property
+    def joint_names(self) -> list[str]:
+        return [j.name for j in self.joints]
+
+    @property
+    def prismatic(self) -> NDArrayBool:
+        return np.array([j.kind == "prismatic" for j in self.joints])
+
+    @property
+    def limits(self) -> Float:
+        """Joint limits in controller space, shape (n, 2) [rad or m]."""
+        return np.array([j.limits for j in self.joints], dtype=np.float64)
+
+    def theta_from_ctrl(self, q_ctrl: ArrayLike) -> Float:
+        """Kinematic joint values ``theta = C q_ctrl`` for (..., n) controller values."""
+        q = np.asarray(q_ctrl, dtype=np.float64)
+        return q @ self.coupling.T
+
+    def ctrl_from_theta(self, theta: ArrayLike) -> Float:
+        """Controller values ``q_ctrl = C^-1 theta`` for (..., n) kinematic values."""
+        th = np.asarray(theta, dtype=np.float64)
+        return th @ np.linalg.inv(self.coupling).T
+
+    # ------------------------------------------------------------------ DH chain
+    def dh_chain(self) -> DHChain:
+        """The robot as a standard-DH chain (MDH rows are regrouped exactly)."""
+        js = self.joints
+        off = np.array([j.theta_offset for j in js])
+        d = np.array([j.d for j in js])
+        a = np.array([j.a for j in js])
+        al = np.array([j.alpha for j in js])
+        pris = self.prismatic
+        if self.convention == "dh":
+            return DHChain(np.eye(4), off, d, a, al, pris, self.T_n_flange.copy())
+        # Craig: prod_i Rx(al_i) Tx(a_i) Rz(th_i) Tz(d_i)
+        #      = [Rx(al_1) Tx(a_1)] prod_i [Rz(th_i) Tz(d_i) Tx(a_{i+1}) Rx(al_{i+1})] ...
+        #        with Rx Tx = Tx Rx (same axis), and the last row has a = alpha = 0.
+        T_base_0 = make_transform(rot_x(al[0]), [0.0, 0.0, 0.0]) @ make_transform(
+            np.eye(3), [a[0], 0.0, 0.0]
+        )
+        a_dh = np.append(a[1:], 0.0)
+        al_dh = np.append(al[1:], 0.0)
+        return DHChain(T_base_0, off, d, a_dh, al_dh, pris, self.T_n_flange.copy())
+
+    def fk_flange(self, q_ctrl: ArrayLike) -> Pose:
+        """Nominal physical flange pose in the base frame, ``T_base_flange`` (..., 4, 4).
+
+        Parameters
+        ----------
+        q_ctrl : array_like, shape (..., n)
+            Controller joint values [rad, m for prismatic].
+        """
+        q = np.asarray(q_ctrl, dtype=np.float64)
+        if q.shape[-1:] != (self.n_joints,):
+            raise ValueError(
+                f"q_ctrl must have shape (..., {self.n_joints}) for {self.name}; got {q.shape}."
+            )
+        ch = self.dh_chain()
+        theta = self.theta_from_ctrl(q)
+        rot = np.where(ch.prismatic, ch.theta_offset, ch.theta_offset + theta)
+        dd = np.where(ch.prismatic, ch.d + theta, ch.d)
+        A = dh_transforms(rot, dd, ch.a, ch.alpha)  # (..., n, 4, 4)
+        T = np.broadcast_to(ch.T_base_0, (*q.shape[:-1], 4, 4)).copy()
+        for i in range(self.n_joints):  # loop over joints, not samples
+            T = T @ A[..., i, :, :]
+        return T @ ch.T_n_flange
+
+    def fk_tool(self, q_ctrl: ArrayLike) -> Pose:
+        """Nominal tool pose ``T_base_tool = T_base_flange @ T_flange_tool`` (..., 4, 4)."""
+        return self.fk_flange(q_ctrl) @ self.T_flange_tool

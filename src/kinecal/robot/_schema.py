@@ -1,0 +1,331 @@
+"""Robot YAML files: strict validation, loading to SI, dumping back to mm/deg.
+
+Schema (DESIGN §11, with the optional extensions marked *)::
+
+    name: my-robot
+    description: free text                         *
+    convention: dh | mdh
+    units: {length: mm | m, angle: deg | rad}
+    joints:
+      - {name: J1*, theta_offset, d, a, alpha, limits: [lo, hi], type: revolute | prismatic*}
+    coupling: [{joint: 3, from: 2, factor: 1}]      # theta = C q_ctrl
+    flange: {x, y, z, r, w, p}                     * physical flange in the last joint frame
+    tool: {x, y, z, r, w, p}                        nominal tool in the flange frame
+    gravity: [gx, gy, gz]                           base frame; only the direction is used
+    payload_kg: 1.5                                * payload at the tool, if known
+    self_weight: {shoulder: 2, elbow: 3, wrist_frame: 4} | null   * (Eq. 25-26)
+
+Frames use Eq. 8's ``Trans(x, y, z) Rz(r) Ry(w) Rx(p)``. Unknown keys are errors.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from kinecal.errors import ConfigError
+from kinecal.geometry import euler_transform, transform_to_euler
+from kinecal.robot._description import JointSpec, RobotDescription, SelfWeightSpec
+from kinecal.units import ANGLE_UNITS, LENGTH_UNITS
+
+__all__ = ["dump_robot", "load_robot_file", "robot_from_dict"]
+
+_TOP_KEYS = {
+    "name",
+    "description",
+    "convention",
+    "units",
+    "joints",
+    "coupling",
+    "flange",
+    "tool",
+    "gravity",
+    "payload_kg",
+    "self_weight",
+}
+_REQUIRED_TOP = ("name", "convention", "units", "joints")
+_JOINT_KEYS = {"name", "theta_offset", "d", "a", "alpha", "limits", "type"}
+_JOINT_REQUIRED = ("theta_offset", "d", "a", "alpha")
+_FRAME_KEYS = ("x", "y", "z", "r", "w", "p")
+_COUPLING_KEYS = {"joint", "from", "factor"}
+_SELF_WEIGHT_KEYS = {"shoulder", "elbow", "wrist_frame"}
+
+
+def _err(where: str, msg: str) -> ConfigError:
+    return ConfigError(f"{where}: {msg}")
+
+
+def _number(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise _err(where, f"expected a number; got {value!r}.")
+    x = float(value)
+    if not np.isfinite(x):
+        raise _err(where, f"expected a finite number; got {value!r}.")
+    return x
+
+
+def _check_keys(
+    d: Any, allowed: set[str], where: str, required: tuple[str, ...] = ()
+) -> None:
+    if not isinstance(d, Mapping):
+        raise _err(where, f"expected a mapping; got {type(d).__name__}.")
+    for k in d:
+        if k not in allowed:
+            raise _err(
+                where, f"unknown key {k!r} (allowed: {', '.join(sorted(allowed))})."
+            )
+    for k in required:
+        if k not in d:
+            raise _err(where, f"missing key {k!r}.")
+
+
+def _frame(d: Any, where: str, lu: float, au: float) -> np.ndarray:
+    _check_keys(d, set(_FRAME_KEYS), where)
+    v = np.array([_number(d.get(k, 0.0), f"{where}.{k}") for k in _FRAME_KEYS])
+    v[:3] *= lu
+    v[3:] *= au
+    return euler_transform(v)
+
+
+def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
+    """Validate a parsed robot YAML document and convert it to a :class:`RobotDescription`.
+
+    Raises
+    ------
+    ConfigError
+        With a one-line message naming ``source`` and the offending key.
+    """
+    _check_keys(data, _TOP_KEYS, source, _REQUIRED_TOP)
+    name = data["name"]
+    if not isinstance(name, str) or not name:
+        raise _err(f"{source}: name", f"expected a non-empty string; got {name!r}.")
+    conv = data["convention"]
+    if conv not in ("dh", "mdh"):
+        raise _err(f"{source}: convention", f"expected 'dh' or 'mdh'; got {conv!r}.")
+    units = data["units"]
+    _check_keys(units, {"length", "angle"}, f"{source}: units", ("length", "angle"))
+    if units["length"] not in LENGTH_UNITS:
+        raise _err(
+            f"{source}: units.length",
+            f"expected one of {', '.join(LENGTH_UNITS)}; got {units['length']!r}.",
+        )
+    if units["angle"] not in ANGLE_UNITS:
+        raise _err(
+            f"{source}: units.angle",
+            f"expected one of {', '.join(ANGLE_UNITS)}; got {units['angle']!r}.",
+        )
+    lu = LENGTH_UNITS[units["length"]]
+    au = ANGLE_UNITS[units["angle"]]
+
+    joints_raw = data["joints"]
+    if not isinstance(joints_raw, list) or len(joints_raw) < 2:
+        raise _err(f"{source}: joints", "expected a list of at least 2 joints.")
+    joints = []
+    for i, jr in enumerate(joints_raw):
+        where = f"{source}: joints[{i}]"
+        _check_keys(jr, _JOINT_KEYS, where, _JOINT_REQUIRED)
+        kind = jr.get("type", "revolute")
+        if kind not in ("revolute", "prismatic"):
+            raise _err(
+                f"{where}.type", f"expected 'revolute' or 'prismatic'; got {kind!r}."
+            )
+        vals = {k: _number(jr[k], f"{where}.{k}") for k in _JOINT_REQUIRED}
+        if units["angle"] == "rad":
+            for k in ("theta_offset", "alpha"):
+                if abs(vals[k]) > 2 * np.pi + 1e-9:
+                    raise _err(
+                        f"{where}.{k}",
+                        f"{vals[k]} is not an angle in rad (units.angle is 'rad'); "
+                        "did you mean 'deg'?",
+                    )
+        if units["length"] == "m":
+            for k in ("d", "a"):
+                if abs(vals[k]) > 20.0:
+                    raise _err(
+                        f"{where}.{k}",
+                        f"{vals[k]} m is not a plausible link length (units.length is 'm'); "
+                        "did you mean 'mm'?",
+                    )
+        lim_scale = lu if kind == "prismatic" else au
+        limits: tuple[float, float] = (-np.inf, np.inf)
+        if "limits" in jr:
+            lim = jr["limits"]
+            if not isinstance(lim, list) or len(lim) != 2:
+                raise _err(f"{where}.limits", f"expected [lo, hi]; got {lim!r}.")
+            lo = _number(lim[0], f"{where}.limits[0]") * lim_scale
+            hi = _number(lim[1], f"{where}.limits[1]") * lim_scale
+            if not lo < hi:
+                raise _err(
+                    f"{where}.limits", f"lower limit must be below upper; got {lim!r}."
+                )
+            limits = (lo, hi)
+        jname = jr.get("name", f"J{i + 1}")
+        if not isinstance(jname, str) or not jname:
+            raise _err(f"{where}.name", f"expected a non-empty string; got {jname!r}.")
+        joints.append(
+            JointSpec(
+                name=jname,
+                theta_offset=vals["theta_offset"] * au,
+                d=vals["d"] * lu,
+                a=vals["a"] * lu,
+                alpha=vals["alpha"] * au,
+                kind=kind,
+                limits=limits,
+            )
+        )
+    n = len(joints)
+    names = [j.name for j in joints]
+    if len(set(names)) != n:
+        raise _err(f"{source}: joints", f"joint names must be unique; got {names}.")
+
+    C = np.eye(n)
+    for k_c, c in enumerate(data.get("coupling") or []):
+        where = f"{source}: coupling[{k_c}]"
+        _check_keys(c, _COUPLING_KEYS, where, ("joint", "from", "factor"))
+        j = c["joint"]
+        f = c["from"]
+        for key, val in (("joint", j), ("from", f)):
+            if not isinstance(val, int) or isinstance(val, bool) or not 1 <= val <= n:
+                raise _err(
+                    f"{where}.{key}", f"expected a joint number 1..{n}; got {val!r}."
+                )
+        if j == f:
+            raise _err(where, "a joint cannot be coupled to itself.")
+        C[j - 1, f - 1] += _number(c["factor"], f"{where}.factor")
+
+    T_n_flange = (
+        _frame(data["flange"], f"{source}: flange", lu, au)
+        if "flange" in data
+        else np.eye(4)
+    )
+    T_flange_tool = (
+        _frame(data["tool"], f"{source}: tool", lu, au)
+        if data.get("tool")
+        else np.eye(4)
+    )
+
+    gravity = np.array([0.0, 0.0, -9.80665])
+    if "gravity" in data:
+        g = data["gravity"]
+        if not isinstance(g, list) or len(g) != 3:
+            raise _err(f"{source}: gravity", f"expected [gx, gy, gz]; got {g!r}.")
+        gravity = np.array(
+            [_number(x, f"{source}: gravity[{i}]") for i, x in enumerate(g)]
+        )
+        if np.linalg.norm(gravity) == 0:
+            raise _err(f"{source}: gravity", "must not be the zero vector.")
+        gravity = gravity / np.linalg.norm(gravity) * 9.80665
+
+    payload = None
+    if data.get("payload_kg") is not None:
+        payload = _number(data["payload_kg"], f"{source}: payload_kg")
+        if payload <= 0:
+            raise _err(
+                f"{source}: payload_kg", f"expected a positive mass; got {payload}."
+            )
+
+    sw: SelfWeightSpec | None = None
+    if "self_weight" not in data and n >= 5:
+        sw = SelfWeightSpec()
+    elif data.get("self_weight") is not None:
+        swr = data["self_weight"]
+        _check_keys(swr, _SELF_WEIGHT_KEYS, f"{source}: self_weight")
+        vals_sw = {}
+        for key, default in (("shoulder", 2), ("elbow", 3), ("wrist_frame", 4)):
+            v = swr.get(key, default)
+            if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= n:
+                raise _err(
+                    f"{source}: self_weight.{key}", f"expected 1..{n}; got {v!r}."
+                )
+            vals_sw[key] = v
+        if not vals_sw["shoulder"] < vals_sw["elbow"] <= vals_sw["wrist_frame"]:
+            raise _err(
+                f"{source}: self_weight", "need shoulder < elbow <= wrist_frame."
+            )
+        sw = SelfWeightSpec(**vals_sw)
+
+    desc = data.get("description", "")
+    return RobotDescription(
+        name=name,
+        convention=conv,
+        joints=tuple(joints),
+        coupling=C,
+        T_flange_tool=T_flange_tool,
+        T_n_flange=T_n_flange,
+        gravity=gravity,
+        payload_kg=payload,
+        self_weight=sw,
+        source=source if not desc else f"{source} ({desc})",
+    )
+
+
+def load_robot_file(path: str | Path) -> RobotDescription:
+    """Load and validate a robot YAML file (see module docstring for the schema)."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"{p}: cannot read robot file ({exc.strerror}).") from exc
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{p}: not valid YAML ({exc}).".replace("\n", " ")) from exc
+    if data is None:
+        raise ConfigError(f"{p}: the robot file is empty.")
+    return robot_from_dict(data, source=str(p))
+
+
+def _frame_dict(T: np.ndarray) -> dict[str, float]:
+    v = transform_to_euler(T)
+    v[:3] *= 1e3
+    v[3:] = np.degrees(v[3:])
+    return {k: float(np.round(x, 12)) for k, x in zip(_FRAME_KEYS, v)}
+
+
+def dump_robot(robot: RobotDescription) -> dict[str, Any]:
+    """The YAML document (mm, deg) of a description; ``robot_from_dict`` reads it back."""
+    joints = []
+    for j in robot.joints:
+        lim_scale = 1e3 if j.kind == "prismatic" else 180.0 / np.pi
+        row: dict[str, Any] = {
+            "name": j.name,
+            "theta_offset": float(np.degrees(j.theta_offset)),
+            "d": j.d * 1e3,
+            "a": j.a * 1e3,
+            "alpha": float(np.degrees(j.alpha)),
+        }
+        if np.all(np.isfinite(j.limits)):
+            row["limits"] = [j.limits[0] * lim_scale, j.limits[1] * lim_scale]
+        if j.kind != "revolute":
+            row["type"] = j.kind
+        joints.append(row)
+    coupling = [
+        {"joint": int(r + 1), "from": int(c + 1), "factor": float(robot.coupling[r, c])}
+        for r in range(robot.n_joints)
+        for c in range(robot.n_joints)
+        if r != c and robot.coupling[r, c] != 0.0
+    ]
+    out: dict[str, Any] = {
+        "name": robot.name,
+        "convention": robot.convention,
+        "units": {"length": "mm", "angle": "deg"},
+        "joints": joints,
+        "coupling": coupling,
+        "flange": _frame_dict(robot.T_n_flange),
+        "tool": _frame_dict(robot.T_flange_tool),
+        "gravity": [float(x) for x in robot.gravity],
+        "self_weight": None
+        if robot.self_weight is None
+        else {
+            "shoulder": robot.self_weight.shoulder,
+            "elbow": robot.self_weight.elbow,
+            "wrist_frame": robot.self_weight.wrist_frame,
+        },
+    }
+    if robot.payload_kg is not None:
+        out["payload_kg"] = robot.payload_kg
+    return out

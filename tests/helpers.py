@@ -1,0 +1,51 @@
+"""Test helpers: the one finite-difference Jacobian check used by every test."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from tests.tolerances import FD_REL, FD_STEP
+
+
+def fd_jacobian(
+    f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, h: float = FD_STEP
+) -> np.ndarray:
+    """Central differences of ``f`` (any output shape) w.r.t. a flat ``x``: shape (*out, n)."""
+    x = np.asarray(x, dtype=np.float64)
+    cols = []
+    for k in range(x.size):
+        e = np.zeros_like(x)
+        step = h * max(1.0, abs(x[k]))
+        e[k] = step
+        cols.append((np.asarray(f(x + e)) - np.asarray(f(x - e))) / (2 * step))
+    return np.stack(cols, axis=-1)
+
+
+def assert_jacobian_matches_fd(
+    J: np.ndarray,
+    f: Callable[[np.ndarray], np.ndarray],
+    x: np.ndarray,
+    *,
+    rtol: float = FD_REL,
+    names: list[str] | None = None,
+) -> None:
+    """Assert analytic ``J`` (*out, n) equals central differences of ``f`` at ``x``.
+
+    The error of each column is measured relative to the largest entry of the whole
+    Jacobian, so columns that are legitimately tiny do not produce spurious failures.
+    """
+    Jfd = fd_jacobian(f, x)
+    assert J.shape == Jfd.shape, (
+        f"shape {J.shape} != finite-difference shape {Jfd.shape}"
+    )
+    scale = max(float(np.abs(Jfd).max()), 1e-12)
+    err = np.abs(J - Jfd).reshape(-1, J.shape[-1]).max(axis=0) / scale
+    bad = np.flatnonzero(err > rtol)
+    if bad.size:
+        labels = [names[k] if names else str(k) for k in bad]
+        detail = ", ".join(f"{lab}: {err[k]:.2e}" for lab, k in zip(labels, bad))
+        raise AssertionError(
+            f"Jacobian columns differ from finite differences: {detail}"
+        )

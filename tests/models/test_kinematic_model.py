@@ -1,0 +1,155 @@
+"""The unified kinematic model: nominal FK, analytic Jacobians against finite differences."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kinecal.geometry import so3_log
+from kinecal.models import CalibrationModel, ModelInputs, ModelSpec
+from kinecal.robot import builtin_robot_names, load_robot
+from tests.helpers import assert_jacobian_matches_fd
+
+
+def _random_inputs(robot, rng, n=30, sets=1, markers=1, p_cam=True):
+    lim = np.clip(robot.limits, -3.0, 3.0)
+    q = rng.uniform(lim[:, 0], lim[:, 1], size=(n, robot.n_joints))
+    return ModelInputs.make(
+        q,
+        set_index=rng.integers(0, sets, n),
+        marker_index=rng.integers(0, markers, n),
+        p_cam=rng.normal(size=(n, 3)) * 0.1 if p_cam else None,
+        load_scale=rng.uniform(0.5, 1.5, n),
+    )
+
+
+def _generic_params(model, rng, lam):
+    p = model.nominal + rng.normal(size=model.size) * model.layout.scales * 3
+    for i, s in enumerate(model.layout.specs):
+        if s.kind == "compliance":
+            p[i] = rng.normal() * lam
+        elif s.kind == "moment":
+            p[i] = 0.3 + 0.1 * rng.normal()
+    return p
+
+
+@pytest.mark.parametrize("name", builtin_robot_names())
+@pytest.mark.parametrize("preset", ["kinematic", "full"])
+def test_nominal_parameters_reproduce_nominal_fk(name, preset, rng):
+    robot = load_robot(name)
+    spec = ModelSpec.preset(preset, has_self_weight=robot.self_weight is not None)
+    model = CalibrationModel(robot, spec)
+    inp = _random_inputs(robot, rng, p_cam=False)
+    out = model.evaluate(model.nominal, inp, orientation=True)
+    T = robot.fk_tool(inp.q_ctrl)
+    np.testing.assert_allclose(out.p_user, T[:, :3, 3], atol=1e-14)
+    np.testing.assert_allclose(out.R_user_cam, T[:, :3, :3], atol=1e-14)
+
+
+def _check_all_columns(model, params, inp, cols=None):
+    out = model.evaluate(params, inp, orientation=True, jacobian=True)
+    cols = np.arange(model.size) if cols is None else np.asarray(cols)
+
+    def f_p(x):
+        full = params.copy()
+        full[cols] = x
+        return model.evaluate(full, inp).p_user
+
+    R0 = out.R_user_cam
+
+    def f_w(x):
+        full = params.copy()
+        full[cols] = x
+        R = model.evaluate(full, inp, orientation=True).R_user_cam
+        return so3_log(R @ np.swapaxes(R0, 1, 2))
+
+    names = [model.layout.names[c] for c in cols]
+    assert_jacobian_matches_fd(out.J_p[:, :, cols], f_p, params[cols], names=names)
+    assert_jacobian_matches_fd(out.J_w[:, :, cols], f_w, params[cols], names=names)
+
+
+@pytest.mark.parametrize(
+    ("name", "spec"),
+    [
+        ("fanuc-lrmate200id", ModelSpec.preset("full")),
+        (
+            "fanuc-lrmate200id",
+            ModelSpec.preset("rfcm", hayati=(2,), sets=("a", "b"), markers=("m", "n")),
+        ),
+        ("fanuc-lrmate200id", ModelSpec.preset("ntm", cam_rotation=False)),
+        ("ur10", ModelSpec.preset("full", hayati=(2, 3))),
+        ("franka-fr3", ModelSpec.preset("full", has_self_weight=False)),
+    ],
+)
+def test_parameter_jacobian_matches_finite_differences(name, spec, rng):
+    """Exact for every column when lambda* = 0 (the torques' geometry dependence vanishes)."""
+    robot = load_robot(name)
+    model = CalibrationModel(robot, spec)
+    inp = _random_inputs(robot, rng, sets=len(spec.sets), markers=len(spec.markers))
+    _check_all_columns(model, _generic_params(model, rng, lam=0.0), inp)
+
+
+def test_compliance_columns_exact_with_compliance(rng):
+    """lambda* and s enter exactly; checked at a generic point with lambda* != 0."""
+    robot = load_robot("fanuc-lrmate200id")
+    model = CalibrationModel(robot, ModelSpec.preset("full"))
+    inp = _random_inputs(robot, rng)
+    params = _generic_params(model, rng, lam=1e-3)
+    cols = np.concatenate(
+        [model.layout.group_indices("load"), model.layout.group_indices("link")]
+    )
+    _check_all_columns(model, params, inp, cols)
+
+
+def test_neglected_torque_geometry_term_is_small(rng):
+    """With paper-sized lambda* (1e-4 rad/m) the neglected term is ~1e-4 of each column."""
+    robot = load_robot("fanuc-lrmate200id")
+    model = CalibrationModel(robot, ModelSpec.preset("full"))
+    inp = _random_inputs(robot, rng)
+    params = _generic_params(model, rng, lam=1e-4)
+    out = model.evaluate(params, inp, jacobian=True)
+    cols = model.layout.group_indices("joint")
+
+    def f(x):
+        full = params.copy()
+        full[cols] = x
+        return model.evaluate(full, inp).p_user
+
+    with pytest.raises(AssertionError):  # not exact ...
+        assert_jacobian_matches_fd(out.J_p[:, :, cols], f, params[cols], rtol=1e-7)
+    assert_jacobian_matches_fd(
+        out.J_p[:, :, cols], f, params[cols], rtol=1e-3
+    )  # ... but close
+
+
+def test_joint_jacobian_matches_finite_differences(rng):
+    robot = load_robot("fanuc-lrmate200id")
+    model = CalibrationModel(robot, ModelSpec.preset("kinematic", sets=("a", "b")))
+    inp = _random_inputs(robot, rng, n=5, sets=2, p_cam=False)
+    params = _generic_params(model, rng, lam=0.0)
+    J = model.joint_jacobian(params, inp)  # (N, 6, n) w.r.t. theta
+    assert J.shape == (5, 6, 6)
+    C_inv = np.linalg.inv(robot.coupling)
+    for k in range(5):
+        th0 = robot.theta_from_ctrl(inp.q_ctrl[k])
+        R0 = model.evaluate(
+            params, inp.subset(np.array([k])), orientation=True
+        ).R_user_cam[0]
+
+        def f(th, k=k, R0=R0):
+            sub = ModelInputs.make(
+                (C_inv @ th)[None], set_index=inp.set_index[k : k + 1]
+            )
+            o = model.evaluate(params, sub, orientation=True)
+            return np.concatenate([o.p_user[0], so3_log(o.R_user_cam[0] @ R0.T)])
+
+        assert_jacobian_matches_fd(J[k], f, th0)
+
+
+def test_bad_inputs_are_rejected(rng):
+    robot = load_robot("fanuc-lrmate200id")
+    model = CalibrationModel(robot, ModelSpec.preset("kinematic"))
+    with pytest.raises(ValueError, match=r"q_ctrl must have shape \(N, 6\)"):
+        model.evaluate(model.nominal, ModelInputs.make(np.zeros((3, 5))))
+    with pytest.raises(ValueError, match=r"params must have shape \(30,\)"):
+        model.evaluate(np.zeros(3), ModelInputs.make(np.zeros((3, 6))))
