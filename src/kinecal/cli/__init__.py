@@ -29,10 +29,18 @@ def cli() -> None:
 
 
 def _register() -> None:
-    from kinecal.cli import _fk
+    from kinecal.cli import _calibrate, _fk, _simulate
 
-    cli.add_command(_fk.fk)
-    cli.add_command(_fk.robots)
+    for cmd in (
+        _fk.fk,
+        _fk.robots,
+        _calibrate.calibrate,
+        _calibrate.evaluate,
+        _simulate.simulate,
+        _simulate.compare,
+        _simulate.demo,
+    ):
+        cli.add_command(cmd)
 
 
 _register()

@@ -7,15 +7,17 @@ from kinecal.models._compliance import (
     ntm_basis,
     ntm_names,
 )
+from kinecal.models._ik import IKResult, solve_ik
 from kinecal.models._layout import KINDS, ParameterLayout, ParamKind, ParamSpec
 from kinecal.models._model import CalibrationModel, ModelInputs, ModelOutput
-from kinecal.models._spec import PRESETS, ModelSpec
+from kinecal.models._spec import PRESETS, ModelSpec, parallel_pairs
 
 __all__ = [
     "KINDS",
     "PRESETS",
     "CalibrationModel",
     "ChainFrames",
+    "IKResult",
     "ModelInputs",
     "ModelOutput",
     "ModelSpec",
@@ -27,4 +29,6 @@ __all__ = [
     "load_torques",
     "ntm_basis",
     "ntm_names",
+    "parallel_pairs",
+    "solve_ik",
 ]

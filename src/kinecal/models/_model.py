@@ -15,6 +15,7 @@ the measured point in the cam frame (zero for a reflector at the cam origin).
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -297,8 +298,8 @@ class CalibrationModel:
             self._link_names = ["link.s1", "link.s2"]
         elif spec.link == "rfcm":
             self._link_names = ["link.s1", "link.s2_shoulder", "link.s2_elbow"]
-        elif spec.link == "general":
-            self._link_names = general_link_names(spec.link_bodies)
+        if spec.link_bodies:
+            self._link_names = self._link_names + general_link_names(spec.link_bodies)
         for nm in self._link_names:
             specs.append(
                 ParamSpec(nm, "ratio" if nm.endswith(".m") else "moment", "link")
@@ -340,6 +341,16 @@ class CalibrationModel:
     @property
     def size(self) -> int:
         return self.layout.size
+
+    @property
+    def base_index(self) -> np.ndarray:
+        """Indices of the user-frame parameters ``x, y, z, r, w, p``, shape (sets, 6)."""
+        return self._base_idx
+
+    @property
+    def cam_index(self) -> np.ndarray:
+        """Indices of the cam-frame parameters, shape (markers, 6) or (markers, 3)."""
+        return self._cam_idx
 
     def _rows(self, params: Float) -> Float:
         rows = self._row_const.copy()
@@ -384,22 +395,29 @@ class CalibrationModel:
 
     def _link_basis(self, frames: ChainFrames) -> Float:
         """Link-weight torque per unit of each link parameter, (N, n, n_link)."""
-        if self.spec.link == "general":
-            return general_link_torque_basis(
-                frames, self.g_hat, self.spec.link_bodies, self._prismatic
+        parts = []
+        if self.spec.link in ("paper", "rfcm"):
+            sw = self._sw
+            if sw is None:  # pragma: no cover - rejected in __init__
+                raise ModelError("no self_weight section")
+            parts.append(
+                link_torque_basis(
+                    frames,
+                    self.g_hat,
+                    sw.shoulder,
+                    sw.elbow,
+                    sw.wrist_frame,
+                    self._x_sign,
+                    self.spec.link,
+                )
             )
-        sw = self._sw
-        if sw is None:  # pragma: no cover - rejected in __init__
-            raise ModelError("no self_weight section")
-        return link_torque_basis(
-            frames,
-            self.g_hat,
-            sw.shoulder,
-            sw.elbow,
-            sw.wrist_frame,
-            self._x_sign,
-            self.spec.link,
-        )
+        if self.spec.link_bodies:
+            parts.append(
+                general_link_torque_basis(
+                    frames, self.g_hat, self.spec.link_bodies, self._prismatic
+                )
+            )
+        return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=2)
 
     def _frames(self, theta: Float, rows: Float) -> ChainFrames:
         pr = self._prismatic
@@ -603,6 +621,42 @@ class CalibrationModel:
                         axes[:, k] if mask is None else axes[:, k] * mask[:, None]
                     )
         return ModelOutput(p_u, R_uc, J, W, th)
+
+    def flange_frames(
+        self, params: ArrayLike, inputs: ModelInputs
+    ) -> tuple[Float, Float]:
+        """Model flange frames in the model base, ``(R (N, 3, 3), o (N, 3))``.
+
+        Includes every joint-angle error term; the user and cam frames are not applied.
+        """
+        p = np.asarray(params, dtype=np.float64)
+        out = self.evaluate(p, inputs)
+        fr = self._frames(out.theta, self._rows(p))
+        return fr.R[:, -1], fr.o[:, -1]
+
+    def with_references(
+        self, R_ref_base: Float | None = None, R_ref_cam: Float | None = None
+    ) -> CalibrationModel:
+        """A copy with other fixed reference rotations for the user / cam frames.
+
+        A frame is ``Trans(x, y, z) · R_ref · Rz(r) Ry(w) Rx(p)``; a reference rotation
+        keeps the Euler angles away from gimbal lock (``|w|`` near 90 deg). The default is
+        the identity (the paper's Eq. 8-9 exactly).
+        """
+        m = copy.copy(self)
+        if R_ref_base is not None:
+            m.R_ref_base = np.array(R_ref_base, dtype=np.float64).reshape(
+                self.R_ref_base.shape
+            )
+        if R_ref_cam is not None:
+            if not self.spec.cam_rotation:
+                raise ModelError(
+                    "the cam rotation is fixed in this model (cam_rotation=False)."
+                )
+            m.R_ref_cam = np.array(R_ref_cam, dtype=np.float64).reshape(
+                self.R_ref_cam.shape
+            )
+        return m
 
     def joint_jacobian(self, params: ArrayLike, inputs: ModelInputs) -> Float:
         """Geometric Jacobian of the cam origin w.r.t. the kinematic joint angles.

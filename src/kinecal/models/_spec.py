@@ -15,9 +15,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from kinecal.errors import ModelError
+import numpy as np
 
-__all__ = ["PRESETS", "ModelSpec"]
+from kinecal.errors import ModelError
+from kinecal.robot import RobotDescription
+
+__all__ = ["PRESETS", "ModelSpec", "parallel_pairs"]
 
 PRESETS = ("kinematic", "ntm", "rfcm", "full")
 LINK_MODELS = ("none", "paper", "rfcm", "general")
@@ -48,7 +51,9 @@ class ModelSpec:
         independent moments (the RFCM comparison model), or the general form: mass and
         first moment of each body in ``link_bodies`` (any robot, any base tilt).
     link_bodies : tuple of int
-        Bodies (DH frame numbers) of the general link model.
+        Bodies (DH frame numbers) with general mass and first-moment terms: the whole
+        link model for ``link='general'``, or terms added to the lumped 'paper'/'rfcm'
+        moments (the digital twin uses this for link masses outside the paper's model).
     sets : tuple of str
         Labels of measurement sessions; each has its own user frame.
     markers : tuple of str
@@ -82,7 +87,7 @@ class ModelSpec:
             raise ModelError("set and marker labels must be unique.")
         if self.link == "general" and not self.link_bodies:
             raise ModelError("the general link model needs link_bodies, e.g. (2, 3).")
-        if self.link != "none" and not self.load:
+        if (self.link != "none" or self.link_bodies) and not self.load:
             raise ModelError(
                 "link self-weight terms share lambda* with the load term; enable load."
             )
@@ -128,3 +133,10 @@ class ModelSpec:
     def with_(self, **changes: object) -> ModelSpec:
         """A copy with some fields changed."""
         return replace(self, **changes)  # type: ignore[arg-type]
+
+
+def parallel_pairs(robot: RobotDescription) -> tuple[int, ...]:
+    """Joints j (2..n-1) whose axis is parallel to axis j + 1: candidates for Hayati rows."""
+    ch = robot.dh_chain()
+    n = robot.n_joints
+    return tuple(j for j in range(2, n) if abs(np.sin(ch.alpha[j - 1])) < 1e-9)

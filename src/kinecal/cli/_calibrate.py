@@ -1,0 +1,269 @@
+"""``kinecal calibrate`` and ``kinecal evaluate`` (DESIGN §11)."""
+
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import replace
+
+import click
+
+from kinecal.cli._common import (
+    MODEL_CHOICES,
+    Progress,
+    common_options,
+    manifest,
+    parse_int_list,
+)
+
+
+def _options_from(loss: str, priors: str, stage2: str):
+    from kinecal.identification import CalibrationOptions
+
+    return CalibrationOptions(loss=loss, priors=priors, stage2=stage2)
+
+
+@click.command()
+@click.argument("data", type=click.Path(dir_okay=False))
+@click.option(
+    "--robot",
+    "robot_name",
+    required=True,
+    metavar="NAME|FILE",
+    help="Built-in robot (see `kinecal robots`) or robot YAML file.",
+)
+@click.option(
+    "--model",
+    "model_name",
+    type=click.Choice(MODEL_CHOICES),
+    default="full",
+    show_default=True,
+    help="kinematic (paper MDH), ntm, rfcm, full (paper 'Ours'), or auto (chosen by "
+    "cross-validation).",
+)
+@click.option(
+    "--out",
+    "out_dir",
+    required=True,
+    type=click.Path(file_okay=False),
+    help="Output folder for model.yaml, report.json, report.html, manifest.json.",
+)
+@click.option(
+    "--targets",
+    type=click.Path(dir_okay=False),
+    help="Targets file (target, x_mm, y_mm, z_mm) for sensor data.",
+)
+@click.option(
+    "--loss",
+    type=click.Choice(("linear", "huber", "soft_l1")),
+    default="linear",
+    show_default=True,
+    help="Robust loss on whole rows (outliers are always reported).",
+)
+@click.option(
+    "--priors",
+    type=click.Choice(("all", "compliance", "none")),
+    default="all",
+    show_default=True,
+    help="Physical priors (MAP): 'none' is the paper's plain least squares.",
+)
+@click.option(
+    "--stage2",
+    type=click.Choice(("direct", "project", "none")),
+    default="direct",
+    show_default=True,
+    help="Stage-2 Fourier fit: on position residuals, or projected to joints (Eq. 29).",
+)
+@click.option(
+    "--hayati",
+    is_flag=True,
+    help="Hayati rows (no d) for joints whose axis is parallel to the next one.",
+)
+@click.option(
+    "--ntm-joints", metavar="J,J,..", help="Joints with transmission terms [1,2,3]."
+)
+@click.option(
+    "--ntm-order",
+    type=click.IntRange(1, 8),
+    default=2,
+    show_default=True,
+    help="Order of the Fourier series (Eq. 16).",
+)
+@click.option(
+    "--report/--no-report",
+    default=True,
+    show_default=True,
+    help="Write report.html with figures.",
+)
+@click.option("--force", is_flag=True, help="Overwrite results already in --out.")
+@common_options
+def calibrate(
+    data: str,
+    robot_name: str,
+    model_name: str,
+    out_dir: str,
+    targets: str | None,
+    loss: str,
+    priors: str,
+    stage2: str,
+    hayati: bool,
+    ntm_joints: str | None,
+    ntm_order: int,
+    report: bool,
+    force: bool,
+    quiet: bool,
+) -> None:
+    """Identify a robot (and sensor) model from measurements DATA.csv.
+
+    DATA has controller angles j1_deg..jN_deg and either x_mm, y_mm, z_mm (tracker
+    points, optionally with qw..qz) or target, xc_mm, yc_mm, zc_mm (sensor, with
+    --targets). Calibration starts from the nominal robot; no guess is needed.
+    Exit code 3 when the fit does not converge (results are still written).
+    """
+    from kinecal.cli import EXIT_NOT_CONVERGED
+    from kinecal.identification import calibrate as run_calibration
+    from kinecal.identification import spec_for
+    from kinecal.io import prepare_output_dir, read_measurements, save_model, write_json
+    from kinecal.models import parallel_pairs
+    from kinecal.report import calibration_summary
+
+    say = Progress(quiet)
+    robot = _load_robot(robot_name)
+    meas = read_measurements(data, robot, targets)
+    out = prepare_output_dir(
+        out_dir, ["model.yaml", "report.json", "report.html"], force=force
+    )
+    say("data", f"{meas.n} {meas.kind} rows from {data}")
+    opts = _options_from(loss, priors, stage2)
+    extra: dict[str, object] = {}
+    hay = parallel_pairs(robot) if hayati else ()
+    nj = parse_int_list(ntm_joints, "--ntm-joints") or (1, 2, 3)
+    if model_name == "auto":
+        from kinecal.identification import select_model
+
+        say("auto", "cross-validating candidate models")
+        sel = select_model(
+            robot, meas, options=opts, hayati=hay, ntm_joints=nj, progress=say
+        )
+        spec = sel.spec
+        opts = replace(opts, prior_scale=sel.prior_scale)
+        extra["model_selection"] = sel.as_dict()
+        for w in sel.warnings:
+            say("auto", w)
+    else:
+        spec = spec_for(
+            robot, meas, model_name, hayati=hay, ntm_joints=nj, ntm_order=ntm_order
+        )
+    result = run_calibration(robot, meas, spec, opts, progress=say)
+    summary = calibration_summary(result, extra=extra)
+    save_model(out / "model.yaml", result.calibrated, force=True)
+    write_json(out / "report.json", summary, force=True)
+    write_json(
+        out / "manifest.json",
+        manifest(
+            {"data": data, "targets": targets, "robot": robot_name},
+            {
+                "model": model_name,
+                "loss": loss,
+                "priors": priors,
+                "stage2": stage2,
+                "hayati": list(hay),
+                "ntm_joints": list(nj),
+                "ntm_order": ntm_order,
+            },
+        ),
+        force=True,
+    )
+    if report:
+        from kinecal.report import write_calibration_report
+
+        say("report", "report.html")
+        write_calibration_report(out / "report.html", result, meas, summary)
+    b, a = result.metrics_before, result.metrics_after
+    click.echo(
+        f"model     {spec.name}: {result.identifiability.rank} of "
+        f"{result.calibrated.model.size} parameters estimated"
+    )
+    click.echo(
+        f"before    RMS {b.rms_mm:.4f} mm  max {b.max_mm:.4f} mm  (nominal, frames fitted)"
+    )
+    click.echo(
+        f"after     RMS {a.rms_mm:.4f} mm  max {a.max_mm:.4f} mm  (calibration data)"
+    )
+    for line in result.identifiability.summary()[1:]:
+        click.echo(f"note      {line}")
+    for w in result.warnings:
+        click.echo(f"warning   {w}", err=True)
+    click.echo(f"wrote     {out / 'model.yaml'}, {out / 'report.json'}")
+    if not result.success:
+        sys.exit(EXIT_NOT_CONVERGED)
+
+
+def _load_robot(name: str):
+    from kinecal.robot import load_robot
+
+    return load_robot(name)
+
+
+@click.command()
+@click.argument("data", type=click.Path(dir_okay=False))
+@click.option(
+    "--model",
+    "model_path",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="A model.yaml written by `kinecal calibrate`.",
+)
+@click.option(
+    "--targets", type=click.Path(dir_okay=False), help="Targets file for sensor data."
+)
+@click.option(
+    "--refit",
+    type=click.Choice(("user",)),
+    help="'user': re-estimate only the user frame(s) on DATA first (new set-up).",
+)
+@click.option(
+    "--json",
+    "as_json",
+    is_flag=True,
+    help='Print {"n", "rms_mm", "std_mm", "mean_mm", "max_mm"}.',
+)
+@click.option(
+    "--errors-out",
+    type=click.Path(dir_okay=False),
+    help="Write per-row errors (row, ex_mm, ey_mm, ez_mm, err_mm) to this CSV.",
+)
+@click.option("--force", is_flag=True, help="Overwrite --errors-out.")
+def evaluate(
+    data: str,
+    model_path: str,
+    targets: str | None,
+    refit: str | None,
+    as_json: bool,
+    errors_out: str | None,
+    force: bool,
+) -> None:
+    """Accuracy of a calibrated model on measurements DATA.csv (held-out poses)."""
+    from kinecal.identification import evaluate as run_evaluate
+    from kinecal.io import atomic_write_text, load_model, read_measurements
+
+    cal = load_model(model_path)
+    meas = read_measurements(data, cal.model.robot, targets)
+    ev = run_evaluate(cal, meas, refit_user=refit == "user")
+    if errors_out:
+        lines = ["row,ex_mm,ey_mm,ez_mm,err_mm"]
+        for r, e, d in zip(meas.rows, ev.error_xyz_mm, ev.errors_mm):
+            lines.append(f"{r},{e[0]:.6f},{e[1]:.6f},{e[2]:.6f},{d:.6f}")
+        atomic_write_text(errors_out, "\n".join(lines) + "\n", force=force)
+    m = ev.metrics
+    if as_json:
+        click.echo(json.dumps(m.contract()))
+        return
+    click.echo(f"poses  {m.n}" + ("  (user frame refitted)" if refit else ""))
+    click.echo(
+        f"RMS    {m.rms_mm:.4f} mm   Std {m.std_mm:.4f}   Avg {m.mean_mm:.4f}   "
+        f"Max {m.max_mm:.4f} mm"
+    )
+    click.echo("axes   RMS x {:.4f}  y {:.4f}  z {:.4f} mm".format(*m.rms_xyz_mm))
+    if m.rot_rms_deg is not None:
+        click.echo(f"orient RMS {m.rot_rms_deg:.4f} deg   Max {m.rot_max_deg:.4f} deg")

@@ -1,0 +1,65 @@
+"""Helpers shared by the commands: progress display, option parsing, manifests."""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import click
+
+MODEL_CHOICES = ("kinematic", "ntm", "rfcm", "full", "auto")
+
+
+class Progress:
+    """Stage-by-stage progress on stderr, silenced by ``--quiet``."""
+
+    def __init__(self, quiet: bool) -> None:
+        self.quiet = quiet
+        self.t0 = time.perf_counter()
+
+    def __call__(self, stage: str, detail: str = "") -> None:
+        if self.quiet:
+            return
+        dt = time.perf_counter() - self.t0
+        click.echo(
+            f"[{dt:6.2f}s] {stage}" + (f": {detail}" if detail else ""), err=True
+        )
+
+
+def parse_int_list(text: str | None, name: str) -> tuple[int, ...] | None:
+    """``"1,2,3"`` -> (1, 2, 3); None stays None."""
+    if text is None:
+        return None
+    try:
+        return tuple(int(t) for t in text.split(",") if t.strip())
+    except ValueError:
+        raise click.BadParameter(
+            f"expected comma-separated joint numbers; got {text!r}", param_hint=name
+        ) from None
+
+
+def manifest(inputs: dict[str, str | None], config: dict[str, Any]) -> dict[str, Any]:
+    """Run manifest: version, command line, resolved config, input file hashes."""
+    from kinecal._version import __version__
+    from kinecal.io import file_sha256
+
+    files = {}
+    for key, path in inputs.items():
+        if path and Path(path).is_file():
+            files[key] = {"path": str(path), "sha256": file_sha256(path)}
+    return {
+        "kinecal_version": __version__,
+        "command": " ".join(["kinecal", *sys.argv[1:]]),
+        "python": sys.version.split()[0],
+        "config": config,
+        "inputs": files,
+        "created_unix": time.time(),
+    }
+
+
+def common_options(f: Callable[..., Any]) -> Callable[..., Any]:
+    f = click.option("--quiet", "-q", is_flag=True, help="No progress display.")(f)
+    return f

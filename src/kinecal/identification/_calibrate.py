@@ -1,0 +1,699 @@
+"""Three-stage identification (paper Sec. 4, Fig. 6), from nominal kinematics alone.
+
+0. Registration: closed-form user and cam frames (:mod:`._init`), refined by LM with the
+   nominal kinematics: the "before calibration" state.
+1. Stage 1: the unified kinematic parameters (30, or 27 for position data).
+2. Stage 2: transmission-error Fourier coefficients by linear least squares, either from
+   the stage-1 residuals projected to joints 1-3 (Eq. 29, the paper) or directly on the
+   position residuals (default).
+3. Stage 3: every parameter together, started from stages 1-2.
+
+Before stage 1 the identifiability analysis fixes the parameters the poses cannot
+determine, so the result is unique. Standard deviations come from the covariance
+``s0^2 (J^T W J)^-1`` at the solution.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.stats import chi2
+
+from kinecal.errors import DataError, IdentifiabilityError
+from kinecal.identification._calibrated import CalibratedModel
+from kinecal.identification._identifiability import (
+    Identifiability,
+    analyse_identifiability,
+)
+from kinecal.identification._init import initial_frames
+from kinecal.identification._lm import (
+    LMOptions,
+    LMResult,
+    Prior,
+    loss_weights,
+    solve_lm,
+)
+from kinecal.identification._measurements import Measurements
+from kinecal.identification._metrics import Metrics, metrics_from_errors
+from kinecal.identification._residuals import Weights, residuals
+from kinecal.models import CalibrationModel, ModelInputs, ModelSpec
+from kinecal.robot import RobotDescription
+from kinecal.typing import Float
+
+__all__ = [
+    "PRIOR_SIGMA",
+    "CalibrationOptions",
+    "CalibrationResult",
+    "Outlier",
+    "StageLog",
+    "calibrate",
+    "spec_for",
+]
+
+log = logging.getLogger(__name__)
+
+_KINEMATIC_GROUPS = ("base", "joint", "cam")
+
+# Prior standard deviations (SI) by parameter group and kind: physical scales of the
+# deviations from nominal (DH), of transmission errors (NTM) and of per-unit-weight
+# compliance and link moments; the mean is the start value (nominal, or zero).
+PRIOR_SIGMA: dict[tuple[str, str], float] = {
+    ("joint", "length"): 1e-3,  # 1 mm
+    ("joint", "angle"): np.radians(0.1),  # 0.1 deg
+    ("ntm", "ntm"): 5e-4,  # rad
+    ("load", "compliance"): 1e-3,  # rad/m, i.e. 1e-5 rad/(N m) for a 10 kg payload
+    ("link", "moment"): 2.0,  # m: link first moment per unit payload weight
+    ("link", "ratio"): 10.0,  # link mass per payload mass
+}
+_PRIOR_GROUPS = {
+    "none": (),
+    "compliance": ("load", "link"),
+    "all": ("joint", "ntm", "load", "link"),
+}
+# Median of the chi distribution with c degrees of freedom (norm of a c-D unit Gaussian).
+_CHI_MEDIAN = {3: 1.5381722, 6: 2.3660319}
+
+
+@dataclass(frozen=True)
+class CalibrationOptions:
+    """Settings of :func:`calibrate`.
+
+    Attributes
+    ----------
+    stage2 : {'direct', 'project', 'none'}
+        How stage 2 fits the transmission terms: directly on the position residuals, by
+        the paper's projection to joint space (Eq. 29), or not at all.
+    loss : {'linear', 'huber', 'soft_l1'}
+    f_scale_mm : float or None
+        Where the robust loss bends (in mm of position error); default three times a
+        robust estimate of the noise.
+    max_iter : int
+    drop_tol, weak_tol : float
+        Identifiability tolerances (see :func:`analyse_identifiability`).
+    outlier_p : float
+        A row is reported as an outlier when its error is this unlikely under the fitted
+        noise (chi distribution of the row's components).
+    variance_components : bool
+        Without per-row sigmas in the data, estimate the noise from the residuals (for pose
+        data separately for position and orientation) and weight by it, so priors and data
+        are balanced.
+    priors : {'none', 'compliance', 'all'}
+        Gaussian priors with physical scales (:data:`PRIOR_SIGMA`), making the estimate a
+        maximum a posteriori one: 'all' (default) on the joint geometry, the transmission
+        terms, the payload compliance and the link moments; 'compliance' on the payload
+        and link-weight terms only (their product lambda* s is otherwise only weakly split);
+        'none' is the paper's plain least squares.
+    prior_sigma : dict, optional
+        Per-parameter overrides ``{name: sigma (SI)}``; ``inf`` removes a prior.
+    prior_scale : float
+        Multiplies every prior sigma (``--model auto`` tries several).
+    """
+
+    stage2: str = "direct"
+    loss: str = "linear"
+    f_scale_mm: float | None = None
+    max_iter: int = 100
+    drop_tol: float = 1e-6
+    weak_tol: float = 1e-3
+    outlier_p: float = 1e-5
+    variance_components: bool = True
+    priors: str = "all"
+    prior_sigma: dict[str, float] | None = None
+    prior_scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.priors not in ("none", "compliance", "all"):
+            raise ValueError(
+                f"priors must be 'none', 'compliance' or 'all'; got {self.priors!r}."
+            )
+        if self.stage2 not in ("direct", "project", "none"):
+            raise ValueError(
+                f"stage2 must be 'direct', 'project' or 'none'; got {self.stage2!r}."
+            )
+        LMOptions(loss=self.loss)  # validates the loss name
+
+
+@dataclass
+class StageLog:
+    """What one stage did."""
+
+    name: str
+    n_free: int
+    rms_before_mm: float
+    rms_after_mm: float
+    iterations: int
+    status: str
+    success: bool
+    seconds: float
+    iteration_log: list[dict[str, float]] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Outlier:
+    """A row whose error is improbable under the fitted noise."""
+
+    row: int
+    error_mm: float
+    z: float
+
+
+@dataclass
+class CalibrationResult:
+    """Everything :func:`calibrate` found.
+
+    Attributes
+    ----------
+    calibrated : CalibratedModel, the identified model (what ``model.yaml`` stores).
+    registered : (P,) parameters after registration only (nominal kinematics with fitted
+        user and cam frames): the "before" state.
+    covariance : (P, P) parameter covariance (zero rows for parameters not estimated).
+    identifiability : Identifiability
+    stages : list of StageLog
+    metrics_before, metrics_after : Metrics on the calibration data.
+    outliers : rows with improbable errors (never dropped silently).
+    warnings : list of str
+    success : bool, every stage converged.
+    sigma0 : a-posteriori standard deviation of unit weight.
+    """
+
+    calibrated: CalibratedModel
+    registered: Float
+    covariance: Float
+    identifiability: Identifiability
+    stages: list[StageLog]
+    metrics_before: Metrics
+    metrics_after: Metrics
+    outliers: list[Outlier]
+    warnings: list[str]
+    success: bool
+    sigma0: float
+    weights: Weights
+    seconds: float
+    prior: Prior | None = None
+
+    @property
+    def model(self) -> CalibrationModel:
+        return self.calibrated.model
+
+    @property
+    def params(self) -> Float:
+        return self.calibrated.params
+
+    @property
+    def std(self) -> Float:
+        return self.calibrated.std
+
+    def correlation(self) -> Float:
+        from kinecal.identification._identifiability import correlation_from_covariance
+
+        return correlation_from_covariance(self.covariance)
+
+
+def spec_for(
+    robot: RobotDescription,
+    meas: Measurements,
+    model: str | ModelSpec,
+    **options: object,
+) -> ModelSpec:
+    """The model spec of a preset name (or a given spec) fitted to the data's structure.
+
+    The data decides the user frames (one per set), the cam frames (one per marker) and
+    whether the cam rotation is observable (not for position-only data).
+    """
+    cam_rotation = meas.kind != "point"
+    if isinstance(model, ModelSpec):
+        return replace(
+            model,
+            sets=meas.set_labels,
+            markers=meas.marker_labels,
+            cam_rotation=cam_rotation,
+        )
+    return ModelSpec.preset(
+        model,
+        cam_rotation=cam_rotation,
+        sets=meas.set_labels,
+        markers=meas.marker_labels,
+        has_self_weight=robot.self_weight is not None,
+        **options,  # type: ignore[arg-type]
+    )
+
+
+def _generic_point(model: CalibrationModel, x: Float) -> Float:
+    """``x`` with compliance terms at generic non-zero values (for structural rank)."""
+    g = x.copy()
+    for i, s in enumerate(model.layout.specs):
+        if s.kind == "compliance":
+            g[i] = 1e-4
+        elif s.kind == "moment":
+            g[i] = 0.3 + 0.1 * (i % 3)
+        elif s.kind == "ratio":
+            g[i] = 1.0
+    return g
+
+
+def build_prior(
+    model: CalibrationModel, start: Float, options: CalibrationOptions
+) -> Prior:
+    """Priors of :data:`PRIOR_SIGMA` for the groups chosen in ``options.priors``."""
+    sigma = np.full(model.size, np.inf)
+    groups = _PRIOR_GROUPS[options.priors]
+    for i, s in enumerate(model.layout.specs):
+        if s.group in groups:
+            sigma[i] = PRIOR_SIGMA.get((s.group, s.kind), np.inf) * options.prior_scale
+    for name, value in (options.prior_sigma or {}).items():
+        sigma[model.layout.index(name)] = float(value)
+    return Prior(start.copy(), sigma)
+
+
+def _robust_sigma(r: Float) -> float:
+    """Noise per component from the median row norm (whitened units)."""
+    c = r.shape[1]
+    med = float(np.median(np.linalg.norm(r, axis=1)))
+    return med / _CHI_MEDIAN.get(c, np.sqrt(c - 0.5))
+
+
+def calibrate(
+    robot: RobotDescription,
+    meas: Measurements,
+    model: str | ModelSpec = "full",
+    options: CalibrationOptions | None = None,
+    *,
+    progress: object | None = None,
+) -> CalibrationResult:
+    """Identify a model from measurements, starting from nominal kinematics alone.
+
+    Parameters
+    ----------
+    robot : RobotDescription
+    meas : Measurements
+    model : preset name ('kinematic', 'ntm', 'rfcm', 'full') or a ModelSpec
+    options : CalibrationOptions
+    progress : callable ``progress(stage: str, detail: str)``, optional
+
+    Returns
+    -------
+    CalibrationResult
+        Non-convergence is reported in ``success`` and ``warnings``, not raised.
+
+    Raises
+    ------
+    DataError
+        The data does not fit the robot (joint count).
+    IdentifiabilityError
+        Too few poses for the model.
+    """
+    t_start = time.perf_counter()
+    opts = options or CalibrationOptions()
+    say = progress if callable(progress) else (lambda stage, detail: None)
+    if meas.n_joints != robot.n_joints:
+        raise DataError(
+            f"{meas.source} has {meas.n_joints} joint columns; robot {robot.name} has "
+            f"{robot.n_joints} joints."
+        )
+    spec = spec_for(robot, meas, model)
+    cm = CalibrationModel(robot, spec)
+    c = meas.components
+    m_res = meas.n * c
+    if m_res <= cm.size:
+        need = cm.size // c + 1
+        raise IdentifiabilityError(
+            f"{meas.source}: {meas.n} poses give {m_res} residuals, but the '{spec.name}' "
+            f"model has {cm.size} parameters; measure at least {need} poses "
+            f"(several times more for a reliable result)."
+        )
+    warnings: list[str] = []
+    ref_payload = meas.reference_payload() or robot.payload_kg
+    inputs: ModelInputs = meas.model_inputs(ref_payload)
+    weights = Weights.default(meas)
+    lm_linear = LMOptions(max_iter=opts.max_iter)
+
+    def make_fun(model_: CalibrationModel, w: Weights):
+        def fun(x: Float, jac: bool) -> tuple[Float, Float | None]:
+            blk = residuals(model_, x, meas, w, inputs=inputs, jacobian=jac)
+            return blk.r, blk.J
+
+        return fun
+
+    def rms_mm(model_: CalibrationModel, x: Float) -> float:
+        blk = residuals(model_, x, meas, weights, inputs=inputs)
+        return float(np.sqrt(np.mean(np.sum(blk.raw_position**2, axis=1)))) * 1e3
+
+    # ---------------------------------------------------------------- registration
+    say("init", "closed-form user and cam frames")
+    cm, x = initial_frames(cm, cm.nominal.copy(), meas)
+    groups = np.array([s.group for s in cm.layout.specs])
+    frames = np.isin(groups, ("base", "cam"))
+    kin = np.isin(groups, _KINEMATIC_GROUPS)
+    stages: list[StageLog] = []
+
+    def run(
+        name: str,
+        x0: Float,
+        free: np.ndarray,
+        lm: LMOptions,
+        w: Weights,
+        prior: Prior | None = None,
+    ) -> LMResult:
+        before = rms_mm(cm, x0)
+        say(name, f"{int(free.sum())} parameters")
+        res = solve_lm(
+            make_fun(cm, w), x0, free, cm.layout.scales, lm, prior=prior, label=name
+        )
+        after = rms_mm(cm, res.x)
+        stages.append(
+            StageLog(
+                name,
+                int(free.sum()),
+                before,
+                after,
+                res.n_iter,
+                res.status,
+                res.success,
+                res.seconds,
+                res.log,
+            )
+        )
+        log.info(
+            "%s: rms %.4f -> %.4f mm (%s, %d it)",
+            name,
+            before,
+            after,
+            res.status,
+            res.n_iter,
+        )
+        if not res.success:
+            warnings.append(f"{name} did not converge: {res.message}.")
+        return res
+
+    reg = run("registration", x, frames, lm_linear, weights)
+    x_reg = reg.x
+    if meas.kind == "pose" and opts.variance_components and meas.sigma is None:
+        weights = _noise_from_residuals(
+            cm, x_reg, meas, weights, inputs, int(frames.sum())
+        )
+        x_reg = run("registration", x_reg, frames, lm_linear, weights).x
+
+    # ---------------------------------------------------------------- identifiability
+    say("identifiability", "scaled Jacobian")
+    blk = residuals(
+        cm, _generic_point(cm, x_reg), meas, weights, inputs=inputs, jacobian=True
+    )
+    assert blk.J is not None
+    ident = analyse_identifiability(
+        blk.J.reshape(-1, cm.size),
+        cm.layout,
+        np.ones(cm.size, bool),
+        drop_tol=opts.drop_tol,
+        weak_tol=opts.weak_tol,
+    )
+    free = ident.free
+    if m_res <= free.sum():
+        raise IdentifiabilityError(
+            f"{meas.source}: {meas.n} poses ({m_res} residuals) cannot determine "
+            f"{int(free.sum())} parameters."
+        )
+
+    # ---------------------------------------------------------------- stage 1
+    prior = build_prior(cm, x_reg, opts)
+    prior_kin = Prior(prior.mean, np.where(kin, prior.sigma, np.inf))
+    use_prior_kin = bool(np.any(np.isfinite(prior_kin.sigma) & free & kin))
+    x1 = run(
+        "stage 1: kinematic",
+        x_reg,
+        free & kin,
+        lm_linear,
+        weights,
+        prior_kin if use_prior_kin else None,
+    ).x
+    estimate_noise = opts.variance_components and meas.sigma is None
+    if estimate_noise:
+        weights = _noise_from_residuals(
+            cm, x1, meas, weights, inputs, int((free & kin).sum())
+        )
+        if use_prior_kin or meas.kind == "pose":
+            x1 = run(
+                "stage 1: kinematic",
+                x1,
+                free & kin,
+                lm_linear,
+                weights,
+                prior_kin if use_prior_kin else None,
+            ).x
+    lm = lm_linear
+    if opts.loss != "linear":
+        r1 = residuals(cm, x1, meas, weights, inputs=inputs).r
+        if opts.f_scale_mm is not None:
+            f_scale = opts.f_scale_mm * 1e-3 / float(np.median(weights.sigma))
+        else:
+            f_scale = 3.0 * _robust_sigma(r1) * np.sqrt(c)
+        lm = LMOptions(max_iter=opts.max_iter, loss=opts.loss, f_scale=f_scale)
+        x1 = run(
+            "stage 1: kinematic (robust)",
+            x1,
+            free & kin,
+            lm,
+            weights,
+            prior_kin if use_prior_kin else None,
+        ).x
+
+    # ---------------------------------------------------------------- stage 2
+    x2 = x1
+    ntm = groups == "ntm"
+    if np.any(ntm & free) and opts.stage2 != "none":
+        before = rms_mm(cm, x1)
+        t0 = time.perf_counter()
+        say("stage 2: transmission", opts.stage2)
+        x2 = (_stage2_project if opts.stage2 == "project" else _stage2_direct)(
+            cm, x1, meas, weights, inputs, free & ntm
+        )
+        after = rms_mm(cm, x2)
+        if after > before:  # a linear fit cannot be trusted to help: keep stage 1
+            x2 = x1
+            after = before
+        stages.append(
+            StageLog(
+                f"stage 2: transmission ({opts.stage2})",
+                int((free & ntm).sum()),
+                before,
+                after,
+                1,
+                "linear",
+                True,
+                time.perf_counter() - t0,
+            )
+        )
+
+    # ---------------------------------------------------------------- stage 3
+    x_final = x1
+    use_prior = bool(np.any(np.isfinite(prior.sigma) & free))
+    if np.any(free & ~kin):
+        lm3 = replace(lm, max_iter=max(lm.max_iter, 200))
+        x_final = run(
+            "stage 3: all", x2, free, lm3, weights, prior if use_prior else None
+        ).x
+        if estimate_noise:
+            w3 = _noise_from_residuals(
+                cm, x_final, meas, weights, inputs, int(free.sum())
+            )
+            if abs(np.log(w3.sigma[0] / weights.sigma[0])) > np.log(1.2):
+                weights = w3  # priors were weighed against too high a noise: once more
+                x_final = run(
+                    "stage 3: all",
+                    x_final,
+                    free,
+                    lm3,
+                    weights,
+                    prior if use_prior else None,
+                ).x
+
+    # ---------------------------------------------------------------- uncertainty
+    fidx = np.flatnonzero(free)
+    scales = cm.layout.scales[fidx]
+    r_final = residuals(cm, x_final, meas, weights, inputs=inputs, jacobian=True)
+    assert r_final.J is not None
+    wr = loss_weights(np.sum(r_final.r**2, axis=1) / lm.f_scale**2, lm.loss)[1]
+    dof = m_res - fidx.size
+    sigma0 = float(np.sqrt(np.sum(wr[:, None] * r_final.r**2) / max(dof, 1)))
+    Js = (r_final.J[:, :, fidx] * np.sqrt(wr)[:, None, None]).reshape(
+        -1, fidx.size
+    ) * scales
+    A = Js.T @ Js
+    if use_prior:
+        A = A + np.diag(prior.precision[fidx] * scales**2)
+    cov = np.zeros((cm.size, cm.size))
+    try:
+        evals, evecs = np.linalg.eigh(A)
+        good = evals > evals.max() * 1e-14
+        Ainv = (evecs[:, good] / evals[good]) @ evecs[:, good].T
+        cov_f = sigma0**2 * Ainv * np.outer(scales, scales)
+        cov[np.ix_(fidx, fidx)] = cov_f
+    except np.linalg.LinAlgError:
+        warnings.append(
+            "the normal matrix could not be inverted; no standard deviations."
+        )
+    std = np.full(cm.size, np.nan)
+    std[fidx] = np.sqrt(np.clip(np.diag(cov)[fidx], 0.0, None))
+    status = ["estimated" if f else "unidentifiable" for f in free]
+
+    # ---------------------------------------------------------------- report
+    e_before = residuals(cm, x_reg, meas, weights, inputs=inputs)
+    metrics_before = metrics_from_errors(e_before.raw_position, e_before.raw_rotation)
+    metrics_after = metrics_from_errors(r_final.raw_position, r_final.raw_rotation)
+    outliers = _outliers(r_final.r, r_final.raw_position, meas, opts.outlier_p)
+    if outliers:
+        what = "down-weighted" if opts.loss != "linear" else "kept (use --loss huber)"
+        warnings.append(
+            f"{len(outliers)} rows look like outliers; {what}: rows "
+            + ", ".join(str(o.row) for o in outliers[:10])
+            + (" ..." if len(outliers) > 10 else "")
+            + "."
+        )
+    if use_prior:
+        # Terms the data barely inform: the posterior is (almost) the prior.
+        weak_prior = [
+            cm.layout.names[i]
+            for i in fidx
+            if np.isfinite(prior.sigma[i]) and std[i] > 0.7 * prior.sigma[i]
+        ]
+        if weak_prior:
+            warnings.append(
+                f"{len(weak_prior)} parameters are determined mostly by their prior, not by "
+                f"the data: {', '.join(weak_prior[:8])}"
+                + (" ..." if len(weak_prior) > 8 else "")
+                + "."
+            )
+    ratio = fidx.size / m_res
+    if ratio > 0.2:
+        warnings.append(
+            f"{fidx.size} parameters from {m_res} residuals ({ratio:.0%}): results may "
+            "overfit; validate on other poses."
+        )
+    for d in ident.dropped:
+        log.info("unidentifiable: %s", d.describe())
+    success = all(s.success for s in stages)
+    calibrated = CalibratedModel(
+        cm,
+        x_final,
+        std,
+        status,
+        ref_payload,
+        info={
+            "source": meas.source,
+            "kind": meas.kind,
+            "n": meas.n,
+            "model": spec.name,
+        },
+    )
+    return CalibrationResult(
+        calibrated=calibrated,
+        registered=x_reg,
+        covariance=cov,
+        identifiability=ident,
+        stages=stages,
+        metrics_before=metrics_before,
+        metrics_after=metrics_after,
+        outliers=outliers,
+        warnings=warnings,
+        success=success,
+        sigma0=sigma0,
+        weights=weights,
+        seconds=time.perf_counter() - t_start,
+        prior=prior if use_prior else None,
+    )
+
+
+def _noise_from_residuals(
+    cm: CalibrationModel,
+    x: Float,
+    meas: Measurements,
+    w: Weights,
+    inputs: ModelInputs,
+    n_free: int,
+) -> Weights:
+    """Noise per component from the residuals, corrected for the parameters fitted.
+
+    Pose data get separate position and orientation sigmas (variance components).
+    """
+    blk = residuals(cm, x, meas, w, inputs=inputs)
+    m = blk.r.size
+    dof_scale = np.sqrt(m / max(m - n_free, 1))
+    s_p = float(np.sqrt(np.mean(blk.raw_position**2))) * dof_scale
+    if blk.raw_rotation is None:
+        return Weights(np.full(meas.n, max(s_p, 1e-12)))
+    s_r = float(np.sqrt(np.mean(blk.raw_rotation**2))) * dof_scale
+    return Weights(np.full(meas.n, max(s_p, 1e-12)), np.full(meas.n, max(s_r, 1e-12)))
+
+
+def _stage2_direct(
+    cm: CalibrationModel,
+    x: Float,
+    meas: Measurements,
+    w: Weights,
+    inputs: ModelInputs,
+    cols: np.ndarray,
+) -> Float:
+    """Fourier coefficients by linear least squares on the whitened residuals."""
+    blk = residuals(cm, x, meas, w, inputs=inputs, jacobian=True)
+    assert blk.J is not None
+    idx = np.flatnonzero(cols)
+    A = blk.J[:, :, idx].reshape(-1, idx.size)
+    delta, *_ = np.linalg.lstsq(A, -blk.r.reshape(-1), rcond=None)
+    out = x.copy()
+    out[idx] += delta
+    return out
+
+
+def _stage2_project(
+    cm: CalibrationModel,
+    x: Float,
+    meas: Measurements,
+    w: Weights,
+    inputs: ModelInputs,
+    cols: np.ndarray,
+) -> Float:
+    """The paper's stage 2: residuals to joint space by Eq. (29), then Fourier LS per joint."""
+    from kinecal.models import ntm_basis
+
+    spec = cm.spec
+    joints = list(spec.ntm_joints)
+    blk = residuals(cm, x, meas, w, inputs=inputs)
+    Jq = cm.joint_jacobian(x, inputs)[:, :3, :]  # (N, 3, n) position part
+    Jt = Jq[:, :, [j - 1 for j in joints]]
+    e = -blk.raw_position  # joint errors that would remove the residual
+    if len(joints) == 3:
+        dth = np.linalg.solve(Jt, e[:, :, None])[:, :, 0]  # Eq. (29), per point 3x3
+    else:
+        dth = (np.linalg.pinv(Jt) @ e[:, :, None])[:, :, 0]
+    out = x.copy()
+    names = cm.layout.names
+    for k, j in enumerate(joints):
+        idx = np.array(
+            [i for i in np.flatnonzero(cols) if names[i].startswith(f"joint{j}.")]
+        )
+        if idx.size == 0:
+            continue
+        B = ntm_basis(meas.q_ctrl[:, j - 1], spec.ntm_order, spec.ntm_offset)
+        col_names = [n.split(".", 1)[1] for n in np.array(names)[idx]]
+        all_cols = (["k0"] if spec.ntm_offset else []) + [
+            f"k{ab}{h}" for h in range(1, spec.ntm_order + 1) for ab in "ab"
+        ]
+        Bsel = B[:, [all_cols.index(cn) for cn in col_names]]
+        coef, *_ = np.linalg.lstsq(Bsel, dth[:, k], rcond=None)
+        out[idx] += coef
+    return out
+
+
+def _outliers(r: Float, e_pos: Float, meas: Measurements, p: float) -> list[Outlier]:
+    c = r.shape[1]
+    sigma = _robust_sigma(r)
+    if sigma <= 0:
+        return []
+    z = np.linalg.norm(r, axis=1) / sigma
+    thr = float(np.sqrt(chi2.isf(p, c)))
+    bad = np.flatnonzero(z > thr)
+    err = np.linalg.norm(e_pos, axis=1) * 1e3
+    order = bad[np.argsort(-z[bad])]
+    return [Outlier(int(meas.rows[i]), float(err[i]), float(z[i])) for i in order]

@@ -1,0 +1,116 @@
+"""A calibrated model: model structure plus identified parameters, ready to predict."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from kinecal.errors import DataError
+from kinecal.identification._measurements import Measurements
+from kinecal.identification._metrics import Metrics, metrics_from_errors
+from kinecal.identification._residuals import ResidualBlock, Weights, residuals
+from kinecal.models import CalibrationModel
+from kinecal.typing import Float
+
+__all__ = ["STATUSES", "CalibratedModel"]
+
+STATUSES = ("estimated", "unidentifiable", "fixed")
+
+
+@dataclass
+class CalibratedModel:
+    """Model structure plus identified parameters.
+
+    Attributes
+    ----------
+    model : CalibrationModel
+    params : (P,) identified parameters (SI).
+    std : (P,) standard deviations (SI); NaN where a parameter was not estimated.
+    status : list of str, per parameter: 'estimated', 'unidentifiable' (fixed at its
+        start value because the poses cannot determine it) or 'fixed' (held by choice).
+    reference_payload_kg : payload defining the unit weight of lambda*, if known.
+    info : free-form metadata kept in model files (metrics, data source, ...).
+    """
+
+    model: CalibrationModel
+    params: Float
+    std: Float
+    status: list[str]
+    reference_payload_kg: float | None = None
+    info: dict[str, object] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        P = self.model.size
+        self.params = np.asarray(self.params, dtype=np.float64).reshape(P)
+        self.std = np.asarray(self.std, dtype=np.float64).reshape(P)
+        if len(self.status) != P or any(s not in STATUSES for s in self.status):
+            raise ValueError(f"status must list one of {STATUSES} per parameter.")
+
+    @property
+    def layout(self):
+        return self.model.layout
+
+    def value(self, name: str) -> float:
+        """Parameter value by exact name (SI)."""
+        return float(self.params[self.model.layout.index(name)])
+
+    def align(self, meas: Measurements) -> Measurements:
+        """Map the set and marker labels of ``meas`` onto this model's.
+
+        A model with a single user frame (or marker) accepts any label: the data is taken
+        to come from the same set-up. Otherwise every label must be known.
+        """
+        spec = self.model.spec
+        out: dict[str, object] = {}
+        for attr_i, attr_l, own, what in (
+            ("set_index", "set_labels", spec.sets, "set"),
+            ("marker_index", "marker_labels", spec.markers, "marker"),
+        ):
+            labels = getattr(meas, attr_l)
+            idx = getattr(meas, attr_i)
+            if tuple(labels) == tuple(own):
+                continue
+            if len(own) == 1:
+                out[attr_i] = np.zeros(meas.n, np.intp)
+                out[attr_l] = own
+                continue
+            missing = [lab for lab in labels if lab not in own]
+            if missing:
+                hint = " Use --refit user for a new set-up." if what == "set" else ""
+                raise DataError(
+                    f"{meas.source}: {what} {missing[0]!r} is not in the model "
+                    f"(it has {', '.join(repr(o) for o in own)}).{hint}"
+                )
+            remap = np.array([own.index(lab) for lab in labels], dtype=np.intp)
+            out[attr_i] = remap[idx]
+            out[attr_l] = own
+        if not out:
+            return meas
+        from dataclasses import replace
+
+        return replace(meas, **out)  # type: ignore[arg-type]
+
+    def predict(
+        self, meas: Measurements, weights: Weights | None = None
+    ) -> ResidualBlock:
+        """Residuals (model minus reference) of ``meas`` under this calibration."""
+        if meas.n_joints != self.model.n_joints:
+            raise DataError(
+                f"{meas.source} has {meas.n_joints} joints; the model's robot "
+                f"{self.model.robot.name} has {self.model.n_joints}."
+            )
+        m = self.align(meas)
+        w = weights or Weights.default(m)
+        return residuals(
+            self.model,
+            self.params,
+            m,
+            w,
+            inputs=m.model_inputs(self.reference_payload_kg),
+        )
+
+    def metrics(self, meas: Measurements) -> Metrics:
+        """Accuracy metrics of ``meas`` under this calibration."""
+        blk = self.predict(meas)
+        return metrics_from_errors(blk.raw_position, blk.raw_rotation)

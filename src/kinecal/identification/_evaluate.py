@@ -1,0 +1,319 @@
+"""Held-out evaluation, user-frame refit, train/test split and k-fold cross-validation."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from kinecal.errors import IdentifiabilityError
+from kinecal.geometry import kabsch_umeyama, matrix_to_euler_zyx
+from kinecal.identification._calibrate import CalibrationOptions, calibrate
+from kinecal.identification._calibrated import CalibratedModel
+from kinecal.identification._lm import LMOptions, solve_lm
+from kinecal.identification._measurements import Measurements
+from kinecal.identification._metrics import Metrics, metrics_from_errors
+from kinecal.identification._residuals import Weights, residuals
+from kinecal.models import CalibrationModel, ModelSpec
+from kinecal.robot import RobotDescription
+from kinecal.typing import Float
+
+__all__ = [
+    "CrossValidation",
+    "Evaluation",
+    "cross_validate",
+    "evaluate",
+    "kfold_indices",
+    "refit",
+    "train_test_split",
+]
+
+
+@dataclass
+class Evaluation:
+    """Errors of a calibrated model on a data set."""
+
+    metrics: Metrics
+    errors_mm: Float  # (N,) 3-D error norms
+    error_xyz_mm: Float  # (N, 3) model minus measurement, user frame
+    calibrated: CalibratedModel  # the model used (after any refit)
+
+
+def refit(
+    calibrated: CalibratedModel,
+    meas: Measurements,
+    groups: tuple[str, ...] = ("base",),
+    *,
+    names: list[str] | None = None,
+) -> CalibratedModel:
+    """Re-estimate some parameters of a calibration on new data, the rest held.
+
+    With ``groups=('base',)`` this registers new user frames: one per set of ``meas``
+    (a new tracker set-up), started by a closed-form fit of the model's points.
+
+    Parameters
+    ----------
+    calibrated : CalibratedModel
+    meas : Measurements
+    groups : parameter groups to re-estimate ('base', 'cam', 'joint', 'ntm', ...).
+    names : exact parameter names to re-estimate instead of groups.
+    """
+    old = calibrated.model
+    spec = old.spec
+    new_sets = "base" in groups and tuple(meas.set_labels) != tuple(spec.sets)
+    if new_sets:
+        model = CalibrationModel(old.robot, replace(spec, sets=meas.set_labels))
+        model = model.with_references(
+            None, old.R_ref_cam if spec.cam_rotation else None
+        )
+        x = model.layout.transfer(calibrated.params, old.layout)
+        status = [
+            calibrated.status[old.layout.index(n)] if n in old.layout else "estimated"
+            for n in model.layout.names
+        ]
+        std = model.layout.transfer(calibrated.std, old.layout)
+        m = meas
+    else:
+        model, x = old, calibrated.params.copy()
+        status, std = list(calibrated.status), calibrated.std.copy()
+        m = calibrated.align(meas)
+    inputs = m.model_inputs(calibrated.reference_payload_kg)
+    if "base" in groups:
+        # Closed form: model points in the robot base frame, Kabsch to the measurements.
+        base_idx = model.base_index
+        probe = x.copy()
+        probe[base_idx] = 0.0
+        R_ref = np.broadcast_to(np.eye(3), model.R_ref_base.shape)
+        p_base = model.with_references(R_ref).evaluate(probe, inputs).p_user
+        ref = m.reference_points()
+        R_new = model.R_ref_base.copy()
+        for s in range(len(model.spec.sets)):
+            rows = m.set_index == s
+            if rows.sum() < 3:
+                raise IdentifiabilityError(
+                    f"{meas.source}: set {model.spec.sets[s]!r} has {rows.sum()} rows; "
+                    "refitting its user frame needs at least 3."
+                )
+            T, _ = kabsch_umeyama(p_base[rows], ref[rows])
+            R_new[s] = np.eye(3)
+            x[base_idx[s]] = np.concatenate([T[:3, 3], matrix_to_euler_zyx(T[:3, :3])])
+        model = model.with_references(R_new)
+    groups_arr = np.array([s.group for s in model.layout.specs])
+    free = (
+        np.isin(groups_arr, groups)
+        if names is None
+        else np.isin(model.layout.names, names)
+    )
+    free &= np.array([st != "unidentifiable" for st in status])
+    w = Weights.default(m)
+
+    def fun(xx: Float, jac: bool) -> tuple[Float, Float | None]:
+        blk = residuals(model, xx, m, w, inputs=inputs, jacobian=jac)
+        return blk.r, blk.J
+
+    res = solve_lm(
+        fun, x, free, model.layout.scales, LMOptions(max_iter=100), label="refit"
+    )
+    return CalibratedModel(
+        model,
+        res.x,
+        std,
+        status,
+        calibrated.reference_payload_kg,
+        info={**calibrated.info, "refit": list(groups) if names is None else names},
+    )
+
+
+def evaluate(
+    calibrated: CalibratedModel, meas: Measurements, *, refit_user: bool = False
+) -> Evaluation:
+    """Accuracy of a calibrated model on (held-out) data.
+
+    Parameters
+    ----------
+    refit_user : bool
+        Re-estimate only the user frame(s) on ``meas`` first: the data come from a new
+        tracker set-up (DESIGN §11).
+    """
+    cal = refit(calibrated, meas, ("base",)) if refit_user else calibrated
+    blk = cal.predict(meas)
+    met = metrics_from_errors(blk.raw_position, blk.raw_rotation)
+    return Evaluation(
+        met, np.linalg.norm(blk.raw_position, axis=1) * 1e3, blk.raw_position * 1e3, cal
+    )
+
+
+def train_test_split(
+    meas: Measurements, n_train: int | float, seed: int = 0
+) -> tuple[Measurements, Measurements]:
+    """Random split into ``n_train`` rows (or that fraction) and the rest."""
+    n = meas.n
+    k = (
+        round(n_train * n)
+        if isinstance(n_train, float) and n_train < 1
+        else int(n_train)
+    )
+    if not 0 < k < n:
+        raise ValueError(
+            f"n_train must leave rows on both sides; got {n_train} of {n}."
+        )
+    perm = np.random.default_rng(seed).permutation(n)
+    return meas.subset(np.sort(perm[:k])), meas.subset(np.sort(perm[k:]))
+
+
+def kfold_indices(
+    meas: Measurements, k: int, seed: int = 0, *, by_set: bool = True
+) -> list[np.ndarray]:
+    """Test-row indices of k folds; grouped by set (session) when there are several."""
+    if by_set and len(meas.set_labels) > 1:
+        sets = np.unique(meas.set_index)
+        k = min(k, sets.size)
+        order = np.random.default_rng(seed).permutation(sets)
+        return [
+            np.flatnonzero(np.isin(meas.set_index, chunk))
+            for chunk in np.array_split(order, k)
+        ]
+    if k < 2 or k > meas.n:
+        raise ValueError(
+            f"k must be between 2 and the number of rows ({meas.n}); got {k}."
+        )
+    perm = np.random.default_rng(seed).permutation(meas.n)
+    return [np.sort(chunk) for chunk in np.array_split(perm, k)]
+
+
+@dataclass
+class CrossValidation:
+    """Per-fold held-out metrics and their mean."""
+
+    model: str
+    folds: list[Metrics] = field(default_factory=list)
+    train: list[Metrics] = field(default_factory=list)
+
+    @property
+    def rms_mm(self) -> float:
+        """Pooled held-out RMS over all folds."""
+        num = sum(f.rms_mm**2 * f.n for f in self.folds)
+        return float(np.sqrt(num / max(sum(f.n for f in self.folds), 1)))
+
+    @property
+    def rms_se_mm(self) -> float:
+        """Standard error of the fold RMS values."""
+        v = np.array([f.rms_mm for f in self.folds])
+        return float(v.std(ddof=1) / np.sqrt(v.size)) if v.size > 1 else float("nan")
+
+
+def cross_validate(
+    robot: RobotDescription,
+    meas: Measurements,
+    model: str | ModelSpec = "full",
+    *,
+    k: int = 5,
+    seed: int = 0,
+    options: CalibrationOptions | None = None,
+) -> CrossValidation:
+    """k-fold cross-validation; with several sets the folds are whole sets and the user
+    frame of a held-out set is refitted (a new set-up), as ``evaluate --refit user``."""
+    folds = kfold_indices(meas, k, seed)
+    by_set = len(meas.set_labels) > 1 and len(folds) == len(np.unique(meas.set_index))
+    out = CrossValidation(model if isinstance(model, str) else model.name)
+    for test_idx in folds:
+        mask = np.zeros(meas.n, bool)
+        mask[test_idx] = True
+        train, test = meas.subset(~mask), meas.subset(mask)
+        if by_set:
+            train = _relabel_sets(train)
+            test = _relabel_sets(test)
+        res = calibrate(robot, train, model, options)
+        out.train.append(res.metrics_after)
+        out.folds.append(evaluate(res.calibrated, test, refit_user=by_set).metrics)
+    return out
+
+
+def _relabel_sets(meas: Measurements) -> Measurements:
+    """Keep only the set labels that occur (after a split)."""
+    used = np.unique(meas.set_index)
+    remap = -np.ones(len(meas.set_labels), np.intp)
+    remap[used] = np.arange(used.size)
+    return replace(
+        meas,
+        set_index=remap[meas.set_index],
+        set_labels=tuple(meas.set_labels[i] for i in used),
+    )
+
+
+@dataclass
+class ComparisonRow:
+    """One row of a Table 5/8-style comparison (test metrics on held-out data)."""
+
+    model: str
+    size: int
+    n_free: int
+    train: Metrics
+    test: Metrics
+    seconds: float
+    calibrated: CalibratedModel | None = None
+    result: object | None = None  # the CalibrationResult (None for the nominal row)
+
+
+def compare_models(
+    robot: RobotDescription,
+    train: Measurements,
+    test: Measurements,
+    models: tuple[str | ModelSpec, ...] = ("kinematic", "ntm", "rfcm", "full"),
+    *,
+    options: CalibrationOptions | None = None,
+    refit_user: bool = False,
+    nominal: bool = True,
+    progress: object | None = None,
+) -> list[ComparisonRow]:
+    """Calibrate each model on ``train`` and score it on ``test`` (Tables 5 and 8).
+
+    With ``nominal`` a first row scores the nominal kinematics with fitted user and cam
+    frames (the state before calibration).
+    """
+    rows: list[ComparisonRow] = []
+    say = progress if callable(progress) else (lambda stage, detail: None)
+    for spec in models:
+        name = spec if isinstance(spec, str) else spec.name
+        say("compare", name)
+        res = calibrate(robot, train, spec, options)
+        cal = res.calibrated
+        if nominal and not rows:
+            before = CalibratedModel(
+                cal.model,
+                res.registered,
+                np.full(cal.model.size, np.nan),
+                ["fixed"] * cal.model.size,
+                cal.reference_payload_kg,
+            )
+            rows.append(
+                ComparisonRow(
+                    "nominal",
+                    int(
+                        len(before.model.base_index.ravel())
+                        + before.model.cam_index.size
+                    ),
+                    int(
+                        len(before.model.base_index.ravel())
+                        + before.model.cam_index.size
+                    ),
+                    res.metrics_before,
+                    evaluate(before, test, refit_user=refit_user).metrics,
+                    0.0,
+                    before,
+                    None,
+                )
+            )
+        rows.append(
+            ComparisonRow(
+                name,
+                cal.model.size,
+                res.identifiability.rank,
+                res.metrics_after,
+                evaluate(cal, test, refit_user=refit_user).metrics,
+                res.seconds,
+                cal,
+                res,
+            )
+        )
+    return rows

@@ -1,0 +1,200 @@
+"""Identifiability: which parameters the poses determine, and how well.
+
+The identification Jacobian is scaled by each parameter's characteristic size (so mm and
+rad columns compare) and its columns normalised. Columns are then taken in a fixed order
+of preference (user and cam frames, joint geometry, compliance, transmission terms; d and
+the constant k0 last) and each is projected on the span of the ones kept before it
+(QR without pivoting, i.e. Gram-Schmidt in that order). A column whose remaining part is
+below ``drop_tol`` of its norm is a combination of kept ones: it is unidentifiable, fixed
+at its starting value, and reported with its partners. Decisions use relative tolerances
+only (``|R_kk| / |j_k|``), never absolute ones.
+
+Known cases it finds (DESIGN §4): k0 of J1-J3 against the joint offsets and the base
+rotation; lambda1* when joint 1 is parallel to gravity; d on parallel axes; the link
+moment s1 against the first NTM harmonic of J2 on a level base.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from kinecal.models import ParameterLayout
+from kinecal.typing import Float
+
+__all__ = [
+    "DroppedParameter",
+    "Identifiability",
+    "analyse_identifiability",
+    "correlation_from_covariance",
+    "priority_order",
+]
+
+_GROUP_RANK = {"base": 0, "cam": 1, "joint": 2, "load": 3, "link": 4, "ntm": 5}
+_JOINT_FIELD_RANK = {"theta_offset": 0, "alpha": 1, "a": 2, "beta": 3, "d": 4}
+
+
+def priority_order(layout: ParameterLayout) -> np.ndarray:
+    """Indices of ``layout`` from most to least preferred to keep."""
+
+    def key(i: int) -> tuple[int, int, int]:
+        s = layout.specs[i]
+        field_name = s.name.rsplit(".", 1)[-1]
+        if s.group == "joint":
+            sub = _JOINT_FIELD_RANK.get(field_name, 5)
+        elif s.group == "ntm":
+            sub = 1 if field_name == "k0" else 0
+        else:
+            sub = 0
+        return (_GROUP_RANK.get(s.group, 9), sub, i)
+
+    return np.array(sorted(range(layout.size), key=key), dtype=np.intp)
+
+
+@dataclass(frozen=True)
+class DroppedParameter:
+    """An unidentifiable parameter and the kept parameters it is a combination of."""
+
+    name: str
+    fraction: float
+    partners: list[tuple[str, float]]
+
+    def describe(self) -> str:
+        if not self.partners:
+            return f"{self.name} does not affect the measurements"
+        terms = " ".join(f"{c:+.3g}·{n}" for n, c in self.partners)
+        return f"{self.name} ≈ {terms} (in characteristic units)"
+
+
+@dataclass
+class Identifiability:
+    """Result of :func:`analyse_identifiability`.
+
+    Attributes
+    ----------
+    names : list of str, every parameter of the layout.
+    candidate : (P,) bool, parameters that were to be estimated.
+    free : (P,) bool, parameters that are estimated (candidate minus unidentifiable).
+    fraction : (P,) remaining fraction ``|R_kk| / |j_k|`` of each candidate column (NaN
+        for non-candidates).
+    dropped : unidentifiable parameters with their partners.
+    weak : (name, fraction) of kept parameters below ``weak_tol``: poorly determined.
+    singular_values : scaled, column-normalised singular values of the free columns.
+    condition_number : ratio of the largest to the smallest of them.
+    """
+
+    names: list[str]
+    candidate: np.ndarray
+    free: np.ndarray
+    fraction: Float
+    dropped: list[DroppedParameter] = field(default_factory=list)
+    weak: list[tuple[str, float]] = field(default_factory=list)
+    singular_values: Float = field(default_factory=lambda: np.zeros(0))
+    condition_number: float = float("nan")
+
+    @property
+    def rank(self) -> int:
+        return int(self.free.sum())
+
+    def summary(self) -> list[str]:
+        """Findings in words, one line each."""
+        lines = [
+            f"{self.rank} of {int(self.candidate.sum())} parameters identifiable; "
+            f"condition number {self.condition_number:.3g} (scaled, normalised columns)."
+        ]
+        lines += [f"unidentifiable: {d.describe()}" for d in self.dropped]
+        lines += [
+            f"poorly determined: {n} (independent fraction {f:.1e})"
+            for n, f in self.weak
+        ]
+        return lines
+
+
+def analyse_identifiability(
+    J: Float,
+    layout: ParameterLayout,
+    candidate: np.ndarray,
+    *,
+    drop_tol: float = 1e-6,
+    weak_tol: float = 1e-3,
+) -> Identifiability:
+    """Find the unidentifiable and poorly identifiable parameters of a Jacobian.
+
+    Parameters
+    ----------
+    J : (m, P) whitened identification Jacobian (rows: residual components).
+    layout : ParameterLayout of the P columns.
+    candidate : (P,) bool, parameters meant to be estimated.
+    drop_tol : float
+        Relative remaining norm below which a column is unidentifiable.
+    weak_tol : float
+        Relative remaining norm below which a kept column is reported as poorly determined.
+    """
+    candidate = np.asarray(candidate, dtype=bool)
+    P = layout.size
+    Js = J * layout.scales[None, :]
+    norms = np.linalg.norm(Js, axis=0)
+    order = [i for i in priority_order(layout) if candidate[i]]
+    fraction = np.full(P, np.nan)
+    free = np.zeros(P, dtype=bool)
+    if not order:
+        return Identifiability(layout.names, candidate, free, fraction)
+    big = max(float(norms[order].max()), 1e-300)
+    Jn = np.zeros((J.shape[0], len(order)))
+    zero = np.zeros(len(order), dtype=bool)
+    for c, i in enumerate(order):
+        if norms[i] <= 1e-12 * big:
+            zero[c] = True
+        else:
+            Jn[:, c] = Js[:, i] / norms[i]
+    # Householder QR in order of preference: |R_kk| is the part of column k that the
+    # columns before it cannot explain.
+    R = np.linalg.qr(Jn, mode="r")
+    rkk = np.abs(np.diag(R))
+    kept: list[int] = []
+    dropped: list[DroppedParameter] = []
+    weak: list[tuple[str, float]] = []
+    for c, i in enumerate(order):
+        f = 0.0 if zero[c] else float(rkk[c])
+        fraction[i] = f
+        if f < drop_tol:
+            partners: list[tuple[str, float]] = []
+            if not zero[c] and kept:
+                coef, *_ = np.linalg.lstsq(
+                    Jn[:, [order.index(k) for k in kept]], Jn[:, c], rcond=None
+                )
+                # Express in characteristic units of the columns (undo normalisation).
+                coef = coef * norms[i] / norms[kept]
+                top = np.argsort(-np.abs(coef))[:4]
+                partners = [
+                    (layout.names[kept[t]], float(coef[t]))
+                    for t in top
+                    if abs(coef[t]) > 1e-3 * np.abs(coef).max()
+                ]
+            dropped.append(DroppedParameter(layout.names[i], f, partners))
+        else:
+            kept.append(i)
+            if f < weak_tol:
+                weak.append((layout.names[i], f))
+    free[kept] = True
+    sv: Float = np.zeros(0)
+    cond = float("nan")
+    if kept:
+        sv = np.asarray(
+            np.linalg.svd(Jn[:, [order.index(k) for k in kept]], compute_uv=False),
+            np.float64,
+        )
+        cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
+    return Identifiability(
+        layout.names, candidate, free, fraction, dropped, weak, sv, cond
+    )
+
+
+def correlation_from_covariance(cov: Float) -> Float:
+    """Correlation matrix of a covariance matrix (zero rows give zero correlations)."""
+    d = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        C = cov / np.outer(d, d)
+    C[~np.isfinite(C)] = 0.0
+    return C

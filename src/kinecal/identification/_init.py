@@ -1,0 +1,231 @@
+"""Closed-form starting values of the user and cam frames from nominal kinematics.
+
+No user guess is needed (DESIGN §5):
+
+* point data: Kabsch between nominal tool points and measurements, alternating with a
+  linear least-squares solve for the tool point (per marker) and the frame translations;
+* pose data: ``M_i = Y F_i X`` solved as AX = YB (Shah's Kronecker method);
+* sensor data: a linear hand-eye solve ``F_i X p_cam,i = b_k`` for the cam frame and the
+  targets in the base frame, then Kabsch from the base to the user frame.
+
+Frames whose Euler pitch ``|w|`` comes within 15 deg of 90 deg get a reference rotation so
+the identification never works at gimbal lock.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinecal.errors import IdentifiabilityError
+from kinecal.geometry import (
+    kabsch_umeyama,
+    make_transform,
+    matrix_to_euler_zyx,
+    project_to_so3,
+    solve_axyb,
+    transform_inv,
+)
+from kinecal.identification._measurements import Measurements
+from kinecal.models import CalibrationModel
+from kinecal.typing import Float
+
+__all__ = ["initial_frames"]
+
+_GIMBAL_MARGIN = np.radians(15.0)
+
+
+def _flange(
+    model: CalibrationModel, params: Float, meas: Measurements
+) -> tuple[Float, Float]:
+    return model.flange_frames(params, meas.model_inputs())
+
+
+def _init_point(
+    model: CalibrationModel, params: Float, meas: Measurements, n_iter: int = 50
+) -> tuple[Float, Float, Float]:
+    """Base rotations (S, 3, 3), base translations (S, 3), tool points (M, 3)."""
+    R_fl, o_fl = _flange(model, params, meas)
+    S, M = len(model.spec.sets), len(model.spec.markers)
+    _, t_cam = model.cam_frames(params)
+    tool = t_cam.copy()
+    R_b = np.broadcast_to(np.eye(3), (S, 3, 3)).copy()
+    t_b = np.zeros((S, 3))
+    si, mi = meas.set_index, meas.marker_index
+    p = meas.p
+    prev = np.inf
+    for _ in range(n_iter):
+        p_base = o_fl + np.einsum("nij,nj->ni", R_fl, tool[mi])
+        for s in range(S):
+            rows = si == s
+            if rows.sum() < 3:
+                raise IdentifiabilityError(
+                    f"{meas.source}: set {model.spec.sets[s]!r} has {rows.sum()} rows; "
+                    "a user frame needs at least 3."
+                )
+            T, _ = kabsch_umeyama(p_base[rows], p[rows])
+            R_b[s], t_b[s] = T[:3, :3], T[:3, 3]
+        # Linear solve for tool points and base translations with rotations fixed.
+        N = meas.n
+        A = np.zeros((N, 3, 3 * M + 3 * S))
+        RR = np.einsum("nij,njk->nik", R_b[si], R_fl)
+        for m in range(M):
+            A[mi == m, :, 3 * m : 3 * m + 3] = RR[mi == m]
+        for s in range(S):
+            A[si == s, :, 3 * M + 3 * s : 3 * M + 3 * s + 3] = np.eye(3)
+        b = p - np.einsum("nij,nj->ni", R_b[si], o_fl)
+        sol, *_ = np.linalg.lstsq(A.reshape(3 * N, -1), b.reshape(-1), rcond=None)
+        tool = sol[: 3 * M].reshape(M, 3)
+        t_b = sol[3 * M :].reshape(S, 3)
+        res = float(np.linalg.norm(A.reshape(3 * N, -1) @ sol - b.reshape(-1)))
+        if abs(prev - res) <= 1e-12 * max(res, 1e-9):
+            break
+        prev = res
+    return R_b, t_b, tool
+
+
+def _init_pose(
+    model: CalibrationModel, params: Float, meas: Measurements
+) -> tuple[Float, Float, Float, Float]:
+    """Base (S) and cam (M) frames from AX = YB."""
+    assert meas.R_user_cam is not None
+    R_fl, o_fl = _flange(model, params, meas)
+    F = make_transform(R_fl, o_fl)
+    Mm = make_transform(meas.R_user_cam, meas.p)
+    S, Mk = len(model.spec.sets), len(model.spec.markers)
+    si, mi = meas.set_index, meas.marker_index
+    # The most frequent marker fixes Y per set; then every marker's X given Y.
+    m0 = int(np.bincount(mi, minlength=Mk).argmax())
+    Y = np.zeros((S, 4, 4))
+    X = np.zeros((Mk, 4, 4))
+    for s in range(S):
+        rows = (si == s) & (mi == m0)
+        if rows.sum() < 3:
+            rows = si == s
+        # M_i = Y F_i X  <=>  M_i X^-1 = Y F_i : AX' = YB with A = M, B = F, X' = X^-1.
+        Xinv, Ys = solve_axyb(Mm[rows], F[rows])
+        Y[s] = Ys
+        if s == 0:
+            X[m0] = transform_inv(Xinv)
+    for m in range(Mk):
+        rows = mi == m
+        Xi = np.einsum("nij,njk->nik", transform_inv(Y[si[rows]] @ F[rows]), Mm[rows])
+        X[m] = make_transform(
+            project_to_so3(Xi[:, :3, :3].mean(axis=0)), Xi[:, :3, 3].mean(axis=0)
+        )
+    return Y[:, :3, :3], Y[:, :3, 3], X[:, :3, :3], X[:, :3, 3]
+
+
+def _init_sensor(
+    model: CalibrationModel, params: Float, meas: Measurements
+) -> tuple[Float, Float, Float, Float]:
+    """Cam frames (M) by a linear hand-eye solve, then user frames (S) by Kabsch."""
+    assert meas.targets is not None and meas.target_index is not None
+    R_fl, o_fl = _flange(model, params, meas)
+    S, Mk = len(model.spec.sets), len(model.spec.markers)
+    K = meas.targets.shape[0]
+    si, mi, ti = meas.set_index, meas.marker_index, meas.target_index
+    N = meas.n
+    pc = meas.p
+    # Unknowns: per marker M (9, row-major, a relaxed rotation) and t (3); per
+    # (set, target) the target in the base frame b (3).
+    n_x = 12 * Mk
+    key = si * K + ti
+    n_b = 3 * S * K
+    A = np.zeros((N, 3, n_x + n_b))
+    # R_F M p = sum_ab R_F[:, a] p[b] M[a, b]: coefficients of M in row-major order.
+    kron = np.einsum("nj,nik->nikj", pc, R_fl).reshape(N, 3, 9)
+    for m in range(Mk):
+        rows = mi == m
+        A[rows, :, 12 * m : 12 * m + 9] = kron[rows]
+        A[rows, :, 12 * m + 9 : 12 * m + 12] = R_fl[rows]
+    for k in np.unique(key):
+        rows = key == k
+        A[rows, :, n_x + 3 * k : n_x + 3 * k + 3] = -np.eye(3)
+    b = -o_fl
+    used = np.concatenate([np.ones(n_x, bool), np.zeros(n_b, bool)])
+    for k in np.unique(key):
+        used[n_x + 3 * k : n_x + 3 * k + 3] = True
+    Au = A.reshape(3 * N, -1)[:, used]
+    sol_u, *_ = np.linalg.lstsq(Au, b.reshape(-1), rcond=None)
+    sol = np.zeros(n_x + n_b)
+    sol[used] = sol_u
+    R_c = np.zeros((Mk, 3, 3))
+    for m in range(Mk):
+        R_c[m] = project_to_so3(sol[12 * m : 12 * m + 9].reshape(3, 3))
+    # Re-solve the translations with the rotations fixed.
+    rhs = -o_fl - np.einsum("nij,nj->ni", R_fl, np.einsum("nij,nj->ni", R_c[mi], pc))
+    cols = np.concatenate([np.zeros(n_x, bool), used[n_x:]])
+    for m in range(Mk):
+        cols[12 * m + 9 : 12 * m + 12] = True
+    sol2, *_ = np.linalg.lstsq(
+        A.reshape(3 * N, -1)[:, cols], rhs.reshape(-1), rcond=None
+    )
+    full = np.zeros(n_x + n_b)
+    full[cols] = sol2
+    t_c = np.stack([full[12 * m + 9 : 12 * m + 12] for m in range(Mk)])
+    R_b = np.zeros((S, 3, 3))
+    t_b = np.zeros((S, 3))
+    for s in range(S):
+        seen = [k for k in range(K) if np.any(key == s * K + k)]
+        b_base = np.array(
+            [full[n_x + 3 * (s * K + k) : n_x + 3 * (s * K + k) + 3] for k in seen]
+        )
+        p_user = meas.targets[seen]
+        if len(seen) >= 3:
+            try:
+                T, _ = kabsch_umeyama(b_base, p_user)
+                R_b[s], t_b[s] = T[:3, :3], T[:3, 3]
+                continue
+            except ValueError:
+                pass
+        # Fewer than 3 (or collinear) targets: the user-frame rotation is not observable
+        # from positions; keep the nominal rotation and match the centroids.
+        R_b[s] = np.eye(3)
+        t_b[s] = p_user.mean(axis=0) - b_base.mean(axis=0)
+    return R_b, t_b, R_c, t_c
+
+
+def _euler_with_reference(R: Float) -> tuple[Float, Float]:
+    """Reference rotation and Euler angles: identity unless near gimbal lock."""
+    rwp = matrix_to_euler_zyx(R)
+    if abs(abs(rwp[1]) - np.pi / 2) < _GIMBAL_MARGIN:
+        return R.copy(), np.zeros(3)
+    return np.eye(3), rwp
+
+
+def initial_frames(
+    model: CalibrationModel, params: Float, meas: Measurements
+) -> tuple[CalibrationModel, Float]:
+    """Starting user and cam frames from the nominal kinematics in ``params``.
+
+    Returns
+    -------
+    model : CalibrationModel
+        The same model, with reference rotations where a frame is near gimbal lock.
+    params : (P,) the parameters with every user and cam frame set.
+    """
+    x = params.copy()
+    R_ref_b = model.R_ref_base.copy()
+    R_ref_c = model.R_ref_cam.copy()
+    # Frames are evaluated with identity reference rotations and zero user frames.
+    work = model.with_references(np.broadcast_to(np.eye(3), R_ref_b.shape))
+    base_idx = work.base_index
+    x[base_idx] = 0.0
+    if meas.kind == "point":
+        R_b, t_b, tool = _init_point(work, x, meas)
+        R_c, t_c = None, tool
+    elif meas.kind == "pose":
+        R_b, t_b, R_c, t_c = _init_pose(work, x, meas)
+    else:
+        R_b, t_b, R_c, t_c = _init_sensor(work, x, meas)
+    for s in range(len(model.spec.sets)):
+        R_ref_b[s], rwp = _euler_with_reference(R_b[s])
+        x[base_idx[s]] = np.concatenate([t_b[s], rwp])
+    cam_idx = model.cam_index
+    for m in range(len(model.spec.markers)):
+        x[cam_idx[m, :3]] = t_c[m]
+        if model.spec.cam_rotation and R_c is not None:
+            R_ref_c[m], rwp = _euler_with_reference(R_c[m])
+            x[cam_idx[m, 3:]] = rwp
+    out = model.with_references(R_ref_b, R_ref_c if model.spec.cam_rotation else None)
+    return out, x

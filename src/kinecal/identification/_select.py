@@ -1,0 +1,197 @@
+"""``--model auto``: choose the terms the data support by cross-validation.
+
+Candidates run from the kinematic model to the full one (NTM per joint group and order,
+payload compliance, link weight), each with the physical priors at a few strengths. Every
+candidate is scored by k-fold cross-validation (whole sessions per fold when there are
+several; their user frames are refitted, as for a new set-up). The choice follows the
+one-standard-error rule: the smallest model whose validation RMS is within one standard
+error of the best. The table behind the choice goes into the report.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from kinecal.identification._calibrate import CalibrationOptions, spec_for
+from kinecal.identification._evaluate import cross_validate
+from kinecal.identification._measurements import Measurements
+from kinecal.models import ModelSpec
+from kinecal.robot import RobotDescription
+
+__all__ = ["Candidate", "Selection", "candidate_specs", "select_model"]
+
+
+@dataclass
+class Candidate:
+    """One candidate's cross-validation result."""
+
+    label: str
+    spec: ModelSpec
+    prior_scale: float
+    size: int
+    cv_rms_mm: float
+    cv_se_mm: float
+    train_rms_mm: float
+    chosen: bool = False
+
+
+@dataclass
+class Selection:
+    """The chosen model and the table behind the choice."""
+
+    spec: ModelSpec
+    prior_scale: float
+    candidates: list[Candidate] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    folds: int = 0
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "chosen": self.spec.name,
+            "prior_scale": self.prior_scale,
+            "folds": self.folds,
+            "rule": "smallest model within one standard error of the best validation RMS",
+            "candidates": [
+                {
+                    "label": c.label,
+                    "parameters": c.size,
+                    "prior_scale": c.prior_scale,
+                    "cv_rms_mm": c.cv_rms_mm,
+                    "cv_se_mm": c.cv_se_mm,
+                    "train_rms_mm": c.train_rms_mm,
+                    "chosen": c.chosen,
+                }
+                for c in self.candidates
+            ],
+            "warnings": self.warnings,
+        }
+
+
+def candidate_specs(
+    robot: RobotDescription,
+    meas: Measurements,
+    *,
+    hayati: tuple[int, ...] = (),
+    ntm_joints: tuple[int, ...] = (1, 2, 3),
+) -> list[tuple[str, ModelSpec]]:
+    """Candidate layouts from the kinematic model to the full one, smallest first."""
+    base = spec_for(robot, meas, "kinematic", hayati=hayati)
+    has_link = robot.self_weight is not None
+    out: list[tuple[str, ModelSpec]] = [("kinematic", base)]
+    out.append(
+        (
+            "ntm J1-J3 order 1",
+            replace(base, ntm_joints=ntm_joints, ntm_order=1, name="ntm"),
+        )
+    )
+    out.append(("ntm", replace(base, ntm_joints=ntm_joints, ntm_order=2, name="ntm")))
+    out.append(("load", replace(base, load=True, name="load")))
+    if has_link:
+        out.append(("rfcm", replace(base, load=True, link="rfcm", name="rfcm")))
+        out.append(
+            ("load+link", replace(base, load=True, link="paper", name="load+link"))
+        )
+    out.append(
+        (
+            "full order 1",
+            replace(
+                base,
+                ntm_joints=ntm_joints,
+                ntm_order=1,
+                load=True,
+                link="paper" if has_link else "none",
+                name="full",
+            ),
+        )
+    )
+    out.append(
+        (
+            "full",
+            replace(
+                base,
+                ntm_joints=ntm_joints,
+                ntm_order=2,
+                load=True,
+                link="paper" if has_link else "none",
+                name="full",
+            ),
+        )
+    )
+    return out
+
+
+def select_model(
+    robot: RobotDescription,
+    meas: Measurements,
+    *,
+    options: CalibrationOptions | None = None,
+    k: int = 5,
+    seed: int = 0,
+    prior_scales: tuple[float, ...] = (0.3, 1.0, 3.0),
+    hayati: tuple[int, ...] = (),
+    ntm_joints: tuple[int, ...] = (1, 2, 3),
+    progress: object | None = None,
+) -> Selection:
+    """Choose a model by k-fold cross-validation and the one-standard-error rule.
+
+    Each layout is cross-validated with priors at strength 1; the best layout is then
+    tried with its priors scaled by ``prior_scales`` (sigma times the scale).
+    """
+    opts = options or CalibrationOptions()
+    say = progress if callable(progress) else (lambda stage, detail: None)
+    cands: list[Candidate] = []
+    n_sets = len(meas.set_labels)
+    folds = min(k, n_sets) if n_sets > 1 else k
+
+    def run(label: str, spec: ModelSpec, scale: float) -> Candidate:
+        say("auto", f"{label} (priors x{scale:g})")
+        o = replace(opts, prior_scale=scale)
+        cv = cross_validate(robot, meas, spec, k=k, seed=seed, options=o)
+        from kinecal.models import CalibrationModel
+
+        size = CalibrationModel(robot, spec).size
+        train = float(np.sqrt(np.mean([m.rms_mm**2 for m in cv.train])))
+        return Candidate(label, spec, scale, size, cv.rms_mm, cv.rms_se_mm, train)
+
+    for label, spec in candidate_specs(
+        robot, meas, hayati=hayati, ntm_joints=ntm_joints
+    ):
+        try:
+            cands.append(run(label, spec, 1.0))
+        except ValueError as exc:  # too few poses for this candidate in a fold
+            say("auto", f"{label} skipped: {exc}")
+    if not cands:
+        raise ValueError(f"{meas.source}: no candidate model could be cross-validated.")
+    best = min(cands, key=lambda c: c.cv_rms_mm)
+    if opts.priors != "none":
+        for s in prior_scales:
+            if s != 1.0:
+                try:
+                    cands.append(run(best.label, best.spec, s))
+                except ValueError:
+                    pass
+    best = min(cands, key=lambda c: c.cv_rms_mm)
+    se = best.cv_se_mm if np.isfinite(best.cv_se_mm) else 0.0
+    eligible = [c for c in cands if c.cv_rms_mm <= best.cv_rms_mm + se]
+    # Smallest model; among equal sizes the strongest priors (the simplest fit).
+    chosen = min(eligible, key=lambda c: (c.size, -1.0 / c.prior_scale, c.cv_rms_mm))
+    chosen.chosen = True
+    warnings = []
+    ordered = sorted(
+        {c.label: c for c in cands if c.prior_scale == 1.0}.values(),
+        key=lambda c: c.size,
+    )
+    for a, b in itertools.pairwise(ordered):
+        if b.train_rms_mm < a.train_rms_mm and b.cv_rms_mm > a.cv_rms_mm * 1.02:
+            warnings.append(
+                f"{b.label}: training error falls "
+                f"({a.train_rms_mm:.4f} -> {b.train_rms_mm:.4f} mm) "
+                f"while validation error rises ({a.cv_rms_mm:.4f} -> {b.cv_rms_mm:.4f} mm): "
+                "the extra terms fit noise."
+            )
+    spec = replace(chosen.spec, name=f"auto:{chosen.label}")
+    return Selection(spec, chosen.prior_scale, cands, warnings, folds)

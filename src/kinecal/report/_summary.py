@@ -1,0 +1,140 @@
+"""Plain-data summaries of calibrations and comparisons (for report.json and the CLI)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from kinecal._version import __version__
+from kinecal.identification import CalibrationResult, ComparisonRow, Metrics
+
+__all__ = ["calibration_summary", "comparison_table", "format_table", "parameter_table"]
+
+
+def parameter_table(result: CalibrationResult) -> list[dict[str, Any]]:
+    """Every parameter: name, group, unit, value, std, start value, status (file units)."""
+    cal = result.calibrated
+    L = cal.model.layout
+    to_file = L.to_file
+    out = []
+    for i, ps in enumerate(L.specs):
+        std = cal.std[i] * to_file[i]
+        out.append(
+            {
+                "name": ps.name,
+                "group": ps.group,
+                "unit": ps.unit.file_unit,
+                "value": float(cal.params[i] * to_file[i]),
+                "std": None if not np.isfinite(std) else float(std),
+                "start": float(result.registered[i] * to_file[i]),
+                "status": cal.status[i],
+            }
+        )
+    return out
+
+
+def _metrics(m: Metrics) -> dict[str, Any]:
+    return m.as_dict()
+
+
+def calibration_summary(
+    result: CalibrationResult, *, extra: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """The content of ``report.json``."""
+    ident = result.identifiability
+    corr = result.correlation()
+    names = result.calibrated.model.layout.names
+    strong = []
+    free = np.flatnonzero(ident.free)
+    for a in range(free.size):
+        for b in range(a + 1, free.size):
+            c = corr[free[a], free[b]]
+            if abs(c) > 0.95:
+                strong.append(
+                    {"a": names[free[a]], "b": names[free[b]], "correlation": float(c)}
+                )
+    strong.sort(key=lambda d: -abs(d["correlation"]))
+    return {
+        "kinecal_version": __version__,
+        "model": result.calibrated.model.spec.name,
+        "robot": result.calibrated.model.robot.name,
+        "data": dict(result.calibrated.info),
+        "success": result.success,
+        "seconds": result.seconds,
+        "before": _metrics(result.metrics_before),
+        "after": _metrics(result.metrics_after),
+        "sigma0": result.sigma0,
+        "noise_sigma_mm": float(np.median(result.weights.sigma) * 1e3),
+        "identifiability": {
+            "estimated": ident.rank,
+            "parameters": int(ident.candidate.sum()),
+            "condition_number": ident.condition_number,
+            "unidentifiable": [
+                {
+                    "name": d.name,
+                    "explained_by": [
+                        {"name": n, "coefficient": c} for n, c in d.partners
+                    ],
+                }
+                for d in ident.dropped
+            ],
+            "poorly_determined": [{"name": n, "fraction": f} for n, f in ident.weak],
+            "strong_correlations": strong[:30],
+            "summary": ident.summary(),
+        },
+        "stages": [
+            {
+                "name": s.name,
+                "parameters": s.n_free,
+                "rms_before_mm": s.rms_before_mm,
+                "rms_after_mm": s.rms_after_mm,
+                "iterations": s.iterations,
+                "status": s.status,
+                "converged": s.success,
+                "seconds": s.seconds,
+                "log": s.iteration_log,
+            }
+            for s in result.stages
+        ],
+        "outliers": [
+            {"row": o.row, "error_mm": o.error_mm, "z": o.z} for o in result.outliers
+        ],
+        "warnings": list(result.warnings),
+        "parameters": parameter_table(result),
+        **(extra or {}),
+    }
+
+
+def comparison_table(rows: list[ComparisonRow]) -> list[dict[str, Any]]:
+    """Rows of a Table 5/8-style comparison (held-out metrics, mm)."""
+    return [
+        {
+            "model": r.model,
+            "size": r.size,
+            "estimated": r.n_free,
+            "rms_mm": r.test.rms_mm,
+            "std_mm": r.test.std_mm,
+            "mean_mm": r.test.mean_mm,
+            "max_mm": r.test.max_mm,
+            "train_rms_mm": r.train.rms_mm,
+            "n_test": r.test.n,
+            "seconds": r.seconds,
+        }
+        for r in rows
+    ]
+
+
+def format_table(rows: list[dict[str, Any]], title: str = "") -> str:
+    """A text table like the paper's Tables 5 and 8 (values in mm)."""
+    head = f"{'Method':<10} {'Size':>4} {'Est.':>4} {'RMS':>9} {'Std.':>9} {'Avg':>9} {'Max':>9}"
+    lines = ([title] if title else []) + [head, "-" * len(head)]
+    for r in rows:
+        lines.append(
+            f"{r['model']:<10} {r['size']:>4} {r['estimated']:>4} {r['rms_mm']:>9.4f} "
+            f"{r['std_mm']:>9.4f} {r['mean_mm']:>9.4f} {r['max_mm']:>9.4f}"
+        )
+    lines.append(
+        f"(held-out errors in mm over {rows[-1]['n_test']} poses)" if rows else ""
+    )
+    return "\n".join(lines)

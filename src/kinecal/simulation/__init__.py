@@ -1,0 +1,53 @@
+"""Digital twin: true robots, instruments, pose planning and the paper's experiments."""
+
+from kinecal.simulation._experiments import (
+    CERAMIC_SPHERES_MM,
+    Experiment,
+    experiment1,
+    experiment2,
+    planning_model,
+)
+from kinecal.simulation._instruments import (
+    LaserTracker,
+    PoseTracker,
+    SphereSensor,
+    add_outliers,
+)
+from kinecal.simulation._planning import (
+    PlannedPoses,
+    grid_poses,
+    joint_ranges_deg,
+    sphere_poses,
+)
+from kinecal.simulation._recovery import Recovery, noise_free, parameter_recovery
+from kinecal.simulation._truth import (
+    EXTRAS,
+    PAPER_TABLES,
+    TrueRobot,
+    paper_truth,
+    random_truth,
+)
+
+__all__ = [
+    "CERAMIC_SPHERES_MM",
+    "EXTRAS",
+    "PAPER_TABLES",
+    "Experiment",
+    "LaserTracker",
+    "PlannedPoses",
+    "PoseTracker",
+    "Recovery",
+    "SphereSensor",
+    "TrueRobot",
+    "add_outliers",
+    "experiment1",
+    "experiment2",
+    "grid_poses",
+    "joint_ranges_deg",
+    "noise_free",
+    "paper_truth",
+    "parameter_recovery",
+    "planning_model",
+    "random_truth",
+    "sphere_poses",
+]
