@@ -89,43 +89,35 @@ def test_parameter_jacobian_matches_finite_differences(name, spec, rng):
     _check_all_columns(model, _generic_params(model, rng, lam=0.0), inp)
 
 
-def test_compliance_columns_exact_with_compliance(rng):
-    """lambda* and s enter exactly; checked at a generic point with lambda* != 0."""
-    robot = load_robot("fanuc-lrmate200id")
-    model = CalibrationModel(robot, ModelSpec.preset("full"))
-    inp = _random_inputs(robot, rng)
-    params = _generic_params(model, rng, lam=1e-3)
-    cols = np.concatenate(
-        [model.layout.group_indices("load"), model.layout.group_indices("link")]
-    )
-    _check_all_columns(model, params, inp, cols)
-
-
-def test_neglected_torque_geometry_term_is_small(rng):
-    """With paper-sized lambda* (1e-4 rad/m) the neglected term is ~1e-4 of each column."""
-    robot = load_robot("fanuc-lrmate200id")
-    model = CalibrationModel(robot, ModelSpec.preset("full"))
-    inp = _random_inputs(robot, rng)
-    params = _generic_params(model, rng, lam=1e-4)
-    out = model.evaluate(params, inp, jacobian=True)
-    cols = model.layout.group_indices("joint")
-
-    def f(x):
-        full = params.copy()
-        full[cols] = x
-        return model.evaluate(full, inp).p_user
-
-    with pytest.raises(AssertionError):  # not exact ...
-        assert_jacobian_matches_fd(out.J_p[:, :, cols], f, params[cols], rtol=1e-7)
-    assert_jacobian_matches_fd(
-        out.J_p[:, :, cols], f, params[cols], rtol=1e-3
-    )  # ... but close
+@pytest.mark.parametrize(
+    ("name", "spec"),
+    [
+        ("fanuc-lrmate200id", ModelSpec.preset("full")),
+        (
+            "fanuc-lrmate200id",
+            ModelSpec.preset("rfcm", hayati=(2,), markers=("m", "n")),
+        ),
+        (
+            "fanuc-lrmate200id",
+            ModelSpec(
+                ntm_joints=(1, 2, 3, 5), load=True, link="paper", link_bodies=(2, 3, 5)
+            ),
+        ),
+        ("ur10", ModelSpec.preset("full", hayati=(2, 3))),
+    ],
+)
+def test_jacobian_exact_with_compliance(name, spec, rng):
+    """With lambda* != 0 the torques depend on the geometry; those terms are included."""
+    robot = load_robot(name)
+    model = CalibrationModel(robot, spec)
+    inp = _random_inputs(robot, rng, markers=len(spec.markers))
+    _check_all_columns(model, _generic_params(model, rng, lam=1e-3), inp)
 
 
 def test_joint_jacobian_matches_finite_differences(rng):
     robot = load_robot("fanuc-lrmate200id")
     model = CalibrationModel(robot, ModelSpec.preset("kinematic", sets=("a", "b")))
-    inp = _random_inputs(robot, rng, n=5, sets=2, p_cam=False)
+    inp = _random_inputs(robot, rng, n=5, sets=2, p_cam=True)  # sensor-like points too
     params = _generic_params(model, rng, lam=0.0)
     J = model.joint_jacobian(params, inp)  # (N, 6, n) w.r.t. theta
     assert J.shape == (5, 6, 6)
@@ -138,7 +130,9 @@ def test_joint_jacobian_matches_finite_differences(rng):
 
         def f(th, k=k, R0=R0):
             sub = ModelInputs.make(
-                (C_inv @ th)[None], set_index=inp.set_index[k : k + 1]
+                (C_inv @ th)[None],
+                set_index=inp.set_index[k : k + 1],
+                p_cam=inp.p_cam[k : k + 1],
             )
             o = model.evaluate(params, sub, orientation=True)
             return np.concatenate([o.p_user[0], so3_log(o.R_user_cam[0] @ R0.T)])

@@ -242,11 +242,17 @@ def spec_for(
 
 
 def _generic_point(model: CalibrationModel, x: Float) -> Float:
-    """``x`` with compliance terms at generic non-zero values (for structural rank)."""
+    """``x`` with compliance terms at generic values, for the structural rank.
+
+    lambda* is non-zero (else the link moments would have no effect at all) but tiny:
+    the analysis looks at the small-compliance limit, where parameters that differ only
+    through second-order effects (lambda* times the change of a torque with the geometry,
+    ~1e-4 of their effect) count as redundant, as they are in practice.
+    """
     g = x.copy()
     for i, s in enumerate(model.layout.specs):
         if s.kind == "compliance":
-            g[i] = 1e-4
+            g[i] = 1e-7
         elif s.kind == "moment":
             g[i] = 0.3 + 0.1 * (i % 3)
         elif s.kind == "ratio":

@@ -15,7 +15,8 @@ All terms are joint-angle errors added to the kinematic angles before forward ki
 Torques are per unit payload weight (``|F| = 1``): ``lambda* = |F| lambda`` [rad/m] and
 ``s* = s / |F|`` [m], as in Eq. 24 and Eq. 26. ``ĝ`` is the unit gravity direction in
 the robot base frame. The torques are evaluated at the undeflected configuration; the
-difference is second order in the deflection (~1e-8 rad).
+difference is second order in the deflection (~1e-8 rad). :func:`torque_derivatives`
+gives their exact derivatives with respect to the geometry (for the Jacobian).
 """
 
 from __future__ import annotations
@@ -167,4 +168,172 @@ def general_link_torque_basis(
                 out[:, j, 4 * b + 1 + c] = np.sum(
                     zj * cross(Rk[:, :, c], g_hat), axis=-1
                 )
+    return out
+
+
+def _moved(first: np.ndarray, k: int) -> np.ndarray:
+    """(K,) bool: frame k moves under each parameter's twist (frames >= first move)."""
+    return k >= first
+
+
+def torque_derivatives(
+    frames: ChainFrames,
+    p_load: Float,
+    g_hat: Float,
+    prismatic: np.ndarray,
+    omega: Float,
+    vel: Float,
+    first: np.ndarray,
+    load_scale: Float,
+    link: tuple[str, tuple[int, int, int], float, Float] | None = None,
+    bodies: tuple[tuple[int, ...], Float] | None = None,
+) -> Float:
+    """Derivative of every joint torque w.r.t. K geometric parameters, shape (N, n, K).
+
+    Each parameter moves the frames ``first_k .. n`` (and the load point) by an
+    infinitesimal rigid motion ``x -> x + omega × x + vel`` (base frame). For the load
+    torque of a revolute joint j with lever ``r = p_load - o_{j-1}``:
+
+    * axis not moved: ``d tau_j = (omega × p_load + vel) · (ĝ × z_{j-1})``;
+    * axis moved: ``d tau_j = (z_{j-1} × r) · (ĝ × omega)`` (Jacobi identity).
+
+    Link-weight torques ``z · (M × ĝ)`` follow from the motion of their axes and moment
+    directions the same way.
+
+    Parameters
+    ----------
+    omega, vel : (N, K, 3) twist of each parameter (base frame).
+    first : (K,) int, first frame moved (n + 1: only the load point moves).
+    load_scale : (N,) payload scale per row.
+    link : ('paper' | 'rfcm', (shoulder, elbow, wrist_frame), x_sign, moments) or None.
+    bodies : (body numbers, coefficients (4 per body)) of the general link terms, or None.
+    """
+    N, n = frames.o.shape[0], frames.n
+    K = omega.shape[1]
+    out = np.zeros((N, n, K))
+    dp = cross(omega, p_load[:, None, :]) + vel  # (N, K, 3) motion of the load point
+    g = g_hat[None, None, :]
+    for j in range(n):
+        z = frames.R[:, j, :, 2]
+        moved = _moved(first, j)
+        if prismatic[j]:
+            out[:, j, :] = np.where(
+                moved, np.sum(cross(omega, z[:, None, :]) * g, axis=-1), 0.0
+            )
+            continue
+        zr = cross(z, p_load - frames.o[:, j])  # (N, 3)
+        up = np.sum(dp * cross(g_hat, z)[:, None, :], axis=-1)
+        down = np.sum(zr[:, None, :] * cross(g, omega), axis=-1)
+        out[:, j, :] = np.where(moved, down, up)
+    out *= load_scale[:, None, None]
+    if link is not None:
+        out += _link_derivatives(frames, g_hat, omega, vel, first, *link)
+    if bodies is not None:
+        out += _body_derivatives(frames, g_hat, prismatic, omega, vel, first, *bodies)
+    return out
+
+
+def _link_derivatives(
+    frames: ChainFrames,
+    g_hat: Float,
+    omega: Float,
+    vel: Float,
+    first: np.ndarray,
+    model: str,
+    joints: tuple[int, int, int],
+    x_sign: float,
+    s: Float,
+) -> Float:
+    sh, el, wf = joints
+    N, n = frames.o.shape[0], frames.n
+    K = omega.shape[1]
+    z_sh = frames.z(sh - 1)
+    z_el = frames.z(el - 1)
+    x_hat = x_sign * frames.R[:, sh, :, 0]
+    w = frames.o[:, wf] - frames.o[:, el - 1]
+    w_p = w - np.sum(w * z_el, axis=-1, keepdims=True) * z_el
+    norm = np.linalg.norm(w_p, axis=-1, keepdims=True)
+    u_hat = w_p / norm
+
+    def rot(v: Float, moved: np.ndarray) -> Float:
+        return np.where(moved[None, :, None], cross(omega, v[:, None, :]), 0.0)
+
+    dz_sh = rot(z_sh, _moved(first, sh - 1))
+    dz_el = rot(z_el, _moved(first, el - 1))
+    dx = rot(x_hat, _moved(first, sh))
+    # u follows the elbow frame rigidly, or turns as the wrist centre alone moves.
+    rigid = _moved(first, el - 1)
+    dw = cross(omega, frames.o[:, wf][:, None, :]) + vel
+    dw_p = dw - np.sum(dw * z_el[:, None, :], axis=-1, keepdims=True) * z_el[:, None, :]
+    du_free = (
+        dw_p
+        - np.sum(dw_p * u_hat[:, None, :], axis=-1, keepdims=True) * u_hat[:, None, :]
+    )
+    du_free = du_free / norm[:, None, :]
+    du = np.where(
+        rigid[None, :, None],
+        cross(omega, u_hat[:, None, :]),
+        np.where(_moved(first, wf)[None, :, None], du_free, 0.0),
+    )
+    xg = cross(x_hat, g_hat)
+    ug = cross(u_hat, g_hat)
+    g = g_hat[None, None, :]
+    d_x_sh = np.sum(dz_sh * xg[:, None, :], -1) + np.sum(
+        z_sh[:, None, :] * cross(dx, g), -1
+    )
+    d_u_sh = np.sum(dz_sh * ug[:, None, :], -1) + np.sum(
+        z_sh[:, None, :] * cross(du, g), -1
+    )
+    d_u_el = np.sum(dz_el * ug[:, None, :], -1) + np.sum(
+        z_el[:, None, :] * cross(du, g), -1
+    )
+    out = np.zeros((N, n, K))
+    if model == "paper":
+        out[:, sh - 1] = s[0] * d_x_sh + s[1] * d_u_sh
+        out[:, el - 1] = s[1] * d_u_el
+    else:
+        out[:, sh - 1] = s[0] * d_x_sh + s[1] * d_u_sh
+        out[:, el - 1] = s[2] * d_u_el
+    return out
+
+
+def _body_derivatives(
+    frames: ChainFrames,
+    g_hat: Float,
+    prismatic: np.ndarray,
+    omega: Float,
+    vel: Float,
+    first: np.ndarray,
+    bodies: tuple[int, ...],
+    coef: Float,
+) -> Float:
+    N, n = frames.o.shape[0], frames.n
+    K = omega.shape[1]
+    out = np.zeros((N, n, K))
+    g = g_hat[None, None, :]
+
+    def motion(k: int) -> Float:  # (N, K, 3) velocity of frame k's origin
+        v = cross(omega, frames.o[:, k][:, None, :]) + vel
+        return np.where(_moved(first, k)[None, :, None], v, 0.0)
+
+    for b, k in enumerate(bodies):
+        m, mc = coef[4 * b], coef[4 * b + 1 : 4 * b + 4]
+        Mk = frames.R[:, k] @ mc  # (N, 3) first moment in the base frame
+        dMk = np.where(
+            _moved(first, k)[None, :, None], cross(omega, Mk[:, None, :]), 0.0
+        )
+        dok = motion(k)
+        for j in range(k):
+            z = frames.z(j)
+            dz = np.where(
+                _moved(first, j)[None, :, None], cross(omega, z[:, None, :]), 0.0
+            )
+            if prismatic[j]:
+                out[:, j] += m * np.sum(dz * g, axis=-1)
+                continue
+            lever = Mk + m * (frames.o[:, k] - frames.o[:, j])
+            dlever = dMk + m * (dok - motion(j))
+            out[:, j] += np.sum(dz * cross(lever, g_hat)[:, None, :], -1) + np.sum(
+                z[:, None, :] * cross(dlever, g), -1
+            )
     return out

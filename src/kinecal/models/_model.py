@@ -37,6 +37,7 @@ from kinecal.models._compliance import (
     load_torques,
     ntm_basis,
     ntm_names,
+    torque_derivatives,
 )
 from kinecal.models._layout import ParameterLayout, ParamSpec
 from kinecal.models._spec import ModelSpec
@@ -445,9 +446,8 @@ class CalibrationModel:
         orientation : bool
             Also return ``R_user_cam`` (and its Jacobian).
         jacobian : bool
-            Also return analytic Jacobians with respect to every parameter. The dependence
-            of the compliance torques on the kinematic parameters is neglected (a relative
-            effect of order lambda* ~ 1e-4; see ``docs/theory.md``).
+            Also return exact analytic Jacobians with respect to every parameter, including
+            the dependence of the compliance torques on the arm's geometry.
 
         Returns
         -------
@@ -581,6 +581,9 @@ class CalibrationModel:
                     Wb[:, :, sl] = W_theta[:, j - 1, :, None] * B[:, None, :]
         if spec.load:
             assert tau is not None
+            self._add_torque_geometry(
+                p, inputs, fr0, p_load, ntm_bases, J_theta, W_theta, Jb, Wb
+            )
             Jb[:, :, self._lam_idx] = np.swapaxes(J_theta, 1, 2) * tau[:, None, :]
             if Wb is not None:
                 Wb[:, :, self._lam_idx] = np.swapaxes(W_theta, 1, 2) * tau[:, None, :]
@@ -622,6 +625,104 @@ class CalibrationModel:
                     )
         return ModelOutput(p_u, R_uc, J, W, th)
 
+    def _add_torque_geometry(
+        self,
+        p: Float,
+        inputs: ModelInputs,
+        fr0: ChainFrames,
+        p_load: Float,
+        ntm_bases: list[Float],
+        J_theta: Float,
+        W_theta: Float,
+        Jb: Float,
+        Wb: Float | None,
+    ) -> None:
+        """Add ``J_theta · lambda* ⊙ d tau / d psi`` for every geometric parameter psi.
+
+        The compliance torques depend on the arm's geometry (joint rows, joint angles
+        through the NTM terms, the load point); each such parameter moves the downstream
+        frames by a twist, and :func:`torque_derivatives` turns the twists into torque
+        derivatives. This makes the Jacobian exact (checked against finite differences).
+        """
+        n = self.n_joints
+        N = p_load.shape[0]
+        cols: list[int] = []
+        om: list[Float] = []
+        ve: list[Float] = []
+        first: list[int] = []
+        zero = np.zeros((N, 3))
+
+        def add(col: int, w: Float, v: Float, f: int) -> None:
+            cols.append(col)
+            om.append(w)
+            ve.append(v)
+            first.append(f)
+
+        for i in range(n):
+            idx = self._row_idx[i]
+            z, o = fr0.R[:, i, :, 2], fr0.o[:, i]
+            ax, o1 = fr0.a_axis[:, i], fr0.o[:, i + 1]
+            if idx[_OFF] >= 0:
+                add(idx[_OFF], z, cross(o, z), i + 1)
+            if idx[_D] >= 0:
+                add(idx[_D], zero, z, i + 1)
+            if idx[_A] >= 0:
+                add(idx[_A], zero, ax, i + 1)
+            if idx[_ALPHA] >= 0:
+                add(idx[_ALPHA], ax, cross(o1, ax), i + 1)
+            if idx[_BETA] >= 0:
+                y = fr0.R[:, i + 1, :, 1]
+                add(idx[_BETA], y, cross(o1, y), i + 1)
+        for k in range(3):  # the load point moves with the first marker's translation
+            add(int(self._cam_idx[0][k]), zero, fr0.R[:, n, :, k], n + 1)
+        n_geo = len(cols)
+        for j in self.spec.ntm_joints:  # joint-angle twists, for the NTM coefficients
+            z, o = fr0.R[:, j - 1, :, 2], fr0.o[:, j - 1]
+            add(-1, z, cross(o, z), j)
+        link = None
+        if self.spec.link in ("paper", "rfcm"):
+            sw = self._sw
+            assert sw is not None
+            n_lump = 2 if self.spec.link == "paper" else 3
+            s_vals = p[self._link_start : self._link_start + n_lump]
+            link = (
+                self.spec.link,
+                (sw.shoulder, sw.elbow, sw.wrist_frame),
+                self._x_sign,
+                s_vals,
+            )
+        bodies = None
+        if self.spec.link_bodies:
+            end = self._link_start + len(self._link_names)
+            start = end - 4 * len(self.spec.link_bodies)
+            bodies = (self.spec.link_bodies, p[start:end])
+        dtau = torque_derivatives(
+            fr0,
+            p_load,
+            self.g_hat,
+            self._prismatic,
+            np.stack(om, axis=1),
+            np.stack(ve, axis=1),
+            np.array(first),
+            inputs.load_scale,
+            link,
+            bodies,
+        )
+        dth = p[self._lam_idx][None, :, None] * dtau  # (N, n, K) joint-angle changes
+        dJ = np.einsum("nji,njk->nik", J_theta, dth)
+        dW = None if Wb is None else np.einsum("nji,njk->nik", W_theta, dth)
+        geo = np.array(cols[:n_geo])
+        Jb[:, :, geo] += dJ[:, :, :n_geo]
+        if Wb is not None and dW is not None:
+            Wb[:, :, geo] += dW[:, :, :n_geo]
+        nb = len(self._ntm_cols)
+        for k in range(len(self.spec.ntm_joints)):
+            sl = slice(self._ntm_start + k * nb, self._ntm_start + (k + 1) * nb)
+            B = ntm_bases[k]
+            Jb[:, :, sl] += dJ[:, :, n_geo + k, None] * B[:, None, :]
+            if Wb is not None and dW is not None:
+                Wb[:, :, sl] += dW[:, :, n_geo + k, None] * B[:, None, :]
+
     def flange_frames(
         self, params: ArrayLike, inputs: ModelInputs
     ) -> tuple[Float, Float]:
@@ -659,7 +760,9 @@ class CalibrationModel:
         return m
 
     def joint_jacobian(self, params: ArrayLike, inputs: ModelInputs) -> Float:
-        """Geometric Jacobian of the cam origin w.r.t. the kinematic joint angles.
+        """Geometric Jacobian of the model point w.r.t. the kinematic joint angles.
+
+        The model point is ``T_user_cam p_cam`` (the cam origin when ``p_cam`` is zero).
 
         Returns
         -------
@@ -672,9 +775,12 @@ class CalibrationModel:
         out = self.evaluate(p, inputs)
         fr = self._frames(out.theta, self._rows(p))
         n = self.n_joints
-        _, t_c = self.cam_frames(p)
-        tc = t_c[inputs.marker_index] if len(self.spec.markers) > 1 else t_c[0]
-        p_b = fr.o[:, n] + _mv(fr.R[:, n], tc)
+        R_c, t_c = self.cam_frames(p)
+        multi = len(self.spec.markers) > 1
+        Rc = R_c[inputs.marker_index] if multi else R_c[0]
+        tc = t_c[inputs.marker_index] if multi else t_c[0]
+        p_fl = tc + _mv(Rc, inputs.p_cam)
+        p_b = fr.o[:, n] + _mv(fr.R[:, n], p_fl)
         z = fr.R[:, :-1, :, 2]
         lin = np.where(
             self._prismatic[None, :, None], z, cross(z, p_b[:, None, :] - fr.o[:, :-1])
@@ -682,8 +788,7 @@ class CalibrationModel:
         ang = np.where(self._prismatic[None, :, None], 0.0, z)
         R_b, _ = self.base_frames(p)
         Rb = R_b[inputs.set_index] if len(self.spec.sets) > 1 else R_b[0]
-        J = np.concatenate([lin, ang], axis=2)  # (N, n, 6)
-        J = np.swapaxes(J, 1, 2)  # (N, 6, n)
+        J = np.swapaxes(np.concatenate([lin, ang], axis=2), 1, 2)  # (N, 6, n)
         return np.concatenate([Rb @ J[:, :3], Rb @ J[:, 3:]], axis=1)
 
     def with_spec(self, spec: ModelSpec) -> CalibrationModel:
