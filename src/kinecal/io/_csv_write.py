@@ -59,9 +59,9 @@ def measurements_to_csv(meas: Measurements, robot: RobotDescription) -> str:
     if len(meas.marker_labels) > 1 or meas.marker_labels[0]:
         labels.append(("marker", [meas.marker_labels[i] for i in meas.marker_index]))
     for name, arr, scale, f in (
-        ("payload_kg", meas.payload_kg, 1.0, "%.6g"),
-        ("sigma_mm", meas.sigma, 1e3, "%.6g"),
-        ("sigma_deg", meas.sigma_rot, 180.0 / np.pi, "%.6g"),
+        ("payload_kg", meas.payload_kg, 1.0, "%.10g"),
+        ("sigma_mm", meas.sigma, 1e3, "%.10g"),
+        ("sigma_deg", meas.sigma_rot, 180.0 / np.pi, "%.10g"),
     ):
         if arr is not None:
             cols.append(name)

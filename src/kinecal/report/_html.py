@@ -74,12 +74,21 @@ def _table(head: list[str], rows: list[list[str]], left: int = 1) -> str:
     return f"<table><tr>{th}</tr>{body}</table>"
 
 
+# After loading, record how many figures decoded and are visible (``data-figures="k/n"``
+# on <html>) and flag broken ones on the page; tests read it with a headless browser.
+_CHECK = """<script>window.addEventListener("load",function(){var im=document.images,ok=0;
+for(var i=0;i<im.length;i++){var r=im[i].getBoundingClientRect();
+if(im[i].complete&&im[i].naturalWidth>0&&r.width>0&&r.height>0){ok++}
+else{im[i].insertAdjacentHTML("afterend","<p class=bad>figure failed to load</p>")}}
+document.documentElement.setAttribute("data-figures",ok+"/"+im.length);});</script>"""
+
+
 def _page(title: str, body: str) -> str:
     stamp = time.strftime("%Y-%m-%d %H:%M")
     return (
         f"<!DOCTYPE html><html lang=en><head><meta charset=utf-8><title>{_e(title)}</title>"
         f"<style>{_CSS}</style></head><body><h1>{_e(title)}</h1>"
-        f"<p class=muted>kinecal {__version__}, {stamp}</p>{body}</body></html>\n"
+        f"<p class=muted>kinecal {__version__}, {stamp}</p>{body}{_CHECK}</body></html>\n"
     )
 
 
