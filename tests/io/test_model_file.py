@@ -78,7 +78,7 @@ def test_bad_model_files(result, tmp_path):
         load_model(g)
     del doc["parameters"]["joint3.a"]
     g.write_text(yaml.safe_dump(doc))
-    with pytest.raises(ConfigError, match="missing 'joint3.a'"):
+    with pytest.raises(ConfigError, match=r"missing 'joint3\.a'"):
         load_model(g)
     g.write_text("name: not-a-model\n")
     with pytest.raises(ConfigError, match="not a kinecal model file"):
