@@ -29,13 +29,14 @@ def cli() -> None:
 
 
 def _register() -> None:
-    from kinecal.cli import _calibrate, _fk, _simulate
+    from kinecal.cli import _calibrate, _compensate, _fk, _simulate
 
     for cmd in (
         _fk.fk,
         _fk.robots,
         _calibrate.calibrate,
         _calibrate.evaluate,
+        _compensate.compensate,
         _simulate.simulate,
         _simulate.compare,
         _simulate.demo,

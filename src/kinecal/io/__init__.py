@@ -1,6 +1,14 @@
 """Files at the edges: measurement CSVs, targets, model.yaml, JSON; units via kinecal.units."""
 
-from kinecal.io._csv import Table, Targets, read_measurements, read_table, read_targets
+from kinecal.io._csv import (
+    CompensationTargets,
+    Table,
+    Targets,
+    read_compensation_targets,
+    read_measurements,
+    read_table,
+    read_targets,
+)
 from kinecal.io._csv_write import (
     joint_column_names,
     measurements_to_csv,
@@ -17,6 +25,7 @@ from kinecal.io._model_file import FORMAT_VERSION, load_model, model_to_dict, sa
 
 __all__ = [
     "FORMAT_VERSION",
+    "CompensationTargets",
     "Table",
     "Targets",
     "atomic_write_text",
@@ -26,6 +35,7 @@ __all__ = [
     "measurements_to_csv",
     "model_to_dict",
     "prepare_output_dir",
+    "read_compensation_targets",
     "read_measurements",
     "read_table",
     "read_targets",

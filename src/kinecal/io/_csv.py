@@ -31,7 +31,15 @@ from kinecal.identification import Measurements
 from kinecal.robot import RobotDescription
 from kinecal.units import deg_to_rad, mm_to_m
 
-__all__ = ["Table", "Targets", "read_measurements", "read_table", "read_targets"]
+__all__ = [
+    "CompensationTargets",
+    "Table",
+    "Targets",
+    "read_compensation_targets",
+    "read_measurements",
+    "read_table",
+    "read_targets",
+]
 
 _OPTIONAL = {"set", "marker", "payload_kg", "sigma_mm", "sigma_deg"}
 _POINT = ("x_mm", "y_mm", "z_mm")
@@ -334,3 +342,53 @@ def read_measurements(
             )
         R = quat_wxyz_to_matrix(quat)
     return Measurements(kind, q, mm_to_m(xyz), R_user_cam=R, **common)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class CompensationTargets:
+    """Targets to compensate: wanted tool points (and orientations) plus seed joints."""
+
+    table: Table
+    joint_columns: list[str]
+    p: np.ndarray  # (N, 3) [m], user frame
+    q_seed: np.ndarray  # (N, n) [rad]
+    R: np.ndarray | None  # (N, 3, 3)
+    set_index: np.ndarray
+    set_labels: tuple[str, ...]
+    marker_index: np.ndarray
+    marker_labels: tuple[str, ...]
+
+
+def read_compensation_targets(
+    path: str | Path, robot: RobotDescription
+) -> CompensationTargets:
+    """Read a TARGETS.csv for ``kinecal compensate``: ``x_mm, y_mm, z_mm`` (user frame),
+    optional ``qw, qx, qy, qz``, the seed joints ``j1_deg .. jN_deg``, optional ``set`` and
+    ``marker``."""
+    t = read_table(path)
+    cols, q = _joint_columns(t, robot)
+    for c in _POINT:
+        if c not in t.header:
+            raise DataError(
+                f"{t.path}: missing column '{c}' (targets need x_mm, y_mm, z_mm)."
+            )
+    p = mm_to_m(np.column_stack([t.numbers(c) for c in _POINT]))
+    R = None
+    if any(c in t.header for c in _QUAT):
+        for c in _QUAT:
+            if c not in t.header:
+                raise DataError(
+                    f"{t.path}: missing column '{c}' (orientation needs qw, qx, qy, qz)."
+                )
+        quat = np.column_stack([t.numbers(c) for c in _QUAT])
+        nrm = np.linalg.norm(quat, axis=1)
+        bad = np.flatnonzero(np.abs(nrm - 1.0) > 0.01)
+        if bad.size:
+            raise DataError(
+                f"{t.path}: line {t.lines[int(bad[0])]}, columns qw..qz: quaternion norm "
+                f"{nrm[bad[0]]:.4f}; expected a unit quaternion (w first)."
+            )
+        R = quat_wxyz_to_matrix(quat)
+    si, sl = _labels(t, "set")
+    mi, ml = _labels(t, "marker")
+    return CompensationTargets(t, cols, p, q, R, si, sl, mi, ml)
