@@ -51,7 +51,7 @@ def test_issue_7_true_robot_reaches_compensated_targets(calibrated_twin, rng):
 
 def test_orientation_targets_and_limits(calibrated_twin, rng):
     e, res = calibrated_twin
-    goal, p_target, seed = _targets(e, 50, rng)
+    _, p_target, seed = _targets(e, 50, rng)
     R = res.model.evaluate(
         res.params, e.test.subset(np.arange(50)).model_inputs(), orientation=True
     ).R_user_cam
