@@ -3,6 +3,8 @@ PYTHON ?= $(shell command -v python3.11 2>/dev/null || command -v python3)
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+# Python trees checked by ruff (only those present in this checkout).
+PYDIRS := $(wildcard src tests benchmarks examples)
 
 .PHONY: demo test test-slow lint bench clean format
 
@@ -17,8 +19,8 @@ demo: $(STAMP)
 	$(BIN)/kinecal demo --out demo-results --force
 
 lint: $(STAMP)
-	$(BIN)/ruff check src tests benchmarks examples
-	$(BIN)/ruff format --check src tests benchmarks examples
+	$(BIN)/ruff check $(PYDIRS)
+	$(BIN)/ruff format --check $(PYDIRS)
 	$(BIN)/mypy
 
 test: lint
@@ -31,8 +33,8 @@ bench: $(STAMP)
 	$(BIN)/python -m benchmarks --out benchmarks/results.json
 
 format: $(STAMP)
-	$(BIN)/ruff format src tests benchmarks examples
-	$(BIN)/ruff check --fix src tests benchmarks examples
+	$(BIN)/ruff format $(PYDIRS)
+	$(BIN)/ruff check --fix $(PYDIRS)
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache demo-results

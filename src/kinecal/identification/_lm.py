@@ -253,8 +253,19 @@ def solve_lm(
         if not accepted:
             status = "stalled"
             message = f"{label}: no step reduces the cost (damping {mu:.1e})"
-            # The current point is a (numerical) minimum along every direction tried.
-            success = gnorm <= 1e-6 * max(cost, 1e-300) or cost == 0.0
+            # No step helps. That is convergence when even the undamped Gauss-Newton
+            # step promises a decrease at the level of round-off in the cost.
+            try:
+                dz_gn = np.linalg.lstsq(A, -g, rcond=1e-14)[0]
+                pred_gn = float(-(g @ dz_gn + 0.5 * dz_gn @ (A @ dz_gn)))
+            except np.linalg.LinAlgError:
+                pred_gn = float("inf")
+            log.debug(
+                "%s stalled: Gauss-Newton would gain %.3g of %.3g", label, pred_gn, cost
+            )
+            success = pred_gn <= 1e-9 * max(cost, 1e-300) or cost == 0.0
+            if success:
+                message = f"{label}: converged (no further decrease above round-off)"
             break
         dcost = cost - cost_new
         step_small = np.linalg.norm(dz) <= opts.xtol * (
