@@ -29,7 +29,7 @@ def cli() -> None:
 
 
 def _register() -> None:
-    from kinecal.cli import _calibrate, _compensate, _fk, _simulate
+    from kinecal.cli import _calibrate, _compensate, _fk, _sensor, _simulate
 
     for cmd in (
         _fk.fk,
@@ -40,6 +40,7 @@ def _register() -> None:
         _simulate.simulate,
         _simulate.compare,
         _simulate.demo,
+        _sensor.sensor,
     ):
         cli.add_command(cmd)
 

@@ -11,7 +11,13 @@ from typing import Any
 
 from kinecal.errors import DataError
 
-__all__ = ["atomic_write_text", "file_sha256", "prepare_output_dir", "write_json"]
+__all__ = [
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "file_sha256",
+    "prepare_output_dir",
+    "write_json",
+]
 
 
 def file_sha256(path: str | Path) -> str:
@@ -31,14 +37,19 @@ def atomic_write_text(path: str | Path, text: str, *, force: bool = False) -> Pa
     FileExistsError
         ``path`` exists and ``force`` is False.
     """
+    return atomic_write_bytes(path, text.encode("utf-8"), force=force)
+
+
+def atomic_write_bytes(path: str | Path, data: bytes, *, force: bool = False) -> Path:
+    """Write ``data`` to ``path`` through a temporary file and an atomic rename."""
     p = Path(path)
     if p.exists() and not force:
         raise FileExistsError(f"{p} exists; use --force to overwrite it.")
     p.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-            f.write(text)
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, p)

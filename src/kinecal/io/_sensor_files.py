@@ -1,0 +1,176 @@
+"""Sensor files: grey images, point clouds, stripe centres and the sensor YAML."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from kinecal.errors import ConfigError, DataError
+from kinecal.io._csv import read_table
+from kinecal.io._files import atomic_write_bytes, atomic_write_text
+from kinecal.sensor import Camera, LightPlanes, Sensor
+
+__all__ = [
+    "image_files",
+    "load_sensor",
+    "read_cloud",
+    "read_image",
+    "save_sensor",
+    "write_cloud",
+    "write_image",
+    "write_stripes",
+]
+
+SENSOR_FORMAT = 1
+
+
+def _cv2() -> Any:
+    try:
+        import cv2
+    except ImportError:  # pragma: no cover - a dependency
+        raise DataError(
+            "reading images needs OpenCV: pip install 'opencv-python-headless>=4.7,<5'"
+        ) from None
+    return cv2
+
+
+def read_image(path: str | Path) -> np.ndarray:
+    """A grey 8- or 16-bit image (H, W); colour images are refused with a clear error."""
+    p = Path(path)
+    if not p.is_file():
+        raise DataError(f"{p}: image not found.")
+    cv2 = _cv2()
+    img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise DataError(
+            f"{p}: not an image OpenCV can read (expected PNG, TIFF, BMP ...)."
+        )
+    if img.ndim == 3:
+        if img.shape[2] == 1:
+            img = img[:, :, 0]
+        else:
+            b, g, r = (img[:, :, k].astype(np.int64) for k in range(3))
+            if not (np.array_equal(b, g) and np.array_equal(g, r)):
+                raise DataError(
+                    f"{p}: a colour image ({img.shape[2]} channels); expected 8- or 16-bit grey."
+                )
+            img = img[:, :, 0]
+    if img.dtype not in (np.uint8, np.uint16):
+        raise DataError(f"{p}: pixel type {img.dtype}; expected 8- or 16-bit grey.")
+    return img
+
+
+def write_image(path: str | Path, img: np.ndarray, *, force: bool = False) -> Path:
+    """Write a grey image as PNG, atomically."""
+    cv2 = _cv2()
+    ok, buf = cv2.imencode(".png", img)
+    if not ok:  # pragma: no cover
+        raise DataError(f"{path}: could not encode the image")
+    return atomic_write_bytes(path, buf.tobytes(), force=force)
+
+
+def image_files(folder: str | Path, pattern: str = "*.png") -> list[Path]:
+    """Image files of a folder, sorted by name; an empty folder is an error."""
+    d = Path(folder)
+    if not d.is_dir():
+        raise DataError(f"{d}: not a folder.")
+    files = sorted(p for p in d.glob(pattern) if p.is_file())
+    if not files:
+        raise DataError(f"{d}: no images matching {pattern}.")
+    return files
+
+
+def read_cloud(path: str | Path) -> np.ndarray:
+    """Points (N, 3) [m] from a CSV with columns ``x_mm, y_mm, z_mm``."""
+    t = read_table(path)
+    for c in ("x_mm", "y_mm", "z_mm"):
+        if c not in t.header:
+            raise DataError(f"{t.path}: missing column '{c}' (need x_mm, y_mm, z_mm).")
+    if not t.rows:
+        raise DataError(f"{t.path}: no points.")
+    return np.column_stack([t.numbers(c) for c in ("x_mm", "y_mm", "z_mm")]) * 1e-3
+
+
+def write_cloud(
+    path: str | Path,
+    points: np.ndarray,
+    extra: dict[str, np.ndarray] | None = None,
+    *,
+    force: bool = False,
+) -> Path:
+    """Write points [m] as ``x_mm, y_mm, z_mm`` (+ extra columns), atomically."""
+    cols = ["x_mm", "y_mm", "z_mm"]
+    data = [points * 1e3]
+    fmt = ["%.6f"] * 3
+    for k, v in (extra or {}).items():
+        cols.append(k)
+        data.append(np.asarray(v, float).reshape(-1, 1))
+        fmt.append(
+            "%.4f" if not np.issubdtype(np.asarray(v).dtype, np.integer) else "%d"
+        )
+    return _write_rows(path, cols, np.hstack(data), fmt, force)
+
+
+def write_stripes(
+    path: str | Path, stripes: np.ndarray, *, force: bool = False
+) -> Path:
+    """Write stripe centres (K, >=2) as ``u_px, v_px`` (+ ``peak``)."""
+    cols = ["u_px", "v_px"] + (["peak"] if stripes.shape[1] > 2 else [])
+    return _write_rows(path, cols, stripes[:, : len(cols)], ["%.4f"] * len(cols), force)
+
+
+def _write_rows(
+    path: str | Path, cols: list[str], data: np.ndarray, fmt: list[str], force: bool
+) -> Path:
+    import io
+
+    buf = io.StringIO()
+    buf.write(",".join(cols) + "\n")
+    if data.size:
+        np.savetxt(buf, data, fmt=fmt, delimiter=",")
+    return atomic_write_text(path, buf.getvalue(), force=force)
+
+
+def save_sensor(
+    path: str | Path,
+    sensor: Sensor | Camera,
+    info: dict[str, Any] | None = None,
+    *,
+    force: bool = False,
+) -> Path:
+    """Write a sensor (camera + light planes) or a camera alone as YAML, atomically."""
+    doc: dict[str, Any] = {"format": SENSOR_FORMAT}
+    if isinstance(sensor, Camera):
+        doc["camera"] = sensor.to_dict()
+    else:
+        doc.update(sensor.to_dict())
+    if info:
+        doc["calibration"] = info
+    return atomic_write_text(path, yaml.safe_dump(doc, sort_keys=False), force=force)
+
+
+def load_sensor(path: str | Path, *, need_planes: bool = True) -> Sensor | Camera:
+    """Read a sensor YAML; a file with only a camera gives the :class:`Camera`."""
+    p = Path(path)
+    try:
+        doc = yaml.safe_load(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise DataError(f"{p}: file not found.") from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{p}: not valid YAML ({exc}).") from None
+    if not isinstance(doc, dict) or "camera" not in doc:
+        raise ConfigError(f"{p}: expected a sensor file with a 'camera' section.")
+    if "light_planes" not in doc:
+        if need_planes:
+            raise ConfigError(
+                f"{p}: no 'light_planes' section; calibrate the planes first "
+                "(kinecal sensor calibrate-planes)."
+            )
+        return Camera.from_dict(doc["camera"], f"{p}: camera")
+    return Sensor(
+        Camera.from_dict(doc["camera"], f"{p}: camera"),
+        LightPlanes.from_dict(doc["light_planes"], f"{p}: light_planes"),
+    )

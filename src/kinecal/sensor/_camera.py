@@ -1,0 +1,192 @@
+"""Pinhole camera with Brown-Conrady distortion (Eq. 1-2, OpenCV's convention).
+
+Pixel coordinates follow OpenCV: ``u`` along image columns, ``v`` along rows, and the
+centre of pixel (0, 0) at (0, 0) (the pixel spans -0.5..0.5). Distortion acts on the
+normalised coordinates ``x = X/Z, y = Y/Z``::
+
+    r2 = x² + y²
+    x_d = x (1 + k1 r2 + k2 r2² + k3 r2³) + 2 p1 x y + p2 (r2 + 2 x²)
+    y_d = y (1 + k1 r2 + k2 r2² + k3 r2³) + p1 (r2 + 2 y²) + 2 p2 x y
+    u = fx x_d + u0,  v = fy y_d + v0
+
+Eq. (2) of the paper prints the same model in a compressed form; the coefficients it
+reports (Sec. 5.1) are OpenCV's, so this is the model they belong to.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from kinecal.errors import ConfigError
+from kinecal.typing import Float
+
+__all__ = ["Camera", "paper_camera"]
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Intrinsics [px] and distortion (dimensionless) of one camera."""
+
+    fx: float
+    fy: float
+    u0: float
+    v0: float
+    k1: float = 0.0
+    k2: float = 0.0
+    k3: float = 0.0
+    p1: float = 0.0
+    p2: float = 0.0
+    width: int = 1280
+    height: int = 1024
+
+    def __post_init__(self) -> None:
+        vals = np.array([self.fx, self.fy, self.u0, self.v0, *self.dist])
+        if not np.all(np.isfinite(vals)):
+            raise ConfigError(f"camera parameters must be finite, got {self}")
+        if self.fx <= 0 or self.fy <= 0:
+            raise ConfigError(
+                f"camera focal lengths must be positive, got {self.fx}, {self.fy}"
+            )
+        if self.width <= 0 or self.height <= 0:
+            raise ConfigError(
+                f"camera size must be positive, got {self.width}x{self.height}"
+            )
+
+    # -- OpenCV interop ------------------------------------------------------------------
+    @property
+    def K(self) -> Float:
+        """The 3x3 camera matrix."""
+        return np.array(
+            [[self.fx, 0.0, self.u0], [0.0, self.fy, self.v0], [0.0, 0.0, 1.0]]
+        )
+
+    @property
+    def dist(self) -> Float:
+        """Distortion in OpenCV's order ``(k1, k2, p1, p2, k3)``."""
+        return np.array([self.k1, self.k2, self.p1, self.p2, self.k3])
+
+    @classmethod
+    def from_opencv(cls, K: Float, dist: Float, size: tuple[int, int]) -> Camera:
+        """From OpenCV's camera matrix, distortion vector and ``(width, height)``."""
+        d = np.zeros(5)
+        dd = np.asarray(dist, float).ravel()[:5]
+        d[: dd.size] = dd
+        return cls(
+            fx=float(K[0, 0]),
+            fy=float(K[1, 1]),
+            u0=float(K[0, 2]),
+            v0=float(K[1, 2]),
+            k1=float(d[0]),
+            k2=float(d[1]),
+            p1=float(d[2]),
+            p2=float(d[3]),
+            k3=float(d[4]),
+            width=int(size[0]),
+            height=int(size[1]),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            k: (int(v) if k in ("width", "height") else float(v))
+            for k, v in asdict(self).items()
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any], where: str = "camera") -> Camera:
+        known = set(cls.__dataclass_fields__)
+        unknown = set(d) - known
+        if unknown:
+            raise ConfigError(
+                f"{where}: unknown key(s) {sorted(unknown)}; expected {sorted(known)}"
+            )
+        missing = {"fx", "fy", "u0", "v0"} - set(d)
+        if missing:
+            raise ConfigError(f"{where}: missing key(s) {sorted(missing)}")
+        try:
+            kw = {
+                k: (int(v) if k in ("width", "height") else float(v))
+                for k, v in d.items()
+            }
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(f"{where}: {exc}") from None
+        return cls(**kw)  # type: ignore[arg-type]
+
+    def with_(self, **changes: float) -> Camera:
+        return replace(self, **changes)  # type: ignore[arg-type]
+
+    # -- distortion --------------------------------------------------------------------
+    def distort(self, xy: Float) -> Float:
+        """Normalised undistorted (..., 2) -> normalised distorted coordinates."""
+        x, y = xy[..., 0], xy[..., 1]
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
+        xd = x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x)
+        yd = y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y
+        return np.stack([xd, yd], axis=-1)
+
+    def undistort(self, xy_d: Float, iterations: int = 20, tol: float = 1e-14) -> Float:
+        """Invert :meth:`distort` by Newton's method (vectorised; exact to ~1e-15)."""
+        xy = np.array(xy_d, dtype=float, copy=True)
+        k1, k2, k3, p1, p2 = self.k1, self.k2, self.k3, self.p1, self.p2
+        for _ in range(iterations):
+            x, y = xy[..., 0], xy[..., 1]
+            r2 = x * x + y * y
+            radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+            drad = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2)  # d radial / d r2
+            f = self.distort(xy) - xy_d
+            # Jacobian of the distortion.
+            a = radial + 2.0 * x * x * drad + 2.0 * p1 * y + 6.0 * p2 * x
+            b = 2.0 * x * y * drad + 2.0 * p1 * x + 2.0 * p2 * y
+            c = 2.0 * x * y * drad + 2.0 * p1 * x + 2.0 * p2 * y
+            d = radial + 2.0 * y * y * drad + 6.0 * p1 * y + 2.0 * p2 * x
+            det = a * d - b * c
+            dx = (d * f[..., 0] - b * f[..., 1]) / det
+            dy = (-c * f[..., 0] + a * f[..., 1]) / det
+            xy[..., 0] -= dx
+            xy[..., 1] -= dy
+            if np.max(np.abs(dx) + np.abs(dy), initial=0.0) < tol:
+                break
+        return xy
+
+    # -- projection --------------------------------------------------------------------
+    def project(self, P_cam: Float) -> Float:
+        """Points (..., 3) in the camera frame -> pixels (..., 2) (Eq. 1-2)."""
+        P = np.asarray(P_cam, float)
+        xy = P[..., :2] / P[..., 2:3]
+        xd = self.distort(xy)
+        return np.stack(
+            [self.fx * xd[..., 0] + self.u0, self.fy * xd[..., 1] + self.v0], -1
+        )
+
+    def normalised(self, uv: Float) -> Float:
+        """Pixels (..., 2) -> undistorted normalised coordinates (..., 2)."""
+        uv = np.asarray(uv, float)
+        xd = np.stack(
+            [(uv[..., 0] - self.u0) / self.fx, (uv[..., 1] - self.v0) / self.fy], -1
+        )
+        return self.undistort(xd)
+
+    def rays(self, uv: Float) -> Float:
+        """Pixels (..., 2) -> ray directions (..., 3) with z = 1 (not unit length)."""
+        xy = self.normalised(uv)
+        return np.concatenate([xy, np.ones_like(xy[..., :1])], axis=-1)
+
+
+def paper_camera() -> Camera:
+    """The paper's camera (Sec. 5.1): MV-CA013-20GM, 16 mm lens, 1280 x 1024."""
+    return Camera(
+        fx=3423.018,
+        fy=3420.949,
+        u0=605.260,
+        v0=580.506,
+        k1=-0.163,
+        k2=0.951,
+        k3=-0.874,
+        p1=0.000107,
+        p2=-0.00119,
+        width=1280,
+        height=1024,
+    )

@@ -1,0 +1,167 @@
+"""Sphere fitting: algebraic start, geometric Levenberg-Marquardt, outlier rejection.
+
+The algebraic fit (``|p|² = 2 c·p + (R² - |c|²)``, linear in ``c`` and the constant) is
+exact for noise-free points and a good start otherwise; it is biased for small caps, so
+the geometric fit minimises the orthogonal distances ``|p_i - c| - R``. Outliers are
+points further than ``k`` robust standard deviations (1.4826 MAD) from the surface; they
+are flagged, the fit is repeated on the rest until the inlier set stops changing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinecal.errors import DataError
+from kinecal.typing import Float
+
+__all__ = ["SphereFit", "fit_sphere"]
+
+
+@dataclass(frozen=True)
+class SphereFit:
+    """Result of :func:`fit_sphere`; lengths in the unit of the input points."""
+
+    center: Float
+    radius: float
+    rms: float  # RMS orthogonal distance of the inliers
+    n: int  # inliers used
+    inliers: np.ndarray  # bool (N,)
+    covariance: Float  # (4, 4) of (cx, cy, cz, R); (3, 3) when the radius was fixed
+    iterations: int
+
+    @property
+    def center_std(self) -> Float:
+        return np.sqrt(np.diag(self.covariance)[:3])
+
+    @property
+    def n_outliers(self) -> int:
+        return int(self.inliers.size - self.n)
+
+
+def _algebraic(P: Float) -> tuple[Float, float]:
+    A = np.empty((P.shape[0], 4))
+    A[:, :3] = 2.0 * P
+    A[:, 3] = 1.0
+    rhs = np.einsum("ij,ij->i", P, P)
+    sol, *_ = np.linalg.lstsq(A, rhs, rcond=None)
+    c = sol[:3]
+    r2 = sol[3] + c @ c
+    return c, float(np.sqrt(max(r2, 0.0)))
+
+
+def _geometric(
+    P: Float, c: Float, R: float, fixed_radius: float | None, max_iter: int = 50
+) -> tuple[Float, float, Float, int]:
+    """Gauss-Newton with Levenberg damping on the orthogonal distances."""
+    npar = 3 if fixed_radius is not None else 4
+    x = np.append(c, R if fixed_radius is None else fixed_radius)
+
+    def resid(xx: Float) -> tuple[Float, Float]:
+        d = P - xx[:3]
+        dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+        return dist - xx[3], d / np.maximum(dist, 1e-300)[:, None]
+
+    r, u = resid(x)
+    cost = float(r @ r)
+    mu = 1e-3
+    it = 0
+    JtJ = np.eye(npar)
+    for it in range(1, max_iter + 1):
+        # J = [-u, -1] (radius column only when free)
+        J = -u if npar == 3 else np.hstack([-u, -np.ones((u.shape[0], 1))])
+        JtJ = J.T @ J
+        g = J.T @ r
+        while True:
+            step = -np.linalg.solve(JtJ + mu * np.diag(np.diag(JtJ)), g)
+            x_new = x.copy()
+            x_new[:npar] += step
+            r_new, u_new = resid(x_new)
+            cost_new = float(r_new @ r_new)
+            if cost_new <= cost:
+                mu = max(mu / 10.0, 1e-12)
+                break
+            mu *= 10.0
+            if mu > 1e12:
+                return x[:3], float(x[3]), JtJ, it
+        done = cost - cost_new <= 1e-14 * cost or np.linalg.norm(step) <= 1e-13 * (
+            1.0 + np.linalg.norm(x)
+        )
+        x, r, u, cost = x_new, r_new, u_new, cost_new
+        if done:
+            break
+    J = -u if npar == 3 else np.hstack([-u, -np.ones((u.shape[0], 1))])
+    return x[:3], float(x[3]), J.T @ J, it
+
+
+def fit_sphere(
+    points: Float,
+    *,
+    radius: float | None = None,
+    outlier_k: float | None = 4.0,
+    max_rounds: int = 10,
+    min_points: int = 10,
+) -> SphereFit:
+    """Fit a sphere to ``points`` (N, 3).
+
+    ``radius`` fixes the radius (a calibrated sphere: only the centre is estimated).
+    ``outlier_k`` is the rejection threshold in robust standard deviations (``None``: keep
+    every point). The covariance is ``s² (JᵀJ)⁻¹`` at the solution, ``s`` the RMS of the
+    inliers corrected for the degrees of freedom.
+    """
+    P = np.asarray(points, dtype=float)
+    if P.ndim != 2 or P.shape[1] != 3:
+        raise DataError(f"fit_sphere: points must be (N, 3), got {P.shape}")
+    finite = np.all(np.isfinite(P), axis=1)
+    if not np.all(finite):
+        bad = int(np.flatnonzero(~finite)[0])
+        raise DataError(f"fit_sphere: point {bad} is not finite")
+    if P.shape[0] < max(min_points, 4):
+        raise DataError(
+            f"fit_sphere: need at least {max(min_points, 4)} points, got {P.shape[0]}"
+        )
+    if radius is not None and not radius > 0:
+        raise DataError(f"fit_sphere: radius must be positive, got {radius}")
+    origin = P.mean(axis=0)
+    Q = P - origin
+    scale = float(np.sqrt(np.mean(np.einsum("ij,ij->i", Q, Q)))) or 1.0
+    Q = Q / scale
+    fixed = None if radius is None else radius / scale
+    c, R = _algebraic(Q)
+    inl = np.ones(P.shape[0], bool)
+    iters = 0
+    JtJ = np.eye(3 if fixed is not None else 4)
+    for _ in range(max_rounds):
+        c, R, JtJ, it = _geometric(Q[inl], c, R, fixed)
+        iters += it
+        d = np.sqrt(np.einsum("ij,ij->i", Q - c, Q - c)) - R
+        if outlier_k is None:
+            break
+        sig = 1.4826 * float(np.median(np.abs(d[inl] - np.median(d[inl]))))
+        new = np.abs(d) <= outlier_k * max(sig, 1e-12)
+        if new.sum() < max(min_points, 4):
+            raise DataError(
+                f"fit_sphere: only {int(new.sum())} of {P.shape[0]} points lie on one sphere"
+            )
+        if np.array_equal(new, inl):
+            break
+        inl = new
+    npar = JtJ.shape[0]
+    d_in = np.sqrt(np.einsum("ij,ij->i", Q[inl] - c, Q[inl] - c)) - R
+    n = int(inl.sum())
+    rms = float(np.sqrt(np.mean(d_in**2)))
+    s2 = float(d_in @ d_in) / max(n - npar, 1)
+    try:
+        cov = np.linalg.inv(JtJ) * s2
+    except np.linalg.LinAlgError:
+        cov = np.full((npar, npar), np.inf)
+    return SphereFit(
+        center=c * scale + origin,
+        radius=float(R * scale),
+        rms=rms * scale,
+        n=n,
+        inliers=inl,
+        covariance=np.asarray(cov * scale**2, dtype=float),
+        iterations=iters,
+    )
