@@ -356,8 +356,18 @@ def write_comparison_report(
     title: str,
     notes: list[str] | None = None,
     extra_html: str = "",
+    png_dir: str | Path | None = None,
 ) -> Path:
-    """Report of a model comparison on held-out data (Tables 5, 8 and Figures 11, 15)."""
+    """Report of a model comparison on held-out data (Tables 5, 8 and Figures 11, 15).
+
+    ``png_dir``: also write each figure there as a PNG file (for slides and READMEs).
+    """
+    pngs: dict[str, bytes] = {}
+
+    def keep(name: str, png: bytes) -> bytes:
+        pngs[name] = png
+        return png
+
     from kinecal.report._summary import comparison_table
 
     table = comparison_table(rows)
@@ -413,10 +423,13 @@ def write_comparison_report(
         if len(names) >= 2:
             body.append(
                 _img(
-                    F.fig_errors_before_after(
-                        errs[names[0]],
-                        errs[names[-1]],
-                        f"(a) position errors: {names[0]} vs {names[-1]}",
+                    keep(
+                        "a_errors_before_after",
+                        F.fig_errors_before_after(
+                            errs[names[0]],
+                            errs[names[-1]],
+                            f"(a) position errors: {names[0]} vs {names[-1]}",
+                        ),
                     ),
                     "Held-out position error per point [mm].",
                 )
@@ -424,23 +437,32 @@ def write_comparison_report(
         methods = {k: v for k, v in errs.items() if k != "nominal"}
         body.append(
             _img(
-                F.fig_error_histogram(methods),
+                keep("b_histogram", F.fig_error_histogram(methods)),
                 "Histogram of held-out errors per method.",
             )
         )
         body.append(
             _img(
-                F.fig_axis_counts({k: v for k, v in xyz.items() if k != "nominal"}),
+                keep(
+                    "c_axis_counts",
+                    F.fig_axis_counts({k: v for k, v in xyz.items() if k != "nominal"}),
+                ),
                 "Counts of held-out errors along x, y, z per method.",
             )
         )
         body.append(
-            _img(F.fig_violin(methods), "Distributions of held-out errors per method.")
+            _img(
+                keep("d_violin", F.fig_violin(methods)),
+                "Distributions of held-out errors per method.",
+            )
         )
         if names:
             body.append(
                 _img(
-                    F.fig_workspace(test.reference_points() * 1e3, errs[names[-1]]),
+                    keep(
+                        "workspace",
+                        F.fig_workspace(test.reference_points() * 1e3, errs[names[-1]]),
+                    ),
                     f"Held-out errors of {names[-1]} over the workspace [mm].",
                 )
             )
@@ -448,4 +470,9 @@ def write_comparison_report(
         body.append(
             "<p class=muted>Figures need matplotlib: pip install 'kinecal[report]'.</p>"
         )
+    if png_dir is not None and pngs:
+        from kinecal.io import atomic_write_bytes
+
+        for name, png in pngs.items():
+            atomic_write_bytes(Path(png_dir) / f"{name}.png", png, force=True)
     return _write(path, _page(title, "\n".join(body)))

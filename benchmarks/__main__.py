@@ -1,0 +1,225 @@
+"""kinecal benchmarks: ``python -m benchmarks [--out FILE] [--quick]`` (``make bench``).
+
+Each case runs several times; the median wall time is reported with the machine it ran
+on, in a JSON file and a short table. Baselines run in the same process on the same data:
+scipy's ``least_squares`` with finite-difference Jacobians and the paper's fixed-step
+update (zeta = 0.005). Not part of ``make test``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+def _median_time(fn: Callable[[], Any], repeat: int) -> tuple[float, Any]:
+    times, out = [], None
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t)
+    return statistics.median(times), out
+
+
+def _machine() -> dict[str, Any]:
+    info: dict[str, Any] = {
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "platform": platform.platform(),
+        "cpus": os.cpu_count(),
+    }
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                info["cpu"] = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return info
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m benchmarks")
+    ap.add_argument("--out", default="benchmarks/results.json")
+    ap.add_argument("--quick", action="store_true", help="fewer repeats")
+    args = ap.parse_args(argv)
+    rep = 3 if args.quick else 7
+
+    from kinecal.compensation import compensate
+    from kinecal.identification import (
+        calibrate,
+        evaluate,
+        residuals,
+        solve_fixed_step,
+    )
+    from kinecal.sensor import (
+        StripeRenderer,
+        extract_stripes,
+        fit_sphere,
+        paper_sensor,
+        sphere_scene,
+    )
+    from kinecal.simulation import LaserTracker, experiment2
+
+    results: dict[str, dict[str, Any]] = {}
+
+    def record(name: str, seconds: float, target: str, **extra: Any) -> None:
+        results[name] = {"seconds": seconds, "target": target, **extra}
+        print(f"  {name:38s} {seconds * 1e3:10.2f} ms   ({target})", flush=True)
+
+    print("kinecal benchmarks", json.dumps(_machine()), flush=True)
+    e = experiment2(3, tracker=LaserTracker(5e-6, 0.0))
+    big = e.test  # ~6900 poses
+    robot = e.truth.robot
+
+    # 1. FK + parameter Jacobian of the full model
+    res100 = calibrate(robot, e.train, "full")
+    cal = res100.calibrated
+    inputs = big.model_inputs(cal.reference_payload_kg)
+    t, _ = _median_time(
+        lambda: cal.model.evaluate(cal.params, inputs, jacobian=True), rep
+    )
+    record(
+        "fk_jacobian_full",
+        t,
+        "<= 10 ms for 7000 poses",
+        poses=big.n,
+        parameters=cal.model.size,
+    )
+
+    # 2. calibrate, all three stages, ~7000 poses, in-process
+    t, r7 = _median_time(lambda: calibrate(robot, big, "full"), max(rep // 2, 1))
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    record(
+        "calibrate_full_7000",
+        t,
+        "<= 1 s",
+        poses=big.n,
+        rms_mm=r7.metrics_after.rms_mm,
+        peak_rss_mb=peak_mb,
+    )
+
+    # 3. 2000 poses: kinecal against scipy least_squares with finite differences
+    sub = big.subset(np.arange(2000))
+    t_k, rk = _median_time(lambda: calibrate(robot, sub, "full"), max(rep // 2, 1))
+    test = big.subset(np.arange(2000, big.n))
+    rms_k = evaluate(rk.calibrated, test).metrics.rms_mm
+    model = rk.calibrated.model
+    free = np.array([s == "estimated" for s in rk.calibrated.status])
+    x0 = rk.registered.copy()
+    w = rk.weights
+    inp = sub.model_inputs(rk.calibrated.reference_payload_kg)
+
+    def fd_fit() -> np.ndarray:
+        from scipy.optimize import least_squares
+
+        def f(z: np.ndarray) -> np.ndarray:
+            x = x0.copy()
+            x[free] = z
+            return residuals(model, x, sub, w, inputs=inp).r.reshape(-1)
+
+        sol = least_squares(f, x0[free], jac="2-point", method="trf", x_scale="jac")
+        x = x0.copy()
+        x[free] = sol.x
+        return x
+
+    t_fd, x_fd = _median_time(fd_fit, 1)
+    from dataclasses import replace
+
+    rms_fd = evaluate(replace(rk.calibrated, params=x_fd), test).metrics.rms_mm
+    record("calibrate_full_2000", t_k, ">= 5x faster than scipy FD", rms_test_mm=rms_k)
+    record(
+        "scipy_least_squares_fd_2000",
+        t_fd,
+        "baseline",
+        rms_test_mm=rms_fd,
+        speedup=t_fd / t_k,
+    )
+
+    # 4. the paper's fixed-step update from the same start, 200 iterations
+    def fun(x: np.ndarray, jac: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        blk = residuals(model, x, sub, w, inputs=inp, jacobian=jac)
+        return blk.r, blk.J
+
+    t_fs, (x_fs, costs) = _median_time(
+        lambda: solve_fixed_step(fun, x0, free, n_iter=200), 1
+    )
+    rms_fs = evaluate(replace(rk.calibrated, params=x_fs), test).metrics.rms_mm
+    record(
+        "paper_fixed_step_200_iter_2000",
+        t_fs,
+        "baseline",
+        rms_test_mm=rms_fs,
+        note="zeta=0.005 removes 0.5 % of the step per iteration",
+        cost_first_last=[costs[0], costs[-1]],
+    )
+
+    # 5. compensation of 10,000 targets
+    rng = np.random.default_rng(0)
+    q = big.q_ctrl[rng.integers(0, big.n, 10_000)]
+    p_t, _ = e.truth.evaluate(q)
+    q_seed = q + np.radians(0.2) * rng.standard_normal(q.shape)
+    t, cr = _median_time(lambda: compensate(cal, p_t, q_seed), max(rep // 2, 1))
+    record("compensate_10000", t, "<= 1 s", ok=int(np.sum(cr.status == "ok")))
+
+    # 6. stripe extraction, 1280 x 1024 images
+    sen = paper_sensor()
+    ren = StripeRenderer(sen.camera, sen.planes)
+    imgs = ren.render_scan(
+        sphere_scene([0.0, 0.0, 0.14], 0.015), rng, np.arange(0, 120, 4)
+    )
+    t, _ = _median_time(lambda: [extract_stripes(im) for im in imgs], rep)
+    record(
+        "stripes_per_image",
+        t / len(imgs),
+        ">= 90 images/s on one core",
+        images_per_s=len(imgs) / t,
+    )
+
+    # 7. sphere fit of 50k points
+    d = rng.normal(size=(50_000, 3))
+    d[:, 2] = -np.abs(d[:, 2])
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    P = np.array([0.0, 0.0, 0.14]) + d * (
+        0.015 + 10e-6 * rng.standard_normal((50_000, 1))
+    )
+    t, _ = _median_time(lambda: fit_sphere(P), rep)
+    record("fit_sphere_50k", t, "<= 20 ms")
+
+    # 8. CLI start-up
+    def start() -> None:
+        subprocess.run(
+            [sys.executable, "-m", "kinecal", "--help"], check=True, capture_output=True
+        )
+
+    t, _ = _median_time(start, rep)
+    record("cli_help_startup", t, "<= 0.3 s")
+
+    out = {
+        "machine": _machine(),
+        "results": results,
+        "created_unix": time.time(),
+        "repeats": rep,
+    }
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(args.out).with_suffix(".tmp")
+    tmp.write_text(json.dumps(out, indent=2) + "\n")
+    os.replace(tmp, args.out)
+    print(f"-> {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
