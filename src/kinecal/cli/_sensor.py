@@ -251,7 +251,7 @@ def calibrate_planes_cmd(
                 err=True,
             )
             continue
-        files = [f for f in image_files(d, "plane_*.png")]
+        files = image_files(d, "plane_*.png")
         idx = [_plane_index(f) for f in files]
         highest = max(highest, max(idx) + 1)
         poses.append(T)

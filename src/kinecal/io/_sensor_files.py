@@ -12,6 +12,7 @@ from kinecal.errors import ConfigError, DataError
 from kinecal.io._csv import read_table
 from kinecal.io._files import atomic_write_bytes, atomic_write_text
 from kinecal.sensor import Camera, LightPlanes, Sensor
+from kinecal.sensor._cv import require_cv2
 
 __all__ = [
     "image_files",
@@ -28,13 +29,7 @@ SENSOR_FORMAT = 1
 
 
 def _cv2() -> Any:
-    try:
-        import cv2
-    except ImportError:  # pragma: no cover - a dependency
-        raise DataError(
-            "reading images needs OpenCV: pip install 'opencv-python-headless>=4.7,<5'"
-        ) from None
-    return cv2
+    return require_cv2("reading and writing images")
 
 
 def read_image(path: str | Path) -> np.ndarray:

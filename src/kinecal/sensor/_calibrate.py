@@ -21,6 +21,7 @@ import numpy as np
 
 from kinecal.errors import DataError
 from kinecal.sensor._camera import Camera
+from kinecal.sensor._cv import require_cv2
 from kinecal.sensor._planes import LightPlanes, fit_plane
 from kinecal.sensor._render import ChessboardTarget
 from kinecal.sensor._stripes import extract_stripes
@@ -37,13 +38,7 @@ __all__ = [
 
 
 def _cv2() -> Any:
-    try:
-        import cv2
-    except ImportError as exc:  # pragma: no cover - opencv is a dependency
-        raise DataError(
-            "the sensor calibration needs OpenCV: pip install 'opencv-python-headless>=4.7,<5'"
-        ) from exc
-    return cv2
+    return require_cv2("the sensor calibration")
 
 
 @dataclass(frozen=True)

@@ -137,14 +137,13 @@ class Camera:
             radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
             drad = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2)  # d radial / d r2
             f = self.distort(xy) - xy_d
-            # Jacobian of the distortion.
+            # Jacobian [[a, b], [b, d]]: d x_d / d y equals d y_d / d x.
             a = radial + 2.0 * x * x * drad + 2.0 * p1 * y + 6.0 * p2 * x
             b = 2.0 * x * y * drad + 2.0 * p1 * x + 2.0 * p2 * y
-            c = 2.0 * x * y * drad + 2.0 * p1 * x + 2.0 * p2 * y
             d = radial + 2.0 * y * y * drad + 6.0 * p1 * y + 2.0 * p2 * x
-            det = a * d - b * c
+            det = a * d - b * b
             dx = (d * f[..., 0] - b * f[..., 1]) / det
-            dy = (-c * f[..., 0] + a * f[..., 1]) / det
+            dy = (-b * f[..., 0] + a * f[..., 1]) / det
             xy[..., 0] -= dx
             xy[..., 1] -= dy
             if np.max(np.abs(dx) + np.abs(dy), initial=0.0) < tol:

@@ -22,6 +22,7 @@ import numpy as np
 
 from kinecal.errors import ConfigError
 from kinecal.sensor._camera import Camera
+from kinecal.sensor._cv import require_cv2
 from kinecal.sensor._planes import LightPlanes
 from kinecal.typing import Float
 
@@ -166,9 +167,8 @@ class StripeRenderer:
     @cached_property
     def pixel_rays(self) -> Float:
         """Rays (H*W, 3) through every pixel centre."""
-        H, W = self.camera.height, self.camera.width
-        v, u = np.mgrid[0:H, 0:W]
-        return self.camera.rays(np.stack([u.ravel(), v.ravel()], 1).astype(float))
+        xy = _pixel_normalised(self.camera)
+        return np.concatenate([xy, np.ones_like(xy[:, :1])], axis=1)
 
     def _depth(self, scene: Scene) -> tuple[Float, Float, Float, np.ndarray]:
         """Pixel-centre ray cast of ``scene`` (cached for the last scene rendered).
@@ -316,12 +316,25 @@ class StripeRenderer:
         return np.stack([u[ok], v[ok]], 1)
 
 
+@lru_cache(maxsize=2)
+def _pixel_normalised(camera: Camera) -> Float:
+    """Undistorted normalised coordinates (H*W, 2) of every pixel centre (row-major).
+
+    Shared by the stripe and the chessboard renderers: the Newton undistortion of a full
+    1280 x 1024 grid is the costly step, done once per camera.
+    """
+    H, W = camera.height, camera.width
+    v, u = np.mgrid[0:H, 0:W]
+    xy = camera.normalised(np.stack([u.ravel(), v.ravel()], 1).astype(float))
+    xy.setflags(write=False)
+    return xy
+
+
 @lru_cache(maxsize=4)
 def _ideal_map(camera: Camera, scale: int) -> tuple[np.ndarray, np.ndarray]:
     """For every pixel, where its undistorted ray lands in an ideal image ``scale`` x finer."""
     H, W = camera.height, camera.width
-    v, u = np.mgrid[0:H, 0:W]
-    xy = camera.normalised(np.stack([u.ravel(), v.ravel()], 1).astype(float))
+    xy = _pixel_normalised(camera)
     ui = camera.fx * xy[:, 0] + camera.u0
     vi = camera.fy * xy[:, 1] + camera.v0
     mx = (scale * (ui + 0.5) - 0.5).reshape(H, W).astype(np.float32)
@@ -371,7 +384,7 @@ def render_chessboard(
     then sampled through the lens distortion at every output pixel; optics blur
     (``blur_px``, Gaussian sigma) and read noise follow.
     """
-    import cv2  # the sensor pipeline's image library
+    cv2 = require_cv2("rendering chessboard images")
 
     tgt = target or ChessboardTarget()
     s = int(supersample)
