@@ -416,6 +416,16 @@ def calibrate(
         weak_tol=opts.weak_tol,
     )
     free = ident.free
+    frames_lost = [
+        d.name for d in ident.dropped if d.name.split(".", 1)[0] in ("base", "cam")
+    ]
+    if frames_lost:
+        warnings.append(
+            f"the poses do not determine {', '.join(frames_lost)}: the user frame and "
+            "the tool offset trade off (too little variation of the tool orientation). "
+            "They are kept at their starting values; predictions at orientations unlike "
+            "the calibration poses can be far off. Measure with varied orientations."
+        )
     if m_res <= free.sum():
         raise IdentifiabilityError(
             f"{meas.source}: {meas.n} poses ({m_res} residuals) cannot determine "

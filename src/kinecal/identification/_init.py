@@ -48,6 +48,10 @@ def _init_point(
     S, M = len(model.spec.sets), len(model.spec.markers)
     _, t_cam = model.cam_frames(params)
     tool = t_cam.copy()
+    tool_nominal = t_cam.copy()
+    reg = 1e-4 * np.sqrt(
+        meas.n
+    )  # bias ~reg^2 / sigma_min^2: negligible when identifiable
     R_b = np.broadcast_to(np.eye(3), (S, 3, 3)).copy()
     t_b = np.zeros((S, 3))
     si, mi = meas.set_index, meas.marker_index
@@ -73,7 +77,12 @@ def _init_point(
         for s in range(S):
             A[si == s, :, 3 * M + 3 * s : 3 * M + 3 * s + 3] = np.eye(3)
         b = p - np.einsum("nij,nj->ni", R_b[si], o_fl)
-        sol, *_ = np.linalg.lstsq(A.reshape(3 * N, -1), b.reshape(-1), rcond=None)
+        # A tiny pull of the tool points towards their nominal values: without it a
+        # design with one tool orientation (tool point and user origin then trade off
+        # exactly) gives a minimum-norm solution kilometres away.
+        A2 = np.concatenate([A.reshape(3 * N, -1), reg * np.eye(3 * M, 3 * M + 3 * S)])
+        b2 = np.concatenate([b.reshape(-1), reg * tool_nominal.reshape(-1)])
+        sol, *_ = np.linalg.lstsq(A2, b2, rcond=None)
         tool = sol[: 3 * M].reshape(M, 3)
         t_b = sol[3 * M :].reshape(S, 3)
         res = float(np.linalg.norm(A.reshape(3 * N, -1) @ sol - b.reshape(-1)))
