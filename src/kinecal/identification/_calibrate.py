@@ -110,6 +110,10 @@ class CalibrationOptions:
         Per-parameter overrides ``{name: sigma (SI)}``; ``inf`` removes a prior.
     prior_scale : float
         Multiplies every prior sigma (``--model auto`` tries several).
+    adapt_priors : bool
+        Widen the joint-geometry priors when an unconstrained kinematic fit shows larger
+        deviations from nominal than they allow (method of moments on the well-determined
+        parameters; never narrowed). Reported in the warnings.
     """
 
     stage2: str = "direct"
@@ -123,6 +127,7 @@ class CalibrationOptions:
     priors: str = "all"
     prior_sigma: dict[str, float] | None = None
     prior_scale: float = 1.0
+    adapt_priors: bool = True
 
     def __post_init__(self) -> None:
         if self.priors not in ("none", "compliance", "all"):
@@ -362,6 +367,7 @@ def calibrate(
         lm: LMOptions,
         w: Weights,
         prior: Prior | None = None,
+        required: bool = True,
     ) -> LMResult:
         before = rms_mm(cm, x0)
         say(name, f"{int(free.sum())} parameters")
@@ -390,8 +396,9 @@ def calibrate(
             res.status,
             res.n_iter,
         )
-        if not res.success:
+        if not res.success and required:
             warnings.append(f"{name} did not converge: {res.message}.")
+        stages[-1].success = res.success or not required
         return res
 
     reg = run("registration", x, frames, lm_linear, weights)
@@ -436,28 +443,48 @@ def calibrate(
     prior = build_prior(cm, x_reg, opts)
     prior_kin = Prior(prior.mean, np.where(kin, prior.sigma, np.inf))
     use_prior_kin = bool(np.any(np.isfinite(prior_kin.sigma) & free & kin))
-    x1 = run(
-        "stage 1: kinematic",
+    estimate_noise = opts.variance_components and meas.sigma is None
+    # The first stage-1 fit has no priors. Its residuals give the noise (when the data
+    # carry no sigmas): a prior weighed against the registration residuals (the nominal
+    # model's error, far above the noise) would hold the fit back, inflate the noise
+    # estimate and so keep the prior too strong, a self-confirming misfit seen on real
+    # mocap data. Its deviations from nominal give the scale of the joint-geometry
+    # priors (empirical Bayes, see _adapt_prior).
+    needed = use_prior_kin or (estimate_noise and meas.kind == "pose")
+    pre = run(
+        "stage 1: kinematic" + (" (no priors)" if use_prior_kin else ""),
         x_reg,
         free & kin,
         lm_linear,
         weights,
-        prior_kin if use_prior_kin else None,
-    ).x
-    estimate_noise = opts.variance_components and meas.sigma is None
+        required=not needed,
+    )
+    x1 = pre.x
     if estimate_noise:
         weights = _noise_from_residuals(
             cm, x1, meas, weights, inputs, int((free & kin).sum())
         )
-        if use_prior_kin or meas.kind == "pose":
-            x1 = run(
-                "stage 1: kinematic",
-                x1,
-                free & kin,
-                lm_linear,
-                weights,
-                prior_kin if use_prior_kin else None,
-            ).x
+    if use_prior_kin and opts.adapt_priors and pre.success:
+        prior, widened = _adapt_prior(
+            cm, x1, x_reg, prior, meas, weights, inputs, free & kin
+        )
+        prior_kin = Prior(prior.mean, np.where(kin, prior.sigma, np.inf))
+        if widened:
+            warnings.append(
+                "the data show larger deviations from nominal than the default priors "
+                "allow; priors widened: "
+                + ", ".join(f"{what} {value}" for what, value in widened)
+                + "."
+            )
+    if needed:
+        x1 = run(
+            "stage 1: kinematic",
+            x1,
+            free & kin,
+            lm_linear,
+            weights,
+            prior_kin if use_prior_kin else None,
+        ).x
     lm = lm_linear
     if opts.loss != "linear":
         r1 = residuals(cm, x1, meas, weights, inputs=inputs).r
@@ -619,6 +646,61 @@ def calibrate(
         seconds=time.perf_counter() - t_start,
         prior=prior if use_prior else None,
     )
+
+
+def _adapt_prior(
+    cm: CalibrationModel,
+    x: Float,
+    x_nominal: Float,
+    prior: Prior,
+    meas: Measurements,
+    w: Weights,
+    inputs: ModelInputs,
+    free: np.ndarray,
+) -> tuple[Prior, list[tuple[str, str]]]:
+    """Joint-geometry prior scales from an unconstrained fit (empirical Bayes).
+
+    For each kind (lengths, angles) the prior variance is estimated by the method of
+    moments, ``tau^2 = mean(dx^2 - var(dx))`` over the free parameters of that kind with a
+    finite prior, ``dx`` the deviation from nominal and ``var`` its variance from the
+    unconstrained fit. The prior sigma becomes ``max(sigma, tau)``: a robot whose geometry
+    departs from its nominal table by more than the default prior allows is not pulled
+    back, while a poorly determined parameter (large ``var``) does not widen it.
+    """
+    fidx = np.flatnonzero(free)
+    blk = residuals(cm, x, meas, w, inputs=inputs, jacobian=True)
+    assert blk.J is not None
+    scales = cm.layout.scales[fidx]
+    Js = blk.J[:, :, fidx].reshape(-1, fidx.size) * scales
+    dof = max(blk.r.size - fidx.size, 1)
+    s0sq = float(np.sum(blk.r**2)) / dof
+    evals, evecs = np.linalg.eigh(Js.T @ Js)
+    good = evals > evals.max() * 1e-12
+    var = np.einsum("ij,j,ij->i", evecs[:, good], 1.0 / evals[good], evecs[:, good])
+    var = s0sq * var * scales**2
+    sigma = prior.sigma.copy()
+    widened: list[tuple[str, str]] = []
+    kinds = np.array([cm.layout.specs[i].kind for i in fidx])
+    groups = np.array([cm.layout.specs[i].group for i in fidx])
+    for kind, unit, factor in (("length", "mm", 1e3), ("angle", "deg", np.degrees(1))):
+        sel = (groups == "joint") & (kinds == kind) & np.isfinite(sigma[fidx])
+        if not sel.any():
+            continue
+        idx = fidx[sel]
+        dx = x[idx] - x_nominal[idx]
+        tau2 = float(np.mean(dx**2 - var[sel]))
+        current = float(np.median(sigma[idx]))
+        if tau2 > current**2:
+            tau = float(np.sqrt(tau2))
+            sigma[idx] = np.maximum(sigma[idx], tau)
+            widened.append((f"joint {kind}s", f"{tau * factor:.3g} {unit}"))
+        # A deviation the data determine clearly (beyond 3 of its own std) and beyond
+        # its prior is not pulled back: its prior widens to the deviation itself.
+        clear = (np.abs(dx) > 3.0 * np.sqrt(var[sel])) & (np.abs(dx) > sigma[idx])
+        for i, d in zip(idx[clear], dx[clear]):
+            sigma[i] = abs(d)
+            widened.append((cm.layout.names[i], f"{abs(d) * factor:.3g} {unit}"))
+    return Prior(prior.mean, sigma), widened
 
 
 def _noise_from_residuals(
