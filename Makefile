@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 # Python trees checked by ruff (only those present in this checkout).
 PYDIRS := $(wildcard src tests benchmarks examples)
 
-.PHONY: demo test test-slow lint bench clean format
+.PHONY: demo test test-slow lint bench examples clean format
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "kinecal needs Python >= 3.11"'
@@ -32,9 +32,13 @@ test-slow: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks --out benchmarks/results.json
 
+examples: $(STAMP)
+	$(BIN)/python examples/ur10_mocap.py
+	$(BIN)/python examples/franka_fr3_camera.py
+
 format: $(STAMP)
 	$(BIN)/ruff format $(PYDIRS)
 	$(BIN)/ruff check --fix $(PYDIRS)
 
 clean:
-	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache demo-results
+	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache demo-results examples/out

@@ -120,6 +120,29 @@ def test_pose_and_quaternion_checks(tmp_path):
         read_measurements(f, ROBOT)
 
 
+def test_pose_as_fanuc_wpr_matches_scipy_xyz_euler(tmp_path):
+    """W, P, R columns are roll, pitch, yaw about the fixed x, y, z axes."""
+    from scipy.spatial.transform import Rotation
+
+    wpr = np.array([[10.0, -20.0, 30.0], [-170.0, 45.0, 95.0]])
+    lines = [f"1,2,3,4,5,6,700,800,900,{w},{p},{r}" for w, p, r in wpr]
+    f = _write(tmp_path, HEAD + ",w_deg,p_deg,r_deg\n" + "\n".join(lines) + "\n")
+    m = read_measurements(f, ROBOT)
+    assert m.kind == "pose"
+    want = Rotation.from_euler("xyz", wpr, degrees=True).as_matrix()
+    np.testing.assert_allclose(m.R_user_cam, want, atol=1e-12)
+    both = _write(
+        tmp_path,
+        HEAD + ",qw,qx,qy,qz,w_deg,p_deg,r_deg\n1,2,3,4,5,6,7,8,9,1,0,0,0,0,0,0\n",
+        "both.csv",
+    )
+    with pytest.raises(DataError, match=r"either as qw\.\.qz or as w_deg"):
+        read_measurements(both, ROBOT)
+    part = _write(tmp_path, HEAD + ",w_deg,p_deg\n1,2,3,4,5,6,7,8,9,0,0\n", "part.csv")
+    with pytest.raises(DataError, match="missing column 'r_deg'"):
+        read_measurements(part, ROBOT)
+
+
 def test_sensor_data_and_targets(tmp_path):
     t = _write(
         tmp_path,

@@ -19,6 +19,7 @@ from kinecal.identification._evaluate import (
     evaluate,
     kfold_indices,
     refit,
+    registered_model,
     train_test_split,
 )
 from kinecal.identification._identifiability import (
@@ -74,6 +75,7 @@ __all__ = [
     "metrics_from_errors",
     "priority_order",
     "refit",
+    "registered_model",
     "residuals",
     "select_model",
     "solve_fixed_step",

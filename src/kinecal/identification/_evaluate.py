@@ -8,7 +8,11 @@ import numpy as np
 
 from kinecal.errors import IdentifiabilityError
 from kinecal.geometry import kabsch_umeyama, matrix_to_euler_zyx
-from kinecal.identification._calibrate import CalibrationOptions, calibrate
+from kinecal.identification._calibrate import (
+    CalibrationOptions,
+    CalibrationResult,
+    calibrate,
+)
 from kinecal.identification._calibrated import CalibratedModel
 from kinecal.identification._lm import LMOptions, solve_lm
 from kinecal.identification._measurements import Measurements
@@ -25,6 +29,7 @@ __all__ = [
     "evaluate",
     "kfold_indices",
     "refit",
+    "registered_model",
     "train_test_split",
 ]
 
@@ -212,10 +217,14 @@ def cross_validate(
     options: CalibrationOptions | None = None,
 ) -> CrossValidation:
     """k-fold cross-validation; with several sets the folds are whole sets and the user
-    frame of a held-out set is refitted (a new set-up), as ``evaluate --refit user``."""
+    frame of a held-out set is refitted (a new set-up), as ``evaluate --refit user``.
+
+    ``model='nominal'`` scores the nominal kinematics with fitted frames (the baseline).
+    """
     folds = kfold_indices(meas, k, seed)
     by_set = len(meas.set_labels) > 1 and len(folds) == len(np.unique(meas.set_index))
     out = CrossValidation(model if isinstance(model, str) else model.name)
+    nominal = isinstance(model, str) and model == "nominal"
     for test_idx in folds:
         mask = np.zeros(meas.n, bool)
         mask[test_idx] = True
@@ -223,10 +232,28 @@ def cross_validate(
         if by_set:
             train = _relabel_sets(train)
             test = _relabel_sets(test)
-        res = calibrate(robot, train, model, options)
-        out.train.append(res.metrics_after)
-        out.folds.append(evaluate(res.calibrated, test, refit_user=by_set).metrics)
+        res = calibrate(robot, train, "kinematic" if nominal else model, options)
+        if nominal:
+            out.train.append(res.metrics_before)
+            cal = registered_model(res)
+        else:
+            out.train.append(res.metrics_after)
+            cal = res.calibrated
+        out.folds.append(evaluate(cal, test, refit_user=by_set).metrics)
     return out
+
+
+def registered_model(res: CalibrationResult) -> CalibratedModel:
+    """The state before calibration: nominal kinematics with the fitted user and cam
+    frames of ``res`` (what a 'nominal' row scores)."""
+    cal = res.calibrated
+    return CalibratedModel(
+        cal.model,
+        res.registered,
+        np.full(cal.model.size, np.nan),
+        ["fixed"] * cal.model.size,
+        cal.reference_payload_kg,
+    )
 
 
 def _relabel_sets(meas: Measurements) -> Measurements:
@@ -279,13 +306,7 @@ def compare_models(
         res = calibrate(robot, train, spec, options)
         cal = res.calibrated
         if nominal and not rows:
-            before = CalibratedModel(
-                cal.model,
-                res.registered,
-                np.full(cal.model.size, np.nan),
-                ["fixed"] * cal.model.size,
-                cal.reference_payload_kg,
-            )
+            before = registered_model(res)
             rows.append(
                 ComparisonRow(
                     "nominal",

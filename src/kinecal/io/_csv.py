@@ -6,6 +6,8 @@ Measurement file (header required, units in the names)::
                                    prismatic joint)
     x_mm, y_mm, z_mm               point data: tool point in the user frame
     qw, qx, qy, qz                 optional orientation (w first): pose data
+    w_deg, p_deg, r_deg            or the orientation as FANUC W, P, R (= roll, pitch, yaw
+                                   about the fixed x, y, z axes: Rz(r) Ry(p) Rx(w))
     target, xc_mm, yc_mm, zc_mm    sensor data: target seen in the cam frame (with --targets)
     set, marker, payload_kg, sigma_mm, sigma_deg   optional
 
@@ -26,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from kinecal.errors import DataError
-from kinecal.geometry import quat_wxyz_to_matrix
+from kinecal.geometry import quat_wxyz_to_matrix, wpr_to_matrix
 from kinecal.identification import Measurements
 from kinecal.robot import RobotDescription
 from kinecal.units import deg_to_rad, mm_to_m
@@ -44,6 +46,7 @@ __all__ = [
 _OPTIONAL = {"set", "marker", "payload_kg", "sigma_mm", "sigma_deg"}
 _POINT = ("x_mm", "y_mm", "z_mm")
 _QUAT = ("qw", "qx", "qy", "qz")
+_WPR = ("w_deg", "p_deg", "r_deg")
 _SENSOR = ("target", "xc_mm", "yc_mm", "zc_mm")
 _JOINT_RE = re.compile(r"^j(\d+)_(deg|rad|mm|m)$")
 # Columns a user might mean when they forget the unit suffix.
@@ -238,7 +241,14 @@ def read_measurements(
     """
     t = read_table(path)
     joint_cols, q = _joint_columns(t, robot)
-    known = set(joint_cols) | _OPTIONAL | set(_POINT) | set(_QUAT) | set(_SENSOR)
+    known = (
+        set(joint_cols)
+        | _OPTIONAL
+        | set(_POINT)
+        | set(_QUAT)
+        | set(_WPR)
+        | set(_SENSOR)
+    )
     for c in t.header:
         if c not in known:
             base = c.lower().split("_")[0]
@@ -257,6 +267,14 @@ def read_measurements(
     elif any(c in t.header for c in _QUAT):
         kind = "pose"
         need = (*_POINT, *_QUAT)
+        if any(c in t.header for c in _WPR):
+            raise DataError(
+                f"{t.path}: give the orientation either as qw..qz or as w_deg, p_deg, "
+                "r_deg, not both."
+            )
+    elif any(c in t.header for c in _WPR):
+        kind = "pose"
+        need = (*_POINT, *_WPR)
     else:
         kind = "point"
         need = _POINT
@@ -330,7 +348,9 @@ def read_measurements(
             "metres; convert to millimetres."
         )
     R = None
-    if kind == "pose":
+    if kind == "pose" and "w_deg" in t.header:
+        R = wpr_to_matrix(deg_to_rad(np.column_stack([t.numbers(c) for c in _WPR])))
+    elif kind == "pose":
         quat = np.column_stack([t.numbers(c) for c in _QUAT])
         nrm = np.linalg.norm(quat, axis=1)
         bad = np.flatnonzero(np.abs(nrm - 1.0) > 0.01)
