@@ -106,3 +106,30 @@ def test_identifiability_decisions_do_not_depend_on_units(exp2_exact):
     a = analyse_identifiability(J, m.layout, np.ones(m.size, bool))
     b = analyse_identifiability(J * 1e3, m.layout, np.ones(m.size, bool))
     assert [d.name for d in a.dropped] == [d.name for d in b.dropped]
+
+
+def test_robot_file_priors_reach_the_identification():
+    from dataclasses import replace
+
+    from kinecal.identification import CalibrationOptions
+    from kinecal.identification._calibrate import build_prior
+    from kinecal.models import CalibrationModel, ModelSpec
+    from kinecal.robot import load_robot
+
+    robot = load_robot("fanuc-lrmate200id")
+    wide = replace(
+        robot, prior_sigma={("joint", "length"): 7e-3, ("ntm", "ntm"): np.inf}
+    )
+    cm = CalibrationModel(wide, ModelSpec.preset("full"))
+    pr = build_prior(cm, cm.nominal, CalibrationOptions())
+    names = cm.layout.names
+    assert pr.sigma[names.index("joint2.a")] == pytest.approx(7e-3)
+    assert pr.sigma[names.index("joint2.alpha")] == pytest.approx(np.radians(0.1))
+    assert np.isinf(pr.sigma[names.index("joint1.ka1")])
+    pr2 = build_prior(
+        cm,
+        cm.nominal,
+        CalibrationOptions(prior_sigma={"joint2.a": 1e-4}, prior_scale=2),
+    )
+    assert pr2.sigma[names.index("joint2.a")] == pytest.approx(1e-4)
+    assert pr2.sigma[names.index("joint3.a")] == pytest.approx(14e-3)

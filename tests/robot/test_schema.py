@@ -176,3 +176,41 @@ def test_prismatic_joint_adds_to_d():
     q[0] = 0.1
     T1 = r.fk_flange(q)
     np.testing.assert_allclose(T1[:3, 3] - T0[:3, 3], [0, 0, 0.1], atol=1e-15)
+
+
+def test_priors_in_the_robot_file_are_read_in_file_units_and_round_trip():
+    doc = {
+        **GOOD,
+        "units": {"length": "m", "angle": "rad"},
+        "joints": [
+            {**j, "d": j["d"] / 1e3, "a": j["a"] / 1e3, "alpha": np.radians(j["alpha"])}
+            for j in GOOD["joints"]
+        ],
+        "priors": {"joint_length": 0.005, "joint_angle": 0.01, "ntm": None},
+    }
+    for j in doc["joints"]:
+        j.pop("limits", None)
+        j["theta_offset"] = np.radians(j["theta_offset"])
+    r = robot_from_dict(doc)
+    assert r.prior_sigma[("joint", "length")] == pytest.approx(0.005)
+    assert r.prior_sigma[("joint", "angle")] == pytest.approx(0.01)
+    assert np.isinf(r.prior_sigma[("ntm", "ntm")])
+    d = dump_robot(r)  # mm, deg
+    assert d["priors"]["joint_length"] == pytest.approx(5.0)
+    assert d["priors"]["joint_angle"] == pytest.approx(np.degrees(0.01))
+    assert d["priors"]["ntm"] is None
+    r2 = robot_from_dict(yaml.safe_load(yaml.safe_dump(d)))
+    assert r2.prior_sigma == pytest.approx(r.prior_sigma)
+
+
+@pytest.mark.parametrize(
+    ("priors", "match"),
+    [
+        ({"joint_lenght": 1}, "joint_lenght"),
+        ({"joint_length": -1}, r"priors.joint_length: expected a positive std"),
+        ({"joint_angle": "wide"}, r"priors.joint_angle"),
+    ],
+)
+def test_bad_priors(priors, match):
+    with pytest.raises(ConfigError, match=match):
+        robot_from_dict({**GOOD, "priors": priors})

@@ -268,12 +268,14 @@ def _generic_point(model: CalibrationModel, x: Float) -> Float:
 def build_prior(
     model: CalibrationModel, start: Float, options: CalibrationOptions
 ) -> Prior:
-    """Priors of :data:`PRIOR_SIGMA` for the groups chosen in ``options.priors``."""
+    """Priors of :data:`PRIOR_SIGMA` (or the robot file's ``priors``) for the groups
+    chosen in ``options.priors``; ``options.prior_sigma`` overrides single parameters."""
     sigma = np.full(model.size, np.inf)
     groups = _PRIOR_GROUPS[options.priors]
+    table = {**PRIOR_SIGMA, **model.robot.prior_sigma}  # the robot file may override
     for i, s in enumerate(model.layout.specs):
         if s.group in groups:
-            sigma[i] = PRIOR_SIGMA.get((s.group, s.kind), np.inf) * options.prior_scale
+            sigma[i] = table.get((s.group, s.kind), np.inf) * options.prior_scale
     for name, value in (options.prior_sigma or {}).items():
         sigma[model.layout.index(name)] = float(value)
     return Prior(start.copy(), sigma)

@@ -5,7 +5,8 @@ payload compliance, link weight), each with the physical priors at a few strengt
 candidate is scored by k-fold cross-validation (whole sessions per fold when there are
 several; their user frames are refitted, as for a new set-up). The choice follows the
 one-standard-error rule: the smallest model whose validation RMS is within one standard
-error of the best. The table behind the choice goes into the report.
+error of the best, the error taken on the paired per-fold differences (the folds are the
+same for every candidate). The table behind the choice goes into the report.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ class Candidate:
     cv_se_mm: float
     train_rms_mm: float
     chosen: bool = False
+    fold_rms_mm: tuple[float, ...] = ()
 
 
 @dataclass
@@ -54,7 +56,8 @@ class Selection:
             "chosen": self.spec.name,
             "prior_scale": self.prior_scale,
             "folds": self.folds,
-            "rule": "smallest model within one standard error of the best validation RMS",
+            "rule": "smallest model within one standard error (paired over folds) of the "
+            "best validation RMS",
             "candidates": [
                 {
                     "label": c.label,
@@ -124,6 +127,22 @@ def candidate_specs(
     return out
 
 
+def _within_one_se(c: Candidate, best: Candidate) -> bool:
+    """One-standard-error rule on the paired fold differences.
+
+    All candidates share the folds, so the fold-to-fold spread (which pose happened to be
+    in which fold) is common to them; the standard error of the per-fold *differences*
+    to the best candidate is the one that says whether ``c`` is really worse.
+    """
+    a, b = np.asarray(c.fold_rms_mm), np.asarray(best.fold_rms_mm)
+    if a.size != b.size or a.size < 2:
+        se = best.cv_se_mm if np.isfinite(best.cv_se_mm) else 0.0
+        return c.cv_rms_mm <= best.cv_rms_mm + se
+    d = a - b
+    se_d = float(d.std(ddof=1) / np.sqrt(d.size))
+    return c.cv_rms_mm - best.cv_rms_mm <= se_d
+
+
 def select_model(
     robot: RobotDescription,
     meas: Measurements,
@@ -155,7 +174,16 @@ def select_model(
 
         size = CalibrationModel(robot, spec).size
         train = float(np.sqrt(np.mean([m.rms_mm**2 for m in cv.train])))
-        return Candidate(label, spec, scale, size, cv.rms_mm, cv.rms_se_mm, train)
+        return Candidate(
+            label,
+            spec,
+            scale,
+            size,
+            cv.rms_mm,
+            cv.rms_se_mm,
+            train,
+            fold_rms_mm=tuple(f.rms_mm for f in cv.folds),
+        )
 
     for label, spec in candidate_specs(
         robot, meas, hayati=hayati, ntm_joints=ntm_joints
@@ -175,8 +203,7 @@ def select_model(
                 except ValueError:
                     pass
     best = min(cands, key=lambda c: c.cv_rms_mm)
-    se = best.cv_se_mm if np.isfinite(best.cv_se_mm) else 0.0
-    eligible = [c for c in cands if c.cv_rms_mm <= best.cv_rms_mm + se]
+    eligible = [c for c in cands if _within_one_se(c, best)]
     # Smallest model; among equal sizes the strongest priors (the simplest fit).
     chosen = min(eligible, key=lambda c: (c.size, -1.0 / c.prior_scale, c.cv_rms_mm))
     chosen.chosen = True

@@ -139,6 +139,10 @@ class RobotDescription:
         Mass of the payload at the tool, if known (converts compliance to rad/(N·m)).
     self_weight : SelfWeightSpec or None
         Joints of the paper's link self-weight model; ``None`` if it does not apply.
+    prior_sigma : dict
+        Prior standard deviations (SI) by ``(group, kind)``, overriding the defaults of
+        the identification (e.g. ``{("joint", "length"): 5e-3}`` for a robot whose
+        geometry departs more from its nominal table).
     source : str
         Where the data came from (file path or built-in name).
     """
@@ -153,6 +157,7 @@ class RobotDescription:
     payload_kg: float | None = None
     self_weight: SelfWeightSpec | None = None
     source: str = ""
+    prior_sigma: dict[tuple[str, str], float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         n = len(self.joints)

@@ -14,6 +14,9 @@ Schema (DESIGN §11, with the optional extensions marked *)::
     gravity: [gx, gy, gz]                           base frame; only the direction is used
     payload_kg: 1.5                                * payload at the tool, if known
     self_weight: {shoulder: 2, elbow: 3, wrist_frame: 4} | null   * (Eq. 25-26)
+    priors: {joint_length: 1, joint_angle: 0.1, ntm: 0.03,        * prior std of the
+             load_compliance: 1e-3, link_moment: 2000, link_ratio: 10}  identification
+        (lengths and angles in the file's units, load_compliance in rad/m; null = none)
 
 Frames use Eq. 8's ``Trans(x, y, z) Rz(r) Ry(w) Rx(p)``. Unknown keys are errors.
 """
@@ -46,6 +49,7 @@ _TOP_KEYS = {
     "gravity",
     "payload_kg",
     "self_weight",
+    "priors",
 }
 _REQUIRED_TOP = ("name", "convention", "units", "joints")
 _JOINT_KEYS = {"name", "theta_offset", "d", "a", "alpha", "limits", "type"}
@@ -53,6 +57,32 @@ _JOINT_REQUIRED = ("theta_offset", "d", "a", "alpha")
 _FRAME_KEYS = ("x", "y", "z", "r", "w", "p")
 _COUPLING_KEYS = {"joint", "from", "factor"}
 _SELF_WEIGHT_KEYS = {"shoulder", "elbow", "wrist_frame"}
+# priors key -> (group, kind) of the identification and the unit kind in the file.
+_PRIOR_KEYS = {
+    "joint_length": (("joint", "length"), "length"),
+    "joint_angle": (("joint", "angle"), "angle"),
+    "ntm": (("ntm", "ntm"), "angle"),
+    "load_compliance": (("load", "compliance"), "si"),
+    "link_moment": (("link", "moment"), "length"),
+    "link_ratio": (("link", "ratio"), "si"),
+}
+
+
+def _priors(
+    data: Any, where: str, lu: float, au: float
+) -> dict[tuple[str, str], float]:
+    _check_keys(data, set(_PRIOR_KEYS), where)
+    out = {}
+    for key, value in data.items():
+        (group_kind, unit) = _PRIOR_KEYS[key]
+        if value is None:
+            out[group_kind] = float("inf")
+            continue
+        v = _number(value, f"{where}.{key}")
+        if not v > 0:
+            raise _err(f"{where}.{key}", f"expected a positive std (or null); got {v}.")
+        out[group_kind] = v * {"length": lu, "angle": au, "si": 1.0}[unit]
+    return out
 
 
 def _err(where: str, msg: str) -> ConfigError:
@@ -248,6 +278,11 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
             )
         sw = SelfWeightSpec(**vals_sw)
 
+    priors = (
+        _priors(data["priors"], f"{source}: priors", lu, au)
+        if data.get("priors")
+        else {}
+    )
     desc = data.get("description", "")
     return RobotDescription(
         name=name,
@@ -260,6 +295,7 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
         payload_kg=payload,
         self_weight=sw,
         source=source if not desc else f"{source} ({desc})",
+        prior_sigma=priors,
     )
 
 
@@ -328,4 +364,15 @@ def dump_robot(robot: RobotDescription) -> dict[str, Any]:
     }
     if robot.payload_kg is not None:
         out["payload_kg"] = robot.payload_kg
+    if robot.prior_sigma:
+        to_file = {"length": 1e3, "angle": 180.0 / np.pi, "si": 1.0}
+        out["priors"] = {
+            key: (
+                None
+                if not np.isfinite(robot.prior_sigma[gk])
+                else float(robot.prior_sigma[gk] * to_file[unit])
+            )
+            for key, (gk, unit) in _PRIOR_KEYS.items()
+            if gk in robot.prior_sigma
+        }
     return out
