@@ -147,3 +147,37 @@ def test_bad_inputs_are_rejected(rng):
         model.evaluate(model.nominal, ModelInputs.make(np.zeros((3, 5))))
     with pytest.raises(ValueError, match=r"params must have shape \(30,\)"):
         model.evaluate(np.zeros(3), ModelInputs.make(np.zeros((3, 6))))
+
+
+def test_jacobian_exact_with_compliance_and_a_prismatic_joint(rng):
+    """A prismatic joint whose axis the upstream geometry tilts, gravity not along it."""
+    from kinecal.robot import robot_from_dict
+
+    robot = robot_from_dict(
+        {
+            "name": "slide-6",
+            "convention": "dh",
+            "units": {"length": "mm", "angle": "deg"},
+            "joints": [
+                {"theta_offset": 0, "d": 300, "a": 50, "alpha": 80},
+                {
+                    "theta_offset": 10,
+                    "d": 300,
+                    "a": 20,
+                    "alpha": -70,
+                    "type": "prismatic",
+                    "limits": [0, 350],
+                },
+                {"theta_offset": 0, "d": 0, "a": 350, "alpha": 0},
+                {"theta_offset": 0, "d": 80, "a": 0, "alpha": 90},
+                {"theta_offset": 0, "d": 250, "a": 0, "alpha": -90},
+                {"theta_offset": 0, "d": 90, "a": 0, "alpha": 0},
+            ],
+            "gravity": [2.0, 1.0, -9.0],
+            "self_weight": None,
+        }
+    )
+    spec = ModelSpec(ntm_joints=(1, 3), load=True, cam_rotation=True)
+    model = CalibrationModel(robot, spec)
+    inp = _random_inputs(robot, rng)
+    _check_all_columns(model, _generic_params(model, rng, lam=1e-3), inp)

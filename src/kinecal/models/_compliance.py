@@ -208,23 +208,23 @@ def torque_derivatives(
     link : ('paper' | 'rfcm', (shoulder, elbow, wrist_frame), x_sign, moments) or None.
     bodies : (body numbers, coefficients (4 per body)) of the general link terms, or None.
     """
-    N, n = frames.o.shape[0], frames.n
-    K = omega.shape[1]
-    out = np.zeros((N, n, K))
+    n = frames.n
     dp = cross(omega, p_load[:, None, :]) + vel  # (N, K, 3) motion of the load point
-    g = g_hat[None, None, :]
-    for j in range(n):
-        z = frames.R[:, j, :, 2]
-        moved = _moved(first, j)
-        if prismatic[j]:
-            out[:, j, :] = np.where(
-                moved, np.sum(cross(omega, z[:, None, :]) * g, axis=-1), 0.0
-            )
-            continue
-        zr = cross(z, p_load - frames.o[:, j])  # (N, 3)
-        up = np.sum(dp * cross(g_hat, z)[:, None, :], axis=-1)
-        down = np.sum(zr[:, None, :] * cross(g, omega), axis=-1)
-        out[:, j, :] = np.where(moved, down, up)
+    Z = frames.R[:, :n, :, 2]  # (N, n, 3) joint axes
+    zr = cross(Z, p_load[:, None, :] - frames.o[:, :n])  # z × lever
+    gz = cross(np.broadcast_to(g_hat, Z.shape), Z)  # ĝ × z
+    gxo = cross(np.broadcast_to(g_hat, omega.shape), omega)  # ĝ × omega, (N, K, 3)
+    # All joints at once as batched products (N, K, 3) @ (N, 3, n).
+    up = dp @ gz.transpose(0, 2, 1)
+    down = gxo @ zr.transpose(0, 2, 1)
+    moved = np.arange(n)[None, :] >= first[:, None]  # (K, n): axis j moved by k
+    res = np.where(moved[None], down, up)
+    if np.any(prismatic):
+        # A force along the axis: only the axis direction matters, (omega × z) · ĝ.
+        zg = cross(Z, np.broadcast_to(g_hat, Z.shape))
+        along = np.where(moved[None], omega @ zg.transpose(0, 2, 1), 0.0)
+        res = np.where(np.asarray(prismatic, bool)[None, None, :], along, res)
+    out = np.ascontiguousarray(res.transpose(0, 2, 1))  # (N, n, K)
     out *= load_scale[:, None, None]
     if link is not None:
         out += _link_derivatives(frames, g_hat, omega, vel, first, *link)
@@ -250,43 +250,38 @@ def _link_derivatives(
     z_sh = frames.z(sh - 1)
     z_el = frames.z(el - 1)
     x_hat = x_sign * frames.R[:, sh, :, 0]
-    w = frames.o[:, wf] - frames.o[:, el - 1]
+    o_wf = frames.o[:, wf]
+    w = o_wf - frames.o[:, el - 1]
     w_p = w - np.sum(w * z_el, axis=-1, keepdims=True) * z_el
     norm = np.linalg.norm(w_p, axis=-1, keepdims=True)
     u_hat = w_p / norm
+    gb = np.broadcast_to(g_hat, z_sh.shape)
+    m_sh = _moved(first, sh - 1).astype(float)
+    m_el = _moved(first, el - 1).astype(float)
+    m_x = _moved(first, sh).astype(float)
+    m_wf = _moved(first, wf).astype(float)
 
-    def rot(v: Float, moved: np.ndarray) -> Float:
-        return np.where(moved[None, :, None], cross(omega, v[:, None, :]), 0.0)
+    def dot(a: Float, v: Float) -> Float:  # (N, K, 3) · (N, 3) -> (N, K)
+        return (a @ v[:, :, None])[..., 0]
 
-    dz_sh = rot(z_sh, _moved(first, sh - 1))
-    dz_el = rot(z_el, _moved(first, el - 1))
-    dx = rot(x_hat, _moved(first, sh))
-    # u follows the elbow frame rigidly, or turns as the wrist centre alone moves.
-    rigid = _moved(first, el - 1)
-    dw = cross(omega, frames.o[:, wf][:, None, :]) + vel
-    dw_p = dw - np.sum(dw * z_el[:, None, :], axis=-1, keepdims=True) * z_el[:, None, :]
-    du_free = (
-        dw_p
-        - np.sum(dw_p * u_hat[:, None, :], axis=-1, keepdims=True) * u_hat[:, None, :]
-    )
-    du_free = du_free / norm[:, None, :]
-    du = np.where(
-        rigid[None, :, None],
-        cross(omega, u_hat[:, None, :]),
-        np.where(_moved(first, wf)[None, :, None], du_free, 0.0),
-    )
-    xg = cross(x_hat, g_hat)
-    ug = cross(u_hat, g_hat)
-    g = g_hat[None, None, :]
-    d_x_sh = np.sum(dz_sh * xg[:, None, :], -1) + np.sum(
-        z_sh[:, None, :] * cross(dx, g), -1
-    )
-    d_u_sh = np.sum(dz_sh * ug[:, None, :], -1) + np.sum(
-        z_sh[:, None, :] * cross(du, g), -1
-    )
-    d_u_el = np.sum(dz_el * ug[:, None, :], -1) + np.sum(
-        z_el[:, None, :] * cross(du, g), -1
-    )
+    # Every term is a triple product with a parameter twist: (omega × a) · b is
+    # omega · (a × b), so each reduces to one batched matrix-vector product.
+    def du_dot(v: Float) -> Float:
+        """du · v, with u following the elbow frame rigidly, or turning as the wrist
+        centre alone moves (du = P_u P_z dw / |w_p|, P the projections)."""
+        rigid = dot(omega, cross(u_hat, v))
+        pv = v - np.sum(v * u_hat, axis=-1, keepdims=True) * u_hat
+        pv = (pv - np.sum(pv * z_el, axis=-1, keepdims=True) * z_el) / norm
+        free = dot(omega, cross(o_wf, pv)) + dot(vel, pv)
+        return m_el * rigid + (1.0 - m_el) * m_wf * free
+
+    xg = cross(x_hat, gb)
+    ug = cross(u_hat, gb)
+    gz_sh = cross(gb, z_sh)
+    gz_el = cross(gb, z_el)
+    d_x_sh = m_sh * dot(omega, cross(z_sh, xg)) + m_x * dot(omega, cross(x_hat, gz_sh))
+    d_u_sh = m_sh * dot(omega, cross(z_sh, ug)) + du_dot(gz_sh)
+    d_u_el = m_el * dot(omega, cross(z_el, ug)) + du_dot(gz_el)
     out = np.zeros((N, n, K))
     if model == "paper":
         out[:, sh - 1] = s[0] * d_x_sh + s[1] * d_u_sh
