@@ -41,38 +41,55 @@ class SphereFit:
 
 
 def _algebraic(P: Float) -> tuple[Float, float]:
+    """Kasa's fit ``|p|^2 = 2 c·p + (R^2 - |c|^2)`` by normal equations (``P`` centred
+    and scaled to unit RMS, so the 4x4 system is well conditioned)."""
     A = np.empty((P.shape[0], 4))
     A[:, :3] = 2.0 * P
     A[:, 3] = 1.0
     rhs = np.einsum("ij,ij->i", P, P)
-    sol, *_ = np.linalg.lstsq(A, rhs, rcond=None)
+    sol = np.linalg.solve(A.T @ A, A.T @ rhs)
     c = sol[:3]
     r2 = sol[3] + c @ c
     return c, float(np.sqrt(max(r2, 0.0)))
 
 
+def _normal(u: Float, r: Float, npar: int) -> tuple[Float, Float]:
+    """``JᵀJ`` and ``Jᵀr`` for ``J = [-u, -1]`` without forming ``J``."""
+    JtJ = np.empty((npar, npar))
+    JtJ[:3, :3] = u.T @ u
+    g = np.empty(npar)
+    g[:3] = -(r @ u)
+    if npar == 4:
+        su = u.sum(axis=0)
+        JtJ[:3, 3] = JtJ[3, :3] = su
+        JtJ[3, 3] = u.shape[0]
+        g[3] = -r.sum()
+    return JtJ, g
+
+
 def _geometric(
     P: Float, c: Float, R: float, fixed_radius: float | None, max_iter: int = 50
 ) -> tuple[Float, float, Float, int]:
-    """Gauss-Newton with Levenberg damping on the orthogonal distances."""
+    """Gauss-Newton with Levenberg damping on the orthogonal distances.
+
+    ``P`` is in normalised units (unit RMS about its mean): a step below 1e-7 of that
+    is far under any measurable change, so it ends the iteration.
+    """
     npar = 3 if fixed_radius is not None else 4
     x = np.append(c, R if fixed_radius is None else fixed_radius)
 
     def resid(xx: Float) -> tuple[Float, Float]:
         d = P - xx[:3]
         dist = np.sqrt(np.einsum("ij,ij->i", d, d))
-        return dist - xx[3], d / np.maximum(dist, 1e-300)[:, None]
+        d /= np.maximum(dist, 1e-300)[:, None]
+        return dist - xx[3], d
 
     r, u = resid(x)
     cost = float(r @ r)
     mu = 1e-3
     it = 0
-    JtJ = np.eye(npar)
+    JtJ, g = _normal(u, r, npar)
     for it in range(1, max_iter + 1):
-        # J = [-u, -1] (radius column only when free)
-        J = -u if npar == 3 else np.hstack([-u, -np.ones((u.shape[0], 1))])
-        JtJ = J.T @ J
-        g = J.T @ r
         while True:
             step = -np.linalg.solve(JtJ + mu * np.diag(np.diag(JtJ)), g)
             x_new = x.copy()
@@ -85,14 +102,49 @@ def _geometric(
             mu *= 10.0
             if mu > 1e12:
                 return x[:3], float(x[3]), JtJ, it
-        done = cost - cost_new <= 1e-14 * cost or np.linalg.norm(step) <= 1e-13 * (
-            1.0 + np.linalg.norm(x)
-        )
+        done = cost - cost_new <= 1e-12 * cost or np.linalg.norm(step) <= 1e-7
         x, r, u, cost = x_new, r_new, u_new, cost_new
+        JtJ, g = _normal(u, r, npar)
         if done:
             break
-    J = -u if npar == 3 else np.hstack([-u, -np.ones((u.shape[0], 1))])
-    return x[:3], float(x[3]), J.T @ J, it
+    return x[:3], float(x[3]), JtJ, it
+
+
+def _distances(Q: Float, c: Float) -> Float:
+    d = Q - c
+    return np.sqrt(np.einsum("ij,ij->i", d, d))
+
+
+def _rounds(
+    Q: Float,
+    c: Float,
+    R: float,
+    fixed: float | None,
+    outlier_k: float | None,
+    max_rounds: int,
+    min_points: int,
+    inl: np.ndarray | None = None,
+) -> tuple[Float, float, Float, np.ndarray, int]:
+    """Geometric fits alternating with MAD outlier rejection until the inliers settle."""
+    inl = np.ones(Q.shape[0], bool) if inl is None else inl
+    iters = 0
+    JtJ = np.eye(3 if fixed is not None else 4)
+    for _ in range(max_rounds):
+        c, R, JtJ, it = _geometric(Q if inl.all() else Q[inl], c, R, fixed)
+        iters += it
+        if outlier_k is None:
+            break
+        d = _distances(Q, c) - R
+        sig = 1.4826 * float(np.median(np.abs(d[inl] - np.median(d[inl]))))
+        new = np.abs(d) <= outlier_k * max(sig, 1e-12)
+        if new.sum() < max(min_points, 4):
+            raise DataError(
+                f"fit_sphere: only {int(new.sum())} of {Q.shape[0]} points lie on one sphere"
+            )
+        if np.array_equal(new, inl):
+            break
+        inl = new
+    return c, R, JtJ, inl, iters
 
 
 def fit_sphere(
@@ -128,27 +180,30 @@ def fit_sphere(
     scale = float(np.sqrt(np.mean(np.einsum("ij,ij->i", Q, Q)))) or 1.0
     Q = Q / scale
     fixed = None if radius is None else radius / scale
-    c, R = _algebraic(Q)
+    # Large clouds: the whole robust fit first runs on an evenly strided subset of about
+    # 10k points; its sphere and noise level classify every point, and the final rounds
+    # (which decide the result) use all points from there.
+    stride = max(1, P.shape[0] // 10_000)
+    c, R = _algebraic(Q[::stride])
     inl = np.ones(P.shape[0], bool)
     iters = 0
-    JtJ = np.eye(3 if fixed is not None else 4)
-    for _ in range(max_rounds):
-        c, R, JtJ, it = _geometric(Q[inl], c, R, fixed)
+    if stride > 1:
+        Qs = Q[::stride]
+        c, R, _, inl_s, it = _rounds(Qs, c, R, fixed, outlier_k, max_rounds, min_points)
         iters += it
-        d = np.sqrt(np.einsum("ij,ij->i", Q - c, Q - c)) - R
-        if outlier_k is None:
-            break
-        sig = 1.4826 * float(np.median(np.abs(d[inl] - np.median(d[inl]))))
-        new = np.abs(d) <= outlier_k * max(sig, 1e-12)
-        if new.sum() < max(min_points, 4):
-            raise DataError(
-                f"fit_sphere: only {int(new.sum())} of {P.shape[0]} points lie on one sphere"
-            )
-        if np.array_equal(new, inl):
-            break
-        inl = new
+        if outlier_k is not None:
+            d = _distances(Q, c) - R
+            ds = d[::stride][inl_s]
+            sig = 1.4826 * float(np.median(np.abs(ds - np.median(ds))))
+            inl = np.abs(d) <= outlier_k * max(sig, 1e-12)
+    c, R, JtJ, inl, it = _rounds(Q, c, R, fixed, outlier_k, max_rounds, min_points, inl)
+    iters += it
+    if inl.sum() < max(min_points, 4):
+        raise DataError(
+            f"fit_sphere: only {int(inl.sum())} of {P.shape[0]} points lie on one sphere"
+        )
     npar = JtJ.shape[0]
-    d_in = np.sqrt(np.einsum("ij,ij->i", Q[inl] - c, Q[inl] - c)) - R
+    d_in = _distances(Q[inl], c) - R
     n = int(inl.sum())
     rms = float(np.sqrt(np.mean(d_in**2)))
     s2 = float(d_in @ d_in) / max(n - npar, 1)
