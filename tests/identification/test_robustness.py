@@ -233,3 +233,12 @@ def test_one_tool_orientation_stays_bounded_and_warns(exp2_exact):
     assert res.metrics_after.rms_mm < 0.1
     held = evaluate(res.calibrated, e.test.subset(same[300:]))
     assert held.metrics.rms_mm < 0.2
+
+
+def test_sensor_data_on_two_targets_warns_about_the_user_frame(exp1_exact):
+    e = exp1_exact
+    two = e.train.subset(np.flatnonzero(e.train.target_index < 2))
+    res = calibrate(ROBOT, two, "kinematic")
+    assert any("sees 2 target(s)" in w for w in res.warnings), res.warnings
+    four = calibrate(ROBOT, e.train, "kinematic")
+    assert not any("target(s)" in w for w in four.warnings)

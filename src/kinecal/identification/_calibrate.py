@@ -425,6 +425,20 @@ def calibrate(
         weak_tol=opts.weak_tol,
     )
     free = ident.free
+    if meas.kind == "sensor" and meas.targets is not None:
+        assert meas.target_index is not None
+        for si, label in enumerate(meas.set_labels):
+            seen = np.unique(meas.target_index[meas.set_index == si])
+            pts = meas.targets[seen]
+            spread = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)
+            if seen.size < 3 or spread[1] < 1e-3 * max(spread[0], 1e-12):
+                warnings.append(
+                    f"set {label or '(default)'} sees {seen.size} target(s)"
+                    + (" on one line" if seen.size >= 3 else "")
+                    + ": the rotation of its user frame about the line through them is "
+                    "not determined, so predictions at other targets are unreliable. "
+                    "Measure at least three targets not on one line."
+                )
     frames_lost = [
         d.name for d in ident.dropped if d.name.split(".", 1)[0] in ("base", "cam")
     ]
