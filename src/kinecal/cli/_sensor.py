@@ -4,12 +4,16 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from kinecal.cli._common import Progress, common_options
+
+if TYPE_CHECKING:
+    import numpy as np
 
 _BOARD_HELP = "Chessboard inner corners COLSxROWS (one even, one odd count)."
 
@@ -262,7 +266,9 @@ def calibrate_planes_cmd(
         raise DataError(
             f"{folder}: plane images up to number {highest - 1}, but --n-planes {m}"
         )
-    imgs = [[(read_image(s[i]) if i in s else None) for i in range(m)] for s in sets]
+    # Each image is read when its stripes are extracted and dropped after: memory stays
+    # at one image, not every image of every pose (5 x 120 x 1.3 MB).
+    imgs = [_LazyImages([s.get(i) for i in range(m)], read_image) for s in sets]
     res = calibrate_planes(cam, poses, imgs, model=model)
     status = {k: res.status.count(k) for k in sorted(set(res.status))}
     info = {
@@ -444,3 +450,17 @@ def simulate_calibration_cmd(
         force=True,
     )
     click.echo(f"calibration images -> {d}", err=True)
+
+
+class _LazyImages(Sequence):
+    """Image files read on access (``None`` entries stay ``None``)."""
+
+    def __init__(self, paths: list[Path | None], reader: Callable[[Path], np.ndarray]):
+        self._paths, self._read = paths, reader
+
+    def __len__(self) -> int:
+        return len(self._paths)
+
+    def __getitem__(self, i):
+        p = self._paths[i]
+        return None if p is None else self._read(p)
