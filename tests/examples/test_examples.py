@@ -36,6 +36,8 @@ def test_ur10_mocap_example(tmp_path):
     assert 10.0 < nominal < 14.0
     for model in ("kinematic, plain LS", "kinematic", "full"):
         assert cv[model] < 0.45 * nominal, (model, cv)
+    # Priors never make the full model worse than the kinematic one (issue 11).
+    assert cv["full"] <= cv["kinematic"] * 1.02
     assert (tmp_path / "model.yaml").is_file()
     assert (tmp_path / "ur10_poses.csv").is_file()
 
@@ -51,3 +53,4 @@ def test_franka_fr3_example(tmp_path):
     assert cv["kinematic"] < 0.5 * nominal
     new = s["new_setup"]
     assert new["full_rms_mm"] < 0.6 * new["nominal_rms_mm"]
+    assert new["full_rms_mm"] <= 1.02 * new["kinematic_rms_mm"]

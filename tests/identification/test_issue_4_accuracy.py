@@ -26,7 +26,7 @@ def test_issue_4_parameters_within_three_sigma(exp2_exact):
     assert res.success
     rec = parameter_recovery(res, e.truth, e.train)
     # The fitted model represents this truth up to the priors' pull (well below the noise).
-    assert rec.fit_rms_mm < 1e-3
+    assert rec.fit_rms_mm < 2e-3  # noise floor: 8.7e-3 mm
     assert np.all(np.abs(rec.z) <= 3.0), dict(zip(rec.names, np.round(rec.z, 2)))
     # ... and the std are not inflated: the z-scores spread like a unit normal.
     assert 0.4 < np.std(rec.z) < 1.6

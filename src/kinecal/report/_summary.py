@@ -66,6 +66,7 @@ def calibration_summary(
         "after": _metrics(result.metrics_after),
         "sigma0": result.sigma0,
         "noise_sigma_mm": float(np.median(result.weights.sigma) * 1e3),
+        "prior_scale_by_evidence": dict(result.prior_factors),
         "identifiability": {
             "estimated": ident.rank,
             "parameters": int(ident.candidate.sum()),
