@@ -34,6 +34,7 @@ def _register() -> None:
     for cmd in (
         _fk.fk,
         _fk.robots,
+        _fk.import_urdf,
         _calibrate.calibrate,
         _calibrate.evaluate,
         _compensate.compensate,

@@ -9,6 +9,7 @@ from kinecal.robot._description import (
     dh_transforms,
 )
 from kinecal.robot._schema import dump_robot, load_robot_file, robot_from_dict
+from kinecal.robot._urdf import robot_from_urdf
 
 __all__ = [
     "DHChain",
@@ -21,4 +22,5 @@ __all__ = [
     "load_robot",
     "load_robot_file",
     "robot_from_dict",
+    "robot_from_urdf",
 ]

@@ -28,7 +28,8 @@ def _load_builtin(name: str) -> RobotDescription:
 
 
 def load_robot(name_or_path: str | Path) -> RobotDescription:
-    """A built-in robot by name (e.g. ``'fanuc-lrmate200id'``) or a robot YAML file.
+    """A built-in robot by name (e.g. ``'fanuc-lrmate200id'``), a robot YAML file, or a
+    URDF file (its unbranched chain from the root link, see :func:`robot_from_urdf`).
 
     Raises
     ------
@@ -39,11 +40,17 @@ def load_robot(name_or_path: str | Path) -> RobotDescription:
     if s in builtin_robot_names():
         return _load_builtin(s)
     p = Path(s)
+    if p.suffix.lower() == ".urdf":
+        if not p.exists():
+            raise ConfigError(f"{p}: URDF file not found.")
+        from kinecal.robot._urdf import robot_from_urdf
+
+        return robot_from_urdf(p)
     if p.suffix.lower() in (".yaml", ".yml") or p.exists():
         if not p.exists():
             raise ConfigError(f"{p}: robot file not found.")
         return load_robot_file(p)
     raise ConfigError(
         f"unknown robot {s!r}: not a built-in ({', '.join(builtin_robot_names())}) "
-        "and not a YAML file."
+        "and not a YAML or URDF file."
     )

@@ -329,10 +329,11 @@ def dump_robot(robot: RobotDescription) -> dict[str, Any]:
         lim_scale = 1e3 if j.kind == "prismatic" else 180.0 / np.pi
         row: dict[str, Any] = {
             "name": j.name,
-            "theta_offset": float(np.degrees(j.theta_offset)),
-            "d": j.d * 1e3,
-            "a": j.a * 1e3,
-            "alpha": float(np.degrees(j.alpha)),
+            # 1e-9 mm / deg: far below any accuracy, keeps the file readable.
+            "theta_offset": round(float(np.degrees(j.theta_offset)), 9),
+            "d": round(j.d * 1e3, 9),
+            "a": round(j.a * 1e3, 9),
+            "alpha": round(float(np.degrees(j.alpha)), 9),
         }
         if np.all(np.isfinite(j.limits)):
             row["limits"] = [j.limits[0] * lim_scale, j.limits[1] * lim_scale]

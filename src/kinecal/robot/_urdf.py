@@ -1,0 +1,222 @@
+"""Import a serial chain from a URDF file as a standard-DH robot description.
+
+The joint axes of the chain, taken at the zero configuration in the root link's frame,
+are lines in space; standard DH frames are placed on them (``z_{i-1}`` on joint i's axis,
+pointing along the URDF axis so that positive joint values turn the same way, ``x_i``
+along the common normal to the next axis) and the four DH numbers read off between
+consecutive frames. The last DH frame is put on the last axis, level with the tip
+link's origin; the tip link is the physical flange (``flange`` in the description).
+
+Only the geometry is imported: masses and the link self-weight layout are not, so the
+description has ``self_weight: null`` (edit the YAML to add it). The URDF joint values
+are the controller values (no couplings).
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+from kinecal.errors import ConfigError
+from kinecal.geometry import rpy_to_matrix
+from kinecal.robot._description import JointSpec, RobotDescription
+
+__all__ = ["robot_from_urdf"]
+
+_MOVABLE = ("revolute", "continuous", "prismatic")
+_PARALLEL = 1e-9  # |sin| below which two axes count as parallel
+_ON_AXIS = 1e-9  # [m]
+
+
+def _floats(text: str | None, n: int, where: str) -> np.ndarray:
+    try:
+        v = np.array([float(t) for t in (text or "").split()])
+    except ValueError:
+        raise ConfigError(f"{where}: expected {n} numbers; got {text!r}.") from None
+    if v.shape != (n,):
+        raise ConfigError(f"{where}: expected {n} numbers; got {text!r}.")
+    return v
+
+
+def _origin(joint: ET.Element, where: str) -> np.ndarray:
+    T = np.eye(4)
+    el = joint.find("origin")
+    if el is not None:
+        T[:3, :3] = rpy_to_matrix(_floats(el.get("rpy", "0 0 0"), 3, f"{where} rpy"))
+        T[:3, 3] = _floats(el.get("xyz", "0 0 0"), 3, f"{where} xyz")
+    return T
+
+
+def _chain(
+    root: ET.Element, base: str | None, tip: str | None, src: str
+) -> tuple[str, str, list[ET.Element]]:
+    joints = root.findall("joint")
+    by_child: dict[str, ET.Element] = {}
+    children: dict[str, list[str]] = {}
+    for j in joints:
+        parent, child = j.find("parent"), j.find("child")
+        if parent is None or child is None:
+            raise ConfigError(f"{src}: joint {j.get('name')!r} lacks parent or child.")
+        by_child[child.get("link", "")] = j
+        children.setdefault(parent.get("link", ""), []).append(child.get("link", ""))
+    links = {lk.get("name", "") for lk in root.findall("link")}
+    if base is None:
+        roots = sorted(lk for lk in links if lk not in by_child)
+        if len(roots) != 1:
+            raise ConfigError(f"{src}: {len(roots)} root links ({roots}); name --base.")
+        base = roots[0]
+    if tip is None:
+        link, seen = base, 0
+        while children.get(link):
+            kids = children[link]
+            if len(kids) > 1:
+                raise ConfigError(
+                    f"{src}: the chain branches at link {link!r} ({', '.join(kids)}); "
+                    "name the --tip link."
+                )
+            link = kids[0]
+            seen += 1
+        tip = link
+    for name, what in ((base, "base"), (tip, "tip")):
+        if name not in links:
+            raise ConfigError(f"{src}: no link {name!r} ({what}).")
+    chain = []
+    link = tip
+    while link != base:
+        if link not in by_child:
+            raise ConfigError(f"{src}: link {tip!r} is not below link {base!r}.")
+        j = by_child[link]
+        chain.append(j)
+        link = j.find("parent").get("link", "")  # type: ignore[union-attr]
+    chain.reverse()
+    return base, tip, chain
+
+
+def _angle(a: np.ndarray, b: np.ndarray, axis: np.ndarray) -> float:
+    """Signed angle from unit vector ``a`` to ``b`` about unit ``axis``."""
+    return float(np.arctan2(np.cross(a, b) @ axis, a @ b))
+
+
+def robot_from_urdf(
+    path: str | Path,
+    *,
+    base: str | None = None,
+    tip: str | None = None,
+    name: str | None = None,
+) -> RobotDescription:
+    """A standard-DH description of the chain ``base`` .. ``tip`` of a URDF file.
+
+    Parameters
+    ----------
+    path : URDF file.
+    base, tip : link names; default the root link and the end of an unbranched chain.
+    name : robot name; default the URDF's.
+
+    Raises
+    ------
+    ConfigError
+        Unreadable file, branching chain without ``tip``, no movable joints, or a first
+        joint axis that is not the base z axis (DH frame 0 must sit on it).
+    """
+    p = Path(path)
+    try:
+        root = ET.parse(p).getroot()
+    except (OSError, ET.ParseError) as exc:
+        raise ConfigError(f"{p}: cannot read URDF ({exc}).") from exc
+    src = str(p)
+    base, tip, chain = _chain(root, base, tip, src)
+    # Axis lines at the zero configuration, in the base link's frame.
+    T = np.eye(4)
+    lines: list[tuple[np.ndarray, np.ndarray]] = []
+    specs: list[tuple[str, str, tuple[float, float]]] = []
+    for j in chain:
+        jn = j.get("name", "?")
+        T = T @ _origin(j, f"{src}: joint {jn!r} origin")
+        kind = j.get("type", "")
+        if kind not in _MOVABLE:
+            if kind != "fixed":
+                raise ConfigError(f"{src}: joint {jn!r} has unsupported type {kind!r}.")
+            continue
+        ax_el = j.find("axis")
+        axis = _floats(ax_el.get("xyz") if ax_el is not None else "1 0 0", 3, jn)
+        axis = axis / np.linalg.norm(axis)
+        lim = j.find("limit")
+        lo, hi = -np.inf, np.inf
+        if kind != "continuous" and lim is not None:
+            lo = float(lim.get("lower", "-inf"))
+            hi = float(lim.get("upper", "inf"))
+        lines.append((T[:3, 3].copy(), T[:3, :3] @ axis))
+        specs.append((jn, "prismatic" if kind == "prismatic" else "revolute", (lo, hi)))
+    if not lines:
+        raise ConfigError(f"{src}: no movable joint between {base!r} and {tip!r}.")
+    T_tip = T
+    p1, u1 = lines[0]
+    if not np.allclose(u1, [0.0, 0.0, 1.0], atol=1e-9) or np.hypot(*p1[:2]) > _ON_AXIS:
+        raise ConfigError(
+            f"{src}: the first joint axis must be the base link's z axis (DH frame 0 "
+            f"sits on it); it is {np.round(u1, 6).tolist()} through "
+            f"{np.round(p1, 6).tolist()}. Choose another --base link."
+        )
+    # Frame 0 = base frame. Frames 1..n-1 on the axes 2..n; frame n on the last axis.
+    z_prev, x_prev, o_prev = (
+        np.array([0.0, 0.0, 1.0]),
+        np.array([1.0, 0.0, 0.0]),
+        np.zeros(3),
+    )
+    joints: list[JointSpec] = []
+    n = len(lines)
+    for i in range(n):
+        if i + 1 < n:
+            q, z = lines[i + 1]
+            c = np.cross(z_prev, z)
+            s = np.linalg.norm(c)
+            if s > _PARALLEL:
+                # x along the common normal; o where it meets the next axis.
+                x = c / s
+                A = np.column_stack([z_prev, -z])
+                ts, *_ = np.linalg.lstsq(A, q - o_prev, rcond=None)
+                o = q + ts[1] * z
+                if (o - o_prev) @ x < -_ON_AXIS:
+                    x = -x  # either normal direction is DH; this one gives a > 0
+            else:
+                # Parallel axes: the common normal through the previous origin.
+                w = q - o_prev
+                w_perp = w - (w @ z_prev) * z_prev
+                if np.linalg.norm(w_perp) > _ON_AXIS:
+                    x = w_perp / np.linalg.norm(w_perp)
+                else:  # the same line: keep x
+                    x = x_prev
+                o = q + ((o_prev - q) @ z) * z
+        else:
+            z = z_prev
+            x = x_prev
+            o = o_prev + ((T_tip[:3, 3] - o_prev) @ z) * z
+        d_vec = o - o_prev
+        theta = _angle(x_prev, x, z_prev)
+        d = float(d_vec @ z_prev)
+        a = float(d_vec @ x)
+        alpha = _angle(z_prev, z, x)
+        resid = d_vec - d * z_prev - a * x
+        if np.linalg.norm(resid) > 1e-7:
+            raise ConfigError(
+                f"{src}: could not place DH frame {i + 1} (residual "
+                f"{np.linalg.norm(resid):.2e} m); the chain may need MDH."
+            )
+        jname, jkind, jlim = specs[i]
+        joints.append(JointSpec(jname, theta, d, a, alpha, jkind, jlim))
+        z_prev, x_prev, o_prev = z, x, o
+    F_n = np.eye(4)
+    F_n[:3, :3] = np.column_stack([x_prev, np.cross(z_prev, x_prev), z_prev])
+    F_n[:3, 3] = o_prev
+    T_n_flange = np.linalg.inv(F_n) @ T_tip
+    return RobotDescription(
+        name=name or root.get("name") or p.stem,
+        convention="dh",
+        joints=tuple(joints),
+        coupling=np.eye(n),
+        T_n_flange=T_n_flange,
+        self_weight=None,
+        source=f"{src} (URDF {base} -> {tip})",
+    )
