@@ -88,28 +88,23 @@ def chain_frames(
     o[:, 0] = 0.0
     a_axis = np.empty((N, n, 3))
     d = np.broadcast_to(d, (N, n))
-    # Row rotations Rz(theta) Rx(alpha), shape (N, n, 3, 3); translations (N, n, 3).
-    M = np.empty((N, n, 3, 3))
-    M[..., 0, 0] = ct
-    M[..., 0, 1] = -st * ca
-    M[..., 0, 2] = st * sa
-    M[..., 1, 0] = st
-    M[..., 1, 1] = ct * ca
-    M[..., 1, 2] = -ct * sa
-    M[..., 2, 0] = 0.0
-    M[..., 2, 1] = sa
-    M[..., 2, 2] = ca
-    t = np.empty((N, n, 3))
-    t[..., 0] = a * ct
-    t[..., 1] = a * st
-    t[..., 2] = d
-    for i in range(n):  # loop over joints; every operation is batched over poses
-        Rprev = R[:, i]
-        Ri = Rprev @ M[:, i]
-        a_axis[:, i] = Ri[:, :, 0]
-        if beta is not None and beta[i] != 0.0:
+    # Row i multiplies the previous frame's columns (x, y, z) = (c0, c1, c2) by
+    # Rz(theta) Rx(alpha): x' = c0 ct + c1 st, y' = v ca + c2 sa, z' = -v sa + c2 ca with
+    # v = -c0 st + c1 ct; the origin moves by a x' + d c2. Every operation is on (N, 3)
+    # columns, batched over poses (no 3x3 matrix products).
+    for i in range(n):
+        c0, c1, c2 = R[:, i, :, 0], R[:, i, :, 1], R[:, i, :, 2]
+        cti, sti = ct[:, i, None], st[:, i, None]
+        x = c0 * cti + c1 * sti
+        v = c1 * cti - c0 * sti
+        y = v * ca[i] + c2 * sa[i]
+        z = c2 * ca[i] - v * sa[i]
+        a_axis[:, i] = x
+        o[:, i + 1] = o[:, i] + a[i] * x + d[:, i, None] * c2
+        if beta is not None and beta[i] != 0.0:  # Ry(beta): x and z turn about y
             cb, sb = np.cos(beta[i]), np.sin(beta[i])
-            Ri = Ri @ np.array([[cb, 0.0, sb], [0.0, 1.0, 0.0], [-sb, 0.0, cb]])
-        R[:, i + 1] = Ri
-        o[:, i + 1] = o[:, i] + np.einsum("nij,nj->ni", Rprev, t[:, i])
+            x, z = x * cb - z * sb, x * sb + z * cb
+        R[:, i + 1, :, 0] = x
+        R[:, i + 1, :, 1] = y
+        R[:, i + 1, :, 2] = z
     return ChainFrames(R=R, o=o, a_axis=a_axis)

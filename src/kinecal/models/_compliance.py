@@ -209,14 +209,17 @@ def torque_derivatives(
     bodies : (body numbers, coefficients (4 per body)) of the general link terms, or None.
     """
     n = frames.n
-    dp = cross(omega, p_load[:, None, :]) + vel  # (N, K, 3) motion of the load point
     Z = frames.R[:, :n, :, 2]  # (N, n, 3) joint axes
+    gb = np.broadcast_to(g_hat, Z.shape)
     zr = cross(Z, p_load[:, None, :] - frames.o[:, :n])  # z × lever
-    gz = cross(np.broadcast_to(g_hat, Z.shape), Z)  # ĝ × z
-    gxo = cross(np.broadcast_to(g_hat, omega.shape), omega)  # ĝ × omega, (N, K, 3)
-    # All joints at once as batched products (N, K, 3) @ (N, 3, n).
-    up = dp @ gz.transpose(0, 2, 1)
-    down = gxo @ zr.transpose(0, 2, 1)
+    gz = cross(gb, Z)  # ĝ × z
+    # All joints at once as batched products (N, K, 3) @ (N, 3, n), the triple
+    # products rearranged so no (N, K, 3) cross product is formed:
+    # (omega × p + vel) · (ĝ × z) = omega · (p × (ĝ × z)) + vel · (ĝ × z), and
+    # (ĝ × omega) · (z × r) = omega · ((z × r) × ĝ).
+    pgz = cross(np.broadcast_to(p_load[:, None, :], Z.shape), gz)
+    up = omega @ pgz.transpose(0, 2, 1) + vel @ gz.transpose(0, 2, 1)
+    down = omega @ cross(zr, gb).transpose(0, 2, 1)
     moved = np.arange(n)[None, :] >= first[:, None]  # (K, n): axis j moved by k
     res = np.where(moved[None], down, up)
     if np.any(prismatic):
