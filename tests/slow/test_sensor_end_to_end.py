@@ -8,32 +8,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinecal.sensor import (
-    ChessboardTarget,
-    Sensor,
-    StripeRenderer,
-    board_pose,
-    calibrate_camera,
-    calibrate_planes,
-    fit_sphere,
-    paper_sensor,
-    simulate_calibration,
-    sphere_scene,
-)
+from kinecal.sensor import StripeRenderer, fit_sphere, sphere_scene
 from kinecal.simulation import CERAMIC_SPHERES_MM
 
 pytestmark = pytest.mark.slow
 
 
-def test_four_ceramic_spheres_through_the_calibrated_sensor():
-    true = paper_sensor()
-    rng = np.random.default_rng(2024)
-    tgt = ChessboardTarget()
-    ses = simulate_calibration(true, rng, n_views=15, n_plane_poses=5)
-    cc = calibrate_camera(ses.chessboard_images, tgt)
-    poses = [board_pose(im, cc.camera, tgt) for im in ses.plane_board_images]
-    pc = calibrate_planes(cc.camera, poses, ses.plane_stripe_images)
-    cal = Sensor(cc.camera, pc.planes)
+def test_four_ceramic_spheres_through_the_calibrated_sensor(calibrated_sensor):
+    true, cal = calibrated_sensor.true, calibrated_sensor.calibrated
+    rng = np.random.default_rng(2025)
     ren = StripeRenderer(true.camera, true.planes)
     radius_err, centres = [], []
     for R in CERAMIC_SPHERES_MM[:, 3] * 1e-3:

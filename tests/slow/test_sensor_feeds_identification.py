@@ -10,18 +10,7 @@ import numpy as np
 import pytest
 
 from kinecal.identification import calibrate, evaluate, refit
-from kinecal.sensor import (
-    ChessboardTarget,
-    Sensor,
-    StripeRenderer,
-    board_pose,
-    calibrate_camera,
-    calibrate_planes,
-    fit_sphere,
-    paper_sensor,
-    simulate_calibration,
-    sphere_scene,
-)
+from kinecal.sensor import StripeRenderer, fit_sphere, sphere_scene
 from kinecal.simulation import experiment1
 from kinecal.simulation._recovery import noise_free
 
@@ -31,16 +20,9 @@ N_TRAIN = 40
 EVERY = 3  # every third light plane: 40 stripe images per scan
 
 
-def test_image_level_centres_feed_experiment_1():
+def test_image_level_centres_feed_experiment_1(calibrated_sensor):
     rng = np.random.default_rng(7)
-    true = paper_sensor()
-    tgt = ChessboardTarget()
-    ses = simulate_calibration(true, rng, n_views=15, n_plane_poses=5)
-    cc = calibrate_camera(ses.chessboard_images, tgt)
-    poses = [board_pose(im, cc.camera, tgt) for im in ses.plane_board_images]
-    cal = Sensor(
-        cc.camera, calibrate_planes(cc.camera, poses, ses.plane_stripe_images).planes
-    )
+    true, cal = calibrated_sensor.true, calibrated_sensor.calibrated
 
     e = experiment1(5)
     # Poses spread over all four spheres (the training rows are in planning order).
