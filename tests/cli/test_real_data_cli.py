@@ -110,6 +110,8 @@ def test_ur10_pose_data_from_nominal_dh(tmp_path, run_cli):
             "--out",
             str(out),
             "--no-report",
+            "--cv",
+            "3",
             "-q",
         ],
     )
@@ -117,6 +119,9 @@ def test_ur10_pose_data_from_nominal_dh(tmp_path, run_cli):
     report = json.loads((out / "report.json").read_text())
     text = json.dumps(report)
     assert "determined mostly by their prior" in text
+    cv = report["cross_validation"]
+    assert cv["folds"] == 3 and len(cv["model"]["fold_rms_mm"]) == 3
+    assert cv["model"]["rms_mm"] < 0.5 * cv["nominal"]["rms_mm"]
     cal = load_model(out / "model.yaml")
     ev = evaluate(cal, read_measurements(REAL / "ur10_mocap.csv", load_robot("ur10")))
     assert ev.metrics.rms_mm < 5.0

@@ -95,6 +95,15 @@ def _options_from(loss: str, priors: str, stage2: str):
     show_default=True,
     help="Write report.html with figures.",
 )
+@click.option(
+    "--cv",
+    "cv_folds",
+    type=click.IntRange(min=2),
+    default=None,
+    metavar="K",
+    help="Also report K-fold cross-validated held-out errors of the chosen model "
+    "(whole sessions per fold when DATA has several sets) and of the nominal one.",
+)
 @click.option("--force", is_flag=True, help="Overwrite results already in --out.")
 @common_options
 def calibrate(
@@ -110,6 +119,7 @@ def calibrate(
     ntm_joints: str | None,
     ntm_order: int,
     report: bool,
+    cv_folds: int | None,
     force: bool,
     quiet: bool,
 ) -> None:
@@ -155,6 +165,20 @@ def calibrate(
             robot, meas, model_name, hayati=hay, ntm_joints=nj, ntm_order=ntm_order
         )
     result = run_calibration(robot, meas, spec, opts, progress=say)
+    if cv_folds:
+        from kinecal.identification import cross_validate
+
+        cv_rows = {}
+        for label, what in (("nominal", "nominal"), ("model", spec)):
+            say("cv", f"{cv_folds}-fold cross-validation: {label}")
+            cv = cross_validate(robot, meas, what, k=cv_folds, options=opts)
+            cv_rows[label] = {
+                "rms_mm": cv.rms_mm,
+                "se_mm": cv.rms_se_mm,
+                "fold_rms_mm": [f.rms_mm for f in cv.folds],
+                "train_rms_mm": [f.rms_mm for f in cv.train],
+            }
+        extra["cross_validation"] = {"folds": cv_folds, **cv_rows}
     summary = calibration_summary(result, extra=extra)
     save_model(out / "model.yaml", result.calibrated, force=True)
     write_json(out / "report.json", summary, force=True)
@@ -170,6 +194,7 @@ def calibrate(
                 "hayati": list(hay),
                 "ntm_joints": list(nj),
                 "ntm_order": ntm_order,
+                "cv": cv_folds,
             },
         ),
         force=True,
@@ -190,6 +215,13 @@ def calibrate(
     click.echo(
         f"after     RMS {a.rms_mm:.4f} mm  max {a.max_mm:.4f} mm  (calibration data)"
     )
+    if cv_folds:
+        cvd = extra["cross_validation"]
+        assert isinstance(cvd, dict)
+        click.echo(
+            f"held-out  RMS {cvd['model']['rms_mm']:.4f} ± {cvd['model']['se_mm']:.4f} mm "
+            f"({cv_folds}-fold CV; nominal {cvd['nominal']['rms_mm']:.4f} mm)"
+        )
     for line in result.identifiability.summary()[1:]:
         click.echo(f"note      {line}")
     for w in result.warnings:
