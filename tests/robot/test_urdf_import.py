@@ -115,3 +115,20 @@ def test_import_urdf_command(tmp_path, run_cli):
     b = robot_from_urdf(src, tip="tool0")
     q = np.linspace(-1, 1, 36).reshape(6, 6)
     np.testing.assert_allclose(a.fk_flange(q), b.fk_flange(q), atol=1e-11)
+
+
+def test_lifting_column_off_the_base_origin(tmp_path, rng):
+    """A prismatic first joint (a torso lift) need not pass through the base origin."""
+    f = tmp_path / "lift.urdf"
+    f.write_text(
+        '<robot name="lift">'
+        + "".join(f'<link name="l{i}"/>' for i in range(4))
+        + _joint("torso", "l0", "l1", "prismatic", "-0.06 0.02 0.8", "0 0 0", "0 0 1")
+        + _joint("arm1", "l1", "l2", "revolute", "0.15 0.03 0.1", "0 0 1.0", "0 0 1")
+        + _joint("arm2", "l2", "l3", "revolute", "0.12 0 0", "1.57 0 0", "0 0 1")
+        + "</robot>"
+    )
+    robot = robot_from_urdf(f)
+    q = rng.uniform(-1.0, 1.0, size=(30, 3))
+    want = np.array([urdf_chain_fk(f, "l0", "l3", qq) for qq in q])
+    np.testing.assert_allclose(robot.fk_flange(q), want, atol=1e-12)

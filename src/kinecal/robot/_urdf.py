@@ -153,6 +153,9 @@ def robot_from_urdf(
         raise ConfigError(f"{src}: no movable joint between {base!r} and {tip!r}.")
     T_tip = T
     p1, u1 = lines[0]
+    if specs[0][1] == "prismatic":  # a slide has no axis position: put it through 0
+        p1 = np.zeros(3)
+        lines[0] = (p1, u1)
     if not np.allclose(u1, [0.0, 0.0, 1.0], atol=1e-9) or np.hypot(*p1[:2]) > _ON_AXIS:
         raise ConfigError(
             f"{src}: the first joint axis must be the base link's z axis (DH frame 0 "
