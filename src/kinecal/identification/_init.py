@@ -49,9 +49,9 @@ def _init_point(
     _, t_cam = model.cam_frames(params)
     tool = t_cam.copy()
     tool_nominal = t_cam.copy()
-    reg = 1e-4 * np.sqrt(
-        meas.n
-    )  # bias ~reg^2 / sigma_min^2: negligible when identifiable
+    # Weight of the pull towards the nominal tool (below): its bias, about
+    # reg^2 / sigma_min^2, is negligible whenever the tool point is identifiable.
+    reg = 1e-4 * np.sqrt(meas.n)
     R_b = np.broadcast_to(np.eye(3), (S, 3, 3)).copy()
     t_b = np.zeros((S, 3))
     si, mi = meas.set_index, meas.marker_index
