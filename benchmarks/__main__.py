@@ -159,6 +159,29 @@ def main(argv: list[str] | None = None) -> int:
         speedup=t_fd / t_k,
     )
 
+    # 3b. the same as a whole `kinecal calibrate` process (start-up, CSV, model.yaml,
+    # report.json; no HTML report), against the same scipy baseline
+    import tempfile
+
+    from kinecal.io import measurements_to_csv
+
+    with tempfile.TemporaryDirectory() as tmp:
+        csv = Path(tmp) / "poses.csv"
+        csv.write_text(measurements_to_csv(sub, robot))
+        cmd = [sys.executable, "-m", "kinecal", "calibrate", str(csv), "--robot"]
+        cmd += ["fanuc-lrmate200id", "--model", "full", "--out", str(Path(tmp) / "o")]
+        cmd += ["--force", "-q", "--no-report"]
+        t_cli, _ = _median_time(
+            lambda: subprocess.run(cmd, check=True, capture_output=True),
+            max(rep // 2, 1),
+        )
+    record(
+        "calibrate_cli_2000",
+        t_cli,
+        ">= 5x faster than scipy FD, as a whole process",
+        speedup=t_fd / t_cli,
+    )
+
     # 4. the paper's fixed-step update from the same start, 200 iterations
     def fun(x: np.ndarray, jac: bool) -> tuple[np.ndarray, np.ndarray | None]:
         blk = residuals(model, x, sub, w, inputs=inp, jacobian=jac)

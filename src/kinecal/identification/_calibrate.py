@@ -20,7 +20,7 @@ import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtri
 
 from kinecal.errors import DataError, IdentifiabilityError
 from kinecal.identification._calibrated import CalibratedModel
@@ -907,7 +907,7 @@ def _outliers(r: Float, e_pos: Float, meas: Measurements, p: float) -> list[Outl
     if sigma <= 0:
         return []
     z = np.linalg.norm(r, axis=1) / sigma
-    thr = float(np.sqrt(chi2.isf(p, c)))
+    thr = float(np.sqrt(chdtri(c, p)))  # chi-square quantile: P(X > thr^2) = p
     bad = np.flatnonzero(z > thr)
     err = np.linalg.norm(e_pos, axis=1) * 1e3
     order = bad[np.argsort(-z[bad])]
