@@ -594,18 +594,13 @@ def calibrate(
     wr = loss_weights(np.sum(r_final.r**2, axis=1) / lm.f_scale**2, lm.loss)[1]
     dof = m_res - fidx.size
     sigma0 = float(np.sqrt(np.sum(wr[:, None] * r_final.r**2) / max(dof, 1)))
-    Js = (r_final.J[:, :, fidx] * np.sqrt(wr)[:, None, None]).reshape(
-        -1, fidx.size
-    ) * scales
+    Js = _scaled_jacobian(r_final.J, fidx, scales, np.sqrt(wr))
     A = Js.T @ Js
     if use_prior:
         A = A + np.diag(prior.precision[fidx] * scales**2)
     cov = np.zeros((cm.size, cm.size))
     try:
-        evals, evecs = np.linalg.eigh(A)
-        good = evals > evals.max() * 1e-14
-        Ainv = (evecs[:, good] / evals[good]) @ evecs[:, good].T
-        cov_f = sigma0**2 * Ainv * np.outer(scales, scales)
+        cov_f = sigma0**2 * _psd_inverse(A, 1e-14) * np.outer(scales, scales)
         cov[np.ix_(fidx, fidx)] = cov_f
     except np.linalg.LinAlgError:
         warnings.append(
@@ -683,6 +678,25 @@ def calibrate(
     )
 
 
+def _scaled_jacobian(
+    J: Float, fidx: np.ndarray, scales: Float, row_weight: Float | None = None
+) -> Float:
+    """The free columns of a (N, c, P) Jacobian as an (N c, F) matrix in scaled units,
+    each row block multiplied by ``row_weight`` (N,) if given."""
+    Jf = J[:, :, fidx]
+    if row_weight is not None:
+        Jf = Jf * row_weight[:, None, None]
+    return Jf.reshape(-1, fidx.size) * scales
+
+
+def _psd_inverse(A: Float, rcond: float) -> Float:
+    """Pseudo-inverse of a symmetric positive semi-definite matrix, eigenvalues below
+    ``rcond`` times the largest left out."""
+    evals, evecs = np.linalg.eigh(A)
+    good = evals > evals.max() * rcond
+    return (evecs[:, good] / evals[good]) @ evecs[:, good].T
+
+
 def _adapt_prior(
     cm: CalibrationModel,
     x: Float,
@@ -706,13 +720,10 @@ def _adapt_prior(
     blk = residuals(cm, x, meas, w, inputs=inputs, jacobian=True)
     assert blk.J is not None
     scales = cm.layout.scales[fidx]
-    Js = blk.J[:, :, fidx].reshape(-1, fidx.size) * scales
+    Js = _scaled_jacobian(blk.J, fidx, scales)
     dof = max(blk.r.size - fidx.size, 1)
     s0sq = float(np.sum(blk.r**2)) / dof
-    evals, evecs = np.linalg.eigh(Js.T @ Js)
-    good = evals > evals.max() * 1e-12
-    var = np.einsum("ij,j,ij->i", evecs[:, good], 1.0 / evals[good], evecs[:, good])
-    var = s0sq * var * scales**2
+    var = s0sq * np.diag(_psd_inverse(Js.T @ Js, 1e-12)) * scales**2
     sigma = prior.sigma.copy()
     widened: list[tuple[str, str]] = []
     kinds = np.array([cm.layout.specs[i].kind for i in fidx])
@@ -776,7 +787,7 @@ def _evidence_prior(
     assert blk.J is not None
     sc = cm.layout.scales[fidx]
     sw = np.sqrt(loss_weights(np.sum(blk.r**2, axis=1) / lm.f_scale**2, lm.loss)[1])
-    Js = (blk.J[:, :, fidx] * sw[:, None, None]).reshape(-1, fidx.size) * sc
+    Js = _scaled_jacobian(blk.J, fidx, sc, sw)
     JtJ = Js.T @ Js
     b = (blk.r * sw[:, None]).ravel() + Js @ ((prior.mean[fidx] - x[fidx]) / sc)
     Jtb = Js.T @ b

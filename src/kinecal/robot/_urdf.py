@@ -68,7 +68,7 @@ def _chain(
             raise ConfigError(f"{src}: {len(roots)} root links ({roots}); name --base.")
         base = roots[0]
     if tip is None:
-        link, seen = base, 0
+        link = base
         while children.get(link):
             kids = children[link]
             if len(kids) > 1:
@@ -77,7 +77,6 @@ def _chain(
                     "name the --tip link."
                 )
             link = kids[0]
-            seen += 1
         tip = link
     for name, what in ((base, "base"), (tip, "tip")):
         if name not in links:
