@@ -196,12 +196,13 @@ def fit_sphere(
             ds = d[::stride][inl_s]
             sig = 1.4826 * float(np.median(np.abs(ds - np.median(ds))))
             inl = np.abs(d) <= outlier_k * max(sig, 1e-12)
+            if inl.sum() < max(min_points, 4):
+                raise DataError(
+                    f"fit_sphere: only {int(inl.sum())} of {P.shape[0]} points lie on "
+                    "one sphere"
+                )
     c, R, JtJ, inl, it = _rounds(Q, c, R, fixed, outlier_k, max_rounds, min_points, inl)
     iters += it
-    if inl.sum() < max(min_points, 4):
-        raise DataError(
-            f"fit_sphere: only {int(inl.sum())} of {P.shape[0]} points lie on one sphere"
-        )
     npar = JtJ.shape[0]
     d_in = _distances(Q[inl], c) - R
     n = int(inl.sum())
