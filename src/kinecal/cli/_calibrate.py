@@ -13,7 +13,9 @@ from kinecal.cli._common import (
     Progress,
     common_options,
     manifest,
+    model_file_option,
     parse_int_list,
+    targets_option,
 )
 
 
@@ -48,11 +50,7 @@ def _options_from(loss: str, priors: str, stage2: str):
     type=click.Path(file_okay=False),
     help="Output folder for model.yaml, report.json, report.html, manifest.json.",
 )
-@click.option(
-    "--targets",
-    type=click.Path(dir_okay=False),
-    help="Targets file (target, x_mm, y_mm, z_mm) for sensor data.",
-)
+@targets_option
 @click.option(
     "--loss",
     type=click.Choice(("linear", "huber", "soft_l1")),
@@ -239,16 +237,8 @@ def _load_robot(name: str):
 
 @click.command()
 @click.argument("data", type=click.Path(dir_okay=False))
-@click.option(
-    "--model",
-    "model_path",
-    required=True,
-    type=click.Path(dir_okay=False),
-    help="A model.yaml written by `kinecal calibrate`.",
-)
-@click.option(
-    "--targets", type=click.Path(dir_okay=False), help="Targets file for sensor data."
-)
+@model_file_option
+@targets_option
 @click.option(
     "--refit",
     type=click.Choice(("user",)),

@@ -12,6 +12,20 @@ import click
 
 MODEL_CHOICES = ("kinematic", "ntm", "rfcm", "full", "auto")
 
+# Options several commands share, declared once.
+model_file_option = click.option(
+    "--model",
+    "model_path",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="A model.yaml written by `kinecal calibrate`.",
+)
+targets_option = click.option(
+    "--targets",
+    type=click.Path(dir_okay=False),
+    help="Targets file (target, x_mm, y_mm, z_mm) for sensor data.",
+)
+
 
 class Progress:
     """Stage-by-stage progress on stderr, silenced by ``--quiet``."""

@@ -7,16 +7,12 @@ import sys
 
 import click
 
+from kinecal.cli._common import model_file_option
+
 
 @click.command()
 @click.argument("targets", type=click.Path(dir_okay=False))
-@click.option(
-    "--model",
-    "model_path",
-    required=True,
-    type=click.Path(dir_okay=False),
-    help="A model.yaml written by `kinecal calibrate`.",
-)
+@model_file_option
 @click.option(
     "--out",
     "out_path",

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from kinecal.cli._common import Progress, common_options, manifest
+from kinecal.cli._common import Progress, common_options, manifest, targets_option
 
 EXTRA_CHOICES = ("harmonics", "wrist", "masses", "thermal")
 
@@ -188,9 +188,7 @@ def simulate(
     metavar="NAME|FILE",
     help="Robot name or file.",
 )
-@click.option(
-    "--targets", type=click.Path(dir_okay=False), help="Targets file for sensor data."
-)
+@targets_option
 @click.option(
     "--models",
     default="kinematic,ntm,rfcm,full",
