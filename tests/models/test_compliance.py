@@ -38,7 +38,7 @@ def test_load_torques_equal_virtual_work(rng):
         g_hat = np.asarray(g_hat)
         fr = _fanuc_chain(theta0)
         p_load = fr.o[:, 6] + fr.R[:, 6] @ t_tool
-        tau = load_torques(fr, p_load, g_hat, np.zeros(6, bool))
+        tau = load_torques(fr, p_load.T, g_hat, np.zeros(6, bool)).T  # (N, n)
         for k in range(8):
 
             def potential(th, k=k, g_hat=g_hat):
@@ -80,7 +80,7 @@ def test_link_torques_planar_two_link_hand_computation(rng):
     fr = chain_frames(th + ch.theta_offset, ch.d, ch.a, ch.alpha)
     T = link_torque_basis(fr, np.array([0.0, 0.0, -1.0]), 2, 3, 3, 1.0, "paper")
     s1, s2 = 0.7, 0.2
-    tau = T @ np.array([s1, s2])
+    tau = np.einsum("jsn,s->nj", T, [s1, s2])
     t2, t23 = th[:, 1], th[:, 1] + th[:, 2]
     np.testing.assert_allclose(tau[:, 0], 0.0, atol=1e-15)
     np.testing.assert_allclose(
@@ -108,7 +108,7 @@ def test_paper_link_model_matches_point_masses_under_any_tilt(rng):
     for g_hat in (np.array([0.0, 0.0, -1.0]), _random_gravity(rng)):
         fr = _fanuc_chain(theta)
         T = link_torque_basis(fr, g_hat, 2, 3, 4, 1.0, "paper")
-        tau = T @ np.array([m_u * A2 + m_f * a2, m_f * A3])
+        tau = np.einsum("jsn,s->nj", T, [m_u * A2 + m_f * a2, m_f * A3])
         tau_j1 = []
         for k in range(6):
             f1 = _fanuc_chain(theta[k : k + 1])
@@ -149,7 +149,7 @@ def test_general_link_model_matches_point_masses_on_every_joint(rng):
     fr = _fanuc_chain(theta)
     T = general_link_torque_basis(fr, g_hat, (2, 3, 5), np.zeros(6, bool))
     coef = np.concatenate([[m, *(m * c)] for _, c, m in masses])
-    tau = T @ coef
+    tau = np.einsum("jsn,s->nj", T, coef)
     ref = _point_mass_torques(theta, g_hat, masses)
     np.testing.assert_allclose(tau, ref, atol=1e-8)
 
@@ -200,7 +200,10 @@ def test_ntm_basis_columns():
             [np.ones(7), np.cos(q), np.sin(q), np.cos(2 * q), np.sin(2 * q)]
         ),
     )
-    assert ntm_basis(q, 3, False).shape == (7, 6)
+    B4 = ntm_basis(q, 4, False)  # higher harmonics come from angle sums
+    h = np.arange(1, 5)
+    np.testing.assert_allclose(B4[:, 0::2], np.cos(np.outer(q, h)), atol=1e-14)
+    np.testing.assert_allclose(B4[:, 1::2], np.sin(np.outer(q, h)), atol=1e-14)
 
 
 def test_paper_sized_values_deflect_tens_of_micrometres(rng):

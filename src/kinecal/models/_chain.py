@@ -4,7 +4,10 @@ A row is ``Rz(theta) · Tz(d) · Tx(a) · Rx(alpha) · Ry(beta)`` (standard DH w
 ``beta = 0``; Hayati's row when ``d = 0`` and ``beta`` is free). Frame 0 is the chain's
 base; frame i is the frame after row i. Joint i turns about ``z_{i-1}`` through ``o_{i-1}``.
 
-Points and axes are returned in the chain's base frame; the caller maps them on.
+Layout: the model's hot paths keep the pose axis *last* (vectors are ``(..., 3, N)``), so
+every arithmetic operation runs over contiguous rows of N numbers instead of strided
+3-element groups; :class:`ChainFrames` also offers the usual pose-first views. Points and
+axes are in the chain's base frame; the caller maps them on.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ import numpy as np
 
 from kinecal.typing import Float
 
-__all__ = ["ChainFrames", "chain_frames", "cross"]
+__all__ = ["ChainFrames", "chain_frames", "cross", "vcross", "vdot"]
 
 
 def cross(a: Float, b: Float) -> Float:
@@ -27,32 +30,63 @@ def cross(a: Float, b: Float) -> Float:
     return out
 
 
+def vcross(a: Float, b: Float) -> Float:
+    """Cross product of pose-last vectors ``(..., 3, N)`` (a constant vector is (3, 1))."""
+    a0, a1, a2 = a[..., 0, :], a[..., 1, :], a[..., 2, :]
+    b0, b1, b2 = b[..., 0, :], b[..., 1, :], b[..., 2, :]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-2)
+
+
+def vdot(a: Float, b: Float) -> Float:
+    """Dot product of pose-last vectors ``(..., 3, N)``, shape ``(..., N)``."""
+    return (
+        a[..., 0, :] * b[..., 0, :]
+        + a[..., 1, :] * b[..., 1, :]
+        + a[..., 2, :] * b[..., 2, :]
+    )
+
+
 @dataclass(frozen=True)
 class ChainFrames:
-    """Frames of a chain for N poses, in the chain's base frame.
+    """Frames of a chain for N poses, in the chain's base frame, pose axis last.
 
     Attributes
     ----------
-    R : ndarray, shape (N, n + 1, 3, 3)
-        Rotation of frame k (``R[:, 0]`` is the identity).
-    o : ndarray, shape (N, n + 1, 3)
+    cols : ndarray, shape (n + 1, 3, 3, N)
+        ``cols[k, c]`` is column c (the x, y or z axis) of frame k's rotation, (3, N).
+    origin : ndarray, shape (n + 1, 3, N)
         Origin of frame k [m].
-    a_axis : ndarray, shape (N, n, 3)
+    a_dir : ndarray, shape (n, 3, N)
         Direction of row i's ``a`` translation, which is also its ``alpha`` rotation axis
         (``x_i`` for a DH row; ``x_i`` before ``Ry(beta)`` for a Hayati row).
     """
 
-    R: Float
-    o: Float
-    a_axis: Float
+    cols: Float
+    origin: Float
+    a_dir: Float
 
     @property
     def n(self) -> int:
-        return int(self.R.shape[1] - 1)
+        return int(self.cols.shape[0] - 1)
+
+    @property
+    def R(self) -> Float:
+        """Rotations as a pose-first view, shape (N, n + 1, 3, 3)."""
+        return self.cols.transpose(3, 0, 2, 1)
+
+    @property
+    def o(self) -> Float:
+        """Origins as a pose-first view, shape (N, n + 1, 3)."""
+        return self.origin.transpose(2, 0, 1)
+
+    @property
+    def a_axis(self) -> Float:
+        """``a`` directions as a pose-first view, shape (N, n, 3)."""
+        return self.a_dir.transpose(2, 0, 1)
 
     def z(self, k: int) -> Float:
-        """Axis ``z_k`` (N, 3): the axis of joint k + 1."""
-        return self.R[:, k, :, 2]
+        """Axis ``z_k`` (3, N): the axis of joint k + 1."""
+        return self.cols[k, 2]
 
 
 def chain_frames(
@@ -80,31 +114,41 @@ def chain_frames(
     ChainFrames
     """
     N, n = theta.shape
-    ct, st = np.cos(theta), np.sin(theta)
+    th = np.ascontiguousarray(theta.T)  # (n, N); free when theta is a transposed view
+    ct, st = np.cos(th), np.sin(th)
     ca, sa = np.cos(alpha), np.sin(alpha)
-    R = np.empty((N, n + 1, 3, 3))
-    o = np.empty((N, n + 1, 3))
-    R[:, 0] = np.eye(3)
-    o[:, 0] = 0.0
-    a_axis = np.empty((N, n, 3))
-    d = np.broadcast_to(d, (N, n))
-    # Row i multiplies the previous frame's columns (x, y, z) = (c0, c1, c2) by
+    dT = (
+        np.broadcast_to(np.asarray(d, dtype=np.float64).T, (n, N))
+        if np.ndim(d) == 2
+        else None
+    )
+    R = np.empty((n + 1, 3, 3, N))
+    o = np.empty((n + 1, 3, N))
+    R[0] = np.eye(3)[:, :, None]
+    o[0] = 0.0
+    ax = np.empty((n, 3, N))
+    # Row i turns the previous frame's columns (x, y, z) = (c0, c1, c2) by
     # Rz(theta) Rx(alpha): x' = c0 ct + c1 st, y' = v ca + c2 sa, z' = -v sa + c2 ca with
-    # v = -c0 st + c1 ct; the origin moves by a x' + d c2. Every operation is on (N, 3)
-    # columns, batched over poses (no 3x3 matrix products).
+    # v = c1 ct - c0 st; the origin moves by a x' + d c2. Each operation is on (3, N).
     for i in range(n):
-        c0, c1, c2 = R[:, i, :, 0], R[:, i, :, 1], R[:, i, :, 2]
-        cti, sti = ct[:, i, None], st[:, i, None]
-        x = c0 * cti + c1 * sti
-        v = c1 * cti - c0 * sti
-        y = v * ca[i] + c2 * sa[i]
-        z = c2 * ca[i] - v * sa[i]
-        a_axis[:, i] = x
-        o[:, i + 1] = o[:, i] + a[i] * x + d[:, i, None] * c2
+        c0, c1, c2 = R[i, 0], R[i, 1], R[i, 2]
+        cti, sti = ct[i], st[i]
+        x = ax[i]
+        np.multiply(c0, cti, out=x)
+        x += c1 * sti
+        v = c1 * cti
+        v -= c0 * sti
+        di = d[i] if dT is None else dT[i]
+        o[i + 1] = o[i] + a[i] * x + c2 * di
+        y, z = R[i + 1, 1], R[i + 1, 2]
+        np.multiply(v, ca[i], out=y)
+        y += c2 * sa[i]
+        np.multiply(c2, ca[i], out=z)
+        z -= v * sa[i]
         if beta is not None and beta[i] != 0.0:  # Ry(beta): x and z turn about y
             cb, sb = np.cos(beta[i]), np.sin(beta[i])
-            x, z = x * cb - z * sb, x * sb + z * cb
-        R[:, i + 1, :, 0] = x
-        R[:, i + 1, :, 1] = y
-        R[:, i + 1, :, 2] = z
-    return ChainFrames(R=R, o=o, a_axis=a_axis)
+            R[i + 1, 0] = x * cb - z * sb
+            R[i + 1, 2] = x * sb + z * cb
+        else:
+            R[i + 1, 0] = x
+    return ChainFrames(cols=R, origin=o, a_dir=ax)

@@ -15,15 +15,18 @@ All terms are joint-angle errors added to the kinematic angles before forward ki
 Torques are per unit payload weight (``|F| = 1``): ``lambda* = |F| lambda`` [rad/m] and
 ``s* = s / |F|`` [m], as in Eq. 24 and Eq. 26. ``ĝ`` is the unit gravity direction in
 the robot base frame. The torques are evaluated at the undeflected configuration; the
-difference is second order in the deflection (~1e-8 rad). :func:`torque_derivatives`
+difference is second order in the deflection (~1e-8 rad). :func:`torque_adjoint`
 gives their exact derivatives with respect to the geometry (for the Jacobian).
+
+Arrays keep the pose axis last (vectors ``(..., 3, N)``, torques ``(n, N)``), the layout
+of :class:`~kinecal.models.ChainFrames`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from kinecal.models._chain import ChainFrames, cross
+from kinecal.models._chain import ChainFrames, vcross, vdot
 from kinecal.typing import Float
 
 __all__ = [
@@ -33,6 +36,7 @@ __all__ = [
     "load_torques",
     "ntm_basis",
     "ntm_names",
+    "torque_adjoint",
 ]
 
 
@@ -49,16 +53,23 @@ def ntm_basis(q: Float, order: int, offset: bool) -> Float:
 
     Columns follow :func:`ntm_names` (``w`` of Eq. 16 is 1).
     """
-    cols = [np.ones_like(q)] if offset else []
-    for h in range(1, order + 1):
-        cols += [np.cos(h * q), np.sin(h * q)]  # Eq. (16)
-    return np.stack(cols, axis=-1)
+    out = np.empty((*np.shape(q), 2 * order + int(offset)))
+    if offset:
+        out[..., 0] = 1.0
+    c1, s1 = np.cos(q), np.sin(q)
+    c, s = c1, s1
+    for h in range(1, order + 1):  # Eq. (16); cos and sin of h q by the angle sums
+        if h > 1:
+            c, s = c * c1 - s * s1, s * c1 + c * s1
+        out[..., int(offset) + 2 * h - 2] = c
+        out[..., int(offset) + 2 * h - 1] = s
+    return out
 
 
 def load_torques(
     frames: ChainFrames, p_load: Float, g_hat: Float, prismatic: np.ndarray
 ) -> Float:
-    """Joint torques of a unit weight along ``g_hat`` acting at ``p_load``, shape (N, n).
+    """Joint torques of a unit weight along ``g_hat`` acting at ``p_load``, shape (n, N).
 
     ``tau = J_v^T g_hat`` (Eq. 21 with the wrench of Eq. 19-20 moved to the load point),
     where column j of ``J_v`` is ``z_{j-1} x (p - o_{j-1})`` (revolute) or ``z_{j-1}``
@@ -67,19 +78,19 @@ def load_torques(
     Parameters
     ----------
     frames : ChainFrames
-    p_load : ndarray, shape (N, 3)
+    p_load : ndarray, shape (3, N)
         Load point in the chain base frame [m].
     g_hat : ndarray, shape (3,)
         Unit gravity direction in the chain base frame.
     prismatic : ndarray of bool, shape (n,)
     """
-    z = frames.R[:, :-1, :, 2]  # (N, n, 3) joint axes
-    lever = p_load[:, None, :] - frames.o[:, :-1, :]
+    n = frames.n
+    z = frames.cols[:n, 2]  # (n, 3, N) joint axes
+    g = g_hat[:, None]
     # (z x r) . g == z . (r x g): one cross product with the constant g.
-    rxg = cross(lever, g_hat)
-    tau = np.einsum("nji,nji->nj", z, rxg)  # Eq. (21)
+    tau = vdot(z, vcross(p_load - frames.origin[:n], g))  # Eq. (21)
     if np.any(prismatic):
-        tau[:, prismatic] = z[:, prismatic] @ g_hat
+        tau[prismatic] = vdot(z[prismatic], g)
     return tau
 
 
@@ -92,7 +103,7 @@ def link_torque_basis(
     x_sign: float,
     model: str,
 ) -> Float:
-    """Torque on every joint per unit of each link moment, shape (N, n, n_moments).
+    """Torque on every joint per unit of each link moment, shape (n, n_moments, N).
 
     The paper's lumped model (Eq. 25-26, Table 1) with moments as vectors:
     ``M_shoulder = s1 x̂ + s2 û`` about the shoulder axis and ``M_elbow = s2 û`` about
@@ -112,27 +123,30 @@ def link_torque_basis(
         'paper': moments ``[s1, s2]`` with s2 shared by both joints (2 columns).
         'rfcm': ``[s1, s2_shoulder, s2_elbow]`` independent (3 columns).
     """
-    N, n = frames.o.shape[0], frames.n
-    z_sh = frames.z(shoulder - 1)
-    z_el = frames.z(elbow - 1)
-    x_hat = x_sign * frames.R[:, shoulder, :, 0]
-    w = frames.o[:, wrist_frame] - frames.o[:, elbow - 1]
-    w = w - np.sum(w * z_el, axis=-1, keepdims=True) * z_el
-    u_hat = w / np.linalg.norm(w, axis=-1, keepdims=True)
-    # tau = z . (M x g) for a unit moment along each direction
-    t_x_sh = np.sum(z_sh * cross(x_hat, g_hat), axis=-1)  # Table 1: s1 on the shoulder
-    t_u_sh = np.sum(z_sh * cross(u_hat, g_hat), axis=-1)  # Table 1: s2 on the shoulder
-    t_u_el = np.sum(z_el * cross(u_hat, g_hat), axis=-1)  # Table 1: s2 on the elbow
+    g = g_hat[:, None]
+    z_sh, z_el = frames.z(shoulder - 1), frames.z(elbow - 1)
+    x_hat = x_sign * frames.cols[shoulder, 0]
+    u_hat = _elbow_to_wrist(frames, elbow, wrist_frame)[0]
     ncol = 2 if model == "paper" else 3
-    out = np.zeros((N, n, ncol))
-    out[:, shoulder - 1, 0] = t_x_sh
-    if model == "paper":
-        out[:, shoulder - 1, 1] = t_u_sh  # Eq. (25): N_23(theta) (s1, s2, s2)
-        out[:, elbow - 1, 1] = t_u_el
-    else:
-        out[:, shoulder - 1, 1] = t_u_sh
-        out[:, elbow - 1, 2] = t_u_el
+    out = np.zeros((frames.n, ncol, z_sh.shape[-1]))
+    # tau = z . (M x g) for a unit moment along each direction
+    out[shoulder - 1, 0] = vdot(z_sh, vcross(x_hat, g))  # Table 1: s1 on the shoulder
+    out[shoulder - 1, 1] = vdot(z_sh, vcross(u_hat, g))  # Table 1: s2 on the shoulder
+    # Eq. (25): N_23(theta) (s1, s2, s2) for 'paper'; s2 of the elbow its own for 'rfcm'
+    out[elbow - 1, 1 if model == "paper" else 2] = vdot(z_el, vcross(u_hat, g))
     return out
+
+
+def _elbow_to_wrist(
+    frames: ChainFrames, elbow: int, wrist_frame: int
+) -> tuple[Float, Float]:
+    """Unit direction ``û`` (3, N) from the elbow axis to the wrist centre, normal to the
+    elbow axis, and the length (N,) of that normal offset."""
+    z_el = frames.z(elbow - 1)
+    w = frames.origin[wrist_frame] - frames.origin[elbow - 1]
+    w = w - vdot(w, z_el) * z_el
+    norm = np.sqrt(vdot(w, w))
+    return w / norm, norm
 
 
 def general_link_names(bodies: tuple[int, ...]) -> list[str]:
@@ -143,195 +157,177 @@ def general_link_names(bodies: tuple[int, ...]) -> list[str]:
 def general_link_torque_basis(
     frames: ChainFrames, g_hat: Float, bodies: tuple[int, ...], prismatic: np.ndarray
 ) -> Float:
-    """Torque on every joint per unit of each body's mass and first moment (N, n, 4 nb).
+    """Torque on every joint per unit of each body's mass and first moment (n, 4 nb, N).
 
     The general form of Eq. (25) for any serial robot and any base tilt: body k (rigid
     with DH frame k) has mass ``m_k`` and first moment ``m_k c_k`` (frame k axes), both per
     unit payload weight. Joint j <= k carries
     ``tau_j = z_{j-1} · ((R_k (m c)_k + m_k (o_k - o_{j-1})) × ĝ)``.
     """
-    N, n = frames.o.shape[0], frames.n
-    out = np.zeros((N, n, 4 * len(bodies)))
-    z = frames.R[:, :-1, :, 2]  # (N, n, 3)
+    n, N = frames.n, frames.origin.shape[-1]
+    g = g_hat[:, None]
+    out = np.zeros((n, 4 * len(bodies), N))
     for b, k in enumerate(bodies):
-        Rk = frames.R[:, k]
         for j in range(k):  # joints 1..k move body k
-            zj = z[:, j]
-            if prismatic[j]:
-                out[:, j, 4 * b] = (
-                    zj @ g_hat
-                )  # a force along the axis; moments give none
+            zj = frames.z(j)
+            if prismatic[j]:  # a force along the axis; moments give none
+                out[j, 4 * b] = vdot(zj, g)
                 continue
-            lever = frames.o[:, k] - frames.o[:, j]
-            out[:, j, 4 * b] = np.sum(zj * cross(lever, g_hat), axis=-1)
-            for c in range(3):
-                out[:, j, 4 * b + 1 + c] = np.sum(
-                    zj * cross(Rk[:, :, c], g_hat), axis=-1
-                )
+            out[j, 4 * b] = vdot(zj, vcross(frames.origin[k] - frames.origin[j], g))
+            out[j, 4 * b + 1 : 4 * b + 4] = vdot(zj, vcross(frames.cols[k], g))
     return out
 
 
-def _moved(first: np.ndarray, k: int) -> np.ndarray:
-    """(K,) bool: frame k moves under each parameter's twist (frames >= first move)."""
-    return k >= first
+class _Adjoint:
+    """Sums of ``H_j ⊗ A`` terms keyed by the first moved frame they need (see below)."""
+
+    def __init__(self, n: int, c: int, N: int) -> None:
+        self.n = n
+        self.M = np.zeros((n + 2, c, 3, N))
+        self.V = np.zeros((n + 2, c, 3, N))
+
+    def add(self, t: int, H: Float, w: Float | None, v: Float | None = None) -> None:
+        """``d tau = [first <= t] (omega · w + vel · v)`` on a joint whose row is H (c, N)."""
+        if w is not None:
+            self.M[t] += H[:, None, :] * w[None]
+        if v is not None:
+            self.V[t] += H[:, None, :] * v[None]
+
+    def totals(self) -> tuple[Float, Float]:
+        # M_f = sum over t >= f: a term applies to every twist starting at or before t.
+        for t in range(self.n, -1, -1):
+            self.M[t] += self.M[t + 1]
+            self.V[t] += self.V[t + 1]
+        return self.M, self.V
 
 
-def torque_derivatives(
+def torque_adjoint(
     frames: ChainFrames,
     p_load: Float,
     g_hat: Float,
     prismatic: np.ndarray,
-    omega: Float,
-    vel: Float,
-    first: np.ndarray,
+    H: Float,
     load_scale: Float,
     link: tuple[str, tuple[int, int, int], float, Float] | None = None,
     bodies: tuple[tuple[int, ...], Float] | None = None,
-) -> Float:
-    """Derivative of every joint torque w.r.t. K geometric parameters, shape (N, n, K).
+) -> tuple[Float, Float]:
+    """Weighted torque derivatives for any rigid motion of the arm's downstream frames.
 
-    Each parameter moves the frames ``first_k .. n`` (and the load point) by an
-    infinitesimal rigid motion ``x -> x + omega × x + vel`` (base frame). For the load
-    torque of a revolute joint j with lever ``r = p_load - o_{j-1}``:
+    A geometric parameter moves the frames ``f .. n`` (and the load point) by an
+    infinitesimal rigid motion ``x -> x + omega × x + vel`` (base frame). This returns
+    ``M, V`` of shape (n + 2, c, 3, N) such that for every such twist
+
+    .. math:: \\sum_j H_j \\, \\partial\\tau_j = M_f\\,\\omega + V_f\\,v,
+
+    with ``H_j`` (c, N) the weight of joint j's torque (the model uses ``lambda*_j``
+    times the output's derivative w.r.t. ``theta_j``). Every torque derivative is a triple
+    product with the twist: for the load torque of a revolute joint j, lever
+    ``r = p_load - o_{j-1}``,
 
     * axis not moved: ``d tau_j = (omega × p_load + vel) · (ĝ × z_{j-1})``;
-    * axis moved: ``d tau_j = (z_{j-1} × r) · (ĝ × omega)`` (Jacobi identity).
+    * axis moved: ``d tau_j = (z_{j-1} × r) · (ĝ × omega)`` (Jacobi identity);
 
-    Link-weight torques ``z · (M × ĝ)`` follow from the motion of their axes and moment
-    directions the same way.
+    so each is ``[f <= t] (omega · w + vel · v)`` for a threshold t (the frame the term
+    needs moved) and fixed vectors w, v. Summing the terms by threshold once makes the
+    cost per parameter one 3x3 product, not one dot product per joint.
 
     Parameters
     ----------
-    omega, vel : (N, K, 3) twist of each parameter (base frame).
-    first : (K,) int, first frame moved (n + 1: only the load point moves).
-    load_scale : (N,) payload scale per row.
+    frames : ChainFrames
+    p_load : (3, N) load point.
+    g_hat : (3,) unit gravity in the chain base frame.
+    prismatic : (n,) bool.
+    H : (n, c, N) weight of each joint's torque.
+    load_scale : (N,) payload scale per row (multiplies the load torque).
     link : ('paper' | 'rfcm', (shoulder, elbow, wrist_frame), x_sign, moments) or None.
     bodies : (body numbers, coefficients (4 per body)) of the general link terms, or None.
     """
     n = frames.n
-    Z = frames.R[:, :n, :, 2]  # (N, n, 3) joint axes
-    gb = np.broadcast_to(g_hat, Z.shape)
-    zr = cross(Z, p_load[:, None, :] - frames.o[:, :n])  # z × lever
-    gz = cross(gb, Z)  # ĝ × z
-    # All joints at once as batched products (N, K, 3) @ (N, 3, n), the triple
-    # products rearranged so no (N, K, 3) cross product is formed:
-    # (omega × p + vel) · (ĝ × z) = omega · (p × (ĝ × z)) + vel · (ĝ × z), and
-    # (ĝ × omega) · (z × r) = omega · ((z × r) × ĝ).
-    pgz = cross(np.broadcast_to(p_load[:, None, :], Z.shape), gz)
-    up = omega @ pgz.transpose(0, 2, 1) + vel @ gz.transpose(0, 2, 1)
-    down = omega @ cross(zr, gb).transpose(0, 2, 1)
-    moved = np.arange(n)[None, :] >= first[:, None]  # (K, n): axis j moved by k
-    res = np.where(moved[None], down, up)
-    if np.any(prismatic):
-        # A force along the axis: only the axis direction matters, (omega × z) · ĝ.
-        zg = cross(Z, np.broadcast_to(g_hat, Z.shape))
-        along = np.where(moved[None], omega @ zg.transpose(0, 2, 1), 0.0)
-        res = np.where(np.asarray(prismatic, bool)[None, None, :], along, res)
-    out = np.ascontiguousarray(res.transpose(0, 2, 1))  # (N, n, K)
-    out *= load_scale[:, None, None]
+    N = p_load.shape[-1]
+    acc = _Adjoint(n, H.shape[1], N)
+    g = g_hat[:, None]
+    rev = ~np.asarray(prismatic, bool)
+    Z = frames.cols[:n, 2]  # (n, 3, N) joint axes
+    gz = vcross(g, Z)
+    up_w = vcross(p_load, gz)  # axis still: (omega × p + vel) · (ĝ × z)
+    down_w = vcross(vcross(Z, p_load - frames.origin[:n]), g)  # axis moved
+    HL = H * load_scale
+    # Revolute: 'still' always, minus 'still' plus 'moved' once the axis moves.
+    # Prismatic (a force along the axis): (omega × z) · ĝ once the axis moves.
+    keep = rev[:, None, None]
+    acc.M[n + 1] += np.einsum("jcn,jbn->cbn", HL[rev], up_w[rev])
+    acc.V[n + 1] += np.einsum("jcn,jbn->cbn", HL[rev], gz[rev])
+    acc.M[:n] += HL[:, :, None] * np.where(keep, down_w - up_w, vcross(Z, g))[:, None]
+    acc.V[:n] -= HL[:, :, None] * np.where(keep, gz, 0.0)[:, None]
     if link is not None:
-        out += _link_derivatives(frames, g_hat, omega, vel, first, *link)
+        _link_terms(acc, frames, g, H, *link)
     if bodies is not None:
-        out += _body_derivatives(frames, g_hat, prismatic, omega, vel, first, *bodies)
-    return out
+        _body_terms(acc, frames, g, rev, H, *bodies)
+    return acc.totals()
 
 
-def _link_derivatives(
+def _link_terms(
+    acc: _Adjoint,
     frames: ChainFrames,
-    g_hat: Float,
-    omega: Float,
-    vel: Float,
-    first: np.ndarray,
+    g: Float,
+    H: Float,
     model: str,
     joints: tuple[int, int, int],
     x_sign: float,
     s: Float,
-) -> Float:
+) -> None:
+    """Terms of the lumped link torques ``z · (M × ĝ)`` (:func:`link_torque_basis`)."""
     sh, el, wf = joints
-    N, n = frames.o.shape[0], frames.n
-    K = omega.shape[1]
-    z_sh = frames.z(sh - 1)
-    z_el = frames.z(el - 1)
-    x_hat = x_sign * frames.R[:, sh, :, 0]
-    o_wf = frames.o[:, wf]
-    w = o_wf - frames.o[:, el - 1]
-    w_p = w - np.sum(w * z_el, axis=-1, keepdims=True) * z_el
-    norm = np.linalg.norm(w_p, axis=-1, keepdims=True)
-    u_hat = w_p / norm
-    gb = np.broadcast_to(g_hat, z_sh.shape)
-    m_sh = _moved(first, sh - 1).astype(float)
-    m_el = _moved(first, el - 1).astype(float)
-    m_x = _moved(first, sh).astype(float)
-    m_wf = _moved(first, wf).astype(float)
+    s_x, s_u_sh = s[0], s[1]
+    s_u_el = s[1] if model == "paper" else s[2]
+    z_sh, z_el = frames.z(sh - 1), frames.z(el - 1)
+    x_hat = x_sign * frames.cols[sh, 0]
+    o_wf = frames.origin[wf]
+    u_hat, norm = _elbow_to_wrist(frames, el, wf)
+    ug = vcross(u_hat, g)
+    # x̂ moves with frame sh; û turns rigidly with the elbow frame, or (elbow still,
+    # wrist centre moved) as du = P_z P_u d(o_wf) / |w_p|, P the projections.
+    t_free = min(el - 1, wf)
 
-    def dot(a: Float, v: Float) -> Float:  # (N, K, 3) · (N, 3) -> (N, K)
-        return (a @ v[:, :, None])[..., 0]
+    def du_terms(Hj: Float, scale: float, v: Float) -> None:
+        """``scale · du · v``."""
+        acc.add(el - 1, Hj, scale * vcross(u_hat, v))
+        pv = v - vdot(v, u_hat) * u_hat
+        pv = (pv - vdot(pv, z_el) * z_el) / norm
+        w, vv = scale * vcross(o_wf, pv), scale * pv
+        acc.add(wf, Hj, w, vv)  # [moved wf] - [moved el - 1 and wf]
+        acc.add(t_free, Hj, -w, -vv)
 
-    # Every term is a triple product with a parameter twist: (omega × a) · b is
-    # omega · (a × b), so each reduces to one batched matrix-vector product.
-    def du_dot(v: Float) -> Float:
-        """du · v, with u following the elbow frame rigidly, or turning as the wrist
-        centre alone moves (du = P_u P_z dw / |w_p|, P the projections)."""
-        rigid = dot(omega, cross(u_hat, v))
-        pv = v - np.sum(v * u_hat, axis=-1, keepdims=True) * u_hat
-        pv = (pv - np.sum(pv * z_el, axis=-1, keepdims=True) * z_el) / norm
-        free = dot(omega, cross(o_wf, pv)) + dot(vel, pv)
-        return m_el * rigid + (1.0 - m_el) * m_wf * free
-
-    xg = cross(x_hat, gb)
-    ug = cross(u_hat, gb)
-    gz_sh = cross(gb, z_sh)
-    gz_el = cross(gb, z_el)
-    d_x_sh = m_sh * dot(omega, cross(z_sh, xg)) + m_x * dot(omega, cross(x_hat, gz_sh))
-    d_u_sh = m_sh * dot(omega, cross(z_sh, ug)) + du_dot(gz_sh)
-    d_u_el = m_el * dot(omega, cross(z_el, ug)) + du_dot(gz_el)
-    out = np.zeros((N, n, K))
-    if model == "paper":
-        out[:, sh - 1] = s[0] * d_x_sh + s[1] * d_u_sh
-        out[:, el - 1] = s[1] * d_u_el
-    else:
-        out[:, sh - 1] = s[0] * d_x_sh + s[1] * d_u_sh
-        out[:, el - 1] = s[2] * d_u_el
-    return out
+    H_sh, H_el = H[sh - 1], H[el - 1]
+    acc.add(sh - 1, H_sh, vcross(z_sh, s_x * vcross(x_hat, g) + s_u_sh * ug))
+    acc.add(sh, H_sh, s_x * vcross(x_hat, vcross(g, z_sh)))
+    du_terms(H_sh, s_u_sh, vcross(g, z_sh))
+    acc.add(el - 1, H_el, s_u_el * vcross(z_el, ug))
+    du_terms(H_el, s_u_el, vcross(g, z_el))
 
 
-def _body_derivatives(
+def _body_terms(
+    acc: _Adjoint,
     frames: ChainFrames,
-    g_hat: Float,
-    prismatic: np.ndarray,
-    omega: Float,
-    vel: Float,
-    first: np.ndarray,
+    g: Float,
+    rev: np.ndarray,
+    H: Float,
     bodies: tuple[int, ...],
     coef: Float,
-) -> Float:
-    N, n = frames.o.shape[0], frames.n
-    K = omega.shape[1]
-    out = np.zeros((N, n, K))
-    g = g_hat[None, None, :]
-
-    def motion(k: int) -> Float:  # (N, K, 3) velocity of frame k's origin
-        v = cross(omega, frames.o[:, k][:, None, :]) + vel
-        return np.where(_moved(first, k)[None, :, None], v, 0.0)
-
+) -> None:
+    """Terms of the general link torques (:func:`general_link_torque_basis`)."""
     for b, k in enumerate(bodies):
         m, mc = coef[4 * b], coef[4 * b + 1 : 4 * b + 4]
-        Mk = frames.R[:, k] @ mc  # (N, 3) first moment in the base frame
-        dMk = np.where(
-            _moved(first, k)[None, :, None], cross(omega, Mk[:, None, :]), 0.0
-        )
-        dok = motion(k)
+        Mk = np.einsum("cin,c->in", frames.cols[k], mc)  # first moment, base frame
+        ok = frames.origin[k]
         for j in range(k):
-            z = frames.z(j)
-            dz = np.where(
-                _moved(first, j)[None, :, None], cross(omega, z[:, None, :]), 0.0
-            )
-            if prismatic[j]:
-                out[:, j] += m * np.sum(dz * g, axis=-1)
+            z, Hj = frames.z(j), H[j]
+            if not rev[j]:  # (omega × z) · ĝ m
+                acc.add(j, Hj, m * vcross(z, g))
                 continue
-            lever = Mk + m * (frames.o[:, k] - frames.o[:, j])
-            dlever = dMk + m * (dok - motion(j))
-            out[:, j] += np.sum(dz * cross(lever, g_hat)[:, None, :], -1) + np.sum(
-                z[:, None, :] * cross(dlever, g), -1
-            )
-    return out
+            oj = frames.origin[j]
+            gz = vcross(g, z)
+            lever = Mk + m * (ok - oj)
+            # the axis turns; the lever's ends move with frames k and j
+            acc.add(j, Hj, vcross(z, vcross(lever, g)) - m * vcross(oj, gz), -m * gz)
+            acc.add(k, Hj, vcross(Mk + m * ok, gz), m * gz)

@@ -29,7 +29,7 @@ from kinecal.geometry import (
     rot_z,
     transform_to_euler,
 )
-from kinecal.models._chain import ChainFrames, chain_frames, cross
+from kinecal.models._chain import ChainFrames, chain_frames, cross, vcross
 from kinecal.models._compliance import (
     general_link_names,
     general_link_torque_basis,
@@ -37,7 +37,7 @@ from kinecal.models._compliance import (
     load_torques,
     ntm_basis,
     ntm_names,
-    torque_derivatives,
+    torque_adjoint,
 )
 from kinecal.models._layout import ParameterLayout, ParamSpec
 from kinecal.models._spec import ModelSpec
@@ -382,20 +382,20 @@ class CalibrationModel:
         return np.concatenate([t, matrix_to_euler_zyx(R)], axis=1)
 
     def _ntm(self, params: Float, q_ctrl: Float) -> tuple[Float, list[Float]]:
-        """NTM joint-angle errors (N, n) and the basis per NTM joint."""
+        """NTM joint-angle errors (n, N) and the basis (nb, N) per NTM joint."""
         N = q_ctrl.shape[0]
-        dth = np.zeros((N, self.n_joints))
+        dth = np.zeros((self.n_joints, N))
         bases = []
         nb = len(self._ntm_cols)
         for k, j in enumerate(self.spec.ntm_joints):
-            B = ntm_basis(q_ctrl[:, j - 1], self.spec.ntm_order, self.spec.ntm_offset)
+            B = ntm_basis(q_ctrl[:, j - 1], self.spec.ntm_order, self.spec.ntm_offset).T
             coef = params[self._ntm_start + k * nb : self._ntm_start + (k + 1) * nb]
-            dth[:, j - 1] += B @ coef  # Eq. (17)
-            bases.append(B)
+            dth[j - 1] += coef @ B  # Eq. (17)
+            bases.append(np.ascontiguousarray(B))
         return dth, bases
 
     def _link_basis(self, frames: ChainFrames) -> Float:
-        """Link-weight torque per unit of each link parameter, (N, n, n_link)."""
+        """Link-weight torque per unit of each link parameter, (n, n_link, N)."""
         parts = []
         if self.spec.link in ("paper", "rfcm"):
             sw = self._sw
@@ -418,14 +418,19 @@ class CalibrationModel:
                     frames, self.g_hat, self.spec.link_bodies, self._prismatic
                 )
             )
-        return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=2)
+        return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
 
     def _frames(self, theta: Float, rows: Float) -> ChainFrames:
+        """Chain frames for kinematic joint values ``theta`` (n, N)."""
         pr = self._prismatic
-        th = rows[:, _OFF] + np.where(pr, 0.0, theta)
-        d = rows[:, _D] + np.where(pr, theta, 0.0)
+        if np.any(pr):
+            th = rows[:, _OFF, None] + np.where(pr[:, None], 0.0, theta)
+            d = (rows[:, _D, None] + np.where(pr[:, None], theta, 0.0)).T
+        else:
+            th = rows[:, _OFF, None] + theta
+            d = rows[:, _D]
         beta = rows[:, _BETA] if self._has_beta else None
-        return chain_frames(th, d, rows[:, _A], rows[:, _ALPHA], beta)
+        return chain_frames(th.T, d, rows[:, _A], rows[:, _ALPHA], beta)
 
     # ------------------------------------------------------------------ evaluation
     def evaluate(
@@ -452,6 +457,8 @@ class CalibrationModel:
         Returns
         -------
         ModelOutput
+            The Jacobians are views of parameter-major arrays (each column contiguous, so
+            ``J.reshape(-1, P)`` is a Fortran-ordered matrix, no copy).
         """
         p = np.asarray(params, dtype=np.float64)
         if p.shape != (self.size,):
@@ -461,169 +468,163 @@ class CalibrationModel:
             raise DataError(
                 f"q_ctrl must have shape (N, {self.n_joints}) for {self.robot.name}; got {q.shape}."
             )
+        # Everything below keeps the pose axis last: vectors are (3, N), see _chain.
         spec = self.spec
         N, n = q.shape
         rows = self._rows(p)
-        theta = q @ self.robot.coupling.T
-        dth_c, ntm_bases = self._ntm(p, q) if spec.ntm_joints else (None, [])
-        th_a = theta if dth_c is None else theta + dth_c
+        theta = self.robot.coupling @ q.T  # (n, N)
+        ntm_bases: list[Float] = []
+        if spec.ntm_joints:
+            dth_c, ntm_bases = self._ntm(p, q)
+            theta = theta + dth_c
 
         R_c, t_c = self.cam_frames(p)
-        tau = None
-        link_T = None
+        tau = link_T = fr0 = p_load = None
         if spec.load:
-            fr0 = self._frames(th_a, rows)
+            fr0 = self._frames(theta, rows)
             # Load point: origin of the first marker's cam frame (Eq. 19 with Delta = 0).
-            p_load = fr0.o[:, n] + fr0.R[:, n] @ t_c[0]
-            tau = (
-                load_torques(fr0, p_load, self.g_hat, self._prismatic)
-                * inputs.load_scale[:, None]
-            )
+            p_load = fr0.origin[n] + _rotate(fr0.cols[n], t_c[0])
+            tau = load_torques(fr0, p_load, self.g_hat, self._prismatic)
+            tau *= inputs.load_scale
             if self._link_names:
                 link_T = self._link_basis(fr0)
                 s = p[self._link_start : self._link_start + len(self._link_names)]
-                tau = tau + link_T @ s  # Eq. (25)
-            lam = p[self._lam_idx]
-            th = th_a + lam * tau  # Eq. (22), (24), (26)
+                tau += np.einsum("jsn,s->jn", link_T, s)  # Eq. (25)
+            th = theta + p[self._lam_idx, None] * tau  # Eq. (22), (24), (26)
         else:
-            th = th_a
+            th = theta
         fr = self._frames(th, rows)
 
         # Point in the model base frame.
         single_m = len(spec.markers) == 1
         mi = inputs.marker_index
-        Rc = R_c[0] if single_m else R_c[mi]
-        tc = t_c[0] if single_m else t_c[mi]
-        R_fl = fr.R[:, n]
-        o_fl = fr.o[:, n]
-        p_fl = tc + _mv(Rc, inputs.p_cam)  # point in the flange frame
-        p_b = o_fl + _mv(R_fl, p_fl)
+        if single_m:
+            p_fl = (
+                t_c[0][:, None] + R_c[0] @ inputs.p_cam.T
+            )  # point in the flange frame
+        else:
+            p_fl = t_c[mi].T + np.einsum("nij,nj->in", R_c[mi], inputs.p_cam)
+        R_fl = fr.cols[n]  # (3 columns, 3, N)
+        p_b = fr.origin[n] + _rotate(R_fl, p_fl)
 
         R_b, t_b = self.base_frames(p)
         single_s = len(spec.sets) == 1
         si = inputs.set_index
-        Rb = R_b[0] if single_s else R_b[si]
-        tb = t_b[0] if single_s else t_b[si]
-        p_u = _mv(Rb, p_b) + tb
+        if single_s:
+            p_u = R_b[0] @ p_b + t_b[0][:, None]
+        else:
+            p_u = np.einsum("nij,jn->in", R_b[si], p_b) + t_b[si].T
+        p_user = np.ascontiguousarray(p_u.T)
 
         R_uc = None
         if orientation:
-            R_uc = Rb @ R_fl @ Rc
-
+            Rb_n = R_b[0] if single_s else R_b[si]
+            Rc_n = R_c[0] if single_m else R_c[mi]
+            R_uc = Rb_n @ fr.R[:, n] @ Rc_n
+        theta_out = th.T
         if not jacobian:
-            return ModelOutput(p_u, R_uc, None, None, th)
+            return ModelOutput(p_user, R_uc, None, None, theta_out)
 
+        # Columns in the model base frame, position rows 0:3 and rotation rows 3:6.
         P = self.size
-        Jb = np.zeros((N, 3, P))  # columns expressed in the model base frame
-        Wb = np.zeros((N, 3, P)) if orientation else None
-        pr = self._prismatic
-        z_prev = fr.R[:, :-1, :, 2]  # (N, n, 3)
-        rel_prev = p_b[:, None, :] - fr.o[:, :-1, :]
-        rot_cols = cross(z_prev, rel_prev)  # rotation about z_{i-1}
-        J_theta = np.where(
-            pr[None, :, None], z_prev, rot_cols
-        )  # (N, n, 3) d p / d theta_i
-        rel_i = p_b[:, None, :] - fr.o[:, 1:, :]
+        c = 6 if orientation else 3
+        Jb = np.zeros((P, c, N))
+        pr = self._prismatic[:, None, None]
+        Z = fr.cols[:n, 2]  # (n, 3, N): joint i + 1 turns about z_i
+        rot_cols = vcross(Z, p_b - fr.origin[:n])  # rotation about z_i
+        G = np.zeros((n, c, N))  # d output / d theta_i
+        G[:, :3] = np.where(pr, Z, rot_cols)
+        if orientation:
+            G[:, 3:] = np.where(pr, 0.0, Z)
+        ax = fr.a_dir
+        alpha_cols = vcross(ax, p_b - fr.origin[1:])
         for i in range(n):
             idx = self._row_idx[i]
             if idx[_OFF] >= 0:
-                Jb[:, :, idx[_OFF]] = rot_cols[:, i]
-                if Wb is not None:
-                    Wb[:, :, idx[_OFF]] = z_prev[:, i]
+                Jb[idx[_OFF], :3] = rot_cols[i]
+                if orientation:
+                    Jb[idx[_OFF], 3:] = Z[i]
             if idx[_D] >= 0:
-                Jb[:, :, idx[_D]] = z_prev[:, i]
-            ax = fr.a_axis[:, i]
+                Jb[idx[_D], :3] = Z[i]
             if idx[_A] >= 0:
-                Jb[:, :, idx[_A]] = ax
+                Jb[idx[_A], :3] = ax[i]
             if idx[_ALPHA] >= 0:
-                Jb[:, :, idx[_ALPHA]] = cross(ax, rel_i[:, i])
-                if Wb is not None:
-                    Wb[:, :, idx[_ALPHA]] = ax
+                Jb[idx[_ALPHA], :3] = alpha_cols[i]
+                if orientation:
+                    Jb[idx[_ALPHA], 3:] = ax[i]
             if idx[_BETA] >= 0:
-                y_i = fr.R[:, i + 1, :, 1]
-                Jb[:, :, idx[_BETA]] = cross(y_i, rel_i[:, i])
-                if Wb is not None:
-                    Wb[:, :, idx[_BETA]] = y_i
+                y_i = fr.cols[i + 1, 1]
+                Jb[idx[_BETA], :3] = vcross(y_i, p_b - fr.origin[i + 1])
+                if orientation:
+                    Jb[idx[_BETA], 3:] = y_i
 
         # Cam frame parameters (Eq. 9), per marker.
-        rel_cam = p_b - (o_fl + _mv(R_fl, tc))
+        rel_cam = _rotate(R_fl, p_fl - (t_c[0][:, None] if single_m else t_c[mi].T))
         cam_v = p[self._cam_idx]
         for m in range(len(spec.markers)):
-            mask = None if single_m else (mi == m)
+            mask = 1.0 if single_m else (mi == m).astype(np.float64)
             cols = self._cam_idx[m]
             for k in range(3):
-                col = R_fl[:, :, k]
-                Jb[:, :, cols[k]] = col if mask is None else col * mask[:, None]
+                Jb[cols[k], :3] = R_fl[k] * mask
             if spec.cam_rotation:
-                axes = _euler_axes(
-                    self.R_ref_cam[m], cam_v[m, 3:]
-                )  # (3, 3) columns r, w, p
-                ax_b = np.einsum("nij,jk->nik", R_fl, axes)  # (N, 3, 3)
-                for k in range(3):
-                    col = cross(ax_b[:, :, k], rel_cam)
-                    wcol = ax_b[:, :, k]
-                    if mask is not None:
-                        col = col * mask[:, None]
-                        wcol = wcol * mask[:, None]
-                    Jb[:, :, cols[3 + k]] = col
-                    if Wb is not None:
-                        Wb[:, :, cols[3 + k]] = wcol
+                axes = _euler_axes(self.R_ref_cam[m], cam_v[m, 3:])  # columns r, w, p
+                ax_b = np.einsum("cin,ck->kin", R_fl, axes)  # (3, 3, N)
+                Jb[cols[3:], :3] = vcross(ax_b, rel_cam) * mask
+                if orientation:
+                    Jb[cols[3:], 3:] = ax_b * mask
 
         # Parameters acting through the joint angles.
-        W_theta = np.where(pr[None, :, None], 0.0, z_prev)
-        if spec.ntm_joints:
-            nb = len(self._ntm_cols)
-            for k, j in enumerate(spec.ntm_joints):
-                sl = slice(self._ntm_start + k * nb, self._ntm_start + (k + 1) * nb)
-                B = ntm_bases[k]
-                Jb[:, :, sl] = J_theta[:, j - 1, :, None] * B[:, None, :]
-                if Wb is not None:
-                    Wb[:, :, sl] = W_theta[:, j - 1, :, None] * B[:, None, :]
+        nb = len(self._ntm_cols)
+        for k, j in enumerate(spec.ntm_joints):
+            sl = slice(self._ntm_start + k * nb, self._ntm_start + (k + 1) * nb)
+            Jb[sl] = G[j - 1] * ntm_bases[k][:, None, :]
         if spec.load:
-            assert tau is not None
-            self._add_torque_geometry(
-                p, inputs, fr0, p_load, ntm_bases, J_theta, W_theta, Jb, Wb
-            )
-            Jb[:, :, self._lam_idx] = np.swapaxes(J_theta, 1, 2) * tau[:, None, :]
-            if Wb is not None:
-                Wb[:, :, self._lam_idx] = np.swapaxes(W_theta, 1, 2) * tau[:, None, :]
+            assert fr0 is not None and p_load is not None and tau is not None
+            H = G * p[self._lam_idx, None, None]  # lambda* d output / d theta
+            self._add_torque_geometry(p, inputs, fr0, p_load, ntm_bases, H, Jb)
+            Jb[self._lam_idx] = G * tau[:, None, :]
             if link_T is not None:
-                lam = p[self._lam_idx]
-                dth_ds = lam[None, :, None] * link_T  # (N, n, ns)
                 sl = slice(self._link_start, self._link_start + len(self._link_names))
-                Jb[:, :, sl] = np.einsum("nji,njs->nis", J_theta, dth_ds)
-                if Wb is not None:
-                    Wb[:, :, sl] = np.einsum("nji,njs->nis", W_theta, dth_ds)
+                Jb[sl] = np.einsum("jcn,jsn->scn", H, link_T)
 
-        # Rotate everything into the user frame.
-        if single_s:
-            J = np.einsum("ij,njp->nip", Rb, Jb)
-            W = None if Wb is None else np.einsum("ij,njp->nip", Rb, Wb)
-        else:
-            J = np.einsum("nij,njp->nip", Rb, Jb)
-            W = None if Wb is None else np.einsum("nij,njp->nip", Rb, Wb)
+        # Rotate into the user frame, parameter-major (P, N, 3): every column contiguous.
+        J = np.empty((P, N, 3))
+        W = np.empty((P, N, 3)) if orientation else None
+        for out, part in ((J, Jb[:, :3]), (W, Jb[:, 3:])):
+            if out is None:
+                continue
+            if single_s:
+                np.matmul(part.transpose(0, 2, 1), R_b[0].T, out=out)
+            else:
+                Rn = R_b[si]  # (N, 3, 3)
+                for r in range(3):
+                    out[:, :, r] = (
+                        Rn[:, r, 0] * part[:, 0]
+                        + Rn[:, r, 1] * part[:, 1]
+                        + Rn[:, r, 2] * part[:, 2]
+                    )
 
         # User frame parameters (Eq. 8), per set.
         base_v = p[self._base_idx]
         for k_set in range(len(spec.sets)):
-            mask = None if single_s else (si == k_set)
+            mask = np.ones(N) if single_s else (si == k_set).astype(np.float64)
             cols = self._base_idx[k_set]
-            rel = p_u - t_b[k_set]
+            J[cols[:3]] = 0.0
             for k in range(3):
-                e = np.zeros(3)
-                e[k] = 1.0
-                J[:, :, cols[k]] = e if mask is None else e * mask[:, None]
+                J[cols[k], :, k] = mask
             axes = _euler_axes(self.R_ref_base[k_set], base_v[k_set, 3:])
-            for k in range(3):
-                col = cross(axes[:, k], rel)
-                if mask is not None:
-                    col = col * mask[:, None]
-                J[:, :, cols[3 + k]] = col
-                if W is not None:
-                    W[:, :, cols[3 + k]] = (
-                        axes[:, k] if mask is None else axes[:, k] * mask[:, None]
-                    )
-        return ModelOutput(p_u, R_uc, J, W, th)
+            rel = (p_u - t_b[k_set][:, None]) * mask
+            J[cols[3:]] = vcross(axes.T[:, :, None], rel).transpose(0, 2, 1)
+            if W is not None:
+                W[cols[:3]] = 0.0
+                W[cols[3:]] = axes.T[:, None, :] * mask[None, :, None]
+        return ModelOutput(
+            p_user,
+            R_uc,
+            J.transpose(1, 2, 0),
+            None if W is None else W.transpose(1, 2, 0),
+            theta_out,
+        )
 
     def _add_torque_geometry(
         self,
@@ -632,53 +633,18 @@ class CalibrationModel:
         fr0: ChainFrames,
         p_load: Float,
         ntm_bases: list[Float],
-        J_theta: Float,
-        W_theta: Float,
+        H: Float,
         Jb: Float,
-        Wb: Float | None,
     ) -> None:
-        """Add ``J_theta · lambda* ⊙ d tau / d psi`` for every geometric parameter psi.
+        """Add ``sum_j H_j d tau_j / d psi`` for every geometric parameter psi.
 
         The compliance torques depend on the arm's geometry (joint rows, joint angles
         through the NTM terms, the load point); each such parameter moves the downstream
-        frames by a twist, and :func:`torque_derivatives` turns the twists into torque
-        derivatives. This makes the Jacobian exact (checked against finite differences).
+        frames by a twist, and :func:`torque_adjoint` turns the twists into weighted
+        torque derivatives. This makes the Jacobian exact (checked against finite
+        differences).
         """
         n = self.n_joints
-        N = p_load.shape[0]
-        cols: list[int] = []
-        om: list[Float] = []
-        ve: list[Float] = []
-        first: list[int] = []
-        zero = np.zeros((N, 3))
-
-        def add(col: int, w: Float, v: Float, f: int) -> None:
-            cols.append(col)
-            om.append(w)
-            ve.append(v)
-            first.append(f)
-
-        for i in range(n):
-            idx = self._row_idx[i]
-            z, o = fr0.R[:, i, :, 2], fr0.o[:, i]
-            ax, o1 = fr0.a_axis[:, i], fr0.o[:, i + 1]
-            if idx[_OFF] >= 0:
-                add(idx[_OFF], z, cross(o, z), i + 1)
-            if idx[_D] >= 0:
-                add(idx[_D], zero, z, i + 1)
-            if idx[_A] >= 0:
-                add(idx[_A], zero, ax, i + 1)
-            if idx[_ALPHA] >= 0:
-                add(idx[_ALPHA], ax, cross(o1, ax), i + 1)
-            if idx[_BETA] >= 0:
-                y = fr0.R[:, i + 1, :, 1]
-                add(idx[_BETA], y, cross(o1, y), i + 1)
-        for k in range(3):  # the load point moves with the first marker's translation
-            add(int(self._cam_idx[0][k]), zero, fr0.R[:, n, :, k], n + 1)
-        n_geo = len(cols)
-        for j in self.spec.ntm_joints:  # joint-angle twists, for the NTM coefficients
-            z, o = fr0.R[:, j - 1, :, 2], fr0.o[:, j - 1]
-            add(-1, z, cross(o, z), j)
         link = None
         if self.spec.link in ("paper", "rfcm"):
             sw = self._sw
@@ -696,32 +662,48 @@ class CalibrationModel:
             end = self._link_start + len(self._link_names)
             start = end - 4 * len(self.spec.link_bodies)
             bodies = (self.spec.link_bodies, p[start:end])
-        dtau = torque_derivatives(
-            fr0,
-            p_load,
-            self.g_hat,
-            self._prismatic,
-            np.stack(om, axis=1),
-            np.stack(ve, axis=1),
-            np.array(first),
-            inputs.load_scale,
-            link,
-            bodies,
+        M, V = torque_adjoint(
+            fr0, p_load, self.g_hat, self._prismatic, H, inputs.load_scale, link, bodies
         )
-        dth = p[self._lam_idx][None, :, None] * dtau  # (N, n, K) joint-angle changes
-        dJ = np.einsum("nji,njk->nik", J_theta, dth)
-        dW = None if Wb is None else np.einsum("nji,njk->nik", W_theta, dth)
-        geo = np.array(cols[:n_geo])
-        Jb[:, :, geo] += dJ[:, :, :n_geo]
-        if Wb is not None and dW is not None:
-            Wb[:, :, geo] += dW[:, :, :n_geo]
+
+        def twist(f: int, w: Float | None, v: Float | None) -> Float:
+            """``M_f w + V_f v`` (c, N) for a twist moving frames f.. and the load."""
+            out = 0.0
+            for mat, vec in ((M[f], w), (V[f], v)):
+                if vec is not None:
+                    out = (
+                        out
+                        + mat[:, 0] * vec[0]
+                        + mat[:, 1] * vec[1]
+                        + mat[:, 2] * vec[2]
+                    )
+            return np.asarray(out)
+
+        ntm_k = {j: k for k, j in enumerate(self.spec.ntm_joints)}
         nb = len(self._ntm_cols)
-        for k in range(len(self.spec.ntm_joints)):
-            sl = slice(self._ntm_start + k * nb, self._ntm_start + (k + 1) * nb)
-            B = ntm_bases[k]
-            Jb[:, :, sl] += dJ[:, :, n_geo + k, None] * B[:, None, :]
-            if Wb is not None and dW is not None:
-                Wb[:, :, sl] += dW[:, :, n_geo + k, None] * B[:, None, :]
+        for i in range(n):
+            idx = self._row_idx[i]
+            z, o = fr0.cols[i, 2], fr0.origin[i]
+            ax, o1 = fr0.a_dir[i], fr0.origin[i + 1]
+            if idx[_OFF] >= 0 or (i + 1) in ntm_k:  # joint i + 1 turning
+                d_turn = twist(i + 1, z, vcross(o, z))
+                if idx[_OFF] >= 0:
+                    Jb[idx[_OFF]] += d_turn
+                if (i + 1) in ntm_k:
+                    k = ntm_k[i + 1]
+                    sl = slice(self._ntm_start + k * nb, self._ntm_start + (k + 1) * nb)
+                    Jb[sl] += d_turn * ntm_bases[k][:, None, :]
+            if idx[_D] >= 0:
+                Jb[idx[_D]] += twist(i + 1, None, z)
+            if idx[_A] >= 0:
+                Jb[idx[_A]] += twist(i + 1, None, ax)
+            if idx[_ALPHA] >= 0:
+                Jb[idx[_ALPHA]] += twist(i + 1, ax, vcross(o1, ax))
+            if idx[_BETA] >= 0:
+                y = fr0.cols[i + 1, 1]
+                Jb[idx[_BETA]] += twist(i + 1, y, vcross(o1, y))
+        for k in range(3):  # the load point moves with the first marker's translation
+            Jb[self._cam_idx[0][k]] += twist(n + 1, None, fr0.cols[n, k])
 
     def flange_frames(
         self, params: ArrayLike, inputs: ModelInputs
@@ -732,8 +714,8 @@ class CalibrationModel:
         """
         p = np.asarray(params, dtype=np.float64)
         out = self.evaluate(p, inputs)
-        fr = self._frames(out.theta, self._rows(p))
-        return fr.R[:, -1], fr.o[:, -1]
+        fr = self._frames(out.theta.T, self._rows(p))
+        return np.ascontiguousarray(fr.R[:, -1]), np.ascontiguousarray(fr.o[:, -1])
 
     def with_references(
         self, R_ref_base: Float | None = None, R_ref_cam: Float | None = None
@@ -773,7 +755,7 @@ class CalibrationModel:
         """
         p = np.asarray(params, dtype=np.float64)
         out = self.evaluate(p, inputs)
-        fr = self._frames(out.theta, self._rows(p))
+        fr = self._frames(out.theta.T, self._rows(p))
         n = self.n_joints
         R_c, t_c = self.cam_frames(p)
         multi = len(self.spec.markers) > 1
@@ -802,6 +784,13 @@ class CalibrationModel:
         ):
             m.R_ref_cam = self.R_ref_cam.copy()
         return m
+
+
+def _rotate(cols: Float, v: Float) -> Float:
+    """``R v`` (3, N) for R given by its columns (3, 3, N) and v (3,) or (3, N)."""
+    if v.ndim == 1:
+        return np.tensordot(v, cols, axes=1)
+    return cols[0] * v[0] + cols[1] * v[1] + cols[2] * v[2]
 
 
 def _mv(R: Float, v: Float) -> Float:
