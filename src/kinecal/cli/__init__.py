@@ -26,6 +26,9 @@ def cli() -> None:
     Unified kinematic model plus joint compliance (Ye et al., Sensors 2024). Files use mm
     and degrees; see DESIGN §11 or each command's --help for the formats.
     """
+    from kinecal import keep_freed_memory
+
+    keep_freed_memory()  # a command is one run: keep freed arrays for reuse
 
 
 def _register() -> None:

@@ -185,9 +185,13 @@ def solve_lm(
 
     def normal(xx: Float, rr: Float, JJ: Float, ww: Float) -> tuple[Float, Float]:
         sw_ = np.sqrt(ww)[:, None]
-        Js_ = (JJ[:, :, fidx] * sw_[:, :, None]).reshape(-1, fidx.size) * s
-        A_ = Js_.T @ Js_ + np.diag(prec)
-        g_ = Js_.T @ (rr * sw_).reshape(-1)
+        # Free columns as rows of a (k, N c) matrix: a block copy when J is stored
+        # parameter-major (the model's layout), then one symmetric product.
+        Js_ = np.moveaxis(JJ, 2, 0)[fidx]
+        Js_ *= sw_ * s[:, None, None]
+        Js_ = Js_.reshape(fidx.size, -1)
+        A_ = Js_ @ Js_.T + np.diag(prec)
+        g_ = Js_ @ (rr * sw_).reshape(-1)
         if prior is not None:
             g_ = g_ + prec * (xx[fidx] - pmean) / s
         return A_, g_
