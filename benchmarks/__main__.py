@@ -88,9 +88,20 @@ def main(argv: list[str] | None = None) -> int:
     res100 = calibrate(robot, e.train, "full")
     cal = res100.calibrated
     inputs = big.model_inputs(cal.reference_payload_kg)
-    t, _ = _median_time(
-        lambda: cal.model.evaluate(cal.params, inputs, jacobian=True), rep
-    )
+
+    def jac() -> object:
+        return cal.model.evaluate(cal.params, inputs, jacobian=True)
+
+    # First with the C library's default allocator (a library user who has not called
+    # kinecal.keep_freed_memory()), then with the setting the kinecal command applies.
+    t, _ = _median_time(jac, rep)
+    record("fk_jacobian_full_default_malloc", t, "library default", poses=big.n)
+    t, _ = _median_time(lambda: calibrate(robot, big, "full"), 1)
+    record("calibrate_full_7000_default_malloc", t, "library default", poses=big.n)
+    from kinecal import keep_freed_memory
+
+    keep_freed_memory()
+    t, _ = _median_time(jac, rep)
     record(
         "fk_jacobian_full",
         t,

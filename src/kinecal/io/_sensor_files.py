@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
@@ -11,8 +11,11 @@ import yaml
 from kinecal.errors import ConfigError, DataError
 from kinecal.io._csv import read_table
 from kinecal.io._files import atomic_write_bytes, atomic_write_text
-from kinecal.sensor import Camera, LightPlanes, Sensor
-from kinecal.sensor._cv import require_cv2
+
+if (
+    TYPE_CHECKING
+):  # the sensor package (and scipy.ndimage) loads when a sensor file does
+    from kinecal.sensor import Camera, Sensor
 
 __all__ = [
     "image_files",
@@ -29,6 +32,8 @@ SENSOR_FORMAT = 1
 
 
 def _cv2() -> Any:
+    from kinecal.sensor._cv import require_cv2
+
     return require_cv2("reading and writing images")
 
 
@@ -137,6 +142,8 @@ def save_sensor(
     force: bool = False,
 ) -> Path:
     """Write a sensor (camera + light planes) or a camera alone as YAML, atomically."""
+    from kinecal.sensor import Camera
+
     doc: dict[str, Any] = {"format": SENSOR_FORMAT}
     if isinstance(sensor, Camera):
         doc["camera"] = sensor.to_dict()
@@ -149,6 +156,8 @@ def save_sensor(
 
 def load_sensor(path: str | Path, *, need_planes: bool = True) -> Sensor | Camera:
     """Read a sensor YAML; a file with only a camera gives the :class:`Camera`."""
+    from kinecal.sensor import Camera, LightPlanes, Sensor
+
     p = Path(path)
     try:
         doc = yaml.safe_load(p.read_text(encoding="utf-8"))
