@@ -18,16 +18,14 @@ import numpy as np
 
 from kinecal.typing import Float
 
-__all__ = ["ChainFrames", "chain_frames", "cross", "vcross", "vdot"]
+__all__ = ["ChainFrames", "chain_frames", "rotate", "vcross", "vdot"]
 
 
-def cross(a: Float, b: Float) -> Float:
-    """Cross product over the last axis (faster than ``np.cross`` for small batches)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
-    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
-    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    return out
+def rotate(cols: Float, v: Float) -> Float:
+    """``R v`` (3, N) for R given by its columns (3, 3, N) and v (3,) or (3, N)."""
+    if v.ndim == 1:
+        return np.tensordot(v, cols, axes=1)
+    return cols[0] * v[0] + cols[1] * v[1] + cols[2] * v[2]
 
 
 def vcross(a: Float, b: Float) -> Float:

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinecal.models._chain import ChainFrames, vcross, vdot
+from kinecal.models._chain import ChainFrames, rotate, vcross, vdot
 from kinecal.typing import Float
 
 __all__ = [
@@ -318,7 +318,7 @@ def _body_terms(
     """Terms of the general link torques (:func:`general_link_torque_basis`)."""
     for b, k in enumerate(bodies):
         m, mc = coef[4 * b], coef[4 * b + 1 : 4 * b + 4]
-        Mk = np.einsum("cin,c->in", frames.cols[k], mc)  # first moment, base frame
+        Mk = rotate(frames.cols[k], mc)  # first moment, base frame
         ok = frames.origin[k]
         for j in range(k):
             z, Hj = frames.z(j), H[j]

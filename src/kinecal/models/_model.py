@@ -29,7 +29,7 @@ from kinecal.geometry import (
     rot_z,
     transform_to_euler,
 )
-from kinecal.models._chain import ChainFrames, chain_frames, cross, vcross
+from kinecal.models._chain import ChainFrames, chain_frames, rotate, vcross
 from kinecal.models._compliance import (
     general_link_names,
     general_link_torque_basis,
@@ -432,6 +432,28 @@ class CalibrationModel:
         beta = rows[:, _BETA] if self._has_beta else None
         return chain_frames(th.T, d, rows[:, _A], rows[:, _ALPHA], beta)
 
+    def _flange_point(
+        self, R_c: Float, t_c: Float, inputs: ModelInputs
+    ) -> tuple[Float, Float]:
+        """The measured point in the flange frame, and its offset from the cam origin
+        (both (3, N)): ``t_fc + R_fc p_cam`` and ``R_fc p_cam``."""
+        if len(self.spec.markers) == 1:
+            p_rot = R_c[0] @ inputs.p_cam.T
+            return t_c[0][:, None] + p_rot, p_rot
+        mi = inputs.marker_index
+        p_rot = np.einsum("nij,nj->in", R_c[mi], inputs.p_cam)
+        return t_c[mi].T + p_rot, p_rot
+
+    def _joint_columns(self, Z: Float, rot_cols: Float, orientation: bool) -> Float:
+        """``d output / d theta_i`` (n, 3 or 6, N) from the joint axes ``Z`` and the
+        point's velocity ``z × (p - o)`` of a unit rotation about each (n, 3, N)."""
+        pr = self._prismatic[:, None, None]
+        G = np.zeros((Z.shape[0], 6 if orientation else 3, Z.shape[-1]))
+        G[:, :3] = np.where(pr, Z, rot_cols)
+        if orientation:
+            G[:, 3:] = np.where(pr, 0.0, Z)
+        return G
+
     # ------------------------------------------------------------------ evaluation
     def evaluate(
         self,
@@ -483,7 +505,7 @@ class CalibrationModel:
         if spec.load:
             fr0 = self._frames(theta, rows)
             # Load point: origin of the first marker's cam frame (Eq. 19 with Delta = 0).
-            p_load = fr0.origin[n] + _rotate(fr0.cols[n], t_c[0])
+            p_load = fr0.origin[n] + rotate(fr0.cols[n], t_c[0])
             tau = load_torques(fr0, p_load, self.g_hat, self._prismatic)
             tau *= inputs.load_scale
             if self._link_names:
@@ -498,14 +520,9 @@ class CalibrationModel:
         # Point in the model base frame.
         single_m = len(spec.markers) == 1
         mi = inputs.marker_index
-        if single_m:
-            p_fl = (
-                t_c[0][:, None] + R_c[0] @ inputs.p_cam.T
-            )  # point in the flange frame
-        else:
-            p_fl = t_c[mi].T + np.einsum("nij,nj->in", R_c[mi], inputs.p_cam)
+        p_fl, p_cam_fl = self._flange_point(R_c, t_c, inputs)
         R_fl = fr.cols[n]  # (3 columns, 3, N)
-        p_b = fr.origin[n] + _rotate(R_fl, p_fl)
+        p_b = fr.origin[n] + rotate(R_fl, p_fl)
 
         R_b, t_b = self.base_frames(p)
         single_s = len(spec.sets) == 1
@@ -529,13 +546,9 @@ class CalibrationModel:
         P = self.size
         c = 6 if orientation else 3
         Jb = np.zeros((P, c, N))
-        pr = self._prismatic[:, None, None]
         Z = fr.cols[:n, 2]  # (n, 3, N): joint i + 1 turns about z_i
         rot_cols = vcross(Z, p_b - fr.origin[:n])  # rotation about z_i
-        G = np.zeros((n, c, N))  # d output / d theta_i
-        G[:, :3] = np.where(pr, Z, rot_cols)
-        if orientation:
-            G[:, 3:] = np.where(pr, 0.0, Z)
+        G = self._joint_columns(Z, rot_cols, orientation)  # d output / d theta_i
         ax = fr.a_dir
         alpha_cols = vcross(ax, p_b - fr.origin[1:])
         for i in range(n):
@@ -559,7 +572,7 @@ class CalibrationModel:
                     Jb[idx[_BETA], 3:] = y_i
 
         # Cam frame parameters (Eq. 9), per marker.
-        rel_cam = _rotate(R_fl, p_fl - (t_c[0][:, None] if single_m else t_c[mi].T))
+        rel_cam = rotate(R_fl, p_cam_fl)
         cam_v = p[self._cam_idx]
         for m in range(len(spec.markers)):
             mask = 1.0 if single_m else (mi == m).astype(np.float64)
@@ -758,19 +771,13 @@ class CalibrationModel:
         fr = self._frames(out.theta.T, self._rows(p))
         n = self.n_joints
         R_c, t_c = self.cam_frames(p)
-        multi = len(self.spec.markers) > 1
-        Rc = R_c[inputs.marker_index] if multi else R_c[0]
-        tc = t_c[inputs.marker_index] if multi else t_c[0]
-        p_fl = tc + _mv(Rc, inputs.p_cam)
-        p_b = fr.o[:, n] + _mv(fr.R[:, n], p_fl)
-        z = fr.R[:, :-1, :, 2]
-        lin = np.where(
-            self._prismatic[None, :, None], z, cross(z, p_b[:, None, :] - fr.o[:, :-1])
-        )
-        ang = np.where(self._prismatic[None, :, None], 0.0, z)
+        p_fl, _ = self._flange_point(R_c, t_c, inputs)
+        p_b = fr.origin[n] + rotate(fr.cols[n], p_fl)
+        Z = fr.cols[:n, 2]
+        G = self._joint_columns(Z, vcross(Z, p_b - fr.origin[:n]), True)
         R_b, _ = self.base_frames(p)
         Rb = R_b[inputs.set_index] if len(self.spec.sets) > 1 else R_b[0]
-        J = np.swapaxes(np.concatenate([lin, ang], axis=2), 1, 2)  # (N, 6, n)
+        J = G.transpose(2, 1, 0)  # (N, 6, n)
         return np.concatenate([Rb @ J[:, :3], Rb @ J[:, 3:]], axis=1)
 
     def with_spec(self, spec: ModelSpec) -> CalibrationModel:
@@ -784,20 +791,6 @@ class CalibrationModel:
         ):
             m.R_ref_cam = self.R_ref_cam.copy()
         return m
-
-
-def _rotate(cols: Float, v: Float) -> Float:
-    """``R v`` (3, N) for R given by its columns (3, 3, N) and v (3,) or (3, N)."""
-    if v.ndim == 1:
-        return np.tensordot(v, cols, axes=1)
-    return cols[0] * v[0] + cols[1] * v[1] + cols[2] * v[2]
-
-
-def _mv(R: Float, v: Float) -> Float:
-    """``R @ v`` for R (3, 3) or (N, 3, 3) and v (3,) or (N, 3); result (N, 3)."""
-    if R.ndim == 2:
-        return v @ R.T
-    return np.einsum("nij,nj->ni", R, np.broadcast_to(v, (R.shape[0], 3)))
 
 
 def _euler_axes(R_ref: Float, rwp: Float) -> Float:
