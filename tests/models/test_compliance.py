@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from scipy.spatial.transform import Rotation
 
 from kinecal.models import (
@@ -252,3 +253,82 @@ def test_paper_sized_values_deflect_tens_of_micrometres(rng):
     )
     grav_um = np.sqrt(np.mean(d_gravity**2)) * 1e6
     assert 5 < grav_um < 200, grav_um  # payload and link weight: tens of micrometres
+
+
+def test_link_bases_vanish_outside_their_patterns(rng):
+    """The (joint, column) patterns list every entry of the link bases that can be non-zero."""
+    from kinecal.models._compliance import general_link_pattern, link_torque_pattern
+
+    theta = rng.uniform(-2, 2, size=(40, 6))
+    fr = _fanuc_chain(theta)
+    g_hat = _random_gravity(rng)  # a tilted base, so that no entry vanishes by symmetry
+    cases = [
+        (link_torque_basis(fr, g_hat, 2, 3, 4, 1.0, m), link_torque_pattern(m, 2, 3))
+        for m in ("paper", "rfcm")
+    ]
+    # The general model on a skew arm (parallel axes give geometric zeros: a moment along
+    # an axis parallel to the joint's exerts no torque about it).
+    skew = chain_frames(
+        theta,
+        rng.uniform(0.1, 0.3, 6),
+        rng.uniform(0.1, 0.3, 6),
+        rng.uniform(0.3, 1.2, 6),
+    )
+    prismatic = np.array([False, False, True, False, False, False])
+    cases.append(
+        (
+            general_link_torque_basis(skew, g_hat, (2, 4), prismatic),
+            general_link_pattern((2, 4), prismatic),
+        )
+    )
+    for T, pattern in cases:
+        inside = np.zeros(T.shape[:2], bool)
+        for j, k in pattern:
+            inside[j - 1, k] = True
+        assert np.all(T[~inside] == 0.0)
+        assert np.all(np.abs(T[inside]).max(axis=-1) > 1e-3)
+
+
+@pytest.mark.parametrize(
+    "spec",
+    [
+        ModelSpec.preset("full"),
+        ModelSpec.preset("rfcm", sets=("a", "b")),
+        ModelSpec(ntm_joints=(2,), load=True, link="paper", link_bodies=(2, 3)),
+    ],
+)
+def test_link_product_columns(spec, rng):
+    """Column of lambda*_j s_k = d p / d theta_j (joint Jacobian) times the torque per unit
+    s_k at the undeflected pose; the columns of s_k are sum_j lambda*_j times them."""
+    model = CalibrationModel(FANUC, spec)
+    L = model.layout
+    p = model.nominal + rng.normal(size=model.size) * L.scales
+    p[L.group_indices("load")] = rng.normal(size=6) * 1e-3
+    p[L.group_indices("link")] = rng.uniform(0.2, 2.0, L.group_indices("link").size)
+    q = rng.uniform(-1.5, 1.5, size=(25, 6))
+    inp = ModelInputs.make(
+        q,
+        set_index=rng.integers(0, len(spec.sets), 25),
+        p_cam=rng.normal(size=(25, 3)) * 0.05,
+    )
+    out = model.evaluate(p, inp, jacobian=True, products=True)
+    pairs = model.link_products
+    assert out.J_p.shape == (25, 3, model.size + len(pairs))
+    np.testing.assert_array_equal(
+        out.J_p[:, :, : model.size],
+        model.evaluate(p, inp, jacobian=True).J_p,
+    )
+    # joint Jacobian at the deflected pose, link torques at the undeflected one
+    Jq = model.joint_jacobian(p, inp)[:, :3]
+    fr0 = model._frames(FANUC.coupling @ q.T + model._ntm(p, q)[0], model._rows(p))
+    T = model._link_basis(fr0)  # (n, n_link, N)
+    s_cols = np.zeros((25, 3, L.group_indices("link").size))
+    for i, (lam, s) in enumerate(pairs):
+        j = lam - model.layout.index("joint1.lambda")
+        k = s - L.group_indices("link")[0]
+        col = out.J_p[:, :, model.size + i]
+        np.testing.assert_allclose(col, Jq[:, :, j] * T[j, k][:, None], atol=1e-12)
+        s_cols[:, :, k] += p[lam] * col
+    np.testing.assert_allclose(
+        s_cols, out.J_p[:, :, L.group_indices("link")], rtol=1e-12, atol=1e-15
+    )

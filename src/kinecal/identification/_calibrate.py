@@ -29,11 +29,14 @@ from kinecal.identification._identifiability import (
     analyse_identifiability,
 )
 from kinecal.identification._init import initial_frames
+from kinecal.identification._lift import lifted_start
 from kinecal.identification._lm import (
     LMOptions,
     LMResult,
     Prior,
     loss_weights,
+    normal_equations,
+    objective,
     solve_lm,
 )
 from kinecal.identification._measurements import Measurements
@@ -75,6 +78,14 @@ _PRIOR_GROUPS = {
 }
 # Median of the chi distribution with c degrees of freedom (norm of a c-D unit Gaussian).
 _CHI_MEDIAN = {3: 1.5381722, 6: 2.3660319}
+# Initial LM damping for a start next to the optimum (a lifted start, or the result of a
+# fit with other weights or priors): Madsen, Nielsen & Tingleff, "Methods for non-linear
+# least squares problems" (2004), Sec. 3.2, advise 1e-6 when the start is believed good
+# and 1e-3 otherwise (LMOptions' default, used from nominal kinematics).
+_MU0_WARM = 1e-6
+# Stop an LM run once a step moves the estimate by about 1.4 % of its standard deviations
+# (LMOptions.stol): further digits are far below the statistical uncertainty.
+_STOL = 1e-4
 
 
 @dataclass(frozen=True)
@@ -347,7 +358,7 @@ def calibrate(
     ref_payload = meas.reference_payload() or robot.payload_kg
     inputs: ModelInputs = meas.model_inputs(ref_payload)
     weights = Weights.default(meas)
-    lm_linear = LMOptions(max_iter=opts.max_iter)
+    lm_linear = LMOptions(max_iter=opts.max_iter, stol=_STOL)
 
     def make_fun(model_: CalibrationModel, w: Weights):
         def fun(x: Float, jac: bool) -> tuple[Float, Float | None]:
@@ -368,6 +379,22 @@ def calibrate(
     kin = np.isin(groups, _KINEMATIC_GROUPS)
     stages: list[StageLog] = []
 
+    def lift(
+        x0: Float, free: np.ndarray, lm: LMOptions, w: Weights, prior: Prior | None
+    ) -> Float:
+        """The lifted start (:mod:`._lift`), kept where it does not raise the cost."""
+        if not any(free[a] and free[b] for a, b in cm.link_products):
+            return x0
+        blk = residuals(cm, x0, meas, w, inputs=inputs, jacobian=True, products=True)
+        assert blk.J is not None
+        cost0, drho = objective(blk.r, lm)
+        sw = None if lm.loss == "linear" else np.sqrt(drho)
+        x1, _ = lifted_start(cm, x0, blk.r, blk.J, free, prior, sw)
+        cost1 = objective(residuals(cm, x1, meas, w, inputs=inputs).r, lm)[0]
+        if prior is not None:
+            cost0, cost1 = cost0 + prior.cost(x0), cost1 + prior.cost(x1)
+        return x1 if cost1 <= cost0 else x0
+
     def run(
         name: str,
         x0: Float,
@@ -376,9 +403,14 @@ def calibrate(
         w: Weights,
         prior: Prior | None = None,
         required: bool = True,
+        lifted: bool = False,
     ) -> LMResult:
         before = rms_mm(cm, x0)
         say(name, f"{int(free.sum())} parameters")
+        t0 = time.perf_counter()
+        if lifted:
+            x0 = lift(x0, free, lm, w, prior)
+            lm = replace(lm, mu0=_MU0_WARM)
         res = solve_lm(
             make_fun(cm, w), x0, free, cm.layout.scales, lm, prior=prior, label=name
         )
@@ -392,7 +424,7 @@ def calibrate(
                 res.n_iter,
                 res.status,
                 res.success,
-                res.seconds,
+                time.perf_counter() - t0,
                 res.log,
             )
         )
@@ -514,7 +546,9 @@ def calibrate(
             f_scale = opts.f_scale_mm * 1e-3 / float(np.median(weights.sigma))
         else:
             f_scale = 3.0 * _robust_sigma(r1) * np.sqrt(c)
-        lm = LMOptions(max_iter=opts.max_iter, loss=opts.loss, f_scale=f_scale)
+        lm = LMOptions(
+            max_iter=opts.max_iter, loss=opts.loss, f_scale=f_scale, stol=_STOL
+        )
         x1 = run(
             "stage 1: kinematic (robust)",
             x1,
@@ -558,7 +592,13 @@ def calibrate(
     if np.any(free & ~kin):
         lm3 = replace(lm, max_iter=max(lm.max_iter, 200))
         x_final = run(
-            "stage 3: all", x2, free, lm3, weights, prior if use_prior else None
+            "stage 3: all",
+            x2,
+            free,
+            lm3,
+            weights,
+            prior if use_prior else None,
+            lifted=True,
         ).x
         if estimate_noise:
             w3 = _noise_from_residuals(
@@ -573,6 +613,7 @@ def calibrate(
                     lm3,
                     weights,
                     prior if use_prior else None,
+                    lifted=True,
                 ).x
 
         if use_prior and opts.adapt_priors:
@@ -582,7 +623,13 @@ def calibrate(
             if any(f != 1.0 for f in chosen.values()):
                 log.info("prior scales from the evidence: %s", chosen)
                 x_final = run(
-                    "stage 3: all (evidence priors)", x_final, free, lm3, weights, prior
+                    "stage 3: all (evidence priors)",
+                    x_final,
+                    free,
+                    lm3,
+                    weights,
+                    prior,
+                    lifted=True,
                 ).x
             prior_factors = chosen
 
@@ -594,8 +641,9 @@ def calibrate(
     wr = loss_weights(np.sum(r_final.r**2, axis=1) / lm.f_scale**2, lm.loss)[1]
     dof = m_res - fidx.size
     sigma0 = float(np.sqrt(np.sum(wr[:, None] * r_final.r**2) / max(dof, 1)))
-    Js = _scaled_jacobian(r_final.J, fidx, scales, np.sqrt(wr))
-    A = Js.T @ Js
+    A, _ = normal_equations(
+        r_final.r, r_final.J, fidx, scales, None if lm.loss == "linear" else np.sqrt(wr)
+    )
     if use_prior:
         A = A + np.diag(prior.precision[fidx] * scales**2)
     cov = np.zeros((cm.size, cm.size))
@@ -678,17 +726,6 @@ def calibrate(
     )
 
 
-def _scaled_jacobian(
-    J: Float, fidx: np.ndarray, scales: Float, row_weight: Float | None = None
-) -> Float:
-    """The free columns of a (N, c, P) Jacobian as an (N c, F) matrix in scaled units,
-    each row block multiplied by ``row_weight`` (N,) if given."""
-    Jf = J[:, :, fidx]
-    if row_weight is not None:
-        Jf = Jf * row_weight[:, None, None]
-    return Jf.reshape(-1, fidx.size) * scales
-
-
 def _psd_inverse(A: Float, rcond: float) -> Float:
     """Pseudo-inverse of a symmetric positive semi-definite matrix, eigenvalues below
     ``rcond`` times the largest left out."""
@@ -720,10 +757,10 @@ def _adapt_prior(
     blk = residuals(cm, x, meas, w, inputs=inputs, jacobian=True)
     assert blk.J is not None
     scales = cm.layout.scales[fidx]
-    Js = _scaled_jacobian(blk.J, fidx, scales)
+    JtJ, _ = normal_equations(blk.r, blk.J, fidx, scales)
     dof = max(blk.r.size - fidx.size, 1)
     s0sq = float(np.sum(blk.r**2)) / dof
-    var = s0sq * np.diag(_psd_inverse(Js.T @ Js, 1e-12)) * scales**2
+    var = s0sq * np.diag(_psd_inverse(JtJ, 1e-12)) * scales**2
     sigma = prior.sigma.copy()
     widened: list[tuple[str, str]] = []
     kinds = np.array([cm.layout.specs[i].kind for i in fidx])
@@ -787,11 +824,11 @@ def _evidence_prior(
     assert blk.J is not None
     sc = cm.layout.scales[fidx]
     sw = np.sqrt(loss_weights(np.sum(blk.r**2, axis=1) / lm.f_scale**2, lm.loss)[1])
-    Js = _scaled_jacobian(blk.J, fidx, sc, sw)
-    JtJ = Js.T @ Js
-    b = (blk.r * sw[:, None]).ravel() + Js @ ((prior.mean[fidx] - x[fidx]) / sc)
-    Jtb = Js.T @ b
-    btb = float(b @ b)
+    JtJ, Jtr = normal_equations(blk.r, blk.J, fidx, sc, sw)
+    # b = r + J (m - x): the data about the prediction at the prior mean
+    d = (prior.mean[fidx] - x[fidx]) / sc
+    Jtb = Jtr + JtJ @ d
+    btb = float(np.sum((blk.r * sw[:, None]) ** 2) + 2.0 * (Jtr @ d) + d @ JtJ @ d)
     base_var = np.where(
         np.isfinite(prior.sigma[fidx]), (prior.sigma[fidx] / sc) ** 2, 1e8
     )

@@ -33,6 +33,8 @@ __all__ = [
     "LMResult",
     "Prior",
     "loss_weights",
+    "normal_equations",
+    "objective",
     "solve_fixed_step",
     "solve_lm",
 ]
@@ -60,6 +62,11 @@ class LMOptions:
         Residual-norm scale (whitened units) where a robust loss starts to bend.
     mu0 : float
         Initial damping (relative to the diagonal of the normal matrix).
+    stol : float
+        Statistical tolerance: also stop when an accepted step lowered the cost by at most
+        ``stol`` times the a-posteriori variance of unit weight, ``2 cost / (m - k)`` (m
+        residuals, k free parameters). Such a step moved the estimate by about
+        ``sqrt(2 stol)`` of its standard deviations. 0 (the default) turns it off.
     """
 
     max_iter: int = 100
@@ -69,6 +76,7 @@ class LMOptions:
     loss: str = "linear"
     f_scale: float = 1.0
     mu0: float = 1e-3
+    stol: float = 0.0
 
     def __post_init__(self) -> None:
         if self.loss not in LOSSES:
@@ -114,7 +122,47 @@ def loss_weights(z: Float, loss: str) -> tuple[Float, Float]:
     raise ValueError(f"unknown loss {loss!r}")
 
 
-def _cost(r: Float, opts: LMOptions) -> tuple[float, Float]:
+def normal_equations(
+    r: Float,
+    J: Float,
+    cols: np.ndarray,
+    scales: Float,
+    row_weights: Float | None = None,
+) -> tuple[Float, Float]:
+    """``(Jsᵀ Js, Jsᵀ r)`` for the columns ``cols`` of J in scaled units.
+
+    ``Js = J[:, :, cols] · scales`` with the rows of sample i multiplied by
+    ``row_weights[i]`` (the square roots of robust weights) when given.
+
+    Parameters
+    ----------
+    r : (N, c) residual rows.
+    J : (N, c, P') Jacobian, any memory layout. The model's own (a view of a
+        parameter-major (P', c, N) array) gives one product of contiguous rows over the
+        span of ``cols``, with no copy for unweighted rows.
+    cols : (k,) column indices.
+    scales : (k,) characteristic size of each selected column.
+    row_weights : (N,), optional.
+    """
+    cols = np.asarray(cols, dtype=np.intp)
+    if cols.size == 0:
+        return np.zeros((0, 0)), np.zeros(0)
+    lo, hi = int(cols.min()), int(cols.max()) + 1
+    X = J.transpose(2, 1, 0)[lo:hi]  # (span, c, N), rows in (component, sample) order
+    rt = r.T
+    if row_weights is not None:
+        X = X * row_weights
+        rt = rt * row_weights
+    Xm = X.reshape(hi - lo, -1)
+    A = Xm @ Xm.T
+    g = Xm @ rt.reshape(-1)
+    sel = cols - lo
+    return A[np.ix_(sel, sel)] * np.outer(scales, scales), g[sel] * scales
+
+
+def objective(r: Float, opts: LMOptions) -> tuple[float, Float]:
+    """The data part of the cost, ``1/2 sum_i f^2 rho(|r_i|^2 / f^2)``, and the robust
+    weight ``rho'`` of every row (N,)."""
     f2 = opts.f_scale**2
     z = np.sum(r * r, axis=1) / f2
     rho, drho = loss_weights(z, opts.loss)
@@ -180,18 +228,13 @@ def solve_lm(
     pmean = pr.mean[fidx]
 
     def total_cost(xx: Float, rr: Float) -> tuple[float, Float]:
-        c, ww = _cost(rr, opts)
+        c, ww = objective(rr, opts)
         return c + pr.cost(xx) if prior is not None else c, ww
 
     def normal(xx: Float, rr: Float, JJ: Float, ww: Float) -> tuple[Float, Float]:
-        sw_ = np.sqrt(ww)[:, None]
-        # Free columns as rows of a (k, N c) matrix: a block copy when J is stored
-        # parameter-major (the model's layout), then one symmetric product.
-        Js_ = np.moveaxis(JJ, 2, 0)[fidx]
-        Js_ *= sw_ * s[:, None, None]
-        Js_ = Js_.reshape(fidx.size, -1)
-        A_ = Js_ @ Js_.T + np.diag(prec)
-        g_ = Js_ @ (rr * sw_).reshape(-1)
+        sw_ = None if opts.loss == "linear" else np.sqrt(ww)
+        A_, g_ = normal_equations(rr, JJ, fidx, s, sw_)
+        A_ += np.diag(prec)
         if prior is not None:
             g_ = g_ + prec * (xx[fidx] - pmean) / s
         return A_, g_
@@ -276,8 +319,14 @@ def solve_lm(
             np.linalg.norm(x[fidx] / s) + opts.xtol
         )
         x, r, cost, w = x_new, r_new, cost_new, w_new
-        if dcost <= opts.ftol * cost or step_small:
-            status = "ftol" if dcost <= opts.ftol * cost else "xtol"
+        s0sq = 2.0 * cost / max(r.size - fidx.size, 1)
+        if dcost <= opts.ftol * cost:
+            status = "ftol"
+        elif step_small:
+            status = "xtol"
+        elif dcost <= opts.stol * s0sq:
+            status = "stol"
+        if status in ("ftol", "xtol", "stol"):
             message = f"{label}: converged ({status}) after {it} iterations"
             success = True
             r, J1 = fun(x, True)

@@ -76,6 +76,7 @@ def residuals(
     *,
     inputs: ModelInputs | None = None,
     jacobian: bool = False,
+    products: bool = False,
 ) -> ResidualBlock:
     """Evaluate the whitened residuals (and Jacobian) of ``meas`` under ``model``.
 
@@ -88,10 +89,15 @@ def residuals(
     inputs : ModelInputs, optional
         Precomputed ``meas.model_inputs()`` (saves work in loops).
     jacobian : bool
+    products : bool
+        With ``jacobian``, also the columns of the link products
+        (:meth:`CalibrationModel.evaluate`).
     """
     inp = inputs if inputs is not None else meas.model_inputs()
     pose = meas.kind == "pose"
-    out = model.evaluate(params, inp, orientation=pose, jacobian=jacobian)
+    out = model.evaluate(
+        params, inp, orientation=pose, jacobian=jacobian, products=products
+    )
     e_p = out.p_user - meas.reference_points()
     inv_s = 1.0 / weights.sigma
     if not pose:

@@ -31,8 +31,10 @@ from kinecal.typing import Float
 
 __all__ = [
     "general_link_names",
+    "general_link_pattern",
     "general_link_torque_basis",
     "link_torque_basis",
+    "link_torque_pattern",
     "load_torques",
     "ntm_basis",
     "ntm_names",
@@ -127,14 +129,23 @@ def link_torque_basis(
     z_sh, z_el = frames.z(shoulder - 1), frames.z(elbow - 1)
     x_hat = x_sign * frames.cols[shoulder, 0]
     u_hat = _elbow_to_wrist(frames, elbow, wrist_frame)[0]
-    ncol = 2 if model == "paper" else 3
-    out = np.zeros((frames.n, ncol, z_sh.shape[-1]))
+    (_, c_x), (_, c_u_sh), (_, c_u_el) = link_torque_pattern(model, shoulder, elbow)
+    out = np.zeros((frames.n, 2 if model == "paper" else 3, z_sh.shape[-1]))
     # tau = z . (M x g) for a unit moment along each direction
-    out[shoulder - 1, 0] = vdot(z_sh, vcross(x_hat, g))  # Table 1: s1 on the shoulder
-    out[shoulder - 1, 1] = vdot(z_sh, vcross(u_hat, g))  # Table 1: s2 on the shoulder
+    out[shoulder - 1, c_x] = vdot(z_sh, vcross(x_hat, g))  # Table 1: s1 on the shoulder
+    out[shoulder - 1, c_u_sh] = vdot(
+        z_sh, vcross(u_hat, g)
+    )  # Table 1: s2 on the shoulder
     # Eq. (25): N_23(theta) (s1, s2, s2) for 'paper'; s2 of the elbow its own for 'rfcm'
-    out[elbow - 1, 1 if model == "paper" else 2] = vdot(z_el, vcross(u_hat, g))
+    out[elbow - 1, c_u_el] = vdot(z_el, vcross(u_hat, g))
     return out
+
+
+def link_torque_pattern(model: str, shoulder: int, elbow: int) -> list[tuple[int, int]]:
+    """The entries ``(joint, moment column)`` of :func:`link_torque_basis` that are not
+    identically zero: the x̂ moment and the û moment on the shoulder, the û moment on the
+    elbow (shared with the shoulder's in 'paper', its own column in 'rfcm')."""
+    return [(shoulder, 0), (shoulder, 1), (elbow, 1 if model == "paper" else 2)]
 
 
 def _elbow_to_wrist(
@@ -152,6 +163,20 @@ def _elbow_to_wrist(
 def general_link_names(bodies: tuple[int, ...]) -> list[str]:
     """Parameter names of the general link model: mass and first moment per body."""
     return [f"link{k}.{c}" for k in bodies for c in ("m", "mx", "my", "mz")]
+
+
+def general_link_pattern(
+    bodies: tuple[int, ...], prismatic: np.ndarray
+) -> list[tuple[int, int]]:
+    """The entries ``(joint, column)`` of :func:`general_link_torque_basis` that are not
+    identically zero: every joint upstream of a body carries its mass, and a revolute one
+    its first moment too."""
+    out = []
+    for b, k in enumerate(bodies):
+        for j in range(k):
+            cols = (0,) if prismatic[j] else (0, 1, 2, 3)
+            out += [(j + 1, 4 * b + c) for c in cols]
+    return out
 
 
 def general_link_torque_basis(

@@ -32,8 +32,10 @@ from kinecal.geometry import (
 from kinecal.models._chain import ChainFrames, chain_frames, rotate, vcross
 from kinecal.models._compliance import (
     general_link_names,
+    general_link_pattern,
     general_link_torque_basis,
     link_torque_basis,
+    link_torque_pattern,
     load_torques,
     ntm_basis,
     ntm_names,
@@ -337,6 +339,18 @@ class CalibrationModel:
             if spec.load
             else np.zeros(0, np.intp)
         )
+        # Where a link parameter s_k acts on joint j, the deflection holds the product
+        # lambda*_j s_k: (joint index, column of the link basis) of every such pair.
+        pattern: list[tuple[int, int]] = []
+        if spec.link in ("paper", "rfcm") and sw is not None:
+            pattern += link_torque_pattern(spec.link, sw.shoulder, sw.elbow)
+        if spec.link_bodies:
+            first = len(self._link_names) - 4 * len(spec.link_bodies)
+            pattern += [
+                (j, first + k)
+                for j, k in general_link_pattern(spec.link_bodies, self._prismatic)
+            ]
+        self._products = [(j - 1, k) for j, k in pattern]
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -352,6 +366,16 @@ class CalibrationModel:
     def cam_index(self) -> np.ndarray:
         """Indices of the cam-frame parameters, shape (markers, 6) or (markers, 3)."""
         return self._cam_idx
+
+    @property
+    def link_products(self) -> list[tuple[int, int]]:
+        """Pairs ``(index of lambda*_j, index of s_k)`` of every link parameter s_k and
+        joint j it loads: the deflection of joint j holds the product ``lambda*_j s_k``
+        (Eq. 26). :meth:`evaluate` with ``products=True`` appends the Jacobian columns of
+        these products, in this order."""
+        return [
+            (int(self._lam_idx[j]), self._link_start + k) for j, k in self._products
+        ]
 
     def _rows(self, params: Float) -> Float:
         rows = self._row_const.copy()
@@ -462,6 +486,7 @@ class CalibrationModel:
         *,
         orientation: bool = False,
         jacobian: bool = False,
+        products: bool = False,
     ) -> ModelOutput:
         """Predict the measured point (and cam orientation) for every pose.
 
@@ -475,6 +500,10 @@ class CalibrationModel:
         jacobian : bool
             Also return exact analytic Jacobians with respect to every parameter, including
             the dependence of the compliance torques on the arm's geometry.
+        products : bool
+            With ``jacobian``, append one column per pair of :attr:`link_products`: the
+            derivative with respect to the product ``lambda*_j s_k`` of the deflection of
+            joint j, all parameters held (``P + len(link_products)`` columns in all).
 
         Returns
         -------
@@ -545,7 +574,8 @@ class CalibrationModel:
         # Columns in the model base frame, position rows 0:3 and rotation rows 3:6.
         P = self.size
         c = 6 if orientation else 3
-        Jb = np.zeros((P, c, N))
+        K = len(self._products) if products else 0
+        Jb = np.zeros((P + K, c, N))
         Z = fr.cols[:n, 2]  # (n, 3, N): joint i + 1 turns about z_i
         rot_cols = vcross(Z, p_b - fr.origin[:n])  # rotation about z_i
         G = self._joint_columns(Z, rot_cols, orientation)  # d output / d theta_i
@@ -599,10 +629,12 @@ class CalibrationModel:
             if link_T is not None:
                 sl = slice(self._link_start, self._link_start + len(self._link_names))
                 Jb[sl] = np.einsum("jcn,jsn->scn", H, link_T)
+                for i, (j, k) in enumerate(self._products[:K]):
+                    Jb[P + i] = G[j] * link_T[j, k]
 
         # Rotate into the user frame, parameter-major (P, N, 3): every column contiguous.
-        J = np.empty((P, N, 3))
-        W = np.empty((P, N, 3)) if orientation else None
+        J = np.empty((P + K, N, 3))
+        W = np.empty((P + K, N, 3)) if orientation else None
         for out, part in ((J, Jb[:, :3]), (W, Jb[:, 3:])):
             if out is None:
                 continue

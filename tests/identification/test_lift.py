@@ -1,0 +1,111 @@
+"""The lifted start of the compliance fit and the shared normal equations."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from kinecal.identification import calibrate, residuals
+from kinecal.identification._lift import _product_sigma, lifted_start
+from kinecal.identification._lm import LMOptions, normal_equations, solve_lm
+from kinecal.models import CalibrationModel, ModelSpec
+from kinecal.robot import load_robot
+
+
+@pytest.mark.parametrize("layout", ["parameter-major", "sample-major"])
+def test_normal_equations_match_the_plain_products(layout, rng):
+    N, c, P = 40, 3, 9
+    J = rng.normal(size=(N, c, P))
+    if layout == "parameter-major":  # the model's memory: (P, c, N), seen as (N, c, P)
+        J = np.ascontiguousarray(J.transpose(2, 1, 0)).transpose(2, 1, 0)
+    r = rng.normal(size=(N, c))
+    cols = np.array([1, 2, 5, 7])
+    scales = rng.uniform(0.5, 2.0, cols.size)
+    w = rng.uniform(0.2, 1.0, N)
+    for row_w in (None, w):
+        ww = np.ones(N) if row_w is None else row_w
+        Js = (J[:, :, cols] * ww[:, None, None]).reshape(-1, cols.size) * scales
+        rs = (r * ww[:, None]).reshape(-1)
+        A, g = normal_equations(r, J, cols, scales, row_w)
+        np.testing.assert_allclose(A, Js.T @ Js, rtol=1e-12)
+        np.testing.assert_allclose(g, Js.T @ rs, rtol=1e-12)
+
+
+def test_product_sigma_is_the_standard_deviation_of_a_product(rng):
+    m1, s1, m2, s2 = 0.3, 0.5, -2.0, 0.7
+    x = rng.normal(m1, s1, 400_000) * rng.normal(m2, s2, 400_000)
+    assert _product_sigma(m1, s1, m2, s2) == pytest.approx(np.std(x), rel=0.01)
+    assert _product_sigma(0.0, np.inf, 1.0, 1.0) == np.inf
+
+
+@pytest.fixture(scope="module")
+def valley(exp2_exact):
+    """The full model on 1500 experiment-2 poses (all seven tool orientations), started
+    where stage 3 starts: the kinematic and transmission parameters have absorbed the link
+    weight, lambda* = s = 0."""
+    e = exp2_exact
+    robot = e.truth.robot
+    meas = e.test.subset(np.random.default_rng(0).permutation(e.test.n)[:1500])
+    res = calibrate(robot, meas, "full")
+    ntm = calibrate(robot, meas, "ntm")
+    cm = res.model
+    start = cm.layout.transfer(ntm.params, ntm.model.layout)
+    free = res.identifiability.free
+    inp = meas.model_inputs(res.calibrated.reference_payload_kg)
+
+    def fun(x, jac, products=False):
+        b = residuals(
+            cm, x, meas, res.weights, inputs=inp, jacobian=jac, products=products
+        )
+        return b.r, b.J
+
+    lm = LMOptions(max_iter=200, stol=1e-4)  # as calibrate runs it
+    plain = solve_lm(fun, start, free, cm.layout.scales, lm, prior=res.prior)
+    assert plain.success
+    return cm, fun, start, free, res, plain, lm
+
+
+def test_lifted_start_lands_next_to_the_optimum(valley):
+    cm, fun, start, free, res, plain, lm = valley
+    assert len(cm.link_products) == 3  # lambda2 s1, lambda2 s2, lambda3 s2
+    r, J = fun(start, True, products=True)
+    x1, _ = lifted_start(cm, start, r, J, free, res.prior)
+    f = np.flatnonzero(free)
+    off0 = np.abs(start - plain.x)[f] / res.std[f]
+    off1 = np.abs(x1 - plain.x)[f] / res.std[f]
+    assert off0.max() > 5.0  # the start is far off in the valley...
+    assert off1.max() < 0.2, dict(zip(np.array(cm.layout.names)[f], off1.round(2)))
+    # ... and from the lifted start a warm LM converges in a few iterations to the
+    # optimum plain LM needs many more for.
+    warm = solve_lm(
+        fun, x1, free, cm.layout.scales, replace(lm, mu0=1e-6), prior=res.prior
+    )
+    assert warm.success and warm.n_iter <= 5 < plain.n_iter / 2, (
+        warm.n_iter,
+        plain.n_iter,
+    )
+    assert np.max(np.abs(warm.x - plain.x)[f] / res.std[f]) < 0.05
+    assert warm.cost <= plain.cost + 1e-3  # both stop within ~1 % of a sigma
+
+
+def test_calibration_stage_3_takes_a_few_iterations(valley):
+    _, _, _, _, res, _, _ = valley
+    stage3 = [s for s in res.stages if s.name.startswith("stage 3")]
+    assert stage3 and all(s.success and s.iterations <= 6 for s in stage3), [
+        (s.name, s.iterations) for s in stage3
+    ]
+
+
+def test_no_products_no_lift(rng):
+    robot = load_robot("fanuc-lrmate200id")
+    for spec in (
+        ModelSpec.preset("ntm"),
+        ModelSpec.preset("full", has_self_weight=False),
+    ):
+        cm = CalibrationModel(robot, spec)
+        assert cm.link_products == []
+        x = cm.nominal.copy()
+        r, J = np.zeros((5, 3)), np.zeros((5, 3, cm.size))
+        assert lifted_start(cm, x, r, J, np.ones(cm.size, bool), None)[0] is x
