@@ -17,3 +17,33 @@ def test_chi2_quantile_matches_scipy(df):
 def test_chi2_quantile_rejects_bad_arguments():
     with pytest.raises(ValueError, match="0 < p < 1"):
         chi2_isf(3, 0.0)
+
+
+def test_evaluations_are_reused_only_where_they_apply(exp2_exact):
+    import numpy as np
+
+    from kinecal.identification import Weights, residuals
+    from kinecal.identification._calibrate import _Evaluations
+    from kinecal.models import CalibrationModel, ModelSpec
+
+    e = exp2_exact
+    meas = e.train
+    cm = CalibrationModel(e.truth.robot, ModelSpec.preset("full", cam_rotation=False))
+    inputs = meas.model_inputs()
+    ev = _Evaluations(meas, inputs)
+    w1, w2 = Weights.default(meas), Weights(np.full(meas.n, 2e-5))
+    x = cm.nominal.copy()
+    b = ev(cm, x, w1, jacobian=True)
+    assert ev(cm, x.copy(), w1) is b  # a Jacobian block serves a plain request
+    assert ev(cm, x, w1, jacobian=True, products=True) is not b  # more columns
+    assert ev(cm, x, w2) is not b  # other weights, other whitening
+    np.testing.assert_array_equal(ev.raw_position(cm, x, w1), b.raw_position)
+    y = x.copy()
+    y[0] += 1e-6
+    fresh = residuals(cm, y, meas, w2, inputs=inputs, jacobian=True)
+    got = ev(cm, y, w2, jacobian=True)
+    np.testing.assert_array_equal(got.r, fresh.r)
+    np.testing.assert_array_equal(got.J, fresh.J)
+    for k in range(5):  # only the last few points are kept
+        ev(cm, x + k * 1e-7, w1)
+    assert ev(cm, y, w2) is not got

@@ -41,7 +41,7 @@ from kinecal.identification._lm import (
 )
 from kinecal.identification._measurements import Measurements
 from kinecal.identification._metrics import Metrics, metrics_from_errors
-from kinecal.identification._residuals import Weights, residuals
+from kinecal.identification._residuals import ResidualBlock, Weights, residuals
 from kinecal.models import CalibrationModel, ModelInputs, ModelSpec
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float
@@ -298,6 +298,58 @@ def build_prior(
     return Prior(start.copy(), sigma)
 
 
+class _Evaluations:
+    """Residual blocks of one calibration: each point is evaluated once.
+
+    The identification revisits points (a stage starts where the last one ended, the
+    priors, stage 2 and the uncertainty look at a stage's solution, the log reports the
+    error before and after each stage). The last few blocks are kept, keyed by the model,
+    the parameters and the weights; raw position errors do not depend on the weights.
+    """
+
+    def __init__(self, meas: Measurements, inputs: ModelInputs, keep: int = 3) -> None:
+        self.meas = meas
+        self.inputs = inputs
+        self._keep = keep
+        self._blocks: list[tuple[CalibrationModel, bytes, Weights, ResidualBlock]] = []
+
+    def __call__(
+        self,
+        cm: CalibrationModel,
+        x: Float,
+        w: Weights,
+        *,
+        jacobian: bool = False,
+        products: bool = False,
+    ) -> ResidualBlock:
+        """The residual block at ``x`` (see :func:`residuals`)."""
+        key = np.asarray(x, np.float64).tobytes()
+        n_cols = cm.size + (len(cm.link_products) if products else 0)
+        for m, k, ww, blk in reversed(self._blocks):
+            if m is cm and k == key and ww is w:
+                if not jacobian or (blk.J is not None and blk.J.shape[-1] >= n_cols):
+                    return blk
+        blk = residuals(
+            cm,
+            x,
+            self.meas,
+            w,
+            inputs=self.inputs,
+            jacobian=jacobian,
+            products=products,
+        )
+        self._blocks = [*self._blocks[-(self._keep - 1) :], (cm, key, w, blk)]
+        return blk
+
+    def raw_position(self, cm: CalibrationModel, x: Float, w: Weights) -> Float:
+        """Position errors (N, 3) at ``x`` [m], from any block kept at that point."""
+        key = np.asarray(x, np.float64).tobytes()
+        for m, k, _, blk in reversed(self._blocks):
+            if m is cm and k == key:
+                return blk.raw_position
+        return self(cm, x, w).raw_position
+
+
 def _robust_sigma(r: Float) -> float:
     """Noise per component from the median row norm (whitened units)."""
     c = r.shape[1]
@@ -360,16 +412,18 @@ def calibrate(
     weights = Weights.default(meas)
     lm_linear = LMOptions(max_iter=opts.max_iter, stol=_STOL)
 
-    def make_fun(model_: CalibrationModel, w: Weights):
+    ev = _Evaluations(meas, inputs)
+
+    def make_fun(model_: CalibrationModel, w: Weights, products: bool):
         def fun(x: Float, jac: bool) -> tuple[Float, Float | None]:
-            blk = residuals(model_, x, meas, w, inputs=inputs, jacobian=jac)
+            blk = ev(model_, x, w, jacobian=jac, products=products)
             return blk.r, blk.J
 
         return fun
 
     def rms_mm(model_: CalibrationModel, x: Float) -> float:
-        blk = residuals(model_, x, meas, weights, inputs=inputs)
-        return float(np.sqrt(np.mean(np.sum(blk.raw_position**2, axis=1)))) * 1e3
+        e_p = ev.raw_position(model_, x, weights)
+        return float(np.sqrt(np.mean(np.sum(e_p**2, axis=1)))) * 1e3
 
     # ---------------------------------------------------------------- registration
     say("init", "closed-form user and cam frames")
@@ -385,12 +439,12 @@ def calibrate(
         """The lifted start (:mod:`._lift`), kept where it does not raise the cost."""
         if not any(free[a] and free[b] for a, b in cm.link_products):
             return x0
-        blk = residuals(cm, x0, meas, w, inputs=inputs, jacobian=True, products=True)
+        blk = ev(cm, x0, w, jacobian=True, products=True)
         assert blk.J is not None
         cost0, drho = objective(blk.r, lm)
         sw = None if lm.loss == "linear" else np.sqrt(drho)
         x1, _ = lifted_start(cm, x0, blk.r, blk.J, free, prior, sw)
-        cost1 = objective(residuals(cm, x1, meas, w, inputs=inputs).r, lm)[0]
+        cost1 = objective(ev(cm, x1, w).r, lm)[0]
         if prior is not None:
             cost0, cost1 = cost0 + prior.cost(x0), cost1 + prior.cost(x1)
         return x1 if cost1 <= cost0 else x0
@@ -412,7 +466,13 @@ def calibrate(
             x0 = lift(x0, free, lm, w, prior)
             lm = replace(lm, mu0=_MU0_WARM)
         res = solve_lm(
-            make_fun(cm, w), x0, free, cm.layout.scales, lm, prior=prior, label=name
+            make_fun(cm, w, lifted),
+            x0,
+            free,
+            cm.layout.scales,
+            lm,
+            prior=prior,
+            label=name,
         )
         after = rms_mm(cm, res.x)
         stages.append(
@@ -444,9 +504,7 @@ def calibrate(
     reg = run("registration", x, frames, lm_linear, weights)
     x_reg = reg.x
     if meas.kind == "pose" and opts.variance_components and meas.sigma is None:
-        weights = _noise_from_residuals(
-            cm, x_reg, meas, weights, inputs, int(frames.sum())
-        )
+        weights = _noise_from_residuals(cm, x_reg, ev, weights, int(frames.sum()))
         x_reg = run("registration", x_reg, frames, lm_linear, weights).x
 
     # ---------------------------------------------------------------- identifiability
@@ -456,7 +514,7 @@ def calibrate(
     )
     assert blk.J is not None
     ident = analyse_identifiability(
-        blk.J.reshape(-1, cm.size),
+        blk.J.transpose(2, 1, 0).reshape(cm.size, -1).T,  # (m, P), no copy
         cm.layout,
         np.ones(cm.size, bool),
         drop_tol=opts.drop_tol,
@@ -515,13 +573,9 @@ def calibrate(
     )
     x1 = pre.x
     if estimate_noise:
-        weights = _noise_from_residuals(
-            cm, x1, meas, weights, inputs, int((free & kin).sum())
-        )
+        weights = _noise_from_residuals(cm, x1, ev, weights, int((free & kin).sum()))
     if use_prior_kin and opts.adapt_priors and pre.success:
-        prior, widened = _adapt_prior(
-            cm, x1, x_reg, prior, meas, weights, inputs, free & kin
-        )
+        prior, widened = _adapt_prior(cm, x1, x_reg, prior, ev, weights, free & kin)
         prior_kin = Prior(prior.mean, np.where(kin, prior.sigma, np.inf))
         if widened:
             warnings.append(
@@ -541,7 +595,7 @@ def calibrate(
         ).x
     lm = lm_linear
     if opts.loss != "linear":
-        r1 = residuals(cm, x1, meas, weights, inputs=inputs).r
+        r1 = ev(cm, x1, weights).r
         if opts.f_scale_mm is not None:
             f_scale = opts.f_scale_mm * 1e-3 / float(np.median(weights.sigma))
         else:
@@ -566,7 +620,7 @@ def calibrate(
         t0 = time.perf_counter()
         say("stage 2: transmission", opts.stage2)
         x2 = (_stage2_project if opts.stage2 == "project" else _stage2_direct)(
-            cm, x1, meas, weights, inputs, free & ntm
+            cm, x1, ev, weights, free & ntm
         )
         after = rms_mm(cm, x2)
         if after > before:  # a linear fit cannot be trusted to help: keep stage 1
@@ -601,9 +655,7 @@ def calibrate(
             lifted=True,
         ).x
         if estimate_noise:
-            w3 = _noise_from_residuals(
-                cm, x_final, meas, weights, inputs, int(free.sum())
-            )
+            w3 = _noise_from_residuals(cm, x_final, ev, weights, int(free.sum()))
             if abs(np.log(w3.sigma[0] / weights.sigma[0])) > np.log(1.2):
                 weights = w3  # priors were weighed against too high a noise: once more
                 x_final = run(
@@ -617,9 +669,7 @@ def calibrate(
                 ).x
 
         if use_prior and opts.adapt_priors:
-            prior, chosen = _evidence_prior(
-                cm, x_final, meas, weights, inputs, free, prior, lm3
-            )
+            prior, chosen = _evidence_prior(cm, x_final, ev, weights, free, prior, lm3)
             if any(f != 1.0 for f in chosen.values()):
                 log.info("prior scales from the evidence: %s", chosen)
                 x_final = run(
@@ -636,7 +686,7 @@ def calibrate(
     # ---------------------------------------------------------------- uncertainty
     fidx = np.flatnonzero(free)
     scales = cm.layout.scales[fidx]
-    r_final = residuals(cm, x_final, meas, weights, inputs=inputs, jacobian=True)
+    r_final = ev(cm, x_final, weights, jacobian=True)
     assert r_final.J is not None
     wr = loss_weights(np.sum(r_final.r**2, axis=1) / lm.f_scale**2, lm.loss)[1]
     dof = m_res - fidx.size
@@ -659,7 +709,7 @@ def calibrate(
     status = ["estimated" if f else "unidentifiable" for f in free]
 
     # ---------------------------------------------------------------- report
-    e_before = residuals(cm, x_reg, meas, weights, inputs=inputs)
+    e_before = ev(cm, x_reg, weights)
     metrics_before = metrics_from_errors(e_before.raw_position, e_before.raw_rotation)
     metrics_after = metrics_from_errors(r_final.raw_position, r_final.raw_rotation)
     outliers = _outliers(r_final.r, r_final.raw_position, meas, opts.outlier_p)
@@ -739,9 +789,8 @@ def _adapt_prior(
     x: Float,
     x_nominal: Float,
     prior: Prior,
-    meas: Measurements,
+    ev: _Evaluations,
     w: Weights,
-    inputs: ModelInputs,
     free: np.ndarray,
 ) -> tuple[Prior, list[tuple[str, str]]]:
     """Joint-geometry prior scales from an unconstrained fit (empirical Bayes).
@@ -754,7 +803,7 @@ def _adapt_prior(
     back, while a poorly determined parameter (large ``var``) does not widen it.
     """
     fidx = np.flatnonzero(free)
-    blk = residuals(cm, x, meas, w, inputs=inputs, jacobian=True)
+    blk = ev(cm, x, w, jacobian=True)
     assert blk.J is not None
     scales = cm.layout.scales[fidx]
     JtJ, _ = normal_equations(blk.r, blk.J, fidx, scales)
@@ -793,9 +842,8 @@ _EVIDENCE_FACTORS = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
 def _evidence_prior(
     cm: CalibrationModel,
     x: Float,
-    meas: Measurements,
+    ev: _Evaluations,
     w: Weights,
-    inputs: ModelInputs,
     free: np.ndarray,
     prior: Prior,
     lm: LMOptions,
@@ -820,7 +868,7 @@ def _evidence_prior(
     ]
     if not tune:
         return prior, {}
-    blk = residuals(cm, x, meas, w, inputs=inputs, jacobian=True)
+    blk = ev(cm, x, w, jacobian=True)
     assert blk.J is not None
     sc = cm.layout.scales[fidx]
     sw = np.sqrt(loss_weights(np.sum(blk.r**2, axis=1) / lm.f_scale**2, lm.loss)[1])
@@ -871,35 +919,34 @@ def _evidence_prior(
 def _noise_from_residuals(
     cm: CalibrationModel,
     x: Float,
-    meas: Measurements,
+    ev: _Evaluations,
     w: Weights,
-    inputs: ModelInputs,
     n_free: int,
 ) -> Weights:
     """Noise per component from the residuals, corrected for the parameters fitted.
 
     Pose data get separate position and orientation sigmas (variance components).
     """
-    blk = residuals(cm, x, meas, w, inputs=inputs)
+    blk = ev(cm, x, w)
     m = blk.r.size
+    n = ev.meas.n
     dof_scale = np.sqrt(m / max(m - n_free, 1))
     s_p = float(np.sqrt(np.mean(blk.raw_position**2))) * dof_scale
     if blk.raw_rotation is None:
-        return Weights(np.full(meas.n, max(s_p, 1e-12)))
+        return Weights(np.full(n, max(s_p, 1e-12)))
     s_r = float(np.sqrt(np.mean(blk.raw_rotation**2))) * dof_scale
-    return Weights(np.full(meas.n, max(s_p, 1e-12)), np.full(meas.n, max(s_r, 1e-12)))
+    return Weights(np.full(n, max(s_p, 1e-12)), np.full(n, max(s_r, 1e-12)))
 
 
 def _stage2_direct(
     cm: CalibrationModel,
     x: Float,
-    meas: Measurements,
+    ev: _Evaluations,
     w: Weights,
-    inputs: ModelInputs,
     cols: np.ndarray,
 ) -> Float:
     """Fourier coefficients by linear least squares on the whitened residuals."""
-    blk = residuals(cm, x, meas, w, inputs=inputs, jacobian=True)
+    blk = ev(cm, x, w, jacobian=True)
     assert blk.J is not None
     idx = np.flatnonzero(cols)
     A = blk.J[:, :, idx].reshape(-1, idx.size)
@@ -912,9 +959,8 @@ def _stage2_direct(
 def _stage2_project(
     cm: CalibrationModel,
     x: Float,
-    meas: Measurements,
+    ev: _Evaluations,
     w: Weights,
-    inputs: ModelInputs,
     cols: np.ndarray,
 ) -> Float:
     """The paper's stage 2: residuals to joint space by Eq. (29), then Fourier LS per joint."""
@@ -922,8 +968,9 @@ def _stage2_project(
 
     spec = cm.spec
     joints = list(spec.ntm_joints)
-    blk = residuals(cm, x, meas, w, inputs=inputs)
-    Jq = cm.joint_jacobian(x, inputs)[:, :3, :]  # (N, 3, n) position part
+    meas = ev.meas
+    blk = ev(cm, x, w)
+    Jq = cm.joint_jacobian(x, ev.inputs)[:, :3, :]  # (N, 3, n) position part
     Jt = Jq[:, :, [j - 1 for j in joints]]
     e = -blk.raw_position  # joint errors that would remove the residual
     if len(joints) == 3:

@@ -141,7 +141,7 @@ def analyse_identifiability(
     if not order:
         return Identifiability(layout.names, candidate, free, fraction)
     big = max(float(norms[order].max()), 1e-300)
-    Jn = np.zeros((J.shape[0], len(order)))
+    Jn = np.zeros((J.shape[0], len(order)), order="F")  # LAPACK's layout
     zero = np.zeros(len(order), dtype=bool)
     for c, i in enumerate(order):
         if norms[i] <= 1e-12 * big:
@@ -149,8 +149,9 @@ def analyse_identifiability(
         else:
             Jn[:, c] = Js[:, i] / norms[i]
     # Householder QR in order of preference: |R_kk| is the part of column k that the
-    # columns before it cannot explain.
-    R = np.linalg.qr(Jn, mode="r")
+    # columns before it cannot explain. With Jn = Q R and Q orthonormal, least squares
+    # among columns and singular values below are those of the columns of R.
+    R: Float = np.asarray(np.linalg.qr(Jn, mode="r"), np.float64)
     rkk = np.abs(np.diag(R))
     kept: list[int] = []
     dropped: list[DroppedParameter] = []
@@ -162,7 +163,7 @@ def analyse_identifiability(
             partners: list[tuple[str, float]] = []
             if not zero[c] and kept:
                 coef, *_ = np.linalg.lstsq(
-                    Jn[:, [order.index(k) for k in kept]], Jn[:, c], rcond=None
+                    R[:, [order.index(k) for k in kept]], R[:, c], rcond=None
                 )
                 # Express in characteristic units of the columns (undo normalisation).
                 coef = coef * norms[i] / norms[kept]
@@ -182,7 +183,7 @@ def analyse_identifiability(
     cond = float("nan")
     if kept:
         sv = np.asarray(
-            np.linalg.svd(Jn[:, [order.index(k) for k in kept]], compute_uv=False),
+            np.linalg.svd(R[:, [order.index(k) for k in kept]], compute_uv=False),
             np.float64,
         )
         cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")

@@ -7,7 +7,7 @@ base; frame i is the frame after row i. Joint i turns about ``z_{i-1}`` through 
 Layout: the model's hot paths keep the pose axis *last* (vectors are ``(..., 3, N)``), so
 every arithmetic operation runs over contiguous rows of N numbers instead of strided
 3-element groups; :class:`ChainFrames` also offers the usual pose-first views. Points and
-axes are in the chain's base frame; the caller maps them on.
+axes are in the chain's base frame, or in any frame the caller places that base in.
 """
 
 from __future__ import annotations
@@ -46,7 +46,8 @@ def vdot(a: Float, b: Float) -> Float:
 
 @dataclass(frozen=True)
 class ChainFrames:
-    """Frames of a chain for N poses, in the chain's base frame, pose axis last.
+    """Frames of a chain for N poses, pose axis last, in the chain's base frame (or the
+    frame its base was placed in, see :func:`chain_frames`).
 
     Attributes
     ----------
@@ -93,6 +94,7 @@ def chain_frames(
     a: Float,
     alpha: Float,
     beta: Float | None = None,
+    base: tuple[Float, Float] | None = None,
 ) -> ChainFrames:
     """Frames of a chain of rows ``Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta)``.
 
@@ -106,6 +108,10 @@ def chain_frames(
         Translation along x [m] and twist about x [rad].
     beta : ndarray, shape (n,), optional
         Hayati twist about y [rad]; rows with ``beta == 0`` skip it.
+    base : (R, o), optional
+        Pose of the chain's base in the frame the result is expressed in: rotation
+        ``(3, 3)`` or per pose ``(N, 3, 3)``, origin ``(3,)`` or ``(N, 3)``. Default: the
+        chain's base itself.
 
     Returns
     -------
@@ -122,8 +128,13 @@ def chain_frames(
     )
     R = np.empty((n + 1, 3, 3, N))
     o = np.empty((n + 1, 3, N))
-    R[0] = np.eye(3)[:, :, None]
-    o[0] = 0.0
+    if base is None:
+        R[0] = np.eye(3)[:, :, None]
+        o[0] = 0.0
+    else:  # columns of the base rotation, pose axis last
+        R0, o0 = np.asarray(base[0]), np.asarray(base[1])
+        R[0] = R0.T[:, :, None] if R0.ndim == 2 else R0.transpose(2, 1, 0)
+        o[0] = o0[:, None] if o0.ndim == 1 else o0.T
     ax = np.empty((n, 3, N))
     # Row i turns the previous frame's columns (x, y, z) = (c0, c1, c2) by
     # Rz(theta) Rx(alpha): x' = c0 ct + c1 st, y' = v ca + c2 sa, z' = -v sa + c2 ca with

@@ -24,15 +24,19 @@ of :class:`~kinecal.models.ChainFrames`.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 
 from kinecal.models._chain import ChainFrames, rotate, vcross, vdot
 from kinecal.typing import Float
 
 __all__ = [
+    "TorqueAdjoint",
     "general_link_names",
     "general_link_pattern",
     "general_link_torque_basis",
+    "gravity_columns",
     "link_torque_basis",
     "link_torque_pattern",
     "load_torques",
@@ -40,6 +44,13 @@ __all__ = [
     "ntm_names",
     "torque_adjoint",
 ]
+
+
+def gravity_columns(g_hat: Float) -> Float:
+    """Unit gravity as pose-last columns: ``(3, 1)`` for one direction (3,), as given for
+    one per pose ``(3, N)`` (several user frames, each with its own view of gravity)."""
+    g = np.asarray(g_hat, dtype=np.float64)
+    return g[:, None] if g.ndim == 1 else g
 
 
 def ntm_names(order: int, offset: bool) -> list[str]:
@@ -82,13 +93,13 @@ def load_torques(
     frames : ChainFrames
     p_load : ndarray, shape (3, N)
         Load point in the chain base frame [m].
-    g_hat : ndarray, shape (3,)
-        Unit gravity direction in the chain base frame.
+    g_hat : ndarray, shape (3,) or (3, N)
+        Unit gravity direction in the frame of ``frames`` (one per pose allowed).
     prismatic : ndarray of bool, shape (n,)
     """
     n = frames.n
     z = frames.cols[:n, 2]  # (n, 3, N) joint axes
-    g = g_hat[:, None]
+    g = gravity_columns(g_hat)
     # (z x r) . g == z . (r x g): one cross product with the constant g.
     tau = vdot(z, vcross(p_load - frames.origin[:n], g))  # Eq. (21)
     if np.any(prismatic):
@@ -125,7 +136,7 @@ def link_torque_basis(
         'paper': moments ``[s1, s2]`` with s2 shared by both joints (2 columns).
         'rfcm': ``[s1, s2_shoulder, s2_elbow]`` independent (3 columns).
     """
-    g = g_hat[:, None]
+    g = gravity_columns(g_hat)
     z_sh, z_el = frames.z(shoulder - 1), frames.z(elbow - 1)
     x_hat = x_sign * frames.cols[shoulder, 0]
     u_hat = _elbow_to_wrist(frames, elbow, wrist_frame)[0]
@@ -190,7 +201,7 @@ def general_link_torque_basis(
     ``tau_j = z_{j-1} · ((R_k (m c)_k + m_k (o_k - o_{j-1})) × ĝ)``.
     """
     n, N = frames.n, frames.origin.shape[-1]
-    g = g_hat[:, None]
+    g = gravity_columns(g_hat)
     out = np.zeros((n, 4 * len(bodies), N))
     for b, k in enumerate(bodies):
         for j in range(k):  # joints 1..k move body k
@@ -203,27 +214,43 @@ def general_link_torque_basis(
     return out
 
 
-class _Adjoint:
-    """Sums of ``H_j ⊗ A`` terms keyed by the first moved frame they need (see below)."""
+class TorqueAdjoint:
+    """The terms of the weighted torque derivatives, keyed by the first moved frame they
+    need (see :func:`torque_adjoint`).
+
+    A term ``[f <= t] (omega · w + vel · v)`` on a joint whose weight row is H (c, N)
+    counts for every twist that moves frames f.. with ``f <= t``. :meth:`sweep` adds the
+    terms up from the last frame down, so one running pair of (c, 3, N) sums serves every
+    first moved frame in turn.
+    """
 
     def __init__(self, n: int, c: int, N: int) -> None:
         self.n = n
-        self.M = np.zeros((n + 2, c, 3, N))
-        self.V = np.zeros((n + 2, c, 3, N))
+        self._shape = (c, 3, N)
+        self._terms: list[list[tuple[Float, Float | None, Float | None]]] = [
+            [] for _ in range(n + 2)
+        ]
 
     def add(self, t: int, H: Float, w: Float | None, v: Float | None = None) -> None:
-        """``d tau = [first <= t] (omega · w + vel · v)`` on a joint whose row is H (c, N)."""
-        if w is not None:
-            self.M[t] += H[:, None, :] * w[None]
-        if v is not None:
-            self.V[t] += H[:, None, :] * v[None]
+        """Record ``[f <= t] (omega · w + vel · v)`` weighted by H (c, N); H, w and v may
+        carry a leading axis of several joints, which is summed."""
+        self._terms[t].append((H, w, v))
 
-    def totals(self) -> tuple[Float, Float]:
-        # M_f = sum over t >= f: a term applies to every twist starting at or before t.
-        for t in range(self.n, -1, -1):
-            self.M[t] += self.M[t + 1]
-            self.V[t] += self.V[t + 1]
-        return self.M, self.V
+    def sweep(self) -> Iterator[tuple[int, Float, Float]]:
+        """``(f, M_f, V_f)`` for f = n + 1, n, ..., 0, such that for every twist moving
+        frames f.. and the load, ``sum_j H_j d tau_j = M_f omega + V_f vel`` ((c, 3, N)
+        each). The arrays are updated in place for the next f."""
+        M, V = np.zeros(self._shape), np.zeros(self._shape)
+        for f in range(self.n + 1, -1, -1):
+            for H, w, v in self._terms[f]:
+                for acc, vec in ((M, w), (V, v)):
+                    if vec is None:
+                        continue
+                    if H.ndim == 3:
+                        acc += np.einsum("jcn,jbn->cbn", H, vec)
+                    else:
+                        acc += H[:, None, :] * vec[None]
+            yield f, M, V
 
 
 def torque_adjoint(
@@ -235,12 +262,12 @@ def torque_adjoint(
     load_scale: Float,
     link: tuple[str, tuple[int, int, int], float, Float] | None = None,
     bodies: tuple[tuple[int, ...], Float] | None = None,
-) -> tuple[Float, Float]:
+) -> TorqueAdjoint:
     """Weighted torque derivatives for any rigid motion of the arm's downstream frames.
 
     A geometric parameter moves the frames ``f .. n`` (and the load point) by an
-    infinitesimal rigid motion ``x -> x + omega × x + vel`` (base frame). This returns
-    ``M, V`` of shape (n + 2, c, 3, N) such that for every such twist
+    infinitesimal rigid motion ``x -> x + omega × x + vel``. :meth:`TorqueAdjoint.sweep`
+    of the result yields ``M_f, V_f`` (c, 3, N) such that for every such twist
 
     .. math:: \\sum_j H_j \\, \\partial\\tau_j = M_f\\,\\omega + V_f\\,v,
 
@@ -253,14 +280,14 @@ def torque_adjoint(
     * axis moved: ``d tau_j = (z_{j-1} × r) · (ĝ × omega)`` (Jacobi identity);
 
     so each is ``[f <= t] (omega · w + vel · v)`` for a threshold t (the frame the term
-    needs moved) and fixed vectors w, v. Summing the terms by threshold once makes the
-    cost per parameter one 3x3 product, not one dot product per joint.
+    needs moved) and fixed vectors w, v. Summing the terms by threshold makes the cost per
+    parameter one 3x3 product, not one dot product per joint.
 
     Parameters
     ----------
     frames : ChainFrames
     p_load : (3, N) load point.
-    g_hat : (3,) unit gravity in the chain base frame.
+    g_hat : (3,) or (3, N) unit gravity in the frame of ``frames``.
     prismatic : (n,) bool.
     H : (n, c, N) weight of each joint's torque.
     load_scale : (N,) payload scale per row (multiplies the load torque).
@@ -269,8 +296,8 @@ def torque_adjoint(
     """
     n = frames.n
     N = p_load.shape[-1]
-    acc = _Adjoint(n, H.shape[1], N)
-    g = g_hat[:, None]
+    acc = TorqueAdjoint(n, H.shape[1], N)
+    g = gravity_columns(g_hat)
     rev = ~np.asarray(prismatic, bool)
     Z = frames.cols[:n, 2]  # (n, 3, N) joint axes
     gz = vcross(g, Z)
@@ -279,20 +306,22 @@ def torque_adjoint(
     HL = H * load_scale
     # Revolute: 'still' always, minus 'still' plus 'moved' once the axis moves.
     # Prismatic (a force along the axis): (omega × z) · ĝ once the axis moves.
-    keep = rev[:, None, None]
-    acc.M[n + 1] += np.einsum("jcn,jbn->cbn", HL[rev], up_w[rev])
-    acc.V[n + 1] += np.einsum("jcn,jbn->cbn", HL[rev], gz[rev])
-    acc.M[:n] += HL[:, :, None] * np.where(keep, down_w - up_w, vcross(Z, g))[:, None]
-    acc.V[:n] -= HL[:, :, None] * np.where(keep, gz, 0.0)[:, None]
+    if rev.any():
+        acc.add(n + 1, HL[rev], up_w[rev], gz[rev])
+    for i in range(n):
+        if rev[i]:
+            acc.add(i, HL[i], down_w[i] - up_w[i], -gz[i])
+        else:
+            acc.add(i, HL[i], vcross(Z[i], g))
     if link is not None:
         _link_terms(acc, frames, g, H, *link)
     if bodies is not None:
         _body_terms(acc, frames, g, rev, H, *bodies)
-    return acc.totals()
+    return acc
 
 
 def _link_terms(
-    acc: _Adjoint,
+    acc: TorqueAdjoint,
     frames: ChainFrames,
     g: Float,
     H: Float,
@@ -332,7 +361,7 @@ def _link_terms(
 
 
 def _body_terms(
-    acc: _Adjoint,
+    acc: TorqueAdjoint,
     frames: ChainFrames,
     g: Float,
     rev: np.ndarray,

@@ -418,8 +418,10 @@ class CalibrationModel:
             bases.append(np.ascontiguousarray(B))
         return dth, bases
 
-    def _link_basis(self, frames: ChainFrames) -> Float:
-        """Link-weight torque per unit of each link parameter, (n, n_link, N)."""
+    def _link_basis(self, frames: ChainFrames, g: Float | None = None) -> Float:
+        """Link-weight torque per unit of each link parameter, (n, n_link, N), for gravity
+        ``g`` in the frame of ``frames`` (default: the model base frame's)."""
+        g = self.g_hat if g is None else g
         parts = []
         if self.spec.link in ("paper", "rfcm"):
             sw = self._sw
@@ -428,7 +430,7 @@ class CalibrationModel:
             parts.append(
                 link_torque_basis(
                     frames,
-                    self.g_hat,
+                    g,
                     sw.shoulder,
                     sw.elbow,
                     sw.wrist_frame,
@@ -439,13 +441,16 @@ class CalibrationModel:
         if self.spec.link_bodies:
             parts.append(
                 general_link_torque_basis(
-                    frames, self.g_hat, self.spec.link_bodies, self._prismatic
+                    frames, g, self.spec.link_bodies, self._prismatic
                 )
             )
         return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
 
-    def _frames(self, theta: Float, rows: Float) -> ChainFrames:
-        """Chain frames for kinematic joint values ``theta`` (n, N)."""
+    def _frames(
+        self, theta: Float, rows: Float, base: tuple[Float, Float] | None = None
+    ) -> ChainFrames:
+        """Chain frames for kinematic joint values ``theta`` (n, N), in the model base
+        frame or in the frame ``base`` places it in (see :func:`chain_frames`)."""
         pr = self._prismatic
         if np.any(pr):
             th = rows[:, _OFF, None] + np.where(pr[:, None], 0.0, theta)
@@ -454,7 +459,7 @@ class CalibrationModel:
             th = rows[:, _OFF, None] + theta
             d = rows[:, _D]
         beta = rows[:, _BETA] if self._has_beta else None
-        return chain_frames(th.T, d, rows[:, _A], rows[:, _ALPHA], beta)
+        return chain_frames(th.T, d, rows[:, _A], rows[:, _ALPHA], beta, base)
 
     def _flange_point(
         self, R_c: Float, t_c: Float, inputs: ModelInputs
@@ -508,8 +513,10 @@ class CalibrationModel:
         Returns
         -------
         ModelOutput
-            The Jacobians are views of parameter-major arrays (each column contiguous, so
-            ``J.reshape(-1, P)`` is a Fortran-ordered matrix, no copy).
+            The Jacobians are views of one parameter-major array of shape (P', c, N):
+            ``J_p.transpose(2, 1, 0)`` gives it back without a copy, every column of every
+            component a contiguous row (what :func:`kinecal.identification.normal_equations`
+            multiplies).
         """
         p = np.asarray(params, dtype=np.float64)
         if p.shape != (self.size,):
@@ -520,6 +527,9 @@ class CalibrationModel:
                 f"q_ctrl must have shape (N, {self.n_joints}) for {self.robot.name}; got {q.shape}."
             )
         # Everything below keeps the pose axis last: vectors are (3, N), see _chain.
+        # Both chains start at the user frame, so every point, axis and Jacobian column
+        # is in the user frame from the start; the torques are frame-invariant with
+        # gravity mapped along.
         spec = self.spec
         N, n = q.shape
         rows = self._rows(p)
@@ -530,57 +540,56 @@ class CalibrationModel:
             theta = theta + dth_c
 
         R_c, t_c = self.cam_frames(p)
+        R_b, t_b = self.base_frames(p)
+        single_s = len(spec.sets) == 1
+        si = inputs.set_index
+        if single_s:
+            base: tuple[Float, Float] = (R_b[0], t_b[0])
+            g = R_b[0] @ self.g_hat
+        else:
+            base = (R_b[si], t_b[si])
+            g = (R_b[si] @ self.g_hat).T  # (3, N): each session sees gravity its way
         tau = link_T = fr0 = p_load = None
         if spec.load:
-            fr0 = self._frames(theta, rows)
+            fr0 = self._frames(theta, rows, base)
             # Load point: origin of the first marker's cam frame (Eq. 19 with Delta = 0).
             p_load = fr0.origin[n] + rotate(fr0.cols[n], t_c[0])
-            tau = load_torques(fr0, p_load, self.g_hat, self._prismatic)
+            tau = load_torques(fr0, p_load, g, self._prismatic)
             tau *= inputs.load_scale
             if self._link_names:
-                link_T = self._link_basis(fr0)
+                link_T = self._link_basis(fr0, g)
                 s = p[self._link_start : self._link_start + len(self._link_names)]
                 tau += np.einsum("jsn,s->jn", link_T, s)  # Eq. (25)
             th = theta + p[self._lam_idx, None] * tau  # Eq. (22), (24), (26)
         else:
             th = theta
-        fr = self._frames(th, rows)
+        fr = self._frames(th, rows, base)
 
-        # Point in the model base frame.
         single_m = len(spec.markers) == 1
         mi = inputs.marker_index
         p_fl, p_cam_fl = self._flange_point(R_c, t_c, inputs)
         R_fl = fr.cols[n]  # (3 columns, 3, N)
-        p_b = fr.origin[n] + rotate(R_fl, p_fl)
-
-        R_b, t_b = self.base_frames(p)
-        single_s = len(spec.sets) == 1
-        si = inputs.set_index
-        if single_s:
-            p_u = R_b[0] @ p_b + t_b[0][:, None]
-        else:
-            p_u = np.einsum("nij,jn->in", R_b[si], p_b) + t_b[si].T
+        p_u = fr.origin[n] + rotate(R_fl, p_fl)
         p_user = np.ascontiguousarray(p_u.T)
 
         R_uc = None
         if orientation:
-            Rb_n = R_b[0] if single_s else R_b[si]
-            Rc_n = R_c[0] if single_m else R_c[mi]
-            R_uc = Rb_n @ fr.R[:, n] @ Rc_n
+            R_uc = fr.R[:, n] @ (R_c[0] if single_m else R_c[mi])
         theta_out = th.T
         if not jacobian:
             return ModelOutput(p_user, R_uc, None, None, theta_out)
 
-        # Columns in the model base frame, position rows 0:3 and rotation rows 3:6.
+        # Columns (user frame), position rows 0:3 and rotation rows 3:6, stored
+        # parameter-major: every column of every component is a contiguous row.
         P = self.size
         c = 6 if orientation else 3
         K = len(self._products) if products else 0
         Jb = np.zeros((P + K, c, N))
         Z = fr.cols[:n, 2]  # (n, 3, N): joint i + 1 turns about z_i
-        rot_cols = vcross(Z, p_b - fr.origin[:n])  # rotation about z_i
+        rot_cols = vcross(Z, p_u - fr.origin[:n])  # rotation about z_i
         G = self._joint_columns(Z, rot_cols, orientation)  # d output / d theta_i
         ax = fr.a_dir
-        alpha_cols = vcross(ax, p_b - fr.origin[1:])
+        alpha_cols = vcross(ax, p_u - fr.origin[1:])
         for i in range(n):
             idx = self._row_idx[i]
             if idx[_OFF] >= 0:
@@ -597,7 +606,7 @@ class CalibrationModel:
                     Jb[idx[_ALPHA], 3:] = ax[i]
             if idx[_BETA] >= 0:
                 y_i = fr.cols[i + 1, 1]
-                Jb[idx[_BETA], :3] = vcross(y_i, p_b - fr.origin[i + 1])
+                Jb[idx[_BETA], :3] = vcross(y_i, p_u - fr.origin[i + 1])
                 if orientation:
                     Jb[idx[_BETA], 3:] = y_i
 
@@ -624,7 +633,7 @@ class CalibrationModel:
         if spec.load:
             assert fr0 is not None and p_load is not None and tau is not None
             H = G * p[self._lam_idx, None, None]  # lambda* d output / d theta
-            self._add_torque_geometry(p, inputs, fr0, p_load, ntm_bases, H, Jb)
+            self._add_torque_geometry(p, inputs, fr0, p_load, g, ntm_bases, H, Jb)
             Jb[self._lam_idx] = G * tau[:, None, :]
             if link_T is not None:
                 sl = slice(self._link_start, self._link_start + len(self._link_names))
@@ -632,42 +641,23 @@ class CalibrationModel:
                 for i, (j, k) in enumerate(self._products[:K]):
                     Jb[P + i] = G[j] * link_T[j, k]
 
-        # Rotate into the user frame, parameter-major (P, N, 3): every column contiguous.
-        J = np.empty((P + K, N, 3))
-        W = np.empty((P + K, N, 3)) if orientation else None
-        for out, part in ((J, Jb[:, :3]), (W, Jb[:, 3:])):
-            if out is None:
-                continue
-            if single_s:
-                np.matmul(part.transpose(0, 2, 1), R_b[0].T, out=out)
-            else:
-                Rn = R_b[si]  # (N, 3, 3)
-                for r in range(3):
-                    out[:, :, r] = (
-                        Rn[:, r, 0] * part[:, 0]
-                        + Rn[:, r, 1] * part[:, 1]
-                        + Rn[:, r, 2] * part[:, 2]
-                    )
-
         # User frame parameters (Eq. 8), per set.
         base_v = p[self._base_idx]
         for k_set in range(len(spec.sets)):
             mask = np.ones(N) if single_s else (si == k_set).astype(np.float64)
             cols = self._base_idx[k_set]
-            J[cols[:3]] = 0.0
             for k in range(3):
-                J[cols[k], :, k] = mask
+                Jb[cols[k], k] = mask
             axes = _euler_axes(self.R_ref_base[k_set], base_v[k_set, 3:])
             rel = (p_u - t_b[k_set][:, None]) * mask
-            J[cols[3:]] = vcross(axes.T[:, :, None], rel).transpose(0, 2, 1)
-            if W is not None:
-                W[cols[:3]] = 0.0
-                W[cols[3:]] = axes.T[:, None, :] * mask[None, :, None]
+            Jb[cols[3:], :3] = vcross(axes.T[:, :, None], rel)
+            if orientation:
+                Jb[cols[3:], 3:] = axes.T[:, :, None] * mask
         return ModelOutput(
             p_user,
             R_uc,
-            J.transpose(1, 2, 0),
-            None if W is None else W.transpose(1, 2, 0),
+            Jb[:, :3].transpose(2, 1, 0),
+            Jb[:, 3:].transpose(2, 1, 0) if orientation else None,
             theta_out,
         )
 
@@ -677,6 +667,7 @@ class CalibrationModel:
         inputs: ModelInputs,
         fr0: ChainFrames,
         p_load: Float,
+        g: Float,
         ntm_bases: list[Float],
         H: Float,
         Jb: Float,
@@ -707,48 +698,39 @@ class CalibrationModel:
             end = self._link_start + len(self._link_names)
             start = end - 4 * len(self.spec.link_bodies)
             bodies = (self.spec.link_bodies, p[start:end])
-        M, V = torque_adjoint(
-            fr0, p_load, self.g_hat, self._prismatic, H, inputs.load_scale, link, bodies
+        adjoint = torque_adjoint(
+            fr0, p_load, g, self._prismatic, H, inputs.load_scale, link, bodies
         )
-
-        def twist(f: int, w: Float | None, v: Float | None) -> Float:
-            """``M_f w + V_f v`` (c, N) for a twist moving frames f.. and the load."""
-            out = 0.0
-            for mat, vec in ((M[f], w), (V[f], v)):
-                if vec is not None:
-                    out = (
-                        out
-                        + mat[:, 0] * vec[0]
-                        + mat[:, 1] * vec[1]
-                        + mat[:, 2] * vec[2]
-                    )
-            return np.asarray(out)
-
         ntm_k = {j: k for k, j in enumerate(self.spec.ntm_joints)}
         nb = len(self._ntm_cols)
-        for i in range(n):
+        for f, M, V in adjoint.sweep():
+            if f == n + 1:  # the load point moves with the first marker's translation
+                Jb[self._cam_idx[0][:3]] += _apply(V, fr0.cols[n])
+                continue
+            if f == 0:
+                break
+            # Row i = f - 1 moves the frames f.. by the twist of each of its parameters.
+            i = f - 1
             idx = self._row_idx[i]
             z, o = fr0.cols[i, 2], fr0.origin[i]
             ax, o1 = fr0.a_dir[i], fr0.origin[i + 1]
-            if idx[_OFF] >= 0 or (i + 1) in ntm_k:  # joint i + 1 turning
-                d_turn = twist(i + 1, z, vcross(o, z))
+            if idx[_OFF] >= 0 or f in ntm_k:  # joint f turning about z_i through o_i
+                d_turn = _apply(M, z) + _apply(V, vcross(o, z))
                 if idx[_OFF] >= 0:
                     Jb[idx[_OFF]] += d_turn
-                if (i + 1) in ntm_k:
-                    k = ntm_k[i + 1]
+                if f in ntm_k:
+                    k = ntm_k[f]
                     sl = slice(self._ntm_start + k * nb, self._ntm_start + (k + 1) * nb)
                     Jb[sl] += d_turn * ntm_bases[k][:, None, :]
             if idx[_D] >= 0:
-                Jb[idx[_D]] += twist(i + 1, None, z)
+                Jb[idx[_D]] += _apply(V, z)
             if idx[_A] >= 0:
-                Jb[idx[_A]] += twist(i + 1, None, ax)
+                Jb[idx[_A]] += _apply(V, ax)
             if idx[_ALPHA] >= 0:
-                Jb[idx[_ALPHA]] += twist(i + 1, ax, vcross(o1, ax))
+                Jb[idx[_ALPHA]] += _apply(M, ax) + _apply(V, vcross(o1, ax))
             if idx[_BETA] >= 0:
                 y = fr0.cols[i + 1, 1]
-                Jb[idx[_BETA]] += twist(i + 1, y, vcross(o1, y))
-        for k in range(3):  # the load point moves with the first marker's translation
-            Jb[self._cam_idx[0][k]] += twist(n + 1, None, fr0.cols[n, k])
+                Jb[idx[_BETA]] += _apply(M, y) + _apply(V, vcross(o1, y))
 
     def flange_frames(
         self, params: ArrayLike, inputs: ModelInputs
@@ -823,6 +805,13 @@ class CalibrationModel:
         ):
             m.R_ref_cam = self.R_ref_cam.copy()
         return m
+
+
+def _apply(M: Float, w: Float) -> Float:
+    """``M w`` per pose for M (c, 3, N): w (3, N) gives (c, N), w (k, 3, N) gives (k, c, N)."""
+    if w.ndim == 2:
+        return np.einsum("cbn,bn->cn", M, w)
+    return np.einsum("cbn,kbn->kcn", M, w)
 
 
 def _euler_axes(R_ref: Float, rwp: Float) -> Float:
