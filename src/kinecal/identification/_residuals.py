@@ -102,7 +102,9 @@ def residuals(
     inv_s = 1.0 / weights.sigma
     if not pose:
         r = e_p * inv_s[:, None]
-        J = None if out.J_p is None else out.J_p * inv_s[:, None, None]
+        J = out.J_p
+        if J is not None:
+            J *= inv_s[:, None, None]  # the model's fresh array: whitened in place
         return ResidualBlock(r, J, e_p, None)
     assert out.R_user_cam is not None and meas.R_user_cam is not None
     assert weights.sigma_rot is not None
@@ -115,10 +117,12 @@ def residuals(
         # R_model -> exp(J_w dx) R_model gives log(exp(w) exp(e_r)) ~ e_r + J_l^-1(e_r) w,
         # and J_l^-1(e_r) = J_r^-1(-e_r).
         J_l_inv = so3_right_jacobian_inv(-e_r)
-        J_rot = J_l_inv @ out.J_w
-        J = np.concatenate(
-            [out.J_p * inv_s[:, None, None], J_rot * inv_sr[:, None, None]], axis=1
-        )
+        # Both parts into one parameter-major array, the model's layout.
+        N, _, P = out.J_p.shape
+        J = np.empty((P, 6, N)).transpose(2, 1, 0)
+        np.multiply(out.J_p, inv_s[:, None, None], out=J[:, :3])
+        np.matmul(J_l_inv, out.J_w, out=J[:, 3:])
+        J[:, 3:] *= inv_sr[:, None, None]
     return ResidualBlock(r, J, e_p, e_r)
 
 
