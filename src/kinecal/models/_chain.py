@@ -30,9 +30,12 @@ def rotate(cols: Float, v: Float) -> Float:
 
 def vcross(a: Float, b: Float) -> Float:
     """Cross product of pose-last vectors ``(..., 3, N)`` (a constant vector is (3, 1))."""
-    a0, a1, a2 = a[..., 0, :], a[..., 1, :], a[..., 2, :]
-    b0, b1, b2 = b[..., 0, :], b[..., 1, :], b[..., 2, :]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-2)
+    out = np.empty(np.broadcast_shapes(np.shape(a), np.shape(b)))
+    for k, (i, j) in enumerate(((1, 2), (2, 0), (0, 1))):
+        o = out[..., k, :]
+        np.multiply(a[..., i, :], b[..., j, :], out=o)
+        o -= a[..., j, :] * b[..., i, :]
+    return out
 
 
 def vdot(a: Float, b: Float) -> Float:
@@ -147,8 +150,13 @@ def chain_frames(
         x += c1 * sti
         v = c1 * cti
         v -= c0 * sti
-        di = d[i] if dT is None else dT[i]
-        o[i + 1] = o[i] + a[i] * x + c2 * di
+        oi = o[i + 1]  # o_i + a x' + d c2
+        np.multiply(x, a[i], out=oi)
+        oi += o[i]
+        if dT is not None:
+            oi += c2 * dT[i]
+        elif d[i] != 0.0:
+            oi += c2 * d[i]
         y, z = R[i + 1, 1], R[i + 1, 2]
         np.multiply(v, ca[i], out=y)
         y += c2 * sa[i]

@@ -218,38 +218,47 @@ class TorqueAdjoint:
     """The terms of the weighted torque derivatives, keyed by the first moved frame they
     need (see :func:`torque_adjoint`).
 
-    A term ``[f <= t] (omega · w + vel · v)`` on a joint whose weight row is H (c, N)
-    counts for every twist that moves frames f.. with ``f <= t``. :meth:`sweep` adds the
-    terms up from the last frame down, so one running pair of (c, 3, N) sums serves every
-    first moved frame in turn.
+    A term ``[f <= t] (omega · w + vel · v)`` on joint j (weight row ``H[j]``, (c, N))
+    counts for every twist that moves frames f.. with ``f <= t``. Terms of the same t and
+    joint are summed as vectors first; :meth:`sweep` then adds the outer products up from
+    the last frame down, so one running pair of (c, 3, N) sums serves every first moved
+    frame in turn.
     """
 
-    def __init__(self, n: int, c: int, N: int) -> None:
-        self.n = n
-        self._shape = (c, 3, N)
-        self._terms: list[list[tuple[Float, Float | None, Float | None]]] = [
-            [] for _ in range(n + 2)
-        ]
+    def __init__(self, H: Float) -> None:
+        self.H = H
+        self.n = H.shape[0]
+        self._vec: dict[tuple[int, int], list[Float | None]] = {}
+        self._batch: list[tuple[int, np.ndarray, Float, Float]] = []
 
-    def add(self, t: int, H: Float, w: Float | None, v: Float | None = None) -> None:
-        """Record ``[f <= t] (omega · w + vel · v)`` weighted by H (c, N); H, w and v may
-        carry a leading axis of several joints, which is summed."""
-        self._terms[t].append((H, w, v))
+    def add(self, t: int, j: int, w: Float | None, v: Float | None = None) -> None:
+        """Record ``[f <= t] (omega · w + vel · v)`` on joint j (0-based)."""
+        entry = self._vec.setdefault((t, j), [None, None])
+        for slot, vec in enumerate((w, v)):
+            if vec is not None:
+                old = entry[slot]
+                entry[slot] = vec if old is None else old + vec
+
+    def add_joints(self, t: int, joints: np.ndarray, w: Float, v: Float) -> None:
+        """The same for several joints at once: w, v (k, 3, N) for ``joints`` (k,)."""
+        self._batch.append((t, joints, w, v))
 
     def sweep(self) -> Iterator[tuple[int, Float, Float]]:
         """``(f, M_f, V_f)`` for f = n + 1, n, ..., 0, such that for every twist moving
         frames f.. and the load, ``sum_j H_j d tau_j = M_f omega + V_f vel`` ((c, 3, N)
         each). The arrays are updated in place for the next f."""
-        M, V = np.zeros(self._shape), np.zeros(self._shape)
+        shape = (self.H.shape[1], 3, self.H.shape[2])
+        M, V = np.zeros(shape), np.zeros(shape)
         for f in range(self.n + 1, -1, -1):
-            for H, w, v in self._terms[f]:
-                for acc, vec in ((M, w), (V, v)):
-                    if vec is None:
-                        continue
-                    if H.ndim == 3:
-                        acc += np.einsum("jcn,jbn->cbn", H, vec)
-                    else:
-                        acc += H[:, None, :] * vec[None]
+            for t, joints, w, v in self._batch:
+                if t == f:
+                    M += np.einsum("jcn,jbn->cbn", self.H[joints], w)
+                    V += np.einsum("jcn,jbn->cbn", self.H[joints], v)
+            for (t, j), vecs in self._vec.items():
+                if t == f:
+                    for acc, vec in zip((M, V), vecs):
+                        if vec is not None:
+                            acc += self.H[j][:, None, :] * vec[None]
             yield f, M, V
 
 
@@ -295,28 +304,29 @@ def torque_adjoint(
     bodies : (body numbers, coefficients (4 per body)) of the general link terms, or None.
     """
     n = frames.n
-    N = p_load.shape[-1]
-    acc = TorqueAdjoint(n, H.shape[1], N)
+    acc = TorqueAdjoint(H)
     g = gravity_columns(g_hat)
     rev = ~np.asarray(prismatic, bool)
     Z = frames.cols[:n, 2]  # (n, 3, N) joint axes
-    gz = vcross(g, Z)
+    # The payload scale of each row multiplies the load terms' vectors (it is a scalar
+    # per pose), so that every term of a joint shares the weight H_j.
+    gz = vcross(g, Z) * load_scale
     up_w = vcross(p_load, gz)  # axis still: (omega × p + vel) · (ĝ × z)
     down_w = vcross(vcross(Z, p_load - frames.origin[:n]), g)  # axis moved
-    HL = H * load_scale
+    down_w *= load_scale
     # Revolute: 'still' always, minus 'still' plus 'moved' once the axis moves.
     # Prismatic (a force along the axis): (omega × z) · ĝ once the axis moves.
     if rev.any():
-        acc.add(n + 1, HL[rev], up_w[rev], gz[rev])
+        acc.add_joints(n + 1, np.flatnonzero(rev), up_w[rev], gz[rev])
     for i in range(n):
         if rev[i]:
-            acc.add(i, HL[i], down_w[i] - up_w[i], -gz[i])
+            acc.add(i, i, down_w[i] - up_w[i], -gz[i])
         else:
-            acc.add(i, HL[i], vcross(Z[i], g))
+            acc.add(i, i, vcross(Z[i], g) * load_scale)
     if link is not None:
-        _link_terms(acc, frames, g, H, *link)
+        _link_terms(acc, frames, g, *link)
     if bodies is not None:
-        _body_terms(acc, frames, g, rev, H, *bodies)
+        _body_terms(acc, frames, g, rev, *bodies)
     return acc
 
 
@@ -324,7 +334,6 @@ def _link_terms(
     acc: TorqueAdjoint,
     frames: ChainFrames,
     g: Float,
-    H: Float,
     model: str,
     joints: tuple[int, int, int],
     x_sign: float,
@@ -343,21 +352,21 @@ def _link_terms(
     # wrist centre moved) as du = P_z P_u d(o_wf) / |w_p|, P the projections.
     t_free = min(el - 1, wf)
 
-    def du_terms(Hj: Float, scale: float, v: Float) -> None:
-        """``scale · du · v``."""
-        acc.add(el - 1, Hj, scale * vcross(u_hat, v))
+    def du_terms(j: int, scale: float, v: Float) -> None:
+        """``scale · du · v`` on joint j."""
+        acc.add(el - 1, j, scale * vcross(u_hat, v))
         pv = v - vdot(v, u_hat) * u_hat
         pv = (pv - vdot(pv, z_el) * z_el) / norm
         w, vv = scale * vcross(o_wf, pv), scale * pv
-        acc.add(wf, Hj, w, vv)  # [moved wf] - [moved el - 1 and wf]
-        acc.add(t_free, Hj, -w, -vv)
+        acc.add(wf, j, w, vv)  # [moved wf] - [moved el - 1 and wf]
+        acc.add(t_free, j, -w, -vv)
 
-    H_sh, H_el = H[sh - 1], H[el - 1]
-    acc.add(sh - 1, H_sh, vcross(z_sh, s_x * vcross(x_hat, g) + s_u_sh * ug))
-    acc.add(sh, H_sh, s_x * vcross(x_hat, vcross(g, z_sh)))
-    du_terms(H_sh, s_u_sh, vcross(g, z_sh))
-    acc.add(el - 1, H_el, s_u_el * vcross(z_el, ug))
-    du_terms(H_el, s_u_el, vcross(g, z_el))
+    j_sh, j_el = sh - 1, el - 1
+    acc.add(sh - 1, j_sh, vcross(z_sh, s_x * vcross(x_hat, g) + s_u_sh * ug))
+    acc.add(sh, j_sh, s_x * vcross(x_hat, vcross(g, z_sh)))
+    du_terms(j_sh, s_u_sh, vcross(g, z_sh))
+    acc.add(el - 1, j_el, s_u_el * vcross(z_el, ug))
+    du_terms(j_el, s_u_el, vcross(g, z_el))
 
 
 def _body_terms(
@@ -365,7 +374,6 @@ def _body_terms(
     frames: ChainFrames,
     g: Float,
     rev: np.ndarray,
-    H: Float,
     bodies: tuple[int, ...],
     coef: Float,
 ) -> None:
@@ -375,13 +383,13 @@ def _body_terms(
         Mk = rotate(frames.cols[k], mc)  # first moment, base frame
         ok = frames.origin[k]
         for j in range(k):
-            z, Hj = frames.z(j), H[j]
+            z = frames.z(j)
             if not rev[j]:  # (omega × z) · ĝ m
-                acc.add(j, Hj, m * vcross(z, g))
+                acc.add(j, j, m * vcross(z, g))
                 continue
             oj = frames.origin[j]
             gz = vcross(g, z)
             lever = Mk + m * (ok - oj)
             # the axis turns; the lever's ends move with frames k and j
-            acc.add(j, Hj, vcross(z, vcross(lever, g)) - m * vcross(oj, gz), -m * gz)
-            acc.add(k, Hj, vcross(Mk + m * ok, gz), m * gz)
+            acc.add(j, j, vcross(z, vcross(lever, g)) - m * vcross(oj, gz), -m * gz)
+            acc.add(k, j, vcross(Mk + m * ok, gz), m * gz)
