@@ -40,48 +40,75 @@ class SphereFit:
         return int(self.inliers.size - self.n)
 
 
-def _algebraic(P: Float) -> tuple[Float, float]:
-    """Kasa's fit ``|p|^2 = 2 c·p + (R^2 - |c|^2)`` by normal equations (``P`` centred
-    and scaled to unit RMS, so the 4x4 system is well conditioned)."""
-    A = np.empty((P.shape[0], 4))
-    A[:, :3] = 2.0 * P
-    A[:, 3] = 1.0
-    rhs = np.einsum("ij,ij->i", P, P)
-    sol = np.linalg.solve(A.T @ A, A.T @ rhs)
+# Internally the points are pose-last, ``(3, N)``: every operation runs over contiguous
+# rows of N numbers.
+
+
+def _gram(X: Float) -> Float:
+    """``X Xᵀ`` for a few long rows X (k, N) by dot products of rows (BLAS's matrix
+    product is several times slower for a 3x3 or 4x4 result)."""
+    k = X.shape[0]
+    G = np.empty((k, k))
+    for i in range(k):
+        for j in range(i, k):
+            G[i, j] = G[j, i] = X[i] @ X[j]
+    return G
+
+
+def _algebraic(Q: Float) -> tuple[Float, float]:
+    """Kasa's fit ``|p|^2 = 2 c·p + (R^2 - |c|^2)`` by normal equations (``Q`` (3, N)
+    centred and scaled to unit RMS, so the 4x4 system is well conditioned)."""
+    A = np.empty((4, Q.shape[1]))
+    A[:3] = 2.0 * Q
+    A[3] = 1.0
+    rhs = Q[0] * Q[0] + Q[1] * Q[1] + Q[2] * Q[2]
+    sol = np.linalg.solve(_gram(A), A @ rhs)
     c = sol[:3]
     r2 = sol[3] + c @ c
     return c, float(np.sqrt(max(r2, 0.0)))
 
 
 def _normal(u: Float, r: Float, npar: int) -> tuple[Float, Float]:
-    """``JᵀJ`` and ``Jᵀr`` for ``J = [-u, -1]`` without forming ``J``."""
+    """``JᵀJ`` and ``Jᵀr`` for ``J = [-uᵀ, -1]`` (u the (3, N) unit directions) without
+    forming ``J``."""
     JtJ = np.empty((npar, npar))
-    JtJ[:3, :3] = u.T @ u
+    JtJ[:3, :3] = _gram(u)
     g = np.empty(npar)
-    g[:3] = -(r @ u)
+    g[:3] = -(u @ r)
     if npar == 4:
-        su = u.sum(axis=0)
+        su = u.sum(axis=1)
         JtJ[:3, 3] = JtJ[3, :3] = su
-        JtJ[3, 3] = u.shape[0]
+        JtJ[3, 3] = u.shape[1]
         g[3] = -r.sum()
     return JtJ, g
 
 
+def _columns(Q: Float, keep: np.ndarray) -> Float:
+    """The points ``keep`` selects, with contiguous rows (a boolean index on the last
+    axis alone would give strided ones)."""
+    return np.ascontiguousarray(Q[:, keep])
+
+
+def _distances(Q: Float, c: Float) -> tuple[Float, Float]:
+    """Distances (N,) of the points Q (3, N) from c, and the offsets Q - c (3, N)."""
+    d = Q - c[:, None]
+    return np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]), d
+
+
 def _geometric(
-    P: Float, c: Float, R: float, fixed_radius: float | None, max_iter: int = 50
+    Q: Float, c: Float, R: float, fixed_radius: float | None, max_iter: int = 50
 ) -> tuple[Float, float, Float, int]:
     """Gauss-Newton with Levenberg damping on the orthogonal distances.
 
-    ``P`` is in normalised units (unit RMS about its mean): a step below 1e-7 of that
-    is far under any measurable change, so it ends the iteration.
+    ``Q`` (3, N) is in normalised units (unit RMS about its mean): a step below 1e-7 of
+    that is far under any measurable change, so it ends the iteration.
     """
     npar = 3 if fixed_radius is not None else 4
     x = np.append(c, R if fixed_radius is None else fixed_radius)
 
     def resid(xx: Float) -> tuple[Float, Float]:
-        d = P - xx[:3]
-        dist = np.sqrt(np.einsum("ij,ij->i", d, d))
-        d /= np.maximum(dist, 1e-300)[:, None]
+        dist, d = _distances(Q, xx[:3])
+        d /= np.maximum(dist, 1e-300)
         return dist - xx[3], d
 
     r, u = resid(x)
@@ -110,11 +137,6 @@ def _geometric(
     return x[:3], float(x[3]), JtJ, it
 
 
-def _distances(Q: Float, c: Float) -> Float:
-    d = Q - c
-    return np.sqrt(np.einsum("ij,ij->i", d, d))
-
-
 def _rounds(
     Q: Float,
     c: Float,
@@ -126,20 +148,20 @@ def _rounds(
     inl: np.ndarray | None = None,
 ) -> tuple[Float, float, Float, np.ndarray, int]:
     """Geometric fits alternating with MAD outlier rejection until the inliers settle."""
-    inl = np.ones(Q.shape[0], bool) if inl is None else inl
+    inl = np.ones(Q.shape[1], bool) if inl is None else inl
     iters = 0
     JtJ = np.eye(3 if fixed is not None else 4)
     for _ in range(max_rounds):
-        c, R, JtJ, it = _geometric(Q if inl.all() else Q[inl], c, R, fixed)
+        c, R, JtJ, it = _geometric(Q if inl.all() else _columns(Q, inl), c, R, fixed)
         iters += it
         if outlier_k is None:
             break
-        d = _distances(Q, c) - R
+        d = _distances(Q, c)[0] - R
         sig = 1.4826 * float(np.median(np.abs(d[inl] - np.median(d[inl]))))
         new = np.abs(d) <= outlier_k * max(sig, 1e-12)
         if new.sum() < max(min_points, 4):
             raise DataError(
-                f"fit_sphere: only {int(new.sum())} of {Q.shape[0]} points lie on one sphere"
+                f"fit_sphere: only {int(new.sum())} of {Q.shape[1]} points lie on one sphere"
             )
         if np.array_equal(new, inl):
             break
@@ -165,9 +187,8 @@ def fit_sphere(
     P = np.asarray(points, dtype=float)
     if P.ndim != 2 or P.shape[1] != 3:
         raise DataError(f"fit_sphere: points must be (N, 3), got {P.shape}")
-    finite = np.all(np.isfinite(P), axis=1)
-    if not np.all(finite):
-        bad = int(np.flatnonzero(~finite)[0])
+    if not np.isfinite(P).all():
+        bad = int(np.flatnonzero(~np.isfinite(P).all(axis=1))[0])
         raise DataError(f"fit_sphere: point {bad} is not finite")
     if P.shape[0] < max(min_points, 4):
         raise DataError(
@@ -175,24 +196,25 @@ def fit_sphere(
         )
     if radius is not None and not radius > 0:
         raise DataError(f"fit_sphere: radius must be positive, got {radius}")
-    origin = P.mean(axis=0)
-    Q = P - origin
-    scale = float(np.sqrt(np.mean(np.einsum("ij,ij->i", Q, Q)))) or 1.0
-    Q = Q / scale
+    Q = np.array(P.T, order="C")  # (3, N), contiguous rows
+    origin = Q.mean(axis=1)
+    Q -= origin[:, None]
+    scale = float(np.sqrt(np.mean(Q[0] * Q[0] + Q[1] * Q[1] + Q[2] * Q[2]))) or 1.0
+    Q /= scale
     fixed = None if radius is None else radius / scale
     # Large clouds: the whole robust fit first runs on an evenly strided subset of about
     # 10k points; its sphere and noise level classify every point, and the final rounds
     # (which decide the result) use all points from there.
     stride = max(1, P.shape[0] // 10_000)
-    c, R = _algebraic(Q[::stride])
+    Qs = np.ascontiguousarray(Q[:, ::stride])
+    c, R = _algebraic(Qs)
     inl = np.ones(P.shape[0], bool)
     iters = 0
     if stride > 1:
-        Qs = Q[::stride]
         c, R, _, inl_s, it = _rounds(Qs, c, R, fixed, outlier_k, max_rounds, min_points)
         iters += it
         if outlier_k is not None:
-            d = _distances(Q, c) - R
+            d = _distances(Q, c)[0] - R
             ds = d[::stride][inl_s]
             sig = 1.4826 * float(np.median(np.abs(ds - np.median(ds))))
             inl = np.abs(d) <= outlier_k * max(sig, 1e-12)
@@ -204,7 +226,7 @@ def fit_sphere(
     c, R, JtJ, inl, it = _rounds(Q, c, R, fixed, outlier_k, max_rounds, min_points, inl)
     iters += it
     npar = JtJ.shape[0]
-    d_in = _distances(Q[inl], c) - R
+    d_in = _distances(_columns(Q, inl), c)[0] - R
     n = int(inl.sum())
     rms = float(np.sqrt(np.mean(d_in**2)))
     s2 = float(d_in @ d_in) / max(n - npar, 1)
