@@ -232,7 +232,13 @@ class TorqueAdjoint:
         self._batch: list[tuple[int, np.ndarray, Float, Float]] = []
 
     def add(self, t: int, j: int, w: Float | None, v: Float | None = None) -> None:
-        """Record ``[f <= t] (omega · w + vel · v)`` on joint j (0-based)."""
+        """Record ``[f <= t] (omega · w + vel · v)`` on joint j (0-based).
+
+        Terms with t = 0 are dropped: no geometric parameter moves frame 0 relative to
+        gravity (the user frame carries gravity along), so no twist has f = 0.
+        """
+        if t < 1:
+            return
         entry = self._vec.setdefault((t, j), [None, None])
         for slot, vec in enumerate((w, v)):
             if vec is not None:
@@ -244,12 +250,12 @@ class TorqueAdjoint:
         self._batch.append((t, joints, w, v))
 
     def sweep(self) -> Iterator[tuple[int, Float, Float]]:
-        """``(f, M_f, V_f)`` for f = n + 1, n, ..., 0, such that for every twist moving
+        """``(f, M_f, V_f)`` for f = n + 1, n, ..., 1, such that for every twist moving
         frames f.. and the load, ``sum_j H_j d tau_j = M_f omega + V_f vel`` ((c, 3, N)
         each). The arrays are updated in place for the next f."""
         shape = (self.H.shape[1], 3, self.H.shape[2])
         M, V = np.zeros(shape), np.zeros(shape)
-        for f in range(self.n + 1, -1, -1):
+        for f in range(self.n + 1, 0, -1):
             for t, joints, w, v in self._batch:
                 if t == f:
                     M += np.einsum("jcn,jbn->cbn", self.H[joints], w)

@@ -707,8 +707,6 @@ class CalibrationModel:
             if f == n + 1:  # the load point moves with the first marker's translation
                 Jb[self._cam_idx[0][:3]] += _apply(V, fr0.cols[n])
                 continue
-            if f == 0:
-                break
             # Row i = f - 1 moves the frames f.. by the twist of each of its parameters.
             i = f - 1
             idx = self._row_idx[i]
