@@ -88,15 +88,15 @@ def import_urdf(
     couplings, gravity, the link self-weight layout or priors.
     """
     import numpy as np
-    import yaml
 
+    from kinecal import _yaml as yaml
     from kinecal.io import atomic_write_text
     from kinecal.robot import dump_robot, robot_from_dict, robot_from_urdf
 
     robot = robot_from_urdf(urdf, base=base, tip=tip, name=name)
     doc = dump_robot(robot)
     # Check the written document: it must load and give the same flange poses.
-    again = robot_from_dict(yaml.safe_load(yaml.safe_dump(doc)), source=out)
+    again = robot_from_dict(yaml.load(yaml.dump(doc)), source=out)
     q = np.random.default_rng(0).uniform(-1.0, 1.0, (16, robot.n_joints))
     err = float(np.abs(again.fk_flange(q) - robot.fk_flange(q)).max())
     if err > 1e-9:  # pragma: no cover - a defect, not a user error
@@ -104,5 +104,5 @@ def import_urdf(
             f"import-urdf: the YAML does not reproduce the URDF ({err})."
         )
     header = f"# Imported from {urdf} by kinecal import-urdf ({robot.source}).\n"
-    atomic_write_text(out, header + yaml.safe_dump(doc, sort_keys=False), force=force)
+    atomic_write_text(out, header + yaml.dump(doc, sort_keys=False), force=force)
     click.echo(f"{robot.name}: {robot.n_joints} joints -> {out}")

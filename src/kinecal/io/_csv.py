@@ -69,6 +69,12 @@ class Table:
     def numbers(self, name: str) -> np.ndarray:
         """Column as floats; any non-number or non-finite value is an error."""
         k = self.header.index(name)
+        try:  # the whole column at once; cell by cell only to locate a bad value
+            out = np.array([row[k] for row in self.rows], dtype=np.float64)
+            if np.isfinite(out).all():
+                return out
+        except ValueError:
+            pass
         out = np.empty(len(self.rows))
         for i, (row, line) in enumerate(zip(self.rows, self.lines)):
             s = row[k].strip()

@@ -12,8 +12,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
+from kinecal import _yaml as yaml
 from kinecal._version import __version__
 from kinecal.errors import ConfigError
 from kinecal.geometry import euler_zyx_to_matrix, matrix_to_euler_zyx
@@ -94,7 +94,7 @@ def save_model(path: str | Path, cal: CalibratedModel, *, force: bool = False) -
     """Write ``model.yaml`` atomically; refuse to overwrite unless ``force``."""
     doc = model_to_dict(cal)
     text = "# kinecal calibrated model: parameters in mm, deg, rad/m; std = 1 sigma\n"
-    text += yaml.safe_dump(_plain(doc), sort_keys=False, allow_unicode=True, width=100)
+    text += yaml.dump(_plain(doc), sort_keys=False, allow_unicode=True, width=100)
     return atomic_write_text(path, text, force=force)
 
 
@@ -119,7 +119,7 @@ def load_model(path: str | Path) -> CalibratedModel:
     """
     p = Path(path)
     try:
-        doc = yaml.safe_load(p.read_text(encoding="utf-8"))
+        doc = yaml.load(p.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise ConfigError(f"{p}: model file not found.") from None
     except yaml.YAMLError as exc:

@@ -6,8 +6,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import yaml
 
+from kinecal import _yaml as yaml
 from kinecal.errors import ConfigError, DataError
 from kinecal.io._csv import read_table
 from kinecal.io._files import atomic_write_bytes, atomic_write_text
@@ -151,7 +151,7 @@ def save_sensor(
         doc.update(sensor.to_dict())
     if info:
         doc["calibration"] = info
-    return atomic_write_text(path, yaml.safe_dump(doc, sort_keys=False), force=force)
+    return atomic_write_text(path, yaml.dump(doc, sort_keys=False), force=force)
 
 
 def load_sensor(path: str | Path, *, need_planes: bool = True) -> Sensor | Camera:
@@ -160,7 +160,7 @@ def load_sensor(path: str | Path, *, need_planes: bool = True) -> Sensor | Camer
 
     p = Path(path)
     try:
-        doc = yaml.safe_load(p.read_text(encoding="utf-8"))
+        doc = yaml.load(p.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise DataError(f"{p}: file not found.") from None
     except yaml.YAMLError as exc:

@@ -6,8 +6,7 @@ from functools import cache
 from importlib import resources
 from pathlib import Path
 
-import yaml
-
+from kinecal import _yaml as yaml
 from kinecal.errors import ConfigError
 from kinecal.robot._description import RobotDescription
 from kinecal.robot._schema import load_robot_file, robot_from_dict
@@ -24,7 +23,7 @@ def builtin_robot_names() -> list[str]:
 @cache
 def _load_builtin(name: str) -> RobotDescription:
     res = resources.files("kinecal.robot") / "data" / f"{name}.yaml"
-    return robot_from_dict(yaml.safe_load(res.read_text(encoding="utf-8")), source=name)
+    return robot_from_dict(yaml.load(res.read_text(encoding="utf-8")), source=name)
 
 
 def load_robot(name_or_path: str | Path) -> RobotDescription:

@@ -28,8 +28,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
+from kinecal import _yaml as yaml
 from kinecal.errors import ConfigError
 from kinecal.geometry import euler_transform, transform_to_euler
 from kinecal.robot._description import JointSpec, RobotDescription, SelfWeightSpec
@@ -307,7 +307,7 @@ def load_robot_file(path: str | Path) -> RobotDescription:
     except OSError as exc:
         raise ConfigError(f"{p}: cannot read robot file ({exc.strerror}).") from exc
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text)
     except yaml.YAMLError as exc:
         raise ConfigError(f"{p}: not valid YAML ({exc}).".replace("\n", " ")) from exc
     if data is None:
