@@ -30,7 +30,13 @@ from kinecal.identification._identifiability import (
     priority_order,
 )
 from kinecal.identification._init import initial_frames
-from kinecal.identification._lm import LMOptions, LMResult, solve_fixed_step, solve_lm
+from kinecal.identification._lm import (
+    LMOptions,
+    LMResult,
+    normal_equations,
+    solve_fixed_step,
+    solve_lm,
+)
 from kinecal.identification._measurements import KINDS, Measurements
 from kinecal.identification._metrics import Metrics, metrics_from_errors
 from kinecal.identification._residuals import ResidualBlock, Weights, residuals
@@ -73,6 +79,7 @@ __all__ = [
     "initial_frames",
     "kfold_indices",
     "metrics_from_errors",
+    "normal_equations",
     "priority_order",
     "refit",
     "registered_model",
