@@ -319,14 +319,18 @@ def solve_lm(
             np.linalg.norm(x[fidx] / s) + opts.xtol
         )
         x, r, cost, w = x_new, r_new, cost_new, w_new
-        s0sq = 2.0 * cost / max(r.size - fidx.size, 1)
-        if dcost <= opts.ftol * cost:
-            status = "ftol"
-        elif step_small:
-            status = "xtol"
-        elif dcost <= opts.stol * s0sq:
-            status = "stol"
-        if status in ("ftol", "xtol", "stol"):
+        s0sq = 2.0 * cost / max(r.size - fidx.size, 1)  # variance of unit weight
+        converged = (
+            "ftol"
+            if dcost <= opts.ftol * cost
+            else "xtol"
+            if step_small
+            else "stol"
+            if dcost <= opts.stol * s0sq
+            else None
+        )
+        if converged is not None:
+            status = converged
             message = f"{label}: converged ({status}) after {it} iterations"
             success = True
             r, J1 = fun(x, True)

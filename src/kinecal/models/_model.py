@@ -461,6 +461,16 @@ class CalibrationModel:
         beta = rows[:, _BETA] if self._has_beta else None
         return chain_frames(th.T, d, rows[:, _A], rows[:, _ALPHA], beta, base)
 
+    def _user_base(
+        self, R_b: Float, t_b: Float, set_index: np.ndarray
+    ) -> tuple[tuple[Float, Float], Float]:
+        """Where the chain starts in the user frame (for :meth:`_frames`) and gravity
+        there: one frame and (3,) for a single set, per pose and (3, N) for several."""
+        if len(self.spec.sets) == 1:
+            return (R_b[0], t_b[0]), R_b[0] @ self.g_hat
+        R = R_b[set_index]
+        return (R, t_b[set_index]), (R @ self.g_hat).T
+
     def _flange_point(
         self, R_c: Float, t_c: Float, inputs: ModelInputs
     ) -> tuple[Float, Float]:
@@ -543,12 +553,7 @@ class CalibrationModel:
         R_b, t_b = self.base_frames(p)
         single_s = len(spec.sets) == 1
         si = inputs.set_index
-        if single_s:
-            base: tuple[Float, Float] = (R_b[0], t_b[0])
-            g = R_b[0] @ self.g_hat
-        else:
-            base = (R_b[si], t_b[si])
-            g = (R_b[si] @ self.g_hat).T  # (3, N): each session sees gravity its way
+        base, g = self._user_base(R_b, t_b, si)
         tau = link_T = fr0 = p_load = None
         if spec.load:
             fr0 = self._frames(theta, rows, base)
@@ -638,8 +643,9 @@ class CalibrationModel:
             if link_T is not None:
                 sl = slice(self._link_start, self._link_start + len(self._link_names))
                 Jb[sl] = np.einsum("jcn,jsn->scn", H, link_T)
-                for i, (j, k) in enumerate(self._products[:K]):
-                    Jb[P + i] = G[j] * link_T[j, k]
+                if products:
+                    for i, (j, k) in enumerate(self._products):
+                        Jb[P + i] = G[j] * link_T[j, k]
 
         # User frame parameters (Eq. 8), per set.
         base_v = p[self._base_idx]
@@ -780,17 +786,15 @@ class CalibrationModel:
         """
         p = np.asarray(params, dtype=np.float64)
         out = self.evaluate(p, inputs)
-        fr = self._frames(out.theta.T, self._rows(p))
+        base, _ = self._user_base(*self.base_frames(p), inputs.set_index)
+        fr = self._frames(out.theta.T, self._rows(p), base)  # in the user frame
         n = self.n_joints
         R_c, t_c = self.cam_frames(p)
         p_fl, _ = self._flange_point(R_c, t_c, inputs)
-        p_b = fr.origin[n] + rotate(fr.cols[n], p_fl)
+        p_u = fr.origin[n] + rotate(fr.cols[n], p_fl)
         Z = fr.cols[:n, 2]
-        G = self._joint_columns(Z, vcross(Z, p_b - fr.origin[:n]), True)
-        R_b, _ = self.base_frames(p)
-        Rb = R_b[inputs.set_index] if len(self.spec.sets) > 1 else R_b[0]
-        J = G.transpose(2, 1, 0)  # (N, 6, n)
-        return np.concatenate([Rb @ J[:, :3], Rb @ J[:, 3:]], axis=1)
+        G = self._joint_columns(Z, vcross(Z, p_u - fr.origin[:n]), True)
+        return np.ascontiguousarray(G.transpose(2, 1, 0))  # (N, 6, n)
 
     def with_spec(self, spec: ModelSpec) -> CalibrationModel:
         """A model of the same robot with other terms (reference rotations are kept)."""

@@ -1,0 +1,42 @@
+"""The Levenberg-Marquardt solver's statistical stop."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinecal.identification import LMOptions, solve_lm
+
+
+def _noisy_rosenbrock(rng, m=400):
+    """Rosenbrock's curved valley as two residuals among m - 2 of unit noise (whitened
+    data: the a-posteriori variance of unit weight is about 1)."""
+    noise = rng.normal(size=m - 2)
+
+    def fun(x, jac):
+        r = np.concatenate([[10.0 * (x[1] - x[0] ** 2), 1.0 - x[0]], noise])[:, None]
+        if not jac:
+            return r, None
+        J = np.zeros((m, 1, 2))
+        J[0, 0] = [-20.0 * x[0], 10.0]
+        J[1, 0] = [-1.0, 0.0]
+        return r, J
+
+    return fun
+
+
+def test_statistical_stop_lands_within_a_small_fraction_of_a_sigma(rng):
+    fun = _noisy_rosenbrock(rng)
+    x0, free, scales = np.array([-1.2, 1.0]), np.ones(2, bool), np.ones(2)
+    exact = solve_lm(fun, x0, free, scales, LMOptions(max_iter=500))
+    stat = solve_lm(fun, x0, free, scales, LMOptions(max_iter=500, stol=1e-4))
+    assert exact.success and stat.success
+    assert stat.status == "stol" and stat.n_iter < exact.n_iter
+    # The rule as documented: the last accepted step lowered the cost by at most
+    # stol times the variance of unit weight.
+    last = stat.log[-1]
+    s0sq = 2.0 * stat.cost / (stat.residual.size - 2)
+    assert last["cost"] - last["cost_new"] <= 1e-4 * s0sq
+    # ... and the estimate is within a few percent of its standard deviation.
+    cov = s0sq * np.linalg.inv(exact.normal_matrix)
+    z = (stat.x - exact.x) / np.sqrt(np.diag(cov))
+    assert np.abs(z).max() < 0.05, z
