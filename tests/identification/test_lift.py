@@ -40,15 +40,24 @@ def test_product_sigma_is_the_standard_deviation_of_a_product(rng):
     assert _product_sigma(0.0, np.inf, 1.0, 1.0) == np.inf
 
 
-@pytest.fixture(scope="module")
-def valley(exp2_exact):
-    """The full model on 1500 experiment-2 poses (all seven tool orientations), started
-    where stage 3 starts: the kinematic and transmission parameters have absorbed the link
-    weight, lambda* = s = 0."""
+LINK_MODELS = {
+    "full": "full",  # s2 shared by the shoulder and the elbow: 3 products
+    "rfcm": "rfcm",  # three moments, one joint each
+    "general": ModelSpec(  # mass and first moment of two bodies: 20 products
+        ntm_joints=(1, 2, 3), load=True, link="general", link_bodies=(2, 3)
+    ),
+}
+
+
+@pytest.fixture(scope="module", params=sorted(LINK_MODELS))
+def valley(request, exp2_exact):
+    """A model with link weight on 1500 experiment-2 poses (all seven tool orientations),
+    started where stage 3 starts: the kinematic and transmission parameters have absorbed
+    the link weight, lambda* = s = 0."""
     e = exp2_exact
     robot = e.truth.robot
     meas = e.test.subset(np.random.default_rng(0).permutation(e.test.n)[:1500])
-    res = calibrate(robot, meas, "full")
+    res = calibrate(robot, meas, LINK_MODELS[request.param])
     ntm = calibrate(robot, meas, "ntm")
     cm = res.model
     start = cm.layout.transfer(ntm.params, ntm.model.layout)
@@ -69,16 +78,12 @@ def valley(exp2_exact):
 
 def test_lifted_start_lands_next_to_the_optimum(valley):
     cm, fun, start, free, res, plain, lm = valley
-    assert len(cm.link_products) == 3  # lambda2 s1, lambda2 s2, lambda3 s2
+    assert len(cm.link_products) in (3, 20)
     r, J = fun(start, True, products=True)
     x1, _ = lifted_start(cm, start, r, J, free, res.prior)
-    f = np.flatnonzero(free)
-    off0 = np.abs(start - plain.x)[f] / res.std[f]
-    off1 = np.abs(x1 - plain.x)[f] / res.std[f]
-    assert off0.max() > 5.0  # the start is far off in the valley...
-    assert off1.max() < 0.2, dict(zip(np.array(cm.layout.names)[f], off1.round(2)))
-    # ... and from the lifted start a warm LM converges in a few iterations to the
-    # optimum plain LM needs many more for.
+    # From the lifted start a warm LM converges in a few iterations, never to a higher
+    # objective than plain LM from the same start reaches in many more: with rfcm's
+    # one-joint moments plain LM settles in a poorer basin (objective +52 here).
     warm = solve_lm(
         fun, x1, free, cm.layout.scales, replace(lm, mu0=1e-6), prior=res.prior
     )
@@ -86,8 +91,12 @@ def test_lifted_start_lands_next_to_the_optimum(valley):
         warm.n_iter,
         plain.n_iter,
     )
-    assert np.max(np.abs(warm.x - plain.x)[f] / res.std[f]) < 0.05
     assert warm.cost <= plain.cost + 1e-3  # both stop within ~1 % of a sigma
+    f = np.flatnonzero(free)
+    off0 = np.abs(start - warm.x)[f] / res.std[f]
+    off1 = np.abs(x1 - warm.x)[f] / res.std[f]
+    assert off0.max() > 5.0  # the start is far off in the valley, the lift next to it
+    assert off1.max() < 0.2, dict(zip(np.array(cm.layout.names)[f], off1.round(2)))
 
 
 def test_calibration_stage_3_takes_a_few_iterations(valley):
