@@ -444,7 +444,8 @@ def calibrate(
         cost0, drho = objective(blk.r, lm)
         sw = None if lm.loss == "linear" else np.sqrt(drho)
         x1, _ = lifted_start(cm, x0, blk.r, blk.J, free, prior, sw)
-        cost1 = objective(ev(cm, x1, w).r, lm)[0]
+        # With the Jacobian the stage's LM starts with (served from the cache then).
+        cost1 = objective(ev(cm, x1, w, jacobian=True, products=True).r, lm)[0]
         if prior is not None:
             cost0, cost1 = cost0 + prior.cost(x0), cost1 + prior.cost(x1)
         return x1 if cost1 <= cost0 else x0
@@ -465,7 +466,7 @@ def calibrate(
         if lifted:
             x0 = lift(x0, free, lm, w, prior)
             lm = replace(lm, mu0=_MU0_WARM)
-        res = solve_lm(
+        res = solve_lm(  # a lifted stage's Jacobians carry the product columns
             make_fun(cm, w, lifted),
             x0,
             free,

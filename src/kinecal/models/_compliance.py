@@ -143,10 +143,9 @@ def link_torque_basis(
     (_, c_x), (_, c_u_sh), (_, c_u_el) = link_torque_pattern(model, shoulder, elbow)
     out = np.zeros((frames.n, 2 if model == "paper" else 3, z_sh.shape[-1]))
     # tau = z . (M x g) for a unit moment along each direction
-    out[shoulder - 1, c_x] = vdot(z_sh, vcross(x_hat, g))  # Table 1: s1 on the shoulder
-    out[shoulder - 1, c_u_sh] = vdot(
-        z_sh, vcross(u_hat, g)
-    )  # Table 1: s2 on the shoulder
+    # Table 1: s1 and s2 on the shoulder
+    out[shoulder - 1, c_x] = vdot(z_sh, vcross(x_hat, g))
+    out[shoulder - 1, c_u_sh] = vdot(z_sh, vcross(u_hat, g))
     # Eq. (25): N_23(theta) (s1, s2, s2) for 'paper'; s2 of the elbow its own for 'rfcm'
     out[elbow - 1, c_u_el] = vdot(z_el, vcross(u_hat, g))
     return out
