@@ -443,7 +443,7 @@ def calibrate(
         assert blk.J is not None
         cost0, drho = objective(blk.r, lm)
         sw = None if lm.loss == "linear" else np.sqrt(drho)
-        x1, _ = lifted_start(cm, x0, blk.r, blk.J, free, prior, sw)
+        x1 = lifted_start(cm, x0, blk.r, blk.J, free, prior, sw)
         # With the Jacobian the stage's LM starts with (served from the cache then).
         cost1 = objective(ev(cm, x1, w, jacobian=True, products=True).r, lm)[0]
         if prior is not None:

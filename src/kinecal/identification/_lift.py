@@ -19,7 +19,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinecal.identification._lm import LMOptions, Prior, normal_equations, solve_lm
+from kinecal.identification._lm import (
+    LMOptions,
+    Prior,
+    normal_equations,
+    solve_lm,
+    spd_solve,
+)
 from kinecal.models import CalibrationModel
 from kinecal.typing import Float
 
@@ -34,7 +40,7 @@ def lifted_start(
     free: np.ndarray,
     prior: Prior | None,
     row_weights: Float | None = None,
-) -> tuple[Float, float]:
+) -> Float:
     """Parameters from one Gauss-Newton step in product coordinates, mapped back.
 
     Parameters
@@ -50,11 +56,8 @@ def lifted_start(
 
     Returns
     -------
-    x1 : ndarray (P,)
+    ndarray (P,)
         ``x`` itself when the model has no product of two estimated parameters.
-    predicted : float
-        The decrease of the cost from ``x`` to ``x1`` that the lifted quadratic model
-        predicts (compare it with the actual decrease before trusting ``x1``).
     """
     P = model.size
     scales = model.layout.scales
@@ -64,7 +67,7 @@ def lifted_start(
         if free[lam] and free[s]
     ]
     if not pairs:
-        return x, 0.0
+        return x
     lifted = np.zeros(P, bool)
     lifted[[s for _, _, s in pairs]] = True
     native = np.flatnonzero(free & ~lifted)
@@ -95,7 +98,7 @@ def lifted_start(
     sigma_l = np.concatenate([pr.sigma[native], sigma_mu])
     prec = np.where(np.isfinite(sigma_l), (sc_l / sigma_l) ** 2, 0.0)
     z0 = np.concatenate([x[native], [x[lam] * x[s] for _, lam, s in pairs]])
-    step = _psd_solve(A + np.diag(prec), g + prec * (z0 - mean_l) / sc_l)
+    step = spd_solve(A + np.diag(prec), g + prec * (z0 - mean_l) / sc_l, rcond=1e-13)
     z = z0 - step * sc_l
 
     # Back to the model's parameters: lambda* as found, each s_k from its products by
@@ -130,12 +133,7 @@ def lifted_start(
     fit = solve_lm(
         quadratic, x1, free, scales, LMOptions(max_iter=200), prior=prior, label="lift"
     )
-
-    def model_cost(xx: Float) -> float:
-        res = quadratic(xx, False)[0]
-        return 0.5 * float(np.sum(res**2)) + (0.0 if prior is None else prior.cost(xx))
-
-    return fit.x, model_cost(x) - model_cost(fit.x)
+    return fit.x
 
 
 def _product_sigma(m1: float, s1: float, m2: float, s2: float) -> float:
@@ -144,12 +142,3 @@ def _product_sigma(m1: float, s1: float, m2: float, s2: float) -> float:
     if not (np.isfinite(s1) and np.isfinite(s2)):
         return np.inf
     return float(np.sqrt((s1 * s1 + m1 * m1) * (s2 * s2 + m2 * m2) - (m1 * m2) ** 2))
-
-
-def _psd_solve(M: Float, b: Float) -> Float:
-    """``M⁻¹ b`` for a symmetric positive semi-definite M (pseudo-inverse if singular)."""
-    try:
-        L = np.linalg.cholesky(M)
-        return np.asarray(np.linalg.solve(L.T, np.linalg.solve(L, b)), np.float64)
-    except np.linalg.LinAlgError:
-        return np.asarray(np.linalg.lstsq(M, b, rcond=1e-13)[0], np.float64)

@@ -37,6 +37,7 @@ __all__ = [
     "objective",
     "solve_fixed_step",
     "solve_lm",
+    "spd_solve",
 ]
 
 log = logging.getLogger(__name__)
@@ -160,6 +161,16 @@ def normal_equations(
     return A[np.ix_(sel, sel)] * np.outer(scales, scales), g[sel] * scales
 
 
+def spd_solve(M: Float, b: Float, rcond: float | None = None) -> Float:
+    """``M⁻¹ b`` for a symmetric positive (semi-)definite M: by Cholesky, or by least
+    squares (singular values below ``rcond`` of the largest cut) where M is singular."""
+    try:
+        L = np.linalg.cholesky(M)
+        return np.asarray(np.linalg.solve(L.T, np.linalg.solve(L, b)), np.float64)
+    except np.linalg.LinAlgError:
+        return np.asarray(np.linalg.lstsq(M, b, rcond=rcond)[0], np.float64)
+
+
 def objective(r: Float, opts: LMOptions) -> tuple[float, Float]:
     """The data part of the cost, ``1/2 sum_i f^2 rho(|r_i|^2 / f^2)``, and the robust
     weight ``rho'`` of every row (N,)."""
@@ -263,12 +274,7 @@ def solve_lm(
         diag = np.maximum(diag, 1e-12 * max(float(diag.max()), 1e-300))
         accepted = False
         while True:
-            M = A + mu * np.diag(diag)
-            try:
-                L = np.linalg.cholesky(M)
-                dz = -np.linalg.solve(L.T, np.linalg.solve(L, g))
-            except np.linalg.LinAlgError:
-                dz = -np.linalg.lstsq(M, g, rcond=None)[0]
+            dz = -spd_solve(A + mu * np.diag(diag), g)
             x_new = x.copy()
             x_new[fidx] += dz * s
             r_new, _ = fun(x_new, False)
