@@ -44,6 +44,11 @@ class SphereFit:
 # rows of N numbers.
 
 
+def _sq_norms(Q: Float) -> Float:
+    """Squared lengths (N,) of the columns of Q (3, N)."""
+    return Q[0] * Q[0] + Q[1] * Q[1] + Q[2] * Q[2]
+
+
 def _gram(X: Float) -> Float:
     """``X Xᵀ`` for a few long rows X (k, N) by dot products of rows (BLAS's matrix
     product is several times slower for a 3x3 or 4x4 result)."""
@@ -61,8 +66,8 @@ def _algebraic(Q: Float) -> tuple[Float, float]:
     A = np.empty((4, Q.shape[1]))
     A[:3] = 2.0 * Q
     A[3] = 1.0
-    rhs = Q[0] * Q[0] + Q[1] * Q[1] + Q[2] * Q[2]
-    sol = np.linalg.solve(_gram(A), A @ rhs)
+    rhs = _sq_norms(Q)
+    sol = np.asarray(np.linalg.solve(_gram(A), A @ rhs), np.float64)
     c = sol[:3]
     r2 = sol[3] + c @ c
     return c, float(np.sqrt(max(r2, 0.0)))
@@ -92,7 +97,7 @@ def _columns(Q: Float, keep: np.ndarray) -> Float:
 def _distances(Q: Float, c: Float) -> tuple[Float, Float]:
     """Distances (N,) of the points Q (3, N) from c, and the offsets Q - c (3, N)."""
     d = Q - c[:, None]
-    return np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]), d
+    return np.sqrt(_sq_norms(d)), d
 
 
 def _geometric(
@@ -199,7 +204,7 @@ def fit_sphere(
     Q = np.array(P.T, order="C")  # (3, N), contiguous rows
     origin = Q.mean(axis=1)
     Q -= origin[:, None]
-    scale = float(np.sqrt(np.mean(Q[0] * Q[0] + Q[1] * Q[1] + Q[2] * Q[2]))) or 1.0
+    scale = float(np.sqrt(np.mean(_sq_norms(Q)))) or 1.0
     Q /= scale
     fixed = None if radius is None else radius / scale
     # Large clouds: the whole robust fit first runs on an evenly strided subset of about
