@@ -1,5 +1,5 @@
-"""Shared fixtures: a seeded random generator (never global np.random) and the CLI
-run in a subprocess, as a user would."""
+"""Shared fixtures: a seeded random generator (never global np.random), the CLI run in a
+subprocess, as a user would, and the model's Jacobian storage poisoned with NaN."""
 
 from __future__ import annotations
 
@@ -9,6 +9,16 @@ from collections.abc import Callable
 
 import numpy as np
 import pytest
+
+
+@pytest.fixture(autouse=True)
+def _poisoned_jacobian_storage(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The model's Jacobian starts uninitialised (np.empty); here it starts as NaN, so an
+    entry that evaluate() forgets to write fails every test that reads it (FD checks,
+    fits) instead of passing on memory that happened to be zero."""
+    from kinecal.models import _model
+
+    monkeypatch.setattr(_model, "_alloc", lambda shape: np.full(shape, np.nan))
 
 
 @pytest.fixture

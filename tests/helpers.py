@@ -42,7 +42,7 @@ def assert_jacobian_matches_fd(
     )
     scale = max(float(np.abs(Jfd).max()), 1e-12)
     err = np.abs(J - Jfd).reshape(-1, J.shape[-1]).max(axis=0) / scale
-    bad = np.flatnonzero(err > rtol)
+    bad = np.flatnonzero(~(err <= rtol))  # a NaN entry fails too
     if bad.size:
         labels = [names[k] if names else str(k) for k in bad]
         detail = ", ".join(f"{lab}: {err[k]:.2e}" for lab, k in zip(labels, bad))

@@ -447,19 +447,27 @@ class CalibrationModel:
         return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
 
     def _frames(
-        self, theta: Float, rows: Float, base: tuple[Float, Float] | None = None
+        self,
+        theta: Float,
+        rows: Float,
+        base: tuple[Float, Float] | None = None,
+        near: tuple[ChainFrames, Float] | None = None,
     ) -> ChainFrames:
         """Chain frames for kinematic joint values ``theta`` (n, N), in the model base
-        frame or in the frame ``base`` places it in (see :func:`chain_frames`)."""
+        frame or in the frame ``base`` places it in (see :func:`chain_frames`). ``near``
+        gives the frames at ``theta - delta`` and ``delta`` (n, N), to shift their sines
+        and cosines instead of computing new ones."""
         pr = self._prismatic
         if np.any(pr):
             th = rows[:, _OFF, None] + np.where(pr[:, None], 0.0, theta)
             d = (rows[:, _D, None] + np.where(pr[:, None], theta, 0.0)).T
+            if near is not None:  # a prismatic row's angle does not change
+                near = (near[0], np.where(pr[:, None], 0.0, near[1]))
         else:
             th = rows[:, _OFF, None] + theta
             d = rows[:, _D]
         beta = rows[:, _BETA] if self._has_beta else None
-        return chain_frames(th.T, d, rows[:, _A], rows[:, _ALPHA], beta, base)
+        return chain_frames(th.T, d, rows[:, _A], rows[:, _ALPHA], beta, base, near)
 
     def _user_base(
         self, R_b: Float, t_b: Float, set_index: np.ndarray
@@ -485,7 +493,10 @@ class CalibrationModel:
 
     def _joint_columns(self, Z: Float, rot_cols: Float, orientation: bool) -> Float:
         """``d output / d theta_i`` (n, 3 or 6, N) from the joint axes ``Z`` and the
-        point's velocity ``z × (p - o)`` of a unit rotation about each (n, 3, N)."""
+        point's velocity ``z × (p - o)`` of a unit rotation about each (n, 3, N)
+        (``rot_cols`` itself for revolute joints and the position only)."""
+        if not orientation and not self._prismatic.any():
+            return rot_cols
         pr = self._prismatic[:, None, None]
         G = np.zeros((Z.shape[0], 6 if orientation else 3, Z.shape[-1]))
         G[:, :3] = np.where(pr, Z, rot_cols)
@@ -565,10 +576,12 @@ class CalibrationModel:
                 link_T = self._link_basis(fr0, g)
                 s = p[self._link_start : self._link_start + len(self._link_names)]
                 tau += np.einsum("jsn,s->jn", link_T, s)  # Eq. (25)
-            th = theta + p[self._lam_idx, None] * tau  # Eq. (22), (24), (26)
+            deflection = p[self._lam_idx, None] * tau  # Eq. (22), (24), (26)
+            th = theta + deflection
+            fr = self._frames(th, rows, base, near=(fr0, deflection))
         else:
             th = theta
-        fr = self._frames(th, rows, base)
+            fr = self._frames(th, rows, base)
 
         single_m = len(spec.markers) == 1
         mi = inputs.marker_index
@@ -589,7 +602,8 @@ class CalibrationModel:
         P = self.size
         c = 6 if orientation else 3
         K = len(self._products) if products else 0
-        Jb = np.zeros((P + K, c, N))
+        # Every row is assigned below; only the parts no term writes are zeroed.
+        Jb = _alloc((P + K, c, N))
         Z = fr.cols[:n, 2]  # (n, 3, N): joint i + 1 turns about z_i
         rot_cols = vcross(Z, p_u - fr.origin[:n])  # rotation about z_i
         G = self._joint_columns(Z, rot_cols, orientation)  # d output / d theta_i
@@ -603,8 +617,10 @@ class CalibrationModel:
                     Jb[idx[_OFF], 3:] = Z[i]
             if idx[_D] >= 0:
                 Jb[idx[_D], :3] = Z[i]
+                Jb[idx[_D], 3:] = 0.0
             if idx[_A] >= 0:
                 Jb[idx[_A], :3] = ax[i]
+                Jb[idx[_A], 3:] = 0.0
             if idx[_ALPHA] >= 0:
                 Jb[idx[_ALPHA], :3] = alpha_cols[i]
                 if orientation:
@@ -623,6 +639,7 @@ class CalibrationModel:
             cols = self._cam_idx[m]
             for k in range(3):
                 Jb[cols[k], :3] = R_fl[k] * mask
+                Jb[cols[k], 3:] = 0.0
             if spec.cam_rotation:
                 axes = _euler_axes(self.R_ref_cam[m], cam_v[m, 3:])  # columns r, w, p
                 ax_b = np.einsum("cin,ck->kin", R_fl, axes)  # (3, 3, N)
@@ -641,8 +658,10 @@ class CalibrationModel:
             self._add_torque_geometry(p, inputs, fr0, p_load, g, ntm_bases, H, Jb)
             Jb[self._lam_idx] = G * tau[:, None, :]
             if link_T is not None:
-                sl = slice(self._link_start, self._link_start + len(self._link_names))
-                Jb[sl] = np.einsum("jcn,jsn->scn", H, link_T)
+                # d output / d s_k = sum_j H_j link_T[j, k] over the pattern's joints
+                Jb[self._link_start : self._link_start + len(self._link_names)] = 0.0
+                for j, k in self._products:
+                    Jb[self._link_start + k] += H[j] * link_T[j, k]
                 if products:
                     for i, (j, k) in enumerate(self._products):
                         Jb[P + i] = G[j] * link_T[j, k]
@@ -652,6 +671,7 @@ class CalibrationModel:
         for k_set in range(len(spec.sets)):
             mask = np.ones(N) if single_s else (si == k_set).astype(np.float64)
             cols = self._base_idx[k_set]
+            Jb[cols[:3]] = 0.0
             for k in range(3):
                 Jb[cols[k], k] = mask
             axes = _euler_axes(self.R_ref_base[k_set], base_v[k_set, 3:])
@@ -807,6 +827,12 @@ class CalibrationModel:
         ):
             m.R_ref_cam = self.R_ref_cam.copy()
         return m
+
+
+def _alloc(shape: tuple[int, ...]) -> Float:
+    """Uninitialised storage of the Jacobian (a test fills it with NaN instead, to show
+    that :meth:`CalibrationModel.evaluate` writes every entry)."""
+    return np.empty(shape)
 
 
 def _apply(M: Float, w: Float) -> Float:
