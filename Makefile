@@ -8,6 +8,10 @@ PYDIRS := $(wildcard src tests benchmarks examples)
 
 .PHONY: demo test test-slow lint bench examples clean format
 
+# One BLAS thread per test process: pytest runs one worker per core, and BLAS threads on
+# top only oversubscribe them (the suite took 142 s with two, 100 s with one, on 2 cores).
+test test-slow: export OPENBLAS_NUM_THREADS ?= 1
+
 $(STAMP): pyproject.toml
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "kinecal needs Python >= 3.11"'
 	$(PYTHON) -m venv $(VENV)

@@ -126,3 +126,19 @@ def test_ur10_pose_data_from_nominal_dh(tmp_path, run_cli):
     ev = evaluate(cal, read_measurements(REAL / "ur10_mocap.csv", load_robot("ur10")))
     assert ev.metrics.rms_mm < 5.0
     assert np.isfinite(cal.params).all()
+
+
+def test_auto_model_in_worker_processes_equals_the_serial_run(tmp_path, run_cli):
+    """--model auto cross-validates 10 candidate runs: with --jobs 2 on worker processes,
+    the same table, choice and model file as with --jobs 1."""
+    reports = {}
+    for jobs in ("1", "2"):
+        out = tmp_path / f"jobs{jobs}"
+        args = ["calibrate", str(REAL / "ur10_mocap.csv"), "--robot", "ur10"]
+        args += ["--model", "auto", "--out", str(out), "--no-report", "-q"]
+        _cli(run_cli, [*args, "--jobs", jobs])
+        reports[jobs] = json.loads((out / "report.json").read_text())
+        reports[jobs]["model.yaml"] = (out / "model.yaml").read_text()
+    sel = reports["1"]["model_selection"]
+    assert len(sel["candidates"]) >= 8 and sel == reports["2"]["model_selection"]
+    assert reports["1"]["model.yaml"] == reports["2"]["model.yaml"]

@@ -61,3 +61,37 @@ def test_auto_drops_compliance_the_truth_does_not_have():
     assert auto <= 1.02 * kin, (sel.spec.name, auto, kin)
     # Nothing beyond the geometry is in the truth: the kinematic model is chosen.
     assert not sel.spec.ntm_joints and not sel.spec.load, sel.as_dict()
+
+
+def test_worker_processes_give_the_serial_selection(exp2_exact):
+    """20 poses: the largest candidates cannot be fitted on 16 and are skipped; the
+    table, the choice and the skipped runs are the same with two workers."""
+    e = exp2_exact
+    train = e.train.subset(
+        np.sort(np.random.default_rng(0).choice(e.train.n, 20, replace=False))
+    )
+    said: dict[int, list[str]] = {1: [], 2: []}
+    sels = {
+        j: select_model(
+            ROBOT, train, k=5, jobs=j, progress=lambda s, d, j=j: said[j].append(d)
+        )
+        for j in (1, 2)
+    }
+    assert sels[1].as_dict() == sels[2].as_dict()
+    assert sels[1].spec == sels[2].spec
+    assert said[1] == said[2]
+    assert any("skipped" in d for d in said[1]), said[1]
+
+
+def test_cross_validate_many_reports_a_failing_run_and_scores_the_others(exp2_exact):
+    from kinecal.identification import cross_validate, cross_validate_many
+
+    train = exp2_exact.train.subset(np.arange(15))  # 12 training poses per fold
+    kin, full = cross_validate_many(
+        ROBOT, train, [("kinematic", None), ("full", None)], k=5, jobs=2
+    )
+    assert isinstance(full, ValueError) and "poses" in str(full)
+    alone = cross_validate(ROBOT, train, "kinematic", k=5)
+    assert [f.rms_mm for f in kin.folds] == [f.rms_mm for f in alone.folds]
+    with pytest.raises(ValueError, match="poses"):
+        cross_validate(ROBOT, train, "full", k=5, jobs=2)

@@ -27,8 +27,10 @@ def cli() -> None:
     and degrees; see DESIGN §11 or each command's --help for the formats.
     """
     from kinecal import keep_freed_memory
+    from kinecal._parallel import single_thread_blas
 
     keep_freed_memory()  # a command is one run: keep freed arrays for reuse
+    single_thread_blas()  # small matrices; the cores go to worker processes instead
 
 
 def _register() -> None:

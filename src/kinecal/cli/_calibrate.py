@@ -102,6 +102,14 @@ def _options_from(loss: str, priors: str, stage2: str):
     help="Also report K-fold cross-validated held-out errors of the chosen model "
     "(whole sessions per fold when DATA has several sets) and of the nominal one.",
 )
+@click.option(
+    "--jobs",
+    type=click.IntRange(min=0),
+    default=0,
+    show_default=True,
+    help="Worker processes for the cross-validation of --model auto and --cv "
+    "(0: one per CPU; 1: serial). The result does not depend on it.",
+)
 @click.option("--force", is_flag=True, help="Overwrite results already in --out.")
 @common_options
 def calibrate(
@@ -118,6 +126,7 @@ def calibrate(
     ntm_order: int,
     report: bool,
     cv_folds: int | None,
+    jobs: int,
     force: bool,
     quiet: bool,
 ) -> None:
@@ -128,6 +137,7 @@ def calibrate(
     --targets). Calibration starts from the nominal robot; no guess is needed.
     Exit code 3 when the fit does not converge (results are still written).
     """
+    from kinecal._parallel import available_cpus
     from kinecal.cli import EXIT_NOT_CONVERGED
     from kinecal.identification import calibrate as run_calibration
     from kinecal.identification import spec_for
@@ -136,6 +146,7 @@ def calibrate(
     from kinecal.report import calibration_summary
 
     say = Progress(quiet)
+    jobs = jobs or available_cpus()
     robot = _load_robot(robot_name)
     meas = read_measurements(data, robot, targets)
     out = prepare_output_dir(
@@ -151,7 +162,13 @@ def calibrate(
 
         say("auto", "cross-validating candidate models")
         sel = select_model(
-            robot, meas, options=opts, hayati=hay, ntm_joints=nj, progress=say
+            robot,
+            meas,
+            options=opts,
+            hayati=hay,
+            ntm_joints=nj,
+            progress=say,
+            jobs=jobs,
         )
         spec = sel.spec
         opts = replace(opts, prior_scale=sel.prior_scale)
@@ -164,12 +181,20 @@ def calibrate(
         )
     result = run_calibration(robot, meas, spec, opts, progress=say)
     if cv_folds:
-        from kinecal.identification import cross_validate
+        from kinecal.identification import cross_validate_many
 
+        say("cv", f"{cv_folds}-fold cross-validation: nominal and model")
+        cvs = cross_validate_many(
+            robot,
+            meas,
+            [("nominal", opts), (spec, opts)],
+            k=cv_folds,
+            jobs=jobs,
+        )
         cv_rows = {}
-        for label, what in (("nominal", "nominal"), ("model", spec)):
-            say("cv", f"{cv_folds}-fold cross-validation: {label}")
-            cv = cross_validate(robot, meas, what, k=cv_folds, options=opts)
+        for label, cv in zip(("nominal", "model"), cvs):
+            if isinstance(cv, ValueError):
+                raise cv
             cv_rows[label] = {
                 "rms_mm": cv.rms_mm,
                 "se_mm": cv.rms_se_mm,

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from kinecal._parallel import parallel_map
 from kinecal.errors import IdentifiabilityError
 from kinecal.geometry import kabsch_umeyama, matrix_to_euler_zyx
 from kinecal.identification._calibrate import (
@@ -26,6 +27,7 @@ __all__ = [
     "CrossValidation",
     "Evaluation",
     "cross_validate",
+    "cross_validate_many",
     "evaluate",
     "kfold_indices",
     "refit",
@@ -215,32 +217,93 @@ def cross_validate(
     k: int = 5,
     seed: int = 0,
     options: CalibrationOptions | None = None,
+    jobs: int = 1,
 ) -> CrossValidation:
     """k-fold cross-validation; with several sets the folds are whole sets and the user
     frame of a held-out set is refitted (a new set-up), as ``evaluate --refit user``.
 
     ``model='nominal'`` scores the nominal kinematics with fitted frames (the baseline).
+    ``jobs`` > 1 calibrates the folds in that many worker processes
+    (:func:`kinecal._parallel.parallel_map`); the result is the same.
+    """
+    (out,) = cross_validate_many(
+        robot, meas, [(model, options)], k=k, seed=seed, jobs=jobs
+    )
+    if isinstance(out, ValueError):
+        raise out
+    return out
+
+
+def cross_validate_many(
+    robot: RobotDescription,
+    meas: Measurements,
+    runs: list[tuple[str | ModelSpec, CalibrationOptions | None]],
+    *,
+    k: int = 5,
+    seed: int = 0,
+    jobs: int = 1,
+) -> list[CrossValidation | ValueError]:
+    """:func:`cross_validate` of several (model, options) runs on the same folds.
+
+    All folds of all runs go to the workers at once, so ``jobs`` cores stay busy. A run
+    whose calibration fails on some fold (too few poses for the model, say) gives the
+    error of its first failing fold instead of a result.
     """
     folds = kfold_indices(meas, k, seed)
     by_set = len(meas.set_labels) > 1 and len(folds) == len(np.unique(meas.set_index))
-    out = CrossValidation(model if isinstance(model, str) else model.name)
-    nominal = isinstance(model, str) and model == "nominal"
-    for test_idx in folds:
-        mask = np.zeros(meas.n, bool)
-        mask[test_idx] = True
-        train, test = meas.subset(~mask), meas.subset(mask)
-        if by_set:
-            train = _relabel_sets(train)
-            test = _relabel_sets(test)
-        res = calibrate(robot, train, "kinematic" if nominal else model, options)
-        if nominal:
-            out.train.append(res.metrics_before)
-            cal = registered_model(res)
-        else:
-            out.train.append(res.metrics_after)
-            cal = res.calibrated
-        out.folds.append(evaluate(cal, test, refit_user=by_set).metrics)
+    tasks = [
+        _Fold(robot, meas, model, options, test_idx, by_set)
+        for model, options in runs
+        for test_idx in folds
+    ]
+    done = iter(parallel_map(_run_fold, tasks, jobs))
+    out: list[CrossValidation | ValueError] = []
+    for model, _ in runs:
+        cv = CrossValidation(model if isinstance(model, str) else model.name)
+        failed = None
+        for _ in folds:
+            res = next(done)
+            if isinstance(res, ValueError):
+                failed = failed or res
+                continue
+            cv.train.append(res[0])
+            cv.folds.append(res[1])
+        out.append(failed if failed is not None else cv)
     return out
+
+
+@dataclass(frozen=True)
+class _Fold:
+    """One fold of one cross-validation run (sent to a worker process)."""
+
+    robot: RobotDescription
+    meas: Measurements
+    model: str | ModelSpec
+    options: CalibrationOptions | None
+    test_idx: np.ndarray
+    by_set: bool
+
+
+def _run_fold(f: _Fold) -> tuple[Metrics, Metrics] | ValueError:
+    """Training and held-out metrics of one fold (or the error that stopped it)."""
+    mask = np.zeros(f.meas.n, bool)
+    mask[f.test_idx] = True
+    train, test = f.meas.subset(~mask), f.meas.subset(mask)
+    if f.by_set:
+        train = _relabel_sets(train)
+        test = _relabel_sets(test)
+    nominal = isinstance(f.model, str) and f.model == "nominal"
+    try:
+        res = calibrate(f.robot, train, "kinematic" if nominal else f.model, f.options)
+    except ValueError as exc:
+        return exc
+    if nominal:
+        return res.metrics_before, evaluate(
+            registered_model(res), test, refit_user=f.by_set
+        ).metrics
+    return res.metrics_after, evaluate(
+        res.calibrated, test, refit_user=f.by_set
+    ).metrics
 
 
 def registered_model(res: CalibrationResult) -> CalibratedModel:

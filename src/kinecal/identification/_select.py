@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from kinecal.identification._calibrate import CalibrationOptions, spec_for
-from kinecal.identification._evaluate import cross_validate
+from kinecal.identification._evaluate import cross_validate_many
 from kinecal.identification._measurements import Measurements
 from kinecal.models import ModelSpec
 from kinecal.robot import RobotDescription
@@ -154,54 +154,64 @@ def select_model(
     hayati: tuple[int, ...] = (),
     ntm_joints: tuple[int, ...] = (1, 2, 3),
     progress: object | None = None,
+    jobs: int = 1,
 ) -> Selection:
     """Choose a model by k-fold cross-validation and the one-standard-error rule.
 
     Each layout is cross-validated with priors at strength 1; the best layout is then
-    tried with its priors scaled by ``prior_scales`` (sigma times the scale).
+    tried with its priors scaled by ``prior_scales`` (sigma times the scale). ``jobs`` > 1
+    runs the fold calibrations in that many worker processes (the same result).
     """
     opts = options or CalibrationOptions()
     say = progress if callable(progress) else (lambda stage, detail: None)
     cands: list[Candidate] = []
     n_sets = len(meas.set_labels)
     folds = min(k, n_sets) if n_sets > 1 else k
+    from kinecal.models import CalibrationModel
 
-    def run(label: str, spec: ModelSpec, scale: float) -> Candidate:
-        say("auto", f"{label} (priors x{scale:g})")
-        o = replace(opts, prior_scale=scale)
-        cv = cross_validate(robot, meas, spec, k=k, seed=seed, options=o)
-        from kinecal.models import CalibrationModel
-
-        size = CalibrationModel(robot, spec).size
-        train = float(np.sqrt(np.mean([m.rms_mm**2 for m in cv.train])))
-        return Candidate(
-            label,
-            spec,
-            scale,
-            size,
-            cv.rms_mm,
-            cv.rms_se_mm,
-            train,
-            fold_rms_mm=tuple(f.rms_mm for f in cv.folds),
+    def run(runs: list[tuple[str, ModelSpec, float]]) -> None:
+        """Cross-validate the (label, spec, prior scale) runs, all folds at once."""
+        for label, _, scale in runs:
+            say("auto", f"{label} (priors x{scale:g})")
+        cvs = cross_validate_many(
+            robot,
+            meas,
+            [(spec, replace(opts, prior_scale=scale)) for _, spec, scale in runs],
+            k=k,
+            seed=seed,
+            jobs=jobs,
         )
+        for (label, spec, scale), cv in zip(runs, cvs):
+            if isinstance(cv, ValueError):  # too few poses for this candidate in a fold
+                say("auto", f"{label} (priors x{scale:g}) skipped: {cv}")
+                continue
+            train = float(np.sqrt(np.mean([m.rms_mm**2 for m in cv.train])))
+            cands.append(
+                Candidate(
+                    label,
+                    spec,
+                    scale,
+                    CalibrationModel(robot, spec).size,
+                    cv.rms_mm,
+                    cv.rms_se_mm,
+                    train,
+                    fold_rms_mm=tuple(f.rms_mm for f in cv.folds),
+                )
+            )
 
-    for label, spec in candidate_specs(
-        robot, meas, hayati=hayati, ntm_joints=ntm_joints
-    ):
-        try:
-            cands.append(run(label, spec, 1.0))
-        except ValueError as exc:  # too few poses for this candidate in a fold
-            say("auto", f"{label} skipped: {exc}")
+    run(
+        [
+            (label, spec, 1.0)
+            for label, spec in candidate_specs(
+                robot, meas, hayati=hayati, ntm_joints=ntm_joints
+            )
+        ]
+    )
     if not cands:
         raise ValueError(f"{meas.source}: no candidate model could be cross-validated.")
     best = min(cands, key=lambda c: c.cv_rms_mm)
     if opts.priors != "none":
-        for s in prior_scales:
-            if s != 1.0:
-                try:
-                    cands.append(run(best.label, best.spec, s))
-                except ValueError:
-                    pass
+        run([(best.label, best.spec, s) for s in prior_scales if s != 1.0])
     best = min(cands, key=lambda c: c.cv_rms_mm)
     eligible = [c for c in cands if _within_one_se(c, best)]
     # Smallest model; among equal sizes the strongest priors (the simplest fit).

@@ -1,0 +1,88 @@
+"""Worker processes for independent runs: same results as serial, errors surface."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from kinecal._parallel import (
+    _openblas_functions,
+    available_cpus,
+    blas_threads,
+    parallel_map,
+)
+
+
+def _square_and_pid(x: int) -> tuple[int, int]:
+    if x < 0:
+        raise ValueError(f"negative: {x}")
+    return x * x, os.getpid()
+
+
+def test_parallel_map_keeps_order_and_uses_worker_processes():
+    out = parallel_map(_square_and_pid, range(12), jobs=2)
+    assert [v for v, _ in out] == [x * x for x in range(12)]
+    if sys.platform.startswith("linux"):
+        pids = {pid for _, pid in out}
+        assert os.getpid() not in pids and 1 <= len(pids) <= 2
+
+
+def test_parallel_map_serial_for_one_job():
+    out = parallel_map(lambda x: (x + 1, os.getpid()), [1, 2], jobs=1)  # no pickling
+    assert out == [(2, os.getpid()), (3, os.getpid())]
+    assert available_cpus() >= 1
+
+
+def test_an_error_in_a_worker_is_raised_with_its_type_and_message():
+    with pytest.raises(ValueError, match="negative: -3"):
+        parallel_map(_square_and_pid, [1, -3, 2], jobs=2)
+
+
+def test_the_command_asks_for_one_blas_thread_unless_the_user_set_it():
+    code = (
+        "import os; from kinecal._parallel import single_thread_blas as s; "
+        "ok = s(); import numpy; print(ok, os.environ['OPENBLAS_NUM_THREADS'], s())"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True
+    )
+    assert out.stdout.split() == ["True", "1", "False"], out.stderr
+    env["OPENBLAS_NUM_THREADS"] = "2"
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True
+    )
+    assert out.stdout.split() == ["True", "2", "False"], out.stderr
+
+
+def _threads(_: object) -> list[int]:
+    return blas_threads()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_workers_run_one_blas_thread_each():
+    import numpy  # noqa: F401  (loads numpy's OpenBLAS)
+    import scipy.linalg  # noqa: F401  (and scipy's)
+
+    before = blas_threads()
+    assert before, "no OpenBLAS found in /proc/self/maps"
+    _set_blas_threads(2)  # as in a process without OPENBLAS_NUM_THREADS=1
+    try:
+        if set(blas_threads()) != {2}:
+            pytest.skip("OpenBLAS caps its threads at 1 here")
+        for threads in parallel_map(_threads, range(4), jobs=2):
+            assert threads and set(threads) == {1}, threads
+        assert set(blas_threads()) == {2}  # the parent keeps its own
+    finally:
+        _set_blas_threads(before[0])
+
+
+def _set_blas_threads(n: int) -> None:
+    import ctypes
+
+    for fn in _openblas_functions("set_num_threads"):
+        fn.argtypes, fn.restype = [ctypes.c_int], None
+        fn(n)
