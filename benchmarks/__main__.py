@@ -239,6 +239,24 @@ def main(argv: list[str] | None = None) -> int:
         cost_first_last=[costs[0], costs[-1]],
     )
 
+    # 4b. --model auto on the same 2000 poses: 10 cross-validated candidate runs of 5
+    # folds, serially and on one worker process per CPU
+    from kinecal._parallel import available_cpus
+    from kinecal.identification import select_model
+
+    cpus = available_cpus()
+    t_a1, sel1 = _median_time(lambda: select_model(robot, sub, jobs=1), 1)
+    t_an, seln = _median_time(lambda: select_model(robot, sub, jobs=cpus), 1)
+    record("select_model_auto_2000_serial", t_a1, "baseline", chosen=sel1.spec.name)
+    record(
+        "select_model_auto_2000_workers",
+        t_an,
+        "one worker process per CPU",
+        workers=cpus,
+        speedup=t_a1 / t_an,
+        same_choice=sel1.as_dict() == seln.as_dict(),
+    )
+
     # 5. compensation of 10,000 targets
     rng = np.random.default_rng(0)
     q = big.q_ctrl[rng.integers(0, big.n, 10_000)]

@@ -228,7 +228,7 @@ class TorqueAdjoint:
         self.H = H
         self.n = H.shape[0]
         self._vec: dict[tuple[int, int], list[Float | None]] = {}
-        self._batch: list[tuple[int, np.ndarray, Float, Float]] = []
+        self._batch: list[tuple[int, np.ndarray | slice, Float, Float]] = []
 
     def add(self, t: int, j: int, w: Float | None, v: Float | None = None) -> None:
         """Record ``[f <= t] (omega · w + vel · v)`` on joint j (0-based).
@@ -244,8 +244,11 @@ class TorqueAdjoint:
                 old = entry[slot]
                 entry[slot] = vec if old is None else old + vec
 
-    def add_joints(self, t: int, joints: np.ndarray, w: Float, v: Float) -> None:
-        """The same for several joints at once: w, v (k, 3, N) for ``joints`` (k,)."""
+    def add_joints(
+        self, t: int, joints: np.ndarray | slice, w: Float, v: Float
+    ) -> None:
+        """The same for several joints at once: w, v (k, 3, N) for ``joints`` (k indices,
+        or a slice of the joints)."""
         self._batch.append((t, joints, w, v))
 
     def sweep(self) -> Iterator[tuple[int, Float, Float]]:
@@ -315,13 +318,16 @@ def torque_adjoint(
     Z = frames.cols[:n, 2]  # (n, 3, N) joint axes
     # The payload scale of each row multiplies the load terms' vectors (it is a scalar
     # per pose), so that every term of a joint shares the weight H_j.
-    gz = vcross(g, Z) * load_scale
+    gz = vcross(g, Z)
+    gz *= load_scale
     up_w = vcross(p_load, gz)  # axis still: (omega × p + vel) · (ĝ × z)
     down_w = vcross(vcross(Z, p_load - frames.origin[:n]), g)  # axis moved
     down_w *= load_scale
     # Revolute: 'still' always, minus 'still' plus 'moved' once the axis moves.
     # Prismatic (a force along the axis): (omega × z) · ĝ once the axis moves.
-    if rev.any():
+    if rev.all():  # views, no gather
+        acc.add_joints(n + 1, slice(None), up_w, gz)
+    elif rev.any():
         acc.add_joints(n + 1, np.flatnonzero(rev), up_w[rev], gz[rev])
     for i in range(n):
         if rev[i]:
