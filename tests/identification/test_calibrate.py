@@ -47,3 +47,35 @@ def test_evaluations_are_reused_only_where_they_apply(exp2_exact):
     for k in range(5):  # only the last few points are kept
         ev(cm, x + k * 1e-7, w1)
     assert ev(cm, y, w2) is not got
+
+
+def test_a_jacobian_after_a_plain_evaluation_reuses_its_forward_kinematics(
+    exp2_exact, monkeypatch
+):
+    """The LM's accepted trial point is evaluated plainly, then with its Jacobian: the
+    second evaluation (with any weights) takes the first's forward state, and gives the
+    fresh block exactly."""
+    import numpy as np
+
+    from kinecal.identification import Weights, residuals
+    from kinecal.identification._calibrate import _Evaluations
+    from kinecal.models import CalibrationModel, ModelSpec
+
+    meas = exp2_exact.train
+    cm = CalibrationModel(exp2_exact.truth.robot, ModelSpec.preset("full"))
+    inputs = meas.model_inputs()
+    ev = _Evaluations(meas, inputs)
+    w1, w2 = Weights.default(meas), Weights(np.full(meas.n, 2e-5))
+    x = cm.nominal.copy()
+    x[cm.layout.index("joint2.lambda")] = 1e-3
+    calls = []
+    real = CalibrationModel._forward
+    monkeypatch.setattr(
+        CalibrationModel, "_forward", lambda *a: calls.append(1) or real(*a)
+    )
+    ev(cm, x, w1)
+    got = ev(cm, x, w2, jacobian=True, products=True)
+    assert calls == [1]
+    fresh = residuals(cm, x, meas, w2, inputs=inputs, jacobian=True, products=True)
+    np.testing.assert_array_equal(got.r, fresh.r)
+    np.testing.assert_array_equal(got.J, fresh.J)

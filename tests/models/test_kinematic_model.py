@@ -181,3 +181,51 @@ def test_jacobian_exact_with_compliance_and_a_prismatic_joint(rng):
     model = CalibrationModel(robot, spec)
     inp = _random_inputs(robot, rng)
     _check_all_columns(model, _generic_params(model, rng, lam=1e-3), inp)
+
+
+def test_a_kept_forward_state_serves_the_jacobian_at_the_same_point(rng, monkeypatch):
+    """evaluate(keep=True) then evaluate(jacobian=True, reuse=...) gives exactly the
+    fresh Jacobian without computing the forward kinematics again; a state of other
+    parameters, inputs, model or without the orientation is not used."""
+    robot = load_robot("fanuc-lrmate200id")
+    model = CalibrationModel(robot, ModelSpec.preset("full", markers=("m", "n")))
+    inp = _random_inputs(robot, rng, markers=2)
+    params = _generic_params(model, rng, lam=1e-3)
+    fresh = model.evaluate(params, inp, orientation=True, jacobian=True)
+    kept = model.evaluate(params, inp, orientation=True, keep=True)
+    assert kept.forward is not None and fresh.forward is None
+    calls = []
+    real = CalibrationModel._forward
+    monkeypatch.setattr(
+        CalibrationModel, "_forward", lambda *a: calls.append(1) or real(*a)
+    )
+    again = model.evaluate(
+        params, inp, orientation=True, jacobian=True, reuse=kept.forward
+    )
+    assert calls == []
+    for name in ("p_user", "R_user_cam", "J_p", "J_w", "theta"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(fresh, name))
+
+    other = params.copy()
+    other[model.layout.index("joint2.a")] += 1e-4
+    inp_copy = ModelInputs.make(
+        inp.q_ctrl,
+        marker_index=inp.marker_index,
+        p_cam=inp.p_cam,
+        load_scale=inp.load_scale,
+    )
+    position_only = model.evaluate(params, inp, keep=True).forward
+    twin = CalibrationModel(robot, model.spec)
+    cases = {
+        "other parameters": (model, other, inp, kept.forward),
+        "an equal but other inputs object": (model, params, inp_copy, kept.forward),
+        "no orientation kept": (model, params, inp, position_only),
+        "another model": (twin, params, inp, kept.forward),
+    }
+    for case, (m, x, i, state) in cases.items():
+        calls.clear()
+        out = m.evaluate(x, i, orientation=True, jacobian=True, reuse=state)
+        assert calls == [1], case
+        ref = model.evaluate(x, inp, orientation=True, jacobian=True)
+        np.testing.assert_array_equal(out.J_p, ref.J_p)
+        np.testing.assert_array_equal(out.J_w, ref.J_w)

@@ -305,6 +305,8 @@ class _Evaluations:
     priors, stage 2 and the uncertainty look at a stage's solution, the log reports the
     error before and after each stage). The last few blocks are kept, keyed by the model,
     the parameters and the weights; raw position errors do not depend on the weights.
+    Each block also keeps the model's forward state, so the Jacobian at a point evaluated
+    before (the LM's accepted trial point, typically) skips the forward kinematics.
     """
 
     def __init__(self, meas: Measurements, inputs: ModelInputs, keep: int = 3) -> None:
@@ -325,10 +327,14 @@ class _Evaluations:
         """The residual block at ``x`` (see :func:`residuals`)."""
         key = np.asarray(x, np.float64).tobytes()
         n_cols = cm.size + (len(cm.link_products) if products else 0)
+        forward = None  # the model's forward state at x, from any block (any weights)
         for m, k, ww, blk in reversed(self._blocks):
-            if m is cm and k == key and ww is w:
-                if not jacobian or (blk.J is not None and blk.J.shape[-1] >= n_cols):
+            if m is cm and k == key:
+                if ww is w and (
+                    not jacobian or (blk.J is not None and blk.J.shape[-1] >= n_cols)
+                ):
                     return blk
+                forward = forward or blk.forward
         blk = residuals(
             cm,
             x,
@@ -337,6 +343,8 @@ class _Evaluations:
             inputs=self.inputs,
             jacobian=jacobian,
             products=products,
+            keep=True,
+            reuse=forward,
         )
         self._blocks = [*self._blocks[-(self._keep - 1) :], (cm, key, w, blk)]
         return blk

@@ -18,7 +18,7 @@ import numpy as np
 
 from kinecal.geometry import so3_log, so3_right_jacobian_inv
 from kinecal.identification._measurements import Measurements
-from kinecal.models import CalibrationModel, ModelInputs
+from kinecal.models import CalibrationModel, ForwardState, ModelInputs
 from kinecal.typing import Float
 
 __all__ = ["ResidualBlock", "Weights", "errors_mm", "residuals"]
@@ -66,6 +66,7 @@ class ResidualBlock:
     J: Float | None
     raw_position: Float  # (N, 3) unwhitened position error, model - reference [m]
     raw_rotation: Float | None  # (N, 3) unwhitened rotation error [rad]
+    forward: ForwardState | None = None  # the model's state, with ``keep``
 
 
 def residuals(
@@ -77,6 +78,8 @@ def residuals(
     inputs: ModelInputs | None = None,
     jacobian: bool = False,
     products: bool = False,
+    keep: bool = False,
+    reuse: ForwardState | None = None,
 ) -> ResidualBlock:
     """Evaluate the whitened residuals (and Jacobian) of ``meas`` under ``model``.
 
@@ -92,11 +95,21 @@ def residuals(
     products : bool
         With ``jacobian``, also the columns of the link products
         (:meth:`CalibrationModel.evaluate`).
+    keep, reuse :
+        Keep the model's forward state in the block, or reuse one kept at the same point
+        (:meth:`CalibrationModel.evaluate`): a Jacobian after a plain evaluation at the
+        same parameters then skips the forward kinematics.
     """
     inp = inputs if inputs is not None else meas.model_inputs()
     pose = meas.kind == "pose"
     out = model.evaluate(
-        params, inp, orientation=pose, jacobian=jacobian, products=products
+        params,
+        inp,
+        orientation=pose,
+        jacobian=jacobian,
+        products=products,
+        keep=keep,
+        reuse=reuse,
     )
     e_p = out.p_user - meas.reference_points()
     inv_s = 1.0 / weights.sigma
@@ -105,7 +118,7 @@ def residuals(
         J = out.J_p
         if J is not None:
             J *= inv_s[:, None, None]  # the model's fresh array: whitened in place
-        return ResidualBlock(r, J, e_p, None)
+        return ResidualBlock(r, J, e_p, None, out.forward)
     assert out.R_user_cam is not None and meas.R_user_cam is not None
     assert weights.sigma_rot is not None
     e_r = so3_log(out.R_user_cam @ np.swapaxes(meas.R_user_cam, 1, 2))
@@ -123,7 +136,7 @@ def residuals(
         np.multiply(out.J_p, inv_s[:, None, None], out=J[:, :3])
         np.matmul(J_l_inv, out.J_w, out=J[:, 3:])
         J[:, 3:] *= inv_sr[:, None, None]
-    return ResidualBlock(r, J, e_p, e_r)
+    return ResidualBlock(r, J, e_p, e_r, out.forward)
 
 
 def errors_mm(block: ResidualBlock) -> Float:

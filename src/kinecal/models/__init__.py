@@ -9,7 +9,12 @@ from kinecal.models._compliance import (
 )
 from kinecal.models._ik import IKResult, solve_ik
 from kinecal.models._layout import KINDS, ParameterLayout, ParamKind, ParamSpec
-from kinecal.models._model import CalibrationModel, ModelInputs, ModelOutput
+from kinecal.models._model import (
+    CalibrationModel,
+    ForwardState,
+    ModelInputs,
+    ModelOutput,
+)
 from kinecal.models._spec import PRESETS, ModelSpec, parallel_pairs
 
 __all__ = [
@@ -17,6 +22,7 @@ __all__ = [
     "PRESETS",
     "CalibrationModel",
     "ChainFrames",
+    "ForwardState",
     "IKResult",
     "ModelInputs",
     "ModelOutput",

@@ -16,7 +16,7 @@ the measured point in the cam frame (zero for a reflector at the cam origin).
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -46,7 +46,7 @@ from kinecal.models._spec import ModelSpec
 from kinecal.robot import RobotDescription
 from kinecal.typing import ArrayLike, Float
 
-__all__ = ["CalibrationModel", "ModelInputs", "ModelOutput"]
+__all__ = ["CalibrationModel", "ForwardState", "ModelInputs", "ModelOutput"]
 
 _FRAME = ("x", "y", "z", "r", "w", "p")
 # Columns of the per-row value table.
@@ -140,6 +140,8 @@ class ModelOutput:
     J_p : (N, 3, P) or None, ``d p_user / d params``.
     J_w : (N, 3, P) or None, rotation Jacobian: ``dR = [J_w dparams] R`` (user frame).
     theta : (N, n) kinematic joint angles actually used (with all error terms) [rad].
+    forward : ForwardState or None, the evaluation's intermediate state (with ``keep``),
+        for a later Jacobian at the same point (``evaluate(..., reuse=)``).
     """
 
     p_user: Float
@@ -147,6 +149,45 @@ class ModelOutput:
     J_p: Float | None
     J_w: Float | None
     theta: Float
+    forward: ForwardState | None = field(default=None, repr=False, compare=False)
+
+
+@dataclass(frozen=True)
+class ForwardState:
+    """What a Jacobian needs of a forward evaluation (opaque; see
+    :meth:`CalibrationModel.evaluate`). It holds both chains, about 110 numbers a pose."""
+
+    model: CalibrationModel
+    params: Float
+    inputs: ModelInputs
+    ntm_bases: list[Float]
+    t_base: Float
+    g: Float
+    fr0: ChainFrames | None
+    p_load: Float | None
+    tau: Float | None
+    link_T: Float | None
+    fr: ChainFrames
+    p_cam_fl: Float
+    p_u: Float
+    p_user: Float
+    R_uc: Float | None
+    theta: Float
+
+    def serves(
+        self,
+        model: CalibrationModel,
+        params: Float,
+        inputs: ModelInputs,
+        orientation: bool,
+    ) -> bool:
+        """Whether this state is that of ``model`` at ``params`` and ``inputs``."""
+        return (
+            self.model is model
+            and self.inputs is inputs
+            and (self.R_uc is not None or not orientation)
+            and np.array_equal(self.params, params)
+        )
 
 
 class CalibrationModel:
@@ -513,6 +554,8 @@ class CalibrationModel:
         orientation: bool = False,
         jacobian: bool = False,
         products: bool = False,
+        keep: bool = False,
+        reuse: ForwardState | None = None,
     ) -> ModelOutput:
         """Predict the measured point (and cam orientation) for every pose.
 
@@ -530,6 +573,13 @@ class CalibrationModel:
             With ``jacobian``, append one column per pair of :attr:`link_products`: the
             derivative with respect to the product ``lambda*_j s_k`` of the deflection of
             joint j, all parameters held (``P + len(link_products)`` columns in all).
+        keep : bool
+            Attach the intermediate state (``ModelOutput.forward``, both chains: about
+            110 numbers a pose) for a later Jacobian at the same point.
+        reuse : ForwardState, optional
+            The ``forward`` of an earlier output: when it is this model's at the same
+            parameters and the same ``inputs`` object, its forward kinematics are not
+            computed again (otherwise it is ignored). The result is the same.
 
         Returns
         -------
@@ -547,55 +597,29 @@ class CalibrationModel:
             raise DataError(
                 f"q_ctrl must have shape (N, {self.n_joints}) for {self.robot.name}; got {q.shape}."
             )
-        # Everything below keeps the pose axis last: vectors are (3, N), see _chain.
-        # Both chains start at the user frame, so every point, axis and Jacobian column
-        # is in the user frame from the start; the torques are frame-invariant with
-        # gravity mapped along.
+        if reuse is not None and reuse.serves(self, p, inputs, orientation):
+            fw = reuse
+        else:
+            fw = self._forward(p, inputs, orientation)
+        R_uc = fw.R_uc if orientation else None
+        out = ModelOutput(fw.p_user, R_uc, None, None, fw.theta, fw if keep else None)
+        if not jacobian:
+            return out
         spec = self.spec
         N, n = q.shape
-        rows = self._rows(p)
-        theta = self.robot.coupling @ q.T  # (n, N)
-        ntm_bases: list[Float] = []
-        if spec.ntm_joints:
-            dth_c, ntm_bases = self._ntm(p, q)
-            theta = theta + dth_c
-
-        R_c, t_c = self.cam_frames(p)
-        R_b, t_b = self.base_frames(p)
-        single_s = len(spec.sets) == 1
-        si = inputs.set_index
-        base, g = self._user_base(R_b, t_b, si)
-        tau = link_T = fr0 = p_load = None
-        if spec.load:
-            fr0 = self._frames(theta, rows, base)
-            # Load point: origin of the first marker's cam frame (Eq. 19 with Delta = 0).
-            p_load = fr0.origin[n] + rotate(fr0.cols[n], t_c[0])
-            tau = load_torques(fr0, p_load, g, self._prismatic)
-            tau *= inputs.load_scale
-            if self._link_names:
-                link_T = self._link_basis(fr0, g)
-                s = p[self._link_start : self._link_start + len(self._link_names)]
-                tau += np.einsum("jsn,s->jn", link_T, s)  # Eq. (25)
-            deflection = p[self._lam_idx, None] * tau  # Eq. (22), (24), (26)
-            th = theta + deflection
-            fr = self._frames(th, rows, base, near=(fr0, deflection))
-        else:
-            th = theta
-            fr = self._frames(th, rows, base)
-
-        single_m = len(spec.markers) == 1
-        mi = inputs.marker_index
-        p_fl, p_cam_fl = self._flange_point(R_c, t_c, inputs)
-        R_fl = fr.cols[n]  # (3 columns, 3, N)
-        p_u = fr.origin[n] + rotate(R_fl, p_fl)
-        p_user = np.ascontiguousarray(p_u.T)
-
-        R_uc = None
-        if orientation:
-            R_uc = fr.R[:, n] @ (R_c[0] if single_m else R_c[mi])
-        theta_out = th.T
-        if not jacobian:
-            return ModelOutput(p_user, R_uc, None, None, theta_out)
+        ntm_bases, fr0, fr, p_load, tau, link_T, g = (
+            fw.ntm_bases,
+            fw.fr0,
+            fw.fr,
+            fw.p_load,
+            fw.tau,
+            fw.link_T,
+            fw.g,
+        )
+        t_b, p_u, p_cam_fl = fw.t_base, fw.p_u, fw.p_cam_fl
+        R_fl = fr.cols[n]
+        single_s, single_m = len(spec.sets) == 1, len(spec.markers) == 1
+        si, mi = inputs.set_index, inputs.marker_index
 
         # Columns (user frame), position rows 0:3 and rotation rows 3:6, stored
         # parameter-major: every column of every component is a contiguous row.
@@ -680,11 +704,77 @@ class CalibrationModel:
             if orientation:
                 Jb[cols[3:], 3:] = axes.T[:, :, None] * mask
         return ModelOutput(
-            p_user,
+            fw.p_user,
             R_uc,
             Jb[:, :3].transpose(2, 1, 0),
             Jb[:, 3:].transpose(2, 1, 0) if orientation else None,
-            theta_out,
+            fw.theta,
+            out.forward,
+        )
+
+    def _forward(
+        self, p: Float, inputs: ModelInputs, orientation: bool
+    ) -> ForwardState:
+        """The forward evaluation of :meth:`evaluate` (checked inputs), with the state its
+        Jacobian needs."""
+        q = inputs.q_ctrl
+        # Everything below keeps the pose axis last: vectors are (3, N), see _chain.
+        # Both chains start at the user frame, so every point, axis and Jacobian column
+        # is in the user frame from the start; the torques are frame-invariant with
+        # gravity mapped along.
+        spec = self.spec
+        n = q.shape[1]
+        rows = self._rows(p)
+        theta = self.robot.coupling @ q.T  # (n, N)
+        ntm_bases: list[Float] = []
+        if spec.ntm_joints:
+            dth_c, ntm_bases = self._ntm(p, q)
+            theta = theta + dth_c
+
+        R_c, t_c = self.cam_frames(p)
+        R_b, t_b = self.base_frames(p)
+        base, g = self._user_base(R_b, t_b, inputs.set_index)
+        tau = link_T = fr0 = p_load = None
+        if spec.load:
+            fr0 = self._frames(theta, rows, base)
+            # Load point: origin of the first marker's cam frame (Eq. 19 with Delta = 0).
+            p_load = fr0.origin[n] + rotate(fr0.cols[n], t_c[0])
+            tau = load_torques(fr0, p_load, g, self._prismatic)
+            tau *= inputs.load_scale
+            if self._link_names:
+                link_T = self._link_basis(fr0, g)
+                s = p[self._link_start : self._link_start + len(self._link_names)]
+                tau += np.einsum("jsn,s->jn", link_T, s)  # Eq. (25)
+            deflection = p[self._lam_idx, None] * tau  # Eq. (22), (24), (26)
+            th = theta + deflection
+            fr = self._frames(th, rows, base, near=(fr0, deflection))
+        else:
+            th = theta
+            fr = self._frames(th, rows, base)
+
+        p_fl, p_cam_fl = self._flange_point(R_c, t_c, inputs)
+        p_u = fr.origin[n] + rotate(fr.cols[n], p_fl)
+        R_uc = None
+        if orientation:
+            mi = inputs.marker_index
+            R_uc = fr.R[:, n] @ (R_c[0] if len(spec.markers) == 1 else R_c[mi])
+        return ForwardState(
+            model=self,
+            params=p.copy(),
+            inputs=inputs,
+            ntm_bases=ntm_bases,
+            t_base=t_b,
+            g=g,
+            fr0=fr0,
+            p_load=p_load,
+            tau=tau,
+            link_T=link_T,
+            fr=fr,
+            p_cam_fl=p_cam_fl,
+            p_u=p_u,
+            p_user=np.ascontiguousarray(p_u.T),
+            R_uc=R_uc,
+            theta=th.T,
         )
 
     def _add_torque_geometry(
