@@ -79,3 +79,34 @@ def test_a_jacobian_after_a_plain_evaluation_reuses_its_forward_kinematics(
     fresh = residuals(cm, x, meas, w2, inputs=inputs, jacobian=True, products=True)
     np.testing.assert_array_equal(got.r, fresh.r)
     np.testing.assert_array_equal(got.J, fresh.J)
+
+
+def test_a_run_stopped_by_its_iteration_limit_names_where_it_still_drifts():
+    """The remaining Gauss-Newton step of a max_iter run points along the parameter the
+    poses hardly determine (one tiny curvature); the warning names it with its value."""
+    import numpy as np
+
+    from kinecal.identification._calibrate import _drift
+    from kinecal.identification._lm import LMResult
+    from kinecal.models import CalibrationModel, ModelSpec
+    from kinecal.robot import load_robot
+
+    cm = CalibrationModel(load_robot("fanuc-lrmate200id"), ModelSpec.preset("full"))
+    free = np.ones(cm.size, bool)
+    lam6 = cm.layout.index("joint6.lambda")
+    A = np.diag(np.full(cm.size, 1e4))
+    A[lam6, lam6] = 1e-2  # a valley along lambda6*
+    g = np.full(cm.size, 1.0)
+    x = cm.nominal.copy()
+    x[lam6] = -0.037
+
+    def result(status: str) -> LMResult:
+        return LMResult(
+            x, 1.0, 200, 400, False, status, "", A, g, np.ones(3), np.ones(3)
+        )
+
+    text = _drift(cm, result("max_iter"), free, "none")
+    assert "drifts along joint6.lambda (now -0.037 rad/m)" in text
+    assert "--priors all" in text and "joint5" not in text
+    assert "--priors" not in _drift(cm, result("max_iter"), free, "all")
+    assert _drift(cm, result("stalled"), free, "none") == ""

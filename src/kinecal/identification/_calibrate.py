@@ -38,6 +38,7 @@ from kinecal.identification._lm import (
     normal_equations,
     objective,
     solve_lm,
+    spd_solve,
 )
 from kinecal.identification._measurements import Measurements
 from kinecal.identification._metrics import Metrics, metrics_from_errors
@@ -358,6 +359,33 @@ class _Evaluations:
         return self(cm, x, w).raw_position
 
 
+def _drift(cm: CalibrationModel, res: LMResult, free: np.ndarray, priors: str) -> str:
+    """Where a run that hit its iteration limit was still going: the parameters that
+    dominate the remaining Gauss-Newton step (in characteristic units), with their
+    values. Such a run crawls down a long valley, typically a term the poses hardly
+    determine (a joint compliance whose torque stays small at every pose, say)."""
+    if res.status != "max_iter" or res.gradient.size == 0:
+        return ""
+    dz = -spd_solve(res.normal_matrix, res.gradient, rcond=1e-14)
+    size = np.abs(dz)
+    if not np.isfinite(size).all() or size.max() == 0.0:
+        return ""
+    fidx = np.flatnonzero(free)
+    lead = [k for k in np.argsort(-size)[:3] if size[k] >= 0.3 * size.max()]
+    parts = []
+    for k in lead:
+        spec = cm.layout.specs[fidx[k]]
+        unit = spec.unit
+        parts.append(
+            f"{spec.name} (now {res.x[fidx[k]] * unit.to_file:.4g} {unit.file_unit})"
+        )
+    text = "; the estimate still drifts along " + ", ".join(parts)
+    text += ", which these poses hardly determine"
+    if priors != "all":
+        text += " (the default priors, --priors all, hold such terms)"
+    return text
+
+
 def _robust_sigma(r: Float) -> float:
     """Noise per component from the median row norm (whitened units)."""
     c = r.shape[1]
@@ -506,7 +534,11 @@ def calibrate(
             res.n_iter,
         )
         if not res.success and required:
-            warnings.append(f"{name} did not converge: {res.message}.")
+            warnings.append(
+                f"{name} did not converge: {res.message}"
+                + _drift(cm, res, free, opts.priors)
+                + "."
+            )
         stages[-1].success = res.success or not required
         return res
 
