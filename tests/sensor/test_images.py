@@ -88,8 +88,11 @@ def test_scan_of_a_ceramic_sphere_with_the_true_geometry(sensor, renderer):
     c = np.array([0.003, -0.002, 0.140])
     R = 0.015002
     imgs = renderer.render_scan(sphere_scene(c, R), rng)
-    cloud = sensor.scan(imgs)
+    cloud = sensor.scan(imgs, jobs=2)
     assert cloud.points.shape[0] > 20_000  # full-resolution scan: tens of thousands
+    serial = sensor.scan(imgs, jobs=1)  # threads change nothing
+    np.testing.assert_array_equal(cloud.points, serial.points)
+    np.testing.assert_array_equal(cloud.plane, serial.plane)
     f = fit_sphere(cloud.points)
     assert abs(f.radius - R) < 3e-6
     assert np.linalg.norm(f.center - c) < 4e-6
@@ -157,3 +160,37 @@ def test_renderer_sees_shadows_and_planes(sensor, renderer):
     )
     img = renderer.render(both, 60, rng)
     assert extract_stripes(img).shape[0] < 1000
+
+
+def test_stripes_of_many_images_on_threads_read_lazily(sensor, renderer):
+    """extract_stripes_all: the serial results in order, None kept, each image taken from
+    the sequence once (in the worker threads), an error raised with its message."""
+    import threading
+
+    from kinecal.errors import DataError
+    from kinecal.sensor import extract_stripes_all
+
+    rng = np.random.default_rng(4)
+    imgs = renderer.render_scan(sphere_scene([0.0, 0.0, 0.14], 0.015), rng, [10, 60])
+    taken: list[tuple[int, str]] = []
+
+    class Lazy:
+        def __init__(self, items):
+            self.items = items
+
+        def __len__(self):
+            return len(self.items)
+
+        def __getitem__(self, i):
+            taken.append((i, threading.current_thread().name))
+            return self.items[i]
+
+    items = [imgs[0], None, imgs[1], imgs[0]]
+    out = extract_stripes_all(Lazy(items), jobs=2)
+    assert out[1] is None
+    for k in (0, 2, 3):
+        np.testing.assert_array_equal(out[k], extract_stripes(items[k]))
+    assert sorted(i for i, _ in taken) == [0, 1, 2, 3]
+    assert all(name != threading.current_thread().name for _, name in taken)
+    with pytest.raises(DataError):
+        extract_stripes_all([imgs[0], np.zeros((4, 4, 3))], jobs=2)

@@ -315,7 +315,8 @@ def reconstruct(
     files = image_files(folder, "plane_*.png")
     idx = np.array([_plane_index(f) for f in files])
     prog("images", f"{len(files)} stripe images")
-    cloud = sen.scan([read_image(f) for f in files], idx)
+    # Each image is read in the thread that extracts its stripes, and dropped after.
+    cloud = sen.scan(_LazyImages(list(files), read_image), idx)
     write_cloud(
         out,
         cloud.points,

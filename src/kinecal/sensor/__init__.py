@@ -31,7 +31,7 @@ from kinecal.sensor._simulate import (
     sphere_scene,
 )
 from kinecal.sensor._sphere import SphereFit, fit_sphere
-from kinecal.sensor._stripes import extract_stripes
+from kinecal.sensor._stripes import extract_stripes, extract_stripes_all
 
 __all__ = [
     "CalibrationSession",
@@ -52,6 +52,7 @@ __all__ = [
     "calibrate_camera",
     "calibrate_planes",
     "extract_stripes",
+    "extract_stripes_all",
     "find_corners",
     "fit_plane",
     "fit_sphere",

@@ -24,7 +24,7 @@ from kinecal.sensor._camera import Camera
 from kinecal.sensor._cv import require_cv2
 from kinecal.sensor._planes import LightPlanes, fit_plane
 from kinecal.sensor._render import ChessboardTarget
-from kinecal.sensor._stripes import extract_stripes
+from kinecal.sensor._stripes import extract_stripes_all
 from kinecal.typing import Float
 
 __all__ = [
@@ -181,6 +181,7 @@ def calibrate_planes(
     source: Float | None = None,
     min_poses: int = 2,
     model: str = "auto",
+    jobs: int = 0,
 ) -> PlaneCalibration:
     """Fit every light plane to its stripes on the target at several poses.
 
@@ -189,6 +190,7 @@ def calibrate_planes(
     ``"free"`` fits every plane on its own (each must be seen at ``min_poses`` poses),
     ``"rotary"`` fits every plane about the common mirror axis, ``"auto"`` fits planes on
     their own where they were seen at ``min_poses`` poses and about the axis otherwise.
+    The stripes are extracted on ``jobs`` threads (0: one per CPU).
     """
     if model not in ("auto", "free", "rotary"):
         raise DataError(
@@ -209,10 +211,9 @@ def calibrate_planes(
             )
         n = T[:3, 2]
         d0 = float(n @ T[:3, 3])
-        for i, img in enumerate(imgs):
-            if img is None:  # plane not imaged at this pose
+        for i, st in enumerate(extract_stripes_all(imgs, jobs=jobs)):
+            if st is None:  # plane not imaged at this pose
                 continue
-            st = extract_stripes(img)
             if st.shape[0] == 0:
                 continue
             rays = camera.rays(st[:, :2])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -10,7 +11,7 @@ import numpy as np
 from kinecal.errors import ConfigError, DataError
 from kinecal.sensor._camera import Camera, paper_camera
 from kinecal.sensor._planes import LightPlanes, intersect_planes, rotary_planes
-from kinecal.sensor._stripes import extract_stripes
+from kinecal.sensor._stripes import extract_stripes_all
 from kinecal.typing import Float
 
 __all__ = ["ScanCloud", "Sensor", "paper_sensor"]
@@ -47,16 +48,26 @@ class Sensor:
 
     def scan(
         self,
-        images: np.ndarray | list[np.ndarray],
+        images: Sequence[np.ndarray],
         plane: np.ndarray | None = None,
+        *,
+        jobs: int = 0,
         **extract_options: float,
     ) -> ScanCloud:
-        """Point cloud of one scan: image ``k`` was taken with light plane ``plane[k]``."""
+        """Point cloud of one scan: image ``k`` was taken with light plane ``plane[k]``.
+
+        The stripes are extracted on ``jobs`` threads (0: one per CPU; see
+        :func:`~kinecal.sensor.extract_stripes_all`, which also takes a sequence that
+        reads its images on access).
+        """
         n = len(images)
         idx = np.arange(n) if plane is None else np.asarray(plane, np.intp)
         if idx.shape != (n,):
             raise DataError(f"scan: {n} images but {idx.size} plane indices")
-        found = [extract_stripes(img, **extract_options) for img in images]  # type: ignore[arg-type]
+        stripes = extract_stripes_all(images, jobs=jobs, **extract_options)
+        found = [f for f in stripes if f is not None]
+        if len(found) != n:
+            raise DataError(f"scan: {n - len(found)} of the {n} images are missing")
         uv = np.concatenate([f[:, :2] for f in found]) if found else np.zeros((0, 2))
         pl = (
             np.concatenate([np.full(f.shape[0], i) for f, i in zip(found, idx)])
