@@ -24,10 +24,16 @@ import multiprocessing as mp
 import os
 import sys
 from collections.abc import Callable, Iterable
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from typing import Any, TypeVar
 
-__all__ = ["available_cpus", "blas_threads", "parallel_map", "single_thread_blas"]
+__all__ = [
+    "available_cpus",
+    "blas_threads",
+    "parallel_map",
+    "single_thread_blas",
+    "thread_map",
+]
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -124,4 +130,18 @@ def parallel_map(fn: Callable[[T], R], items: Iterable[T], jobs: int = 1) -> lis
     with ProcessPoolExecutor(
         workers, mp_context=mp.get_context("fork"), initializer=_one_blas_thread
     ) as pool:
+        return list(pool.map(fn, todo))
+
+
+def thread_map(fn: Callable[[T], R], items: Iterable[T], jobs: int = 0) -> list[R]:
+    """``[fn(x) for x in items]`` on up to ``jobs`` threads (0: one per CPU), in order.
+
+    For work that releases the interpreter: OpenCV calls, and numpy and scipy operations
+    on large arrays (images). An exception in ``fn`` is raised here.
+    """
+    todo = list(items)
+    workers = min(jobs if jobs > 0 else available_cpus(), len(todo))
+    if workers <= 1:
+        return [fn(x) for x in todo]
+    with ThreadPoolExecutor(workers) as pool:
         return list(pool.map(fn, todo))

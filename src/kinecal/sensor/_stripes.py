@@ -20,12 +20,11 @@ Pixel-centre convention: the centre of pixel (row v, column u) is (u, v).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 
-from kinecal._parallel import available_cpus
+from kinecal._parallel import thread_map
 from kinecal.errors import DataError
 from kinecal.typing import Float
 
@@ -49,11 +48,7 @@ def extract_stripes_all(
         img = images[i]
         return None if img is None else extract_stripes(img, **options)  # type: ignore[arg-type]
 
-    workers = min(jobs if jobs > 0 else available_cpus(), len(images))
-    if workers <= 1:
-        return [one(i) for i in range(len(images))]
-    with ThreadPoolExecutor(workers) as pool:
-        return list(pool.map(one, range(len(images))))
+    return thread_map(one, range(len(images)), jobs)
 
 
 def extract_stripes(
