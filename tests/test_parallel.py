@@ -86,3 +86,18 @@ def _set_blas_threads(n: int) -> None:
     for fn in _openblas_functions("set_num_threads"):
         fn.argtypes, fn.restype = [ctypes.c_int], None
         fn(n)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_kinecal_command_runs_with_one_blas_thread():
+    code = (
+        "from kinecal.cli import main; main(['robots']); "
+        "import numpy, scipy.linalg; from kinecal._parallel import blas_threads; "
+        "print('threads', *blas_threads())"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True
+    )
+    line = [ln for ln in out.stdout.splitlines() if ln.startswith("threads")]
+    assert line and set(line[0].split()[1:]) == {"1"}, out.stdout + out.stderr
