@@ -186,6 +186,7 @@ def select_model(
                 say("auto", f"{label} (priors x{scale:g}) skipped: {cv}")
                 continue
             train = float(np.sqrt(np.mean([m.rms_mm**2 for m in cv.train])))
+            say("auto", f"{label} (priors x{scale:g}): held-out RMS {cv.rms_mm:.4f} mm")
             cands.append(
                 Candidate(
                     label,

@@ -578,8 +578,9 @@ class CalibrationModel:
             110 numbers a pose) for a later Jacobian at the same point.
         reuse : ForwardState, optional
             The ``forward`` of an earlier output: when it is this model's at the same
-            parameters and the same ``inputs`` object, its forward kinematics are not
-            computed again (otherwise it is ignored). The result is the same.
+            parameters and the same ``inputs`` object (its arrays unchanged since), its
+            forward kinematics are not computed again (otherwise it is ignored). The
+            result is the same.
 
         Returns
         -------
