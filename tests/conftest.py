@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numpy as np
 import pytest
@@ -19,6 +19,22 @@ def _poisoned_jacobian_storage(monkeypatch: pytest.MonkeyPatch) -> None:
     from kinecal.models import _model
 
     monkeypatch.setattr(_model, "_alloc", lambda shape: np.full(shape, np.nan))
+
+
+@pytest.fixture
+def one_blas_thread() -> Iterator[None]:
+    """This process on one BLAS thread, as kinecal's worker processes are (and the
+    kinecal command): serial and parallel runs then sum in the same order to the last
+    digit. The previous thread count is restored."""
+    from kinecal._parallel import blas_threads, set_blas_threads
+
+    before = blas_threads()
+    set_blas_threads(1)
+    try:
+        yield
+    finally:
+        if before:
+            set_blas_threads(before[0])
 
 
 @pytest.fixture

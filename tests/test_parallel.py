@@ -9,10 +9,10 @@ import sys
 import pytest
 
 from kinecal._parallel import (
-    _openblas_functions,
     available_cpus,
     blas_threads,
     parallel_map,
+    set_blas_threads,
 )
 
 
@@ -69,7 +69,7 @@ def test_workers_run_one_blas_thread_each():
 
     before = blas_threads()
     assert before, "no OpenBLAS found in /proc/self/maps"
-    _set_blas_threads(2)  # as in a process without OPENBLAS_NUM_THREADS=1
+    set_blas_threads(2)  # as in a process without OPENBLAS_NUM_THREADS=1
     try:
         if set(blas_threads()) != {2}:
             pytest.skip("OpenBLAS caps its threads at 1 here")
@@ -77,15 +77,7 @@ def test_workers_run_one_blas_thread_each():
             assert threads and set(threads) == {1}, threads
         assert set(blas_threads()) == {2}  # the parent keeps its own
     finally:
-        _set_blas_threads(before[0])
-
-
-def _set_blas_threads(n: int) -> None:
-    import ctypes
-
-    for fn in _openblas_functions("set_num_threads"):
-        fn.argtypes, fn.restype = [ctypes.c_int], None
-        fn(n)
+        set_blas_threads(before[0])
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")

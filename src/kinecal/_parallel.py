@@ -32,6 +32,7 @@ __all__ = [
     "available_cpus",
     "blas_threads",
     "parallel_map",
+    "set_blas_threads",
     "single_thread_blas",
     "thread_map",
 ]
@@ -124,11 +125,17 @@ def blas_threads() -> list[int]:
     return out
 
 
-def _one_blas_thread() -> None:
-    """Worker initializer: one thread for every loaded OpenBLAS."""
+def set_blas_threads(n: int) -> None:
+    """Set every loaded OpenBLAS library (numpy's, scipy's) to ``n`` threads; Linux only,
+    nothing elsewhere."""
     for fn in _openblas_functions("set_num_threads"):
         fn.argtypes, fn.restype = [ctypes.c_int], None
-        fn(1)
+        fn(int(n))
+
+
+def _one_blas_thread() -> None:
+    """Worker initializer: one thread for every loaded OpenBLAS."""
+    set_blas_threads(1)
 
 
 def _can_fork() -> bool:

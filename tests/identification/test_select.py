@@ -63,7 +63,7 @@ def test_auto_drops_compliance_the_truth_does_not_have():
     assert not sel.spec.ntm_joints and not sel.spec.load, sel.as_dict()
 
 
-def test_worker_processes_give_the_serial_selection(exp2_exact):
+def test_worker_processes_give_the_serial_selection(exp2_exact, one_blas_thread):
     """20 poses: the largest candidates cannot be fitted on 16 and are skipped; the
     table, the choice and the skipped runs are the same with two workers."""
     e = exp2_exact
@@ -83,7 +83,9 @@ def test_worker_processes_give_the_serial_selection(exp2_exact):
     assert any("skipped" in d for d in said[1]), said[1]
 
 
-def test_cross_validate_many_reports_a_failing_run_and_scores_the_others(exp2_exact):
+def test_cross_validate_many_reports_a_failing_run_and_scores_the_others(
+    exp2_exact, one_blas_thread
+):
     from kinecal.identification import cross_validate, cross_validate_many
 
     train = exp2_exact.train.subset(np.arange(15))  # 12 training poses per fold
