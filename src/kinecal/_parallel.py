@@ -6,9 +6,10 @@ except macOS, whose system libraries are not fork-safe), so they start at once w
 everything the parent has imported and set (:func:`kinecal.keep_freed_memory`). Elsewhere
 the runs stay serial.
 
-BLAS threads: kinecal's matrices are small (a 7000-pose normal matrix is 21000 x 50), and
-a multi-threaded BLAS gains nothing on them (measured on a 2-core VM: ``J^T J`` of that size
-took 2.4 ms on one thread and 4.8 ms on two; a 7000-pose calibration the same time). With
+BLAS threads: kinecal's matrices are small (a 7000-pose Jacobian is 21000 x 50), and a
+multi-threaded BLAS gains nothing on them (measured on a 2-core VM: ``J^T J`` of a
+20000 x 50 matrix took 2.4 ms on one thread and 4.8 ms on two; a 7000-pose calibration the
+same time). With
 worker processes on every core it oversubscribes them: 20 fold calibrations on 2 workers
 took 0.66x the serial time with two BLAS threads each, and ran 2.2x faster with one. So
 every worker sets the OpenBLAS libraries it has loaded (numpy's and scipy's, as the PyPI
