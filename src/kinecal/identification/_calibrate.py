@@ -87,6 +87,11 @@ _MU0_WARM = 1e-6
 # Stop an LM run once a step moves the estimate by about 1.4 % of its standard deviations
 # (LMOptions.stol): further digits are far below the statistical uncertainty.
 _STOL = 1e-4
+# The unconstrained stage-1 pre-fit only gives the noise and the scale of the geometry
+# priors before the real stage 1 starts from it: a step of ~14 % of a standard deviation
+# (2 x 1e-2, squared) is close enough. On a robot with large joint compliances the
+# kinematic model cannot fit, the pre-fit otherwise crawls for 100 iterations.
+_STOL_PRE = 1e-2
 
 
 @dataclass(frozen=True)
@@ -608,7 +613,7 @@ def calibrate(
         "stage 1: kinematic" + (" (no priors)" if use_prior_kin else ""),
         x_reg,
         free & kin,
-        lm_linear,
+        replace(lm_linear, stol=_STOL_PRE) if needed else lm_linear,
         weights,
         required=not needed,
     )
