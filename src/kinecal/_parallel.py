@@ -21,13 +21,14 @@ setting in the workers: set its thread count to 1 before numpy is imported.
 from __future__ import annotations
 
 import ctypes
-import multiprocessing as mp
 import os
 import sys
 from collections.abc import Callable, Iterable
-from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any, TypeVar
+
+# multiprocessing and concurrent.futures are imported where used: the kinecal command
+# imports this module at start (single_thread_blas), and they cost ~40 ms to load.
 
 __all__ = [
     "available_cpus",
@@ -140,6 +141,8 @@ def _one_blas_thread() -> None:
 
 
 def _can_fork() -> bool:
+    import multiprocessing as mp
+
     return sys.platform != "darwin" and "fork" in mp.get_all_start_methods()
 
 
@@ -155,6 +158,9 @@ def parallel_map(fn: Callable[[T], R], items: Iterable[T], jobs: int = 1) -> lis
     workers = min(int(jobs), len(todo))
     if workers <= 1 or not _can_fork():
         return [fn(x) for x in todo]
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
     with ProcessPoolExecutor(
         workers, mp_context=mp.get_context("fork"), initializer=_one_blas_thread
     ) as pool:
@@ -171,5 +177,7 @@ def thread_map(fn: Callable[[T], R], items: Iterable[T], jobs: int = 0) -> list[
     workers = min(jobs if jobs > 0 else available_cpus(), len(todo))
     if workers <= 1:
         return [fn(x) for x in todo]
+    from concurrent.futures import ThreadPoolExecutor
+
     with ThreadPoolExecutor(workers) as pool:
         return list(pool.map(fn, todo))
