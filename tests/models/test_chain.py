@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from kinecal.models import chain_frames
-from kinecal.models._chain import shifted_trig
+from kinecal.models._chain import shifted_trig, shifted_trig_if_small
 from kinecal.robot import load_robot
 
 
@@ -29,7 +29,9 @@ def test_chain_near_a_configuration_equals_the_direct_chain(step, rng):
     theta = rng.uniform(-2.5, 2.5, (500, 6)) + ch.theta_offset
     delta = rng.uniform(-step, step, (6, 500))
     ref = chain_frames(theta, ch.d, ch.a, ch.alpha)
-    near = chain_frames(theta + delta.T, ch.d, ch.a, ch.alpha, near=(ref, delta))
+    shifted = shifted_trig_if_small(ref.cos, ref.sin, delta)
+    assert (shifted is None) == (step > 0.01)
+    near = chain_frames(theta + delta.T, ch.d, ch.a, ch.alpha, trig=shifted)
     direct = chain_frames(theta + delta.T, ch.d, ch.a, ch.alpha)
     np.testing.assert_allclose(near.cos, direct.cos, rtol=0, atol=1e-15)
     np.testing.assert_allclose(near.sin, direct.sin, rtol=0, atol=1e-15)

@@ -320,7 +320,7 @@ def test_link_product_columns(spec, rng):
     )
     # joint Jacobian at the deflected pose, link torques at the undeflected one
     Jq = model.joint_jacobian(p, inp)[:, :3]
-    fr0 = model._frames(FANUC.coupling @ q.T + model._ntm(p, q)[0], model._rows(p))
+    fr0 = model._frames(FANUC.coupling @ q.T + model._ntm(p, inp)[0], model._rows(p))
     T = model._link_basis(fr0)  # (n, n_link, N)
     s_cols = np.zeros((25, 3, L.group_indices("link").size))
     for i, (lam, s) in enumerate(pairs):

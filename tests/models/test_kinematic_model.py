@@ -229,3 +229,80 @@ def test_a_kept_forward_state_serves_the_jacobian_at_the_same_point(rng, monkeyp
         ref = model.evaluate(x, inp, orientation=True, jacobian=True)
         np.testing.assert_array_equal(out.J_p, ref.J_p)
         np.testing.assert_array_equal(out.J_w, ref.J_w)
+
+
+def test_quantities_of_the_poses_alone_are_computed_once_per_inputs(rng, monkeypatch):
+    """The coupled angles with their cosines and sines and the Fourier bases are kept
+    with the inputs object: a second evaluation computes none of them, and its results
+    equal those of a fresh inputs object. The returned angles are not the kept array."""
+    import kinecal.models._model as model_module
+
+    robot = load_robot("fanuc-lrmate200id")
+    model = CalibrationModel(robot, ModelSpec.preset("kinematic"))
+    full = CalibrationModel(robot, ModelSpec.preset("full"))
+    inp = _random_inputs(robot, rng)
+    params = _generic_params(full, rng, lam=1e-3)
+    calls = []
+    real = model_module.ntm_basis_rows
+    monkeypatch.setattr(
+        model_module, "ntm_basis_rows", lambda *a: calls.append(1) or real(*a)
+    )
+    with pytest.raises(
+        ValueError, match="read-only"
+    ):  # the kept values cannot go stale
+        inp.q_ctrl[0, 0] = 1.0
+    with pytest.raises(ValueError, match="read-only"):
+        inp.subset(np.arange(5)).q_ctrl[0, 0] = 1.0
+    first = full.evaluate(params, inp, jacobian=True)
+    assert len(calls) == 3  # joints 1-3
+    kept = dict(inp._derived)
+    again = full.evaluate(params, inp, jacobian=True)
+    assert len(calls) == 3 and inp._derived.keys() == kept.keys()
+    assert all(inp._derived[k] is v for k, v in kept.items())
+    fresh = full.evaluate(params, _random_inputs(robot, np.random.default_rng(0)))
+    assert not np.allclose(fresh.p_user, first.p_user)  # other poses, other result
+    copy = ModelInputs.make(inp.q_ctrl, p_cam=inp.p_cam, load_scale=inp.load_scale)
+    ref = full.evaluate(params, copy, jacobian=True)
+    for out in (first, again):
+        np.testing.assert_array_equal(out.p_user, ref.p_user)
+        np.testing.assert_array_equal(out.J_p, ref.J_p)
+    # a model without error terms on the angles hands out a copy of them
+    x = model.nominal
+    theta = model.evaluate(x, inp).theta
+    before = theta.copy()
+    theta += 1.0
+    np.testing.assert_array_equal(model.evaluate(x, inp).theta, before)
+
+
+def test_row_angles_by_sums_equal_the_direct_sines_and_cosines(rng):
+    """cos/sin of ``C q + offset + dtheta_C`` from those of ``C q`` (offsets by angle
+    sums, the NTM errors by the series) equal np.cos/np.sin to rounding. A transmission
+    error beyond the series' range takes np.cos itself, and gives the model an offset
+    would give."""
+    robot = load_robot("fanuc-lrmate200id")
+    model = CalibrationModel(robot, ModelSpec.preset("full"))
+    L = model.layout
+    inp = _random_inputs(robot, rng, n=200)
+    params = _generic_params(model, rng, lam=1e-3)
+    ntm = L.group_indices("ntm")
+    params[ntm] = rng.normal(size=ntm.size) * 1e-3
+    rows = model._rows(params)
+    coupled = model._coupled(inp)
+    dth, _ = model._ntm(params, inp)
+    ct, st = model._row_trig(rows, coupled, dth)
+    th = robot.coupling @ inp.q_ctrl.T + rows[:, 0, None] + dth
+    np.testing.assert_allclose(ct, np.cos(th), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(st, np.sin(th), rtol=0, atol=1e-15)
+
+    big = params.copy()
+    big[L.index("joint2.k0")] = 0.05  # rad, beyond the series
+    assert model._row_trig(rows, coupled, model._ntm(big, inp)[0]) is None
+    shifted = big.copy()
+    shifted[L.index("joint2.k0")] = 0.0
+    shifted[L.index("joint2.theta_offset")] += 0.05
+    np.testing.assert_allclose(
+        model.evaluate(big, inp).p_user,
+        model.evaluate(shifted, inp).p_user,
+        rtol=0,
+        atol=1e-12,
+    )

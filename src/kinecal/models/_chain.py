@@ -23,6 +23,7 @@ __all__ = [
     "chain_frames",
     "rotate",
     "shifted_trig",
+    "shifted_trig_if_small",
     "vcross",
     "vdot",
 ]
@@ -74,6 +75,16 @@ def shifted_trig(cos: Float, sin: Float, delta: Float) -> tuple[Float, Float]:
     s = sin * cd
     s += cos * sd
     return c, s
+
+
+def shifted_trig_if_small(
+    cos: Float, sin: Float, delta: Float
+) -> tuple[Float, Float] | None:
+    """:func:`shifted_trig` when every ``|delta| <= 0.01`` rad, else None (the caller
+    evaluates ``np.cos`` and ``np.sin`` of the new angles)."""
+    if delta.size and np.abs(delta).max() > _SERIES_MAX:
+        return None
+    return shifted_trig(cos, sin, delta)
 
 
 @dataclass(frozen=True)
@@ -131,7 +142,7 @@ def chain_frames(
     alpha: Float,
     beta: Float | None = None,
     base: tuple[Float, Float] | None = None,
-    near: tuple[ChainFrames, Float] | None = None,
+    trig: tuple[Float, Float] | None = None,
 ) -> ChainFrames:
     """Frames of a chain of rows ``Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta)``.
 
@@ -149,17 +160,17 @@ def chain_frames(
         Pose of the chain's base in the frame the result is expressed in: rotation
         ``(3, 3)`` or per pose ``(N, 3, 3)``, origin ``(3,)`` or ``(N, 3)``. Default: the
         chain's base itself.
-    near : (frames, delta), optional
-        The same chain at the angles ``theta - delta.T`` (delta (n, N)): its cosines and
-        sines are shifted by :func:`shifted_trig` when every ``|delta| <= 0.01`` rad.
+    trig : (cos, sin), optional
+        ``cos theta.T`` and ``sin theta.T`` (n, N) when the caller has them (for example
+        from :func:`shifted_trig`); by default ``np.cos`` and ``np.sin`` of ``theta``.
 
     Returns
     -------
     ChainFrames
     """
     N, n = theta.shape
-    if near is not None and (near[1].size == 0 or np.abs(near[1]).max() <= _SERIES_MAX):
-        ct, st = shifted_trig(near[0].cos, near[0].sin, near[1])
+    if trig is not None:
+        ct, st = trig
     else:  # (n, N); the transpose is free when theta is a transposed view
         th = np.ascontiguousarray(theta.T)
         ct, st = np.cos(th), np.sin(th)
@@ -178,7 +189,10 @@ def chain_frames(
         R0, o0 = np.asarray(base[0]), np.asarray(base[1])
         R[0] = R0.T[:, :, None] if R0.ndim == 2 else R0.transpose(2, 1, 0)
         o[0] = o0[:, None] if o0.ndim == 1 else o0.T
-    ax = np.empty((n, 3, N))
+    # The a direction is the new x axis, except in a chain with Hayati rows, where Ry(beta)
+    # turns x afterwards: there the directions are kept apart.
+    hayati = beta is not None and bool(np.any(beta != 0.0))
+    ax = np.empty((n, 3, N)) if hayati else R[1:, 0]
     # Row i turns the previous frame's columns (x, y, z) = (c0, c1, c2) by
     # Rz(theta) Rx(alpha): x' = c0 ct + c1 st, y' = v ca + c2 sa, z' = -v sa + c2 ca with
     # v = c1 ct - c0 st; the origin moves by a x' + d c2. Each operation is on (3, N).
@@ -206,6 +220,6 @@ def chain_frames(
             cb, sb = np.cos(beta[i]), np.sin(beta[i])
             R[i + 1, 0] = x * cb - z * sb
             R[i + 1, 2] = x * sb + z * cb
-        else:
+        elif hayati:
             R[i + 1, 0] = x
     return ChainFrames(cols=R, origin=o, a_dir=ax, cos=ct, sin=st)

@@ -41,6 +41,7 @@ __all__ = [
     "link_torque_pattern",
     "load_torques",
     "ntm_basis",
+    "ntm_basis_rows",
     "ntm_names",
     "torque_adjoint",
 ]
@@ -66,16 +67,23 @@ def ntm_basis(q: Float, order: int, offset: bool) -> Float:
 
     Columns follow :func:`ntm_names` (``w`` of Eq. 16 is 1).
     """
-    out = np.empty((*np.shape(q), 2 * order + int(offset)))
+    return np.moveaxis(ntm_basis_rows(q, order, offset), 0, -1)
+
+
+def ntm_basis_rows(q: Float, order: int, offset: bool) -> Float:
+    """The basis of :func:`ntm_basis` with the pose axis last: shape (nb, N), contiguous
+    (the model's layout)."""
+    q = np.asarray(q, dtype=np.float64)
+    out = np.empty((2 * order + int(offset), *q.shape))
     if offset:
-        out[..., 0] = 1.0
+        out[0] = 1.0
     c1, s1 = np.cos(q), np.sin(q)
     c, s = c1, s1
     for h in range(1, order + 1):  # Eq. (16); cos and sin of h q by the angle sums
         if h > 1:
             c, s = c * c1 - s * s1, s * c1 + c * s1
-        out[..., int(offset) + 2 * h - 2] = c
-        out[..., int(offset) + 2 * h - 1] = s
+        out[int(offset) + 2 * h - 2] = c
+        out[int(offset) + 2 * h - 1] = s
     return out
 
 

@@ -16,7 +16,9 @@ the measured point in the cam frame (zero for a reflector at the cam origin).
 from __future__ import annotations
 
 import copy
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TypeVar, cast
 
 import numpy as np
 
@@ -29,7 +31,13 @@ from kinecal.geometry import (
     rot_z,
     transform_to_euler,
 )
-from kinecal.models._chain import ChainFrames, chain_frames, rotate, vcross
+from kinecal.models._chain import (
+    ChainFrames,
+    chain_frames,
+    rotate,
+    shifted_trig_if_small,
+    vcross,
+)
 from kinecal.models._compliance import (
     general_link_names,
     general_link_pattern,
@@ -37,7 +45,7 @@ from kinecal.models._compliance import (
     link_torque_basis,
     link_torque_pattern,
     load_torques,
-    ntm_basis,
+    ntm_basis_rows,
     ntm_names,
     torque_adjoint,
 )
@@ -48,6 +56,7 @@ from kinecal.typing import ArrayLike, Float
 
 __all__ = ["CalibrationModel", "ForwardState", "ModelInputs", "ModelOutput"]
 
+_T = TypeVar("_T")
 _FRAME = ("x", "y", "z", "r", "w", "p")
 # Columns of the per-row value table.
 _OFF, _D, _A, _ALPHA, _BETA = range(5)
@@ -70,6 +79,12 @@ class ModelInputs:
     marker_index : (N,) int, index into ``spec.markers`` (cam frame per marker).
     p_cam : (N, 3) point in the cam frame [m] (zeros for a reflector at the cam origin).
     load_scale : (N,) payload of the row relative to the reference payload (1 by default).
+
+    Quantities that depend on the poses alone (the coupled joint angles with their
+    cosines and sines, the Fourier bases) are computed once per object and kept
+    (:meth:`derived`), as every solver iteration evaluates the same poses. So that they
+    cannot go stale, :meth:`make` and :meth:`subset` hold ``q_ctrl`` in a read-only copy;
+    make new inputs for other joint values.
     """
 
     q_ctrl: Float
@@ -77,6 +92,9 @@ class ModelInputs:
     marker_index: np.ndarray
     p_cam: Float
     load_scale: Float
+    _derived: dict[tuple[object, ...], object] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
 
     @classmethod
     def make(
@@ -88,7 +106,7 @@ class ModelInputs:
         p_cam: ArrayLike | None = None,
         load_scale: ArrayLike | None = None,
     ) -> ModelInputs:
-        q = np.atleast_2d(np.asarray(q_ctrl, dtype=np.float64))
+        q = np.array(q_ctrl, dtype=np.float64, ndmin=2)  # its own copy, read-only below
         N = q.shape[0]
         si = (
             np.zeros(N, np.intp)
@@ -112,16 +130,27 @@ class ModelInputs:
         )
         if si.shape != (N,) or mi.shape != (N,):
             raise DataError("set_index and marker_index must have one entry per pose.")
+        q.flags.writeable = False
         return cls(q, si, mi, pc, ls)
 
     @property
     def n(self) -> int:
         return int(self.q_ctrl.shape[0])
 
+    def derived(self, key: tuple[object, ...], make: Callable[[], _T]) -> _T:
+        """``make()``, computed on the first call with this ``key`` and kept."""
+        try:
+            return cast(_T, self._derived[key])
+        except KeyError:
+            value = self._derived[key] = make()
+            return value
+
     def subset(self, rows: np.ndarray) -> ModelInputs:
         """The inputs of the selected rows (index or boolean mask)."""
+        q = self.q_ctrl[rows]
+        q.flags.writeable = False
         return ModelInputs(
-            self.q_ctrl[rows],
+            q,
             self.set_index[rows],
             self.marker_index[rows],
             self.p_cam[rows],
@@ -446,18 +475,65 @@ class CalibrationModel:
         R, t = self.base_frames(params) if which == "base" else self.cam_frames(params)
         return np.concatenate([t, matrix_to_euler_zyx(R)], axis=1)
 
-    def _ntm(self, params: Float, q_ctrl: Float) -> tuple[Float, list[Float]]:
-        """NTM joint-angle errors (n, N) and the basis (nb, N) per NTM joint."""
+    def _coupled(self, inputs: ModelInputs) -> tuple[Float, Float, Float]:
+        """Kinematic angles ``C q_ctrl`` (n, N) of the inputs, with their cosines and
+        sines (computed once per inputs object)."""
+        C = self.robot.coupling
+
+        def make() -> tuple[Float, Float, Float]:
+            th = C @ inputs.q_ctrl.T
+            return th, np.cos(th), np.sin(th)
+
+        return inputs.derived(("coupled", C.tobytes()), make)
+
+    def _ntm(self, params: Float, inputs: ModelInputs) -> tuple[Float, list[Float]]:
+        """NTM joint-angle errors (n, N) and the basis (nb, N) per NTM joint (the bases are
+        computed once per inputs object)."""
+        q_ctrl = inputs.q_ctrl
         N = q_ctrl.shape[0]
         dth = np.zeros((self.n_joints, N))
         bases = []
         nb = len(self._ntm_cols)
+        order, offset = self.spec.ntm_order, self.spec.ntm_offset
+
+        def basis(j: int) -> Callable[[], Float]:
+            return lambda: ntm_basis_rows(
+                np.ascontiguousarray(q_ctrl[:, j - 1]), order, offset
+            )
+
         for k, j in enumerate(self.spec.ntm_joints):
-            B = ntm_basis(q_ctrl[:, j - 1], self.spec.ntm_order, self.spec.ntm_offset).T
+            B = inputs.derived(("ntm", j, order, offset), basis(j))
             coef = params[self._ntm_start + k * nb : self._ntm_start + (k + 1) * nb]
             dth[j - 1] += coef @ B  # Eq. (17)
-            bases.append(np.ascontiguousarray(B))
+            bases.append(B)
         return dth, bases
+
+    def _row_trig(
+        self, rows: Float, coupled: tuple[Float, Float, Float], dth: Float | None
+    ) -> tuple[Float, Float] | None:
+        """Cosines and sines (n, N) of the row angles ``C q + offset + dth`` from those of
+        ``C q``: the offsets by the angle sums, the small NTM errors ``dth`` by the
+        series of ``shifted_trig``. None for arms with prismatic joints or large errors.
+        """
+        if self._prismatic.any():
+            return None
+        _, cq, sq = coupled
+        off = rows[:, _OFF, None]
+        co, so = np.cos(off), np.sin(off)
+        ct = cq * co
+        ct -= sq * so
+        st = sq * co
+        st += cq * so
+        if dth is not None:
+            js = [j - 1 for j in self.spec.ntm_joints]
+            J: list[int] | slice = js
+            if js == list(range(js[0], js[-1] + 1)):  # views, no gather
+                J = slice(js[0], js[-1] + 1)
+            shifted = shifted_trig_if_small(ct[J], st[J], dth[J])
+            if shifted is None:
+                return None
+            ct[J], st[J] = shifted
+        return ct, st
 
     def _link_basis(self, frames: ChainFrames, g: Float | None = None) -> Float:
         """Link-weight torque per unit of each link parameter, (n, n_link, N), for gravity
@@ -492,23 +568,20 @@ class CalibrationModel:
         theta: Float,
         rows: Float,
         base: tuple[Float, Float] | None = None,
-        near: tuple[ChainFrames, Float] | None = None,
+        trig: tuple[Float, Float] | None = None,
     ) -> ChainFrames:
         """Chain frames for kinematic joint values ``theta`` (n, N), in the model base
-        frame or in the frame ``base`` places it in (see :func:`chain_frames`). ``near``
-        gives the frames at ``theta - delta`` and ``delta`` (n, N), to shift their sines
-        and cosines instead of computing new ones."""
+        frame or in the frame ``base`` places it in (see :func:`chain_frames`). ``trig``
+        gives the cosines and sines of the row angles when the caller has them."""
         pr = self._prismatic
         if np.any(pr):
             th = rows[:, _OFF, None] + np.where(pr[:, None], 0.0, theta)
             d = (rows[:, _D, None] + np.where(pr[:, None], theta, 0.0)).T
-            if near is not None:  # a prismatic row's angle does not change
-                near = (near[0], np.where(pr[:, None], 0.0, near[1]))
         else:
             th = rows[:, _OFF, None] + theta
             d = rows[:, _D]
         beta = rows[:, _BETA] if self._has_beta else None
-        return chain_frames(th.T, d, rows[:, _A], rows[:, _ALPHA], beta, base, near)
+        return chain_frames(th.T, d, rows[:, _A], rows[:, _ALPHA], beta, base, trig)
 
     def _user_base(
         self, R_b: Float, t_b: Float, set_index: np.ndarray
@@ -726,18 +799,21 @@ class CalibrationModel:
         spec = self.spec
         n = q.shape[1]
         rows = self._rows(p)
-        theta = self.robot.coupling @ q.T  # (n, N)
+        coupled = self._coupled(inputs)
+        theta = coupled[0]  # (n, N), kept with the inputs: not modified in place
         ntm_bases: list[Float] = []
+        dth_c = None
         if spec.ntm_joints:
-            dth_c, ntm_bases = self._ntm(p, q)
+            dth_c, ntm_bases = self._ntm(p, inputs)
             theta = theta + dth_c
+        trig = self._row_trig(rows, coupled, dth_c)
 
         R_c, t_c = self.cam_frames(p)
         R_b, t_b = self.base_frames(p)
         base, g = self._user_base(R_b, t_b, inputs.set_index)
         tau = link_T = fr0 = p_load = None
         if spec.load:
-            fr0 = self._frames(theta, rows, base)
+            fr0 = self._frames(theta, rows, base, trig)
             # Load point: origin of the first marker's cam frame (Eq. 19 with Delta = 0).
             p_load = fr0.origin[n] + rotate(fr0.cols[n], t_c[0])
             tau = load_torques(fr0, p_load, g, self._prismatic)
@@ -748,10 +824,13 @@ class CalibrationModel:
                 tau += np.einsum("jsn,s->jn", link_T, s)  # Eq. (25)
             deflection = p[self._lam_idx, None] * tau  # Eq. (22), (24), (26)
             th = theta + deflection
-            fr = self._frames(th, rows, base, near=(fr0, deflection))
+            if self._prismatic.any():  # a prismatic row's angle does not change
+                deflection = np.where(self._prismatic[:, None], 0.0, deflection)
+            shifted = shifted_trig_if_small(fr0.cos, fr0.sin, deflection)
+            fr = self._frames(th, rows, base, shifted)
         else:
-            th = theta
-            fr = self._frames(th, rows, base)
+            th = theta if dth_c is not None else theta.copy()  # not the kept array
+            fr = self._frames(th, rows, base, trig)
 
         p_fl, p_cam_fl = self._flange_point(R_c, t_c, inputs)
         p_u = fr.origin[n] + rotate(fr.cols[n], p_fl)
