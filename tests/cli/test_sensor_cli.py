@@ -87,6 +87,13 @@ def test_simulate_reconstruct_fit_chain(tmp_path, run_cli):
         "-q",
     )
     assert r.returncode == 0, r.stderr
+    serial = tmp_path / "cloud-serial.csv"
+    args = ("reconstruct", str(scan), "--sensor", str(scan / "sensor.yaml"), "-q")
+    r = run_cli("sensor", *args, "--out", str(serial), "--jobs", "1")
+    assert r.returncode == 0, r.stderr
+    assert serial.read_bytes() == cloud.read_bytes()  # any number of threads
+    r = run_cli("sensor", *args, "--out", str(serial), "--jobs", "-1", "--force")
+    assert r.returncode == 2 and "--jobs" in r.stderr
     r = run_cli("sensor", "fit-sphere", str(cloud), "--json")
     out = json.loads(r.stdout)
     assert np.allclose(out["center_mm"], truth["center_mm"], atol=0.005)
@@ -129,6 +136,8 @@ def test_calibration_commands(tmp_path, run_cli):
         str(cal / "chessboard"),
         "--out",
         str(tmp_path / "camera.yaml"),
+        "--jobs",
+        "2",
         "-q",
     )
     assert r.returncode == 0, r.stderr
@@ -146,6 +155,8 @@ def test_calibration_commands(tmp_path, run_cli):
         "120",
         "--out",
         str(tmp_path / "sensor.yaml"),
+        "--jobs",
+        "2",
         "-q",
     )
     assert r.returncode == 0, r.stderr

@@ -12,6 +12,7 @@ from kinecal.cli._common import (
     MODEL_CHOICES,
     Progress,
     common_options,
+    jobs_option,
     manifest,
     model_file_option,
     parse_int_list,
@@ -102,14 +103,7 @@ def _options_from(loss: str, priors: str, stage2: str):
     help="Also report K-fold cross-validated held-out errors of the chosen model "
     "(whole sessions per fold when DATA has several sets) and of the nominal one.",
 )
-@click.option(
-    "--jobs",
-    type=click.IntRange(min=0),
-    default=0,
-    show_default=True,
-    help="Worker processes for the cross-validation of --model auto and --cv "
-    "(0: one per CPU; 1: serial). The result does not depend on it.",
-)
+@jobs_option("Worker processes for the cross-validation of --model auto and --cv")
 @click.option("--force", is_flag=True, help="Overwrite results already in --out.")
 @common_options
 def calibrate(

@@ -27,6 +27,18 @@ targets_option = click.option(
 )
 
 
+def jobs_option(what: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """``--jobs N``: how many workers (``what``: "Worker processes for ...") share the
+    command's work; 0 means one per CPU. Results never depend on it."""
+    return click.option(
+        "--jobs",
+        type=click.IntRange(min=0),
+        default=0,
+        show_default=True,
+        help=f"{what} (0: one per CPU; 1: serial). The result does not depend on it.",
+    )
+
+
 class Progress:
     """Stage-by-stage progress on stderr, silenced by ``--quiet``."""
 

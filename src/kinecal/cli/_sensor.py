@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from kinecal.cli._common import Progress, common_options
+from kinecal.cli._common import Progress, common_options, jobs_option
 
 if TYPE_CHECKING:
     import numpy as np
@@ -139,10 +139,17 @@ def fit_sphere_cmd(
 @click.option(
     "--out", "out", required=True, type=click.Path(dir_okay=False), help="CAMERA.yaml"
 )
+@jobs_option("Threads searching the chessboards")
 @click.option("--force", is_flag=True)
 @common_options
 def calibrate_camera_cmd(
-    folder: str, board: str, square_mm: float, out: str, force: bool, quiet: bool
+    folder: str,
+    board: str,
+    square_mm: float,
+    out: str,
+    jobs: int,
+    force: bool,
+    quiet: bool,
 ) -> None:
     """Camera intrinsics by Zhang's method from the chessboard images in FOLDER (*.png)."""
     from kinecal.io import image_files, read_image, save_sensor
@@ -152,7 +159,7 @@ def calibrate_camera_cmd(
     tgt = _board(board, square_mm)
     files = image_files(folder)
     prog("images", f"{len(files)} in {folder}")
-    res = calibrate_camera([read_image(f) for f in files], tgt)
+    res = calibrate_camera([read_image(f) for f in files], tgt, jobs=jobs)
     skipped = sorted(set(range(len(files))) - set(res.used) - set(res.rejected))
     for k in skipped:
         click.echo(
@@ -206,6 +213,7 @@ def calibrate_camera_cmd(
 @click.option(
     "--out", "out", required=True, type=click.Path(dir_okay=False), help="SENSOR.yaml"
 )
+@jobs_option("Threads extracting the stripes")
 @click.option("--force", is_flag=True)
 @common_options
 def calibrate_planes_cmd(
@@ -216,6 +224,7 @@ def calibrate_planes_cmd(
     n_planes: int | None,
     model: str,
     out: str,
+    jobs: int,
     force: bool,
     quiet: bool,
 ) -> None:
@@ -269,7 +278,7 @@ def calibrate_planes_cmd(
     # Each image is read when its stripes are extracted and dropped after: memory stays
     # at one image, not every image of every pose (5 x 120 x 1.3 MB).
     imgs = [_LazyImages([s.get(i) for i in range(m)], read_image) for s in sets]
-    res = calibrate_planes(cam, poses, imgs, model=model)
+    res = calibrate_planes(cam, poses, imgs, model=model, jobs=jobs)
     status = {k: res.status.count(k) for k in sorted(set(res.status))}
     info = {
         "planes_method": model,
@@ -295,10 +304,11 @@ def calibrate_planes_cmd(
 @click.option(
     "--out", "out", required=True, type=click.Path(dir_okay=False), help="CLOUD.csv"
 )
+@jobs_option("Threads reading the images and extracting the stripes")
 @click.option("--force", is_flag=True)
 @common_options
 def reconstruct(
-    folder: str, sensor_file: str, out: str, force: bool, quiet: bool
+    folder: str, sensor_file: str, out: str, jobs: int, force: bool, quiet: bool
 ) -> None:
     """Point cloud of one scan: FOLDER holds ``plane_NNN.png`` (light plane NNN).
 
@@ -316,7 +326,7 @@ def reconstruct(
     idx = np.array([_plane_index(f) for f in files])
     prog("images", f"{len(files)} stripe images")
     # Each image is read in the thread that extracts its stripes, and dropped after.
-    cloud = sen.scan(_LazyImages(list(files), read_image), idx)
+    cloud = sen.scan(_LazyImages(list(files), read_image), idx, jobs=jobs)
     write_cloud(
         out,
         cloud.points,
