@@ -151,18 +151,23 @@ def _rounds(
     max_rounds: int,
     min_points: int,
     inl: np.ndarray | None = None,
-) -> tuple[Float, float, Float, np.ndarray, int]:
-    """Geometric fits alternating with MAD outlier rejection until the inliers settle."""
+) -> tuple[Float, float, Float, np.ndarray, int, Float]:
+    """Geometric fits alternating with MAD outlier rejection until the inliers settle.
+
+    Returns the sphere, ``JᵀJ`` at it, the inliers, the iterations and the signed
+    distances (N,) of every point from the final sphere."""
     inl = np.ones(Q.shape[1], bool) if inl is None else inl
     iters = 0
     JtJ = np.eye(3 if fixed is not None else 4)
+    d = np.zeros(0)
     for _ in range(max_rounds):
         c, R, JtJ, it = _geometric(Q if inl.all() else _columns(Q, inl), c, R, fixed)
         iters += it
+        d = _distances(Q, c)[0] - R
         if outlier_k is None:
             break
-        d = _distances(Q, c)[0] - R
-        sig = 1.4826 * float(np.median(np.abs(d[inl] - np.median(d[inl]))))
+        di = d[inl]
+        sig = 1.4826 * float(np.median(np.abs(di - np.median(di))))
         new = np.abs(d) <= outlier_k * max(sig, 1e-12)
         if new.sum() < max(min_points, 4):
             raise DataError(
@@ -171,7 +176,7 @@ def _rounds(
         if np.array_equal(new, inl):
             break
         inl = new
-    return c, R, JtJ, inl, iters
+    return c, R, JtJ, inl, iters, d
 
 
 def fit_sphere(
@@ -216,7 +221,9 @@ def fit_sphere(
     inl = np.ones(P.shape[0], bool)
     iters = 0
     if stride > 1:
-        c, R, _, inl_s, it = _rounds(Qs, c, R, fixed, outlier_k, max_rounds, min_points)
+        c, R, _, inl_s, it, _ = _rounds(
+            Qs, c, R, fixed, outlier_k, max_rounds, min_points
+        )
         iters += it
         if outlier_k is not None:
             d = _distances(Q, c)[0] - R
@@ -228,10 +235,12 @@ def fit_sphere(
                     f"fit_sphere: only {int(inl.sum())} of {P.shape[0]} points lie on "
                     "one sphere"
                 )
-    c, R, JtJ, inl, it = _rounds(Q, c, R, fixed, outlier_k, max_rounds, min_points, inl)
+    c, R, JtJ, inl, it, d = _rounds(
+        Q, c, R, fixed, outlier_k, max_rounds, min_points, inl
+    )
     iters += it
     npar = JtJ.shape[0]
-    d_in = _distances(_columns(Q, inl), c)[0] - R
+    d_in = d[inl]
     n = int(inl.sum())
     rms = float(np.sqrt(np.mean(d_in**2)))
     s2 = float(d_in @ d_in) / max(n - npar, 1)
