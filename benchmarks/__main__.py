@@ -138,6 +138,18 @@ def main(argv: list[str] | None = None) -> int:
         poses=big.n,
         parameters=cal.model.size,
     )
+    # The same on a new inputs object each time: what the quantities of the poses alone
+    # (kept per inputs object, as every solver iteration reuses them) cost on top.
+    q = big.model_inputs(cal.reference_payload_kg)
+    t, _ = _median_time(
+        lambda: cal.model.evaluate(
+            cal.params,
+            type(q).make(q.q_ctrl, p_cam=q.p_cam, load_scale=q.load_scale),
+            jacobian=True,
+        ),
+        rep_fast,
+    )
+    record("fk_jacobian_full_new_inputs", t, "first evaluation of new poses")
 
     # 1b. plain FK (nominal kinematic model) and the full model without Jacobians
     from kinecal.simulation import planning_model
