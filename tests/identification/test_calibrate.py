@@ -137,3 +137,35 @@ def test_the_unconstrained_prefit_stops_early_on_a_compliant_robot(monkeypatch):
     z = (fast.calibrated.params - tight.calibrated.params) / tight.calibrated.std
     z = z[[s == "estimated" for s in est]]
     assert np.abs(z).max() < 0.2, np.abs(z).max()
+
+
+def test_parameters_left_without_a_prior_and_loosely_determined_are_named(exp2_exact):
+    """Without priors, the warning names the estimated parameters whose standard
+    deviation exceeds the prior --priors all would give them, with that ratio, largest
+    first; the default priors leave nothing to name."""
+    import re
+
+    from kinecal.identification import CalibrationOptions, calibrate
+    from kinecal.identification._calibrate import build_prior
+
+    robot, meas = exp2_exact.truth.robot, exp2_exact.train
+    found = {}
+    for priors in ("none", "compliance", "all"):
+        res = calibrate(robot, meas, "full", CalibrationOptions(priors=priors))
+        text = [w for w in res.warnings if "without a prior" in w]
+        found[priors] = (res, text)
+    assert found["all"][1] == []
+    res, (text,) = found["none"]
+    names = re.findall(r"([\w.]+) \(([\d.e+]+)x\)", text)
+    assert names and any(n.startswith("link.") for n, _ in names)
+    ratios = [float(r) for _, r in names]
+    assert ratios == sorted(ratios, reverse=True) and min(ratios) > 1.0
+    cal = res.calibrated
+    plausible = build_prior(cal.model, cal.params, CalibrationOptions()).sigma
+    first, ratio = names[0]
+    k = cal.model.layout.index(first)
+    assert float(ratio) == pytest.approx(cal.std[k] / plausible[k], rel=1e-2)
+    # the compliance priors hold the link and load terms: only geometry is left to name
+    _, (text_c,) = found["compliance"]
+    named = re.findall(r"([\w.]+) \([\d.e+]+x\)", text_c)
+    assert named and not any(n.startswith(("link.", "joint6.lambda")) for n in named)

@@ -391,6 +391,29 @@ def _drift(cm: CalibrationModel, res: LMResult, free: np.ndarray, priors: str) -
     return text
 
 
+def _loose_parameters(
+    cm: CalibrationModel,
+    start: Float,
+    opts: CalibrationOptions,
+    sigma: Float,
+    std: Float,
+    fidx: np.ndarray,
+) -> list[tuple[str, float]]:
+    """Estimated parameters without a prior (``sigma`` infinite) whose standard
+    deviation exceeds the prior ``--priors all`` would give them (their plausible size),
+    as ``(name, std / that prior)``, largest first: plain least squares leaves them to
+    the noise."""
+    plausible = build_prior(cm, start, replace(opts, priors="all")).sigma
+    out = [
+        (cm.layout.names[i], float(std[i] / plausible[i]))
+        for i in fidx
+        if not np.isfinite(sigma[i])
+        and np.isfinite(plausible[i])
+        and std[i] > plausible[i]
+    ]
+    return sorted(out, key=lambda item: -item[1])
+
+
 def _robust_sigma(r: Float) -> float:
     """Noise per component from the median row norm (whitened units)."""
     c = r.shape[1]
@@ -781,6 +804,16 @@ def calibrate(
                 + (" ..." if len(weak_prior) > 8 else "")
                 + "."
             )
+    loose = _loose_parameters(cm, x_reg, opts, prior.sigma, std, fidx)
+    if loose:
+        warnings.append(
+            f"{len(loose)} parameters without a prior are hardly determined by these "
+            "poses: their standard deviation exceeds the size the default priors allow "
+            "(--priors all): "
+            + ", ".join(f"{name} ({ratio:.3g}x)" for name, ratio in loose[:8])
+            + (f" and {len(loose) - 8} more" if len(loose) > 8 else "")
+            + "."
+        )
     ratio = fidx.size / m_res
     if ratio > 0.2:
         warnings.append(
