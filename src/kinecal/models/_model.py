@@ -746,14 +746,11 @@ class CalibrationModel:
                     Jb[cols[3:], 3:] = ax_b * mask
 
         # Parameters acting through the joint angles.
-        nb = len(self._ntm_cols)
-        for k, j in enumerate(spec.ntm_joints):
-            sl = slice(self._ntm_start + k * nb, self._ntm_start + (k + 1) * nb)
-            Jb[sl] = G[j - 1] * ntm_bases[k][:, None, :]
+        turns: dict[int, Float] = {}
         if spec.load:
             assert fr0 is not None and p_load is not None and tau is not None
             H = G * p[self._lam_idx, None, None]  # lambda* d output / d theta
-            self._add_torque_geometry(p, inputs, fr0, p_load, g, ntm_bases, H, Jb)
+            turns = self._add_torque_geometry(p, inputs, fr0, p_load, g, H, Jb)
             Jb[self._lam_idx] = G * tau[:, None, :]
             if link_T is not None:
                 # d output / d s_k = sum_j H_j link_T[j, k] over the pattern's joints
@@ -763,6 +760,12 @@ class CalibrationModel:
                 if products:
                     for i, (j, k) in enumerate(self._products):
                         Jb[P + i] = G[j] * link_T[j, k]
+        # An NTM term turns its joint: through the chain (G) and through the torques.
+        nb = len(self._ntm_cols)
+        for k, j in enumerate(spec.ntm_joints):
+            sl = slice(self._ntm_start + k * nb, self._ntm_start + (k + 1) * nb)
+            d_turn = G[j - 1] + turns[j] if j in turns else G[j - 1]
+            Jb[sl] = d_turn * ntm_bases[k][:, None, :]
 
         # User frame parameters (Eq. 8), per set.
         base_v = p[self._base_idx]
@@ -864,10 +867,9 @@ class CalibrationModel:
         fr0: ChainFrames,
         p_load: Float,
         g: Float,
-        ntm_bases: list[Float],
         H: Float,
         Jb: Float,
-    ) -> None:
+    ) -> dict[int, Float]:
         """Add ``sum_j H_j d tau_j / d psi`` for every geometric parameter psi.
 
         The compliance torques depend on the arm's geometry (joint rows, joint angles
@@ -875,6 +877,9 @@ class CalibrationModel:
         frames by a twist, and :func:`torque_adjoint` turns the twists into weighted
         torque derivatives. This makes the Jacobian exact (checked against finite
         differences).
+
+        Returns the term of a unit turn of each NTM joint (joint -> (c, N)): the caller
+        scales it by the joint's Fourier basis with the chain's own column.
         """
         n = self.n_joints
         link = None
@@ -897,8 +902,8 @@ class CalibrationModel:
         adjoint = torque_adjoint(
             fr0, p_load, g, self._prismatic, H, inputs.load_scale, link, bodies
         )
-        ntm_k = {j: k for k, j in enumerate(self.spec.ntm_joints)}
-        nb = len(self._ntm_cols)
+        ntm = set(self.spec.ntm_joints)
+        turns: dict[int, Float] = {}
         for f, M, V in adjoint.sweep():
             if f == n + 1:  # the load point moves with the first marker's translation
                 Jb[self._cam_idx[0][:3]] += _apply(V, fr0.cols[n])
@@ -908,14 +913,12 @@ class CalibrationModel:
             idx = self._row_idx[i]
             z, o = fr0.cols[i, 2], fr0.origin[i]
             ax, o1 = fr0.a_dir[i], fr0.origin[i + 1]
-            if idx[_OFF] >= 0 or f in ntm_k:  # joint f turning about z_i through o_i
+            if idx[_OFF] >= 0 or f in ntm:  # joint f turning about z_i through o_i
                 d_turn = _apply(M, z) + _apply(V, vcross(o, z))
                 if idx[_OFF] >= 0:
                     Jb[idx[_OFF]] += d_turn
-                if f in ntm_k:
-                    k = ntm_k[f]
-                    sl = slice(self._ntm_start + k * nb, self._ntm_start + (k + 1) * nb)
-                    Jb[sl] += d_turn * ntm_bases[k][:, None, :]
+                if f in ntm:
+                    turns[f] = d_turn
             if idx[_D] >= 0:
                 Jb[idx[_D]] += _apply(V, z)
             if idx[_A] >= 0:
@@ -925,6 +928,7 @@ class CalibrationModel:
             if idx[_BETA] >= 0:
                 y = fr0.cols[i + 1, 1]
                 Jb[idx[_BETA]] += _apply(M, y) + _apply(V, vcross(o1, y))
+        return turns
 
     def flange_frames(
         self, params: ArrayLike, inputs: ModelInputs
