@@ -53,6 +53,45 @@ def _run(cmd: list[str]) -> None:
     subprocess.run(cmd, check=True, capture_output=True, env=_process_env())
 
 
+def _jacobian_instructions(model: Any, params: Any, inputs: Any) -> float | None:
+    """Instructions per FK + Jacobian evaluation (callgrind; None without valgrind or
+    for inputs with several sets or markers, which the helper does not rebuild)."""
+    import dataclasses
+    import shutil
+    import tempfile
+
+    if shutil.which("valgrind") is None or len(set(inputs.set_index)) > 1:
+        return None
+    if len(set(inputs.marker_index)) > 1:
+        return None
+    with tempfile.TemporaryDirectory() as tmp:
+        path = str(Path(tmp) / "case.npz")
+        np.savez(
+            path,
+            spec=json.dumps(dataclasses.asdict(model.spec)),
+            robot=model.robot.name,
+            params=params,
+            q_ctrl=inputs.q_ctrl,
+            p_cam=inputs.p_cam,
+            load_scale=inputs.load_scale,
+        )
+        env = {**_process_env(), "OPENBLAS_NUM_THREADS": "1"}
+        # A plain run first, so both counted runs load the same bytecode caches.
+        helper = [sys.executable, "-m", "benchmarks._instructions", path]
+        subprocess.run([*helper, "0"], check=True, capture_output=True, env=env)
+        counts = []
+        for k in (0, 4):
+            out = str(Path(tmp) / f"callgrind.{k}")
+            cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}"]
+            cmd += [*helper, str(k)]
+            r = subprocess.run(cmd, capture_output=True, text=True, env=env)
+            found = [ln for ln in r.stderr.splitlines() if "Collected :" in ln]
+            if r.returncode != 0 or not found:
+                return None
+            counts.append(int(found[-1].split(":")[-1].replace(",", "")))
+    return (counts[1] - counts[0]) / 4
+
+
 def _machine() -> dict[str, Any]:
     info: dict[str, Any] = {
         "python": platform.python_version(),
@@ -150,6 +189,13 @@ def main(argv: list[str] | None = None) -> int:
         rep_fast,
     )
     record("fk_jacobian_full_new_inputs", t, "first evaluation of new poses")
+    instructions = _jacobian_instructions(cal.model, cal.params, inputs)
+    if instructions is not None:
+        results["fk_jacobian_full_instructions"] = {
+            "instructions": instructions,
+            "target": "deterministic (callgrind): compares code, not machines",
+        }
+        print(f"  {'fk_jacobian_full_instructions':38s} {instructions / 1e6:10.2f} M")
 
     # 1b. plain FK (nominal kinematic model) and the full model without Jacobians
     from kinecal.simulation import planning_model
