@@ -256,6 +256,8 @@ def test_quantities_of_the_poses_alone_are_computed_once_per_inputs(rng, monkeyp
     first = full.evaluate(params, inp, jacobian=True)
     assert len(calls) == 3  # joints 1-3
     kept = dict(inp._derived)
+    with pytest.raises(ValueError, match="read-only"):  # shared by every evaluation
+        full._coupled(inp)[1][0, 0] = 0.0
     again = full.evaluate(params, inp, jacobian=True)
     assert len(calls) == 3 and inp._derived.keys() == kept.keys()
     assert all(inp._derived[k] is v for k, v in kept.items())

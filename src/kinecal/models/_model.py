@@ -138,11 +138,15 @@ class ModelInputs:
         return int(self.q_ctrl.shape[0])
 
     def derived(self, key: tuple[object, ...], make: Callable[[], _T]) -> _T:
-        """``make()``, computed on the first call with this ``key`` and kept."""
+        """``make()``, computed on the first call with this ``key`` and kept; its arrays
+        (an array or a tuple of them) are made read-only, as every caller shares them."""
         try:
             return cast(_T, self._derived[key])
         except KeyError:
             value = self._derived[key] = make()
+            for a in value if isinstance(value, tuple) else (value,):
+                if isinstance(a, np.ndarray):
+                    a.flags.writeable = False
             return value
 
     def subset(self, rows: np.ndarray) -> ModelInputs:
