@@ -12,7 +12,9 @@ PYDIRS := $(wildcard src tests benchmarks examples)
 # top only oversubscribe them (the suite took 142 s with two, 100 s with one, on 2 cores).
 test test-slow: export OPENBLAS_NUM_THREADS ?= 1
 
-$(STAMP): pyproject.toml
+# The compiled model kernel is built by the install (setup.py; optional: skipped without a
+# C compiler), so a change to its source reinstalls.
+$(STAMP): pyproject.toml setup.py src/kinecal/models/_ckernel.c
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "kinecal needs Python >= 3.11"'
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip

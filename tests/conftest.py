@@ -1,8 +1,10 @@
 """Shared fixtures: a seeded random generator (never global np.random), the CLI run in a
-subprocess, as a user would, and the model's Jacobian storage poisoned with NaN."""
+subprocess, as a user would, the model's Jacobian storage poisoned with NaN, and the
+choice of the model's code (compiled kernel or numpy)."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from collections.abc import Callable, Iterator
@@ -19,6 +21,33 @@ def _poisoned_jacobian_storage(monkeypatch: pytest.MonkeyPatch) -> None:
     from kinecal.models import _model
 
     monkeypatch.setattr(_model, "_alloc", lambda shape: np.full(shape, np.nan))
+
+
+def require_compiled_kernel() -> None:
+    """Skip a test of the compiled kernel where it is not built (an installation without
+    a C compiler), unless KINECAL_REQUIRE_KERNEL=1 (CI) makes that a failure."""
+    from kinecal.models import compiled_kernel_available
+
+    if compiled_kernel_available():
+        return
+    if os.environ.get("KINECAL_REQUIRE_KERNEL") == "1":
+        pytest.fail("the compiled kernel is not built, and KINECAL_REQUIRE_KERNEL=1")
+    pytest.skip("the compiled kernel is not built (no C compiler at install time)")
+
+
+@pytest.fixture(params=["c", "numpy"])
+def kernel(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
+    """Run the test with the compiled kernel, then with the numpy code."""
+    if request.param == "c":
+        require_compiled_kernel()
+    monkeypatch.setenv("KINECAL_KERNEL", request.param)
+    return str(request.param)
+
+
+@pytest.fixture
+def numpy_kernel(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The model's numpy code, for tests of what only it has (the kept forward state)."""
+    monkeypatch.setenv("KINECAL_KERNEL", "numpy")
 
 
 @pytest.fixture

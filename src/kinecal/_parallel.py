@@ -136,8 +136,12 @@ def set_blas_threads(n: int) -> None:
 
 
 def _one_blas_thread() -> None:
-    """Worker initializer: one thread for every loaded OpenBLAS."""
+    """Worker initializer: one thread for every loaded OpenBLAS and for the compiled
+    model kernel (the workers already use every core)."""
     set_blas_threads(1)
+    from kinecal.models._kernel import set_kernel_threads
+
+    set_kernel_threads(1)
 
 
 def _can_fork() -> bool:

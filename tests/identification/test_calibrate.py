@@ -50,7 +50,7 @@ def test_evaluations_are_reused_only_where_they_apply(exp2_exact):
 
 
 def test_a_jacobian_after_a_plain_evaluation_reuses_its_forward_kinematics(
-    exp2_exact, monkeypatch
+    exp2_exact, monkeypatch, numpy_kernel
 ):
     """The LM's accepted trial point is evaluated plainly, then with its Jacobian: the
     second evaluation (with any weights) takes the first's forward state, and gives the

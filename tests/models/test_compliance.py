@@ -297,7 +297,7 @@ def test_link_bases_vanish_outside_their_patterns(rng):
         ModelSpec(ntm_joints=(2,), load=True, link="paper", link_bodies=(2, 3)),
     ],
 )
-def test_link_product_columns(spec, rng):
+def test_link_product_columns(spec, rng, kernel):
     """Column of lambda*_j s_k = d p / d theta_j (joint Jacobian) times the torque per unit
     s_k at the undeflected pose; the columns of s_k are sum_j lambda*_j times them."""
     model = CalibrationModel(FANUC, spec)

@@ -35,7 +35,7 @@ def _generic_params(model, rng, lam):
 
 @pytest.mark.parametrize("name", builtin_robot_names())
 @pytest.mark.parametrize("preset", ["kinematic", "full"])
-def test_nominal_parameters_reproduce_nominal_fk(name, preset, rng):
+def test_nominal_parameters_reproduce_nominal_fk(name, preset, rng, kernel):
     robot = load_robot(name)
     spec = ModelSpec.preset(preset, has_self_weight=robot.self_weight is not None)
     model = CalibrationModel(robot, spec)
@@ -81,7 +81,7 @@ def _check_all_columns(model, params, inp, cols=None):
         ("franka-fr3", ModelSpec.preset("full", has_self_weight=False)),
     ],
 )
-def test_parameter_jacobian_matches_finite_differences(name, spec, rng):
+def test_parameter_jacobian_matches_finite_differences(name, spec, rng, kernel):
     """Exact for every column when lambda* = 0 (the torques' geometry dependence vanishes)."""
     robot = load_robot(name)
     model = CalibrationModel(robot, spec)
@@ -106,7 +106,7 @@ def test_parameter_jacobian_matches_finite_differences(name, spec, rng):
         ("ur10", ModelSpec.preset("full", hayati=(2, 3))),
     ],
 )
-def test_jacobian_exact_with_compliance(name, spec, rng):
+def test_jacobian_exact_with_compliance(name, spec, rng, kernel):
     """With lambda* != 0 the torques depend on the geometry; those terms are included."""
     robot = load_robot(name)
     model = CalibrationModel(robot, spec)
@@ -114,7 +114,7 @@ def test_jacobian_exact_with_compliance(name, spec, rng):
     _check_all_columns(model, _generic_params(model, rng, lam=1e-3), inp)
 
 
-def test_joint_jacobian_matches_finite_differences(rng):
+def test_joint_jacobian_matches_finite_differences(rng, kernel):
     robot = load_robot("fanuc-lrmate200id")
     model = CalibrationModel(robot, ModelSpec.preset("kinematic", sets=("a", "b")))
     inp = _random_inputs(robot, rng, n=5, sets=2, p_cam=True)  # sensor-like points too
@@ -140,7 +140,7 @@ def test_joint_jacobian_matches_finite_differences(rng):
         assert_jacobian_matches_fd(J[k], f, th0)
 
 
-def test_bad_inputs_are_rejected(rng):
+def test_bad_inputs_are_rejected(rng, kernel):
     robot = load_robot("fanuc-lrmate200id")
     model = CalibrationModel(robot, ModelSpec.preset("kinematic"))
     with pytest.raises(ValueError, match=r"q_ctrl must have shape \(N, 6\)"):
@@ -183,7 +183,9 @@ def test_jacobian_exact_with_compliance_and_a_prismatic_joint(rng):
     _check_all_columns(model, _generic_params(model, rng, lam=1e-3), inp)
 
 
-def test_a_kept_forward_state_serves_the_jacobian_at_the_same_point(rng, monkeypatch):
+def test_a_kept_forward_state_serves_the_jacobian_at_the_same_point(
+    rng, monkeypatch, numpy_kernel
+):
     """evaluate(keep=True) then evaluate(jacobian=True, reuse=...) gives exactly the
     fresh Jacobian without computing the forward kinematics again; a state of other
     parameters, inputs, model or without the orientation is not used."""
@@ -231,7 +233,9 @@ def test_a_kept_forward_state_serves_the_jacobian_at_the_same_point(rng, monkeyp
         np.testing.assert_array_equal(out.J_w, ref.J_w)
 
 
-def test_quantities_of_the_poses_alone_are_computed_once_per_inputs(rng, monkeypatch):
+def test_quantities_of_the_poses_alone_are_computed_once_per_inputs(
+    rng, monkeypatch, kernel
+):
     """The coupled angles with their cosines and sines and the Fourier bases are kept
     with the inputs object: a second evaluation computes none of them, and its results
     equal those of a fresh inputs object. The returned angles are not the kept array."""
@@ -276,7 +280,7 @@ def test_quantities_of_the_poses_alone_are_computed_once_per_inputs(rng, monkeyp
     np.testing.assert_array_equal(model.evaluate(x, inp).theta, before)
 
 
-def test_row_angles_by_sums_equal_the_direct_sines_and_cosines(rng):
+def test_row_angles_by_sums_equal_the_direct_sines_and_cosines(rng, kernel):
     """cos/sin of ``C q + offset + dtheta_C`` from those of ``C q`` (offsets by angle
     sums, the NTM errors by the series) equal np.cos/np.sin to rounding. A transmission
     error beyond the series' range takes np.cos itself, and gives the model an offset

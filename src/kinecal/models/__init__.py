@@ -8,6 +8,11 @@ from kinecal.models._compliance import (
     ntm_names,
 )
 from kinecal.models._ik import IKResult, solve_ik
+from kinecal.models._kernel import (
+    compiled_kernel_available,
+    kernel_name,
+    set_kernel_threads,
+)
 from kinecal.models._layout import KINDS, ParameterLayout, ParamKind, ParamSpec
 from kinecal.models._model import (
     CalibrationModel,
@@ -31,10 +36,13 @@ __all__ = [
     "ParamSpec",
     "ParameterLayout",
     "chain_frames",
+    "compiled_kernel_available",
+    "kernel_name",
     "link_torque_basis",
     "load_torques",
     "ntm_basis",
     "ntm_names",
     "parallel_pairs",
+    "set_kernel_threads",
     "solve_ik",
 ]

@@ -31,6 +31,7 @@ from kinecal.geometry import (
     rot_z,
     transform_to_euler,
 )
+from kinecal.models import _kernel
 from kinecal.models._chain import (
     ChainFrames,
     chain_frames,
@@ -425,6 +426,7 @@ class CalibrationModel:
                 for j, k in general_link_pattern(spec.link_bodies, self._prismatic)
             ]
         self._products = [(j - 1, k) for j, k in pattern]
+        self._kernel_static = _kernel.tables(self)  # None: the numpy code runs
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -493,24 +495,32 @@ class CalibrationModel:
     def _ntm(self, params: Float, inputs: ModelInputs) -> tuple[Float, list[Float]]:
         """NTM joint-angle errors (n, N) and the basis (nb, N) per NTM joint (the bases are
         computed once per inputs object)."""
-        q_ctrl = inputs.q_ctrl
-        N = q_ctrl.shape[0]
+        N = inputs.q_ctrl.shape[0]
         dth = np.zeros((self.n_joints, N))
-        bases = []
+        stack = self._ntm_bases(inputs)
         nb = len(self._ntm_cols)
-        order, offset = self.spec.ntm_order, self.spec.ntm_offset
-
-        def basis(j: int) -> Callable[[], Float]:
-            return lambda: ntm_basis_rows(
-                np.ascontiguousarray(q_ctrl[:, j - 1]), order, offset
-            )
-
         for k, j in enumerate(self.spec.ntm_joints):
-            B = inputs.derived(("ntm", j, order, offset), basis(j))
             coef = params[self._ntm_start + k * nb : self._ntm_start + (k + 1) * nb]
-            dth[j - 1] += coef @ B  # Eq. (17)
-            bases.append(B)
-        return dth, bases
+            dth[j - 1] += coef @ stack[k]  # Eq. (17)
+        return dth, list(stack)
+
+    def _ntm_bases(self, inputs: ModelInputs) -> Float:
+        """The Fourier bases of every NTM joint, (n_ntm, nb, N) (kept with the inputs)."""
+        q_ctrl = inputs.q_ctrl
+        spec = self.spec
+
+        def make() -> Float:
+            out = np.empty((len(spec.ntm_joints), len(self._ntm_cols), q_ctrl.shape[0]))
+            for k, j in enumerate(spec.ntm_joints):
+                out[k] = ntm_basis_rows(
+                    np.ascontiguousarray(q_ctrl[:, j - 1]),
+                    spec.ntm_order,
+                    spec.ntm_offset,
+                )
+            return out
+
+        key = ("ntm", spec.ntm_joints, spec.ntm_order, spec.ntm_offset)
+        return inputs.derived(key, make)
 
     def _row_trig(
         self, rows: Float, coupled: tuple[Float, Float, Float], dth: Float | None
@@ -652,7 +662,10 @@ class CalibrationModel:
             joint j, all parameters held (``P + len(link_products)`` columns in all).
         keep : bool
             Attach the intermediate state (``ModelOutput.forward``, both chains: about
-            110 numbers a pose) for a later Jacobian at the same point.
+            110 numbers a pose) for a later Jacobian at the same point. Only the numpy
+            code keeps one: the compiled kernel (:mod:`kinecal.models._kernel`) computes
+            the forward kinematics again at a small part of a Jacobian's cost, and its
+            outputs have ``forward`` None.
         reuse : ForwardState, optional
             The ``forward`` of an earlier output: when it is this model's at the same
             parameters and the same ``inputs`` object (its arrays unchanged since), its
@@ -674,6 +687,25 @@ class CalibrationModel:
         if q.ndim != 2 or q.shape[1] != self.n_joints:
             raise DataError(
                 f"q_ctrl must have shape (N, {self.n_joints}) for {self.robot.name}; got {q.shape}."
+            )
+        static = _kernel.active_tables(self)
+        if static is not None:  # the compiled kernel (see kinecal.models._kernel)
+            p_user, R_uc_c, J, theta_c = _kernel.evaluate(
+                static,
+                self,
+                p,
+                inputs,
+                orientation=orientation,
+                jacobian=jacobian,
+                products=products,
+                alloc=_alloc,
+            )
+            return ModelOutput(
+                p_user,
+                R_uc_c,
+                None if J is None else J[:, :3].transpose(2, 1, 0),
+                J[:, 3:].transpose(2, 1, 0) if J is not None and orientation else None,
+                theta_c.T,
             )
         if reuse is not None and reuse.serves(self, p, inputs, orientation):
             fw = reuse

@@ -1,0 +1,348 @@
+"""The compiled model kernel: :meth:`CalibrationModel.evaluate` in C, for every pose.
+
+``kinecal.models._ckernel`` (``_ckernel.c``) computes what the numpy code of
+:mod:`kinecal.models._model` computes (forward kinematics of both chains, the compliance
+torques and deflections, every Jacobian column including the torques' dependence on the
+geometry) for all-revolute arms of up to 16 joints with any of the model's terms: Hayati
+rows, Fourier transmission errors, payload and link compliance (lumped and general), several
+user frames and markers, orientation. It is built when the package is installed with a C
+compiler at hand; without one, or for a model it does not cover (prismatic joints), the
+numpy code runs. Both give the same numbers to rounding (tested).
+
+The environment variable ``KINECAL_KERNEL`` chooses: ``auto`` (default: C where it
+applies), ``numpy`` (never C), ``c`` (C required: an error where it is not built).
+:func:`kernel_name` tells which code evaluates a model.
+
+The kernel releases the interpreter lock; large batches are split over threads
+(:func:`set_kernel_threads`; one per CPU by default, one in kinecal's worker processes).
+"""
+
+from __future__ import annotations
+
+import importlib
+import itertools
+import os
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from kinecal.errors import ConfigError
+from kinecal.typing import Float
+
+if TYPE_CHECKING:
+    from kinecal.models._model import CalibrationModel, ModelInputs
+
+_ckernel: Any
+try:
+    _ckernel = importlib.import_module("kinecal.models._ckernel")
+except ImportError:  # built without a C compiler: the numpy code runs
+    _ckernel = None
+
+__all__ = ["compiled_kernel_available", "kernel_name", "set_kernel_threads"]
+
+_MODES = ("auto", "c", "numpy")
+# Kinds of a link product's torque basis value (the link_T column it reads); see
+# _ckernel.c: the x-hat and u-hat moments of the lumped model, a body's mass and one of
+# its first moments.
+_XHAT, _UHAT, _MASS, _MOMENT = range(4)
+
+
+def compiled_kernel_available() -> bool:
+    """Whether the compiled kernel was built with this installation."""
+    return _ckernel is not None
+
+
+def _mode() -> str:
+    mode = os.environ.get("KINECAL_KERNEL", "auto").strip().lower() or "auto"
+    if mode not in _MODES:
+        raise ConfigError(
+            f"KINECAL_KERNEL must be one of {', '.join(_MODES)}; got {mode!r}."
+        )
+    if mode == "c" and _ckernel is None:
+        raise ConfigError(
+            "KINECAL_KERNEL=c, but the compiled kernel is not built (install kinecal "
+            "with a C compiler at hand, e.g. gcc, then reinstall)."
+        )
+    return mode
+
+
+def kernel_name(model: CalibrationModel) -> str:
+    """``'c'`` or ``'numpy'``: the code that evaluates ``model`` now."""
+    return "c" if active_tables(model) is not None else "numpy"
+
+
+@dataclass(frozen=True)
+class _Static:
+    """The integer tables of one model (they depend on its terms, not on values)."""
+
+    header: dict[str, int]
+    tables: dict[str, np.ndarray]
+    lam_idx: np.ndarray
+    link: slice
+    ntm: slice
+    x_sign: float
+
+
+def tables(model: CalibrationModel) -> _Static | None:
+    """The model's tables, or None where the kernel is not built or does not apply
+    (computed once, by the model's constructor)."""
+    if _ckernel is None or model._prismatic.any():
+        return None
+    spec = model.spec
+    n = model.n_joints
+    n_lump = {"paper": 2, "rfcm": 3}.get(spec.link, 0)
+    n_link = len(model._link_names)
+    prods = []
+    for j, kcol in model._products:
+        if kcol < n_lump:
+            prods.append((j, kcol, _XHAT if kcol == 0 else _UHAT, 0, 0))
+        else:
+            b, k = divmod(kcol - n_lump, 4)
+            frame = spec.link_bodies[b]
+            prods.append((j, kcol, _MASS if k == 0 else _MOMENT, frame, max(k - 1, 0)))
+    if (
+        n > _ckernel.MAX_JOINTS
+        or len(prods) > _ckernel.MAX_PRODUCTS
+        or n_link > _ckernel.MAX_LINK
+    ):
+        return None
+    cam_idx = -np.ones((len(spec.markers), 6), np.int64)
+    cam_idx[:, : model._cam_idx.shape[1]] = model._cam_idx
+    sw = model._sw
+    nb = len(model._ntm_cols)
+    tables = {
+        "i_row_idx": np.asarray(model._row_idx, np.int64),
+        "i_cam_idx": cam_idx,
+        "i_base_idx": np.asarray(model._base_idx, np.int64),
+        "i_ntm_joints": np.array([j - 1 for j in spec.ntm_joints], np.int64),
+        "i_bodies": np.array(spec.link_bodies, np.int64),
+        "i_products": np.array(prods, np.int64).reshape(-1, 5),
+    }
+    header = {
+        "n": n,
+        "sets": len(spec.sets),
+        "markers": len(spec.markers),
+        "P": model.size,
+        "n_products": len(prods),
+        "cam_rotation": int(spec.cam_rotation),
+        "load": int(spec.load),
+        "link": {"paper": 1, "rfcm": 2}.get(spec.link, 0),
+        "shoulder": sw.shoulder if n_lump and sw else 0,
+        "elbow": sw.elbow if n_lump and sw else 0,
+        "wrist": sw.wrist_frame if n_lump and sw else 0,
+        "n_bodies": len(spec.link_bodies),
+        "n_link": n_link,
+        "n_ntm": len(spec.ntm_joints),
+        "nb": nb,
+        "ntm_start": model._ntm_start,
+        "lam_start": model._load_start,
+        "link_start": model._link_start,
+    }
+    return _Static(
+        header=header,
+        tables=tables,
+        lam_idx=model._lam_idx,
+        link=slice(model._link_start, model._link_start + n_link),
+        ntm=slice(model._ntm_start, model._ntm_start + len(spec.ntm_joints) * nb),
+        x_sign=float(getattr(model, "_x_sign", 1.0)),
+    )
+
+
+def active_tables(model: CalibrationModel) -> _Static | None:
+    """The model's tables where the compiled kernel evaluates it now, else None."""
+    if _mode() == "numpy":
+        return None
+    static = model._kernel_static
+    if static is None and _mode() == "c":
+        raise ConfigError(
+            f"KINECAL_KERNEL=c, but the compiled kernel does not cover this model of "
+            f"{model.robot.name} (prismatic joints, more than {_ckernel.MAX_JOINTS} "
+            f"joints or more than {_ckernel.MAX_PRODUCTS} link terms)."
+        )
+    return static
+
+
+def _pack(
+    static: _Static, model: CalibrationModel, p: Float, c: int, K: int, jacobian: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """The header with the integer tables, and the real tables, for parameters ``p``."""
+    from kinecal.models._model import _euler_axes
+
+    header = dict(static.header, c=c, K=K, jacobian=int(jacobian))
+    ints: list[np.ndarray] = []
+    offset = len(_ckernel.FIELDS)
+    for name, table in static.tables.items():
+        header[name] = offset
+        ints.append(table.ravel())
+        offset += table.size
+
+    rows = model._rows(p)  # (n, 5): offset, d, a, alpha, beta
+    row_table = np.column_stack(
+        [
+            np.cos(rows[:, 0]),
+            np.sin(rows[:, 0]),
+            rows[:, 1],
+            rows[:, 2],
+            np.cos(rows[:, 3]),
+            np.sin(rows[:, 3]),
+            np.cos(rows[:, 4]),
+            np.sin(rows[:, 4]),
+        ]
+    )
+    R_b, t_b = model.base_frames(p)
+    base_v = p[model._base_idx]
+    base = np.concatenate(
+        [
+            R_b.reshape(-1, 9),
+            t_b,
+            R_b @ model.g_hat,
+            np.stack(
+                [
+                    _euler_axes(model.R_ref_base[s], base_v[s, 3:]).T.ravel()
+                    for s in range(len(model.spec.sets))
+                ]
+            ),
+        ],
+        axis=1,
+    )
+    R_c, t_c = model.cam_frames(p)
+    if model.spec.cam_rotation:
+        cam_v = p[model._cam_idx]
+        axes_c = np.stack(
+            [
+                _euler_axes(model.R_ref_cam[m], cam_v[m, 3:]).T.ravel()
+                for m in range(len(model.spec.markers))
+            ]
+        )
+    else:
+        axes_c = np.zeros((len(model.spec.markers), 9))
+    cam = np.concatenate([R_c.reshape(-1, 9), t_c, axes_c], axis=1)
+    reals = {
+        "r_rows": row_table,
+        "r_base": base,
+        "r_cam": cam,
+        "r_lam": p[static.lam_idx] if model.spec.load else np.zeros(model.n_joints),
+        "r_link": p[static.link],
+        "r_ntm": p[static.ntm],
+        "r_xsign": np.array([static.x_sign]),
+    }
+    at = 0
+    for name, table in reals.items():
+        header[name] = at
+        at += table.size
+    head = np.array([header[f] for f in _ckernel.FIELDS], np.int64)
+    return (
+        np.concatenate([head, *ints]),
+        np.concatenate([np.ravel(t) for t in reals.values()]),
+    )
+
+
+# Threads of one evaluation: one per CPU for large batches; 1 in worker processes.
+_threads: int | None = None
+_MIN_POSES_PER_THREAD = 1000
+_pool: Any = None
+_pool_lock = threading.Lock()
+
+
+def set_kernel_threads(count: int | None) -> None:
+    """Threads the compiled kernel may split one evaluation over (None: one per CPU)."""
+    global _threads
+    if count is not None and count < 1:
+        raise ValueError(f"count must be >= 1 or None; got {count}.")
+    _threads = count
+
+
+def _thread_count(N: int) -> int:
+    from kinecal._parallel import available_cpus
+
+    most = _threads if _threads is not None else available_cpus()
+    return max(1, min(most, N // _MIN_POSES_PER_THREAD))
+
+
+def _executor(count: int) -> Any:
+    global _pool
+    from concurrent.futures import ThreadPoolExecutor
+
+    with _pool_lock:
+        if _pool is None or _pool._max_workers < count:
+            _pool = ThreadPoolExecutor(count, thread_name_prefix="kinecal-kernel")
+        return _pool
+
+
+def _reset_after_fork() -> None:  # a forked child has none of the parent's threads
+    global _pool, _pool_lock
+    _pool = None
+    _pool_lock = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_reset_after_fork)
+
+
+def evaluate(
+    static: _Static,
+    model: CalibrationModel,
+    p: Float,
+    inputs: ModelInputs,
+    *,
+    orientation: bool,
+    jacobian: bool,
+    products: bool,
+    alloc: Callable[[tuple[int, ...]], Float],
+) -> tuple[Float, Float | None, Float | None, Float]:
+    """``(p_user (N, 3), R_user_cam (N, 3, 3) or None, J (P', c, N) or None,
+    theta (n, N))`` of :meth:`CalibrationModel.evaluate` by the compiled kernel."""
+    c = 6 if orientation else 3
+    K = static.header["n_products"] if (jacobian and products) else 0
+    ints, reals = _pack(static, model, p, c, K, jacobian)
+    theta_c, cos_c, sin_c = model._coupled(inputs)
+    basis = model._ntm_bases(inputs)  # (n_ntm, nb, N), kept with the inputs
+    N, n = inputs.q_ctrl.shape
+    p_user = np.empty((N, 3))
+    R_uc = np.empty((N, 3, 3)) if orientation else np.empty(0)
+    theta = np.empty((n, N))
+    J = alloc((model.size + K, c, N)) if jacobian else np.empty(0)
+    args = (
+        ints,
+        reals,
+        theta_c,
+        cos_c,
+        sin_c,
+        basis,
+        np.ascontiguousarray(inputs.set_index, np.int64),
+        np.ascontiguousarray(inputs.marker_index, np.int64),
+        np.ascontiguousarray(inputs.p_cam, np.float64),
+        np.ascontiguousarray(inputs.load_scale, np.float64),
+        p_user,
+        R_uc,
+        theta,
+        J,
+    )
+    count = _thread_count(N) if jacobian else 1
+    try:
+        if count == 1:
+            _ckernel.evaluate(*args, 0, N)
+        else:  # whole blocks of lanes per thread; the first part on this thread
+            lanes = _ckernel.LANES
+            bounds = [N * i // count // lanes * lanes for i in range(count)] + [N]
+            pool = _executor(count - 1)
+            futures = [
+                pool.submit(_ckernel.evaluate, *args, a, b)
+                for a, b in itertools.pairwise(bounds[1:])
+            ]
+            _ckernel.evaluate(*args, bounds[0], bounds[1])
+            for f in futures:
+                f.result()
+    except IndexError as exc:  # a set or marker index out of range
+        from kinecal.errors import DataError
+
+        raise DataError(str(exc)) from None
+    return (
+        p_user,
+        R_uc if orientation else None,
+        J if jacobian else None,
+        theta,
+    )
