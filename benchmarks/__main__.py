@@ -9,6 +9,7 @@ update (zeta = 0.005). Not part of ``make test``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import platform
@@ -17,7 +18,7 @@ import statistics
 import subprocess
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -49,13 +50,30 @@ def _process_env() -> dict[str, str]:
     return env
 
 
+@contextlib.contextmanager
+def _model_code(code: str) -> Iterator[None]:
+    """Evaluate the models with ``code`` ('c' or 'numpy', KINECAL_KERNEL) inside."""
+    before = os.environ.get("KINECAL_KERNEL")
+    os.environ["KINECAL_KERNEL"] = code
+    try:
+        yield
+    finally:
+        if before is None:
+            del os.environ["KINECAL_KERNEL"]
+        else:
+            os.environ["KINECAL_KERNEL"] = before
+
+
 def _run(cmd: list[str]) -> None:
     subprocess.run(cmd, check=True, capture_output=True, env=_process_env())
 
 
-def _jacobian_instructions(model: Any, params: Any, inputs: Any) -> float | None:
-    """Instructions per FK + Jacobian evaluation (callgrind; None without valgrind or
-    for inputs with several sets or markers, which the helper does not rebuild)."""
+def _jacobian_instructions(
+    model: Any, params: Any, inputs: Any, code: str
+) -> float | None:
+    """Instructions per FK + Jacobian evaluation by ``code`` ('c' on one thread, or
+    'numpy'; callgrind; None without valgrind or for inputs with several sets or
+    markers, which the helper does not rebuild)."""
     import dataclasses
     import shutil
     import tempfile
@@ -74,7 +92,7 @@ def _jacobian_instructions(model: Any, params: Any, inputs: Any) -> float | None
             p_cam=inputs.p_cam,
             load_scale=inputs.load_scale,
         )
-        env = {**_process_env(), "OPENBLAS_NUM_THREADS": "1"}
+        env = {**_process_env(), "OPENBLAS_NUM_THREADS": "1", "KINECAL_KERNEL": code}
         # A plain run first, so both counted runs load the same bytecode caches.
         helper = [sys.executable, "-m", "benchmarks._instructions", path]
         subprocess.run([*helper, "0"], check=True, capture_output=True, env=env)
@@ -159,6 +177,9 @@ def main(argv: list[str] | None = None) -> int:
     def jac() -> object:
         return cal.model.evaluate(cal.params, inputs, jacobian=True)
 
+    from kinecal.models import kernel_name, set_kernel_threads
+
+    code = kernel_name(cal.model)  # 'c' where the compiled kernel is built
     # First with the C library's default allocator (a library user who has not called
     # kinecal.keep_freed_memory()), then with the setting the kinecal command applies.
     t, _ = _median_time(jac, rep_fast)
@@ -175,7 +196,16 @@ def main(argv: list[str] | None = None) -> int:
         "<= 10 ms for 7000 poses",
         poses=big.n,
         parameters=cal.model.size,
+        code=code,
     )
+    if code == "c":  # the compiled kernel on one thread, and the numpy code
+        set_kernel_threads(1)
+        t, _ = _median_time(jac, rep_fast)
+        set_kernel_threads(None)
+        record("fk_jacobian_full_one_thread", t, "compiled kernel, one thread")
+        with _model_code("numpy"):
+            t, _ = _median_time(jac, rep_fast)
+        record("fk_jacobian_full_numpy", t, "the numpy code (no compiler)")
     # The same on a new inputs object each time: what the quantities of the poses alone
     # (kept per inputs object, as every solver iteration reuses them) cost on top.
     t, _ = _median_time(
@@ -189,13 +219,16 @@ def main(argv: list[str] | None = None) -> int:
         rep_fast,
     )
     record("fk_jacobian_full_new_inputs", t, "first evaluation of new poses")
-    instructions = _jacobian_instructions(cal.model, cal.params, inputs)
-    if instructions is not None:
-        results["fk_jacobian_full_instructions"] = {
-            "instructions": instructions,
-            "target": "deterministic (callgrind): compares code, not machines",
-        }
-        print(f"  {'fk_jacobian_full_instructions':38s} {instructions / 1e6:10.2f} M")
+    for c in ("c", "numpy") if code == "c" else ("numpy",):
+        instructions = _jacobian_instructions(cal.model, cal.params, inputs, c)
+        if instructions is not None:
+            key = "fk_jacobian_full_instructions" + ("_numpy" if c == "numpy" else "")
+            results[key] = {
+                "instructions": instructions,
+                "target": "deterministic (callgrind): compares code, not machines",
+                "code": c,
+            }
+            print(f"  {key:38s} {instructions / 1e6:10.2f} M")
 
     # 1b. plain FK (nominal kinematic model) and the full model without Jacobians
     from kinecal.simulation import planning_model
@@ -218,7 +251,12 @@ def main(argv: list[str] | None = None) -> int:
         rms_mm=r7.metrics_after.rms_mm,
         peak_rss_mb=peak_mb,
         stage_iterations={st.name: st.iterations for st in r7.stages},
+        code=code,
     )
+    if code == "c":
+        with _model_code("numpy"):
+            t, _ = _median_time(lambda: calibrate(robot, big, "full"), max(rep // 2, 1))
+        record("calibrate_full_7000_numpy", t, "the numpy code (no compiler)")
 
     # 3. 2000 poses: kinecal against scipy least_squares with finite differences
     perm = np.random.default_rng(1).permutation(big.n)  # a representative subset

@@ -1,7 +1,8 @@
 """Instructions per evaluation, counted by valgrind's callgrind (deterministic where
 wall times on a shared machine drift).
 
-``python -m benchmarks._instructions FILE.npz K`` builds the model that FILE describes,
+``python -m benchmarks._instructions FILE.npz K`` builds the model that FILE describes
+(the environment's KINECAL_KERNEL chooses its code),
 evaluates it once (imports, the inputs' kept quantities), then K more times; the
 benchmarks run it under callgrind for two values of K and take the difference per
 evaluation.
@@ -16,8 +17,15 @@ import numpy as np
 
 
 def main(argv: list[str]) -> int:
-    from kinecal.models import CalibrationModel, ModelInputs, ModelSpec
+    from kinecal.models import (
+        CalibrationModel,
+        ModelInputs,
+        ModelSpec,
+        set_kernel_threads,
+    )
     from kinecal.robot import load_robot
+
+    set_kernel_threads(1)  # the compiled kernel's count, on one thread
 
     path, repeats = argv[0], int(argv[1])
     data = np.load(path)

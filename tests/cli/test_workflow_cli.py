@@ -61,6 +61,10 @@ def test_calibrate_then_evaluate(run_cli, exp2_files, tmp_path):
     assert report["identifiability"]["unidentifiable"]
     manifest = json.loads((out / "manifest.json").read_text())
     assert len(manifest["inputs"]["data"]["sha256"]) == 64
+    from kinecal.models import compiled_kernel_available
+
+    code = "c" if compiled_kernel_available() else "numpy"
+    assert manifest["config"]["model_code"] == code  # which code computed the model
     res = run_cli(
         "evaluate",
         str(exp2_files / "test.csv"),

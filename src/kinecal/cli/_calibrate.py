@@ -136,7 +136,7 @@ def calibrate(
     from kinecal.identification import calibrate as run_calibration
     from kinecal.identification import spec_for
     from kinecal.io import prepare_output_dir, read_measurements, save_model, write_json
-    from kinecal.models import parallel_pairs
+    from kinecal.models import kernel_name, parallel_pairs
     from kinecal.report import calibration_summary
 
     say = Progress(quiet)
@@ -212,6 +212,7 @@ def calibrate(
                 "ntm_joints": list(nj),
                 "ntm_order": ntm_order,
                 "cv": cv_folds,
+                "model_code": kernel_name(result.calibrated.model),
             },
         ),
         force=True,

@@ -38,18 +38,22 @@
 #define PMAX 256            /* link products */
 #define LMAX (3 + 4 * NMAX) /* link parameters */
 
-#if defined(__GNUC__) || defined(__clang__)
+#if (defined(__GNUC__) || defined(__clang__)) && !defined(KINECAL_SCALAR_KERNEL)
 #define LANES 2
 typedef double vd __attribute__((vector_size(LANES * sizeof(double))));
 typedef long long vm __attribute__((vector_size(LANES * sizeof(double)))); /* lane masks */
 #define LANE(v, l) ((v)[l])
 #define INLINE static inline __attribute__((always_inline))
-#else
+#else /* one pose per operation: other compilers, or -DKINECAL_SCALAR_KERNEL */
 #define LANES 1
 typedef double vd;
 typedef long long vm;
 #define LANE(v, l) (v)
+#ifdef _MSC_VER
+#define INLINE static __forceinline
+#else
 #define INLINE static inline
+#endif
 #endif
 
 /* Integer header: the names exported as FIELDS, in this order. */
@@ -125,7 +129,11 @@ INLINE vd vload(const double *p)
 
 INLINE void vstore(double *p, vd v) { memcpy(p, &v, sizeof v); }
 
+#if LANES > 1
 INLINE vd vsplat(double x) { return (vd){0} + x; }
+#else
+INLINE vd vsplat(double x) { return x; }
+#endif
 
 INLINE vd vsel(vm mask, vd a, vd b) /* mask ? a : b, per lane */
 {
