@@ -146,7 +146,7 @@ def test_threads_give_the_same_numbers_to_the_last_digit(rng):
     model = CalibrationModel(
         FANUC, ModelSpec.preset("full", sets=("a", "b"), markers=("m", "n"))
     )
-    inp = _inputs(FANUC, rng, 4099, 2, 2)
+    inp = _inputs(FANUC, rng, 4599, 2, 2)  # 3 threads from 4500 poses
     p = _params(model, rng, 1e-3)
     outs = []
     try:
