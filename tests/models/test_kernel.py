@@ -273,3 +273,23 @@ def test_forked_workers_evaluate_after_the_parent_used_threads():
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=300
     )
     assert r.returncode == 0 and r.stdout.strip() == "ok", r.stderr
+
+
+def test_a_kernel_built_from_other_source_is_not_used():
+    """A stale build (an editable install not rebuilt after a change of _ckernel.c) whose
+    tables differ is set aside with a warning, and the numpy code runs."""
+    code = textwrap.dedent(
+        """
+        import sys, types, warnings
+        stale = types.ModuleType("kinecal.models._ckernel")
+        stale.FIELDS, stale.__file__ = ("n", "sets"), "stale.so"
+        sys.modules["kinecal.models._ckernel"] = stale
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            from kinecal.models import compiled_kernel_available
+        print(compiled_kernel_available(), caught[0].message)
+        """
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("False kinecal's compiled model kernel (stale.so) does not")

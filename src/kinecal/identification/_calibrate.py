@@ -22,6 +22,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from kinecal._stats import median
 from kinecal.errors import DataError, IdentifiabilityError
 from kinecal.identification._calibrated import CalibratedModel
 from kinecal.identification._identifiability import (
@@ -417,7 +418,7 @@ def _loose_parameters(
 def _robust_sigma(r: Float) -> float:
     """Noise per component from the median row norm (whitened units)."""
     c = r.shape[1]
-    med = float(np.median(np.linalg.norm(r, axis=1)))
+    med = median(np.linalg.norm(r, axis=1))
     return med / _CHI_MEDIAN.get(c, np.sqrt(c - 0.5))
 
 
@@ -666,7 +667,7 @@ def calibrate(
     if opts.loss != "linear":
         r1 = ev(cm, x1, weights).r
         if opts.f_scale_mm is not None:
-            f_scale = opts.f_scale_mm * 1e-3 / float(np.median(weights.sigma))
+            f_scale = opts.f_scale_mm * 1e-3 / median(weights.sigma)
         else:
             f_scale = 3.0 * _robust_sigma(r1) * np.sqrt(c)
         lm = LMOptions(
@@ -900,7 +901,7 @@ def _adapt_prior(
         idx = fidx[sel]
         dx = x[idx] - x_nominal[idx]
         tau2 = float(np.mean(dx**2 - var[sel]))
-        current = float(np.median(sigma[idx]))
+        current = median(sigma[idx])
         if tau2 > current**2:
             tau = float(np.sqrt(tau2))
             sigma[idx] = np.maximum(sigma[idx], tau)

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from kinecal._stats import median
 from kinecal.errors import DataError
 from kinecal.models import ModelInputs
 from kinecal.typing import ArrayLike, Float
@@ -165,7 +166,7 @@ class Measurements:
 
     def reference_payload(self) -> float | None:
         """The payload that defines the unit weight of lambda* (median of the rows)."""
-        return None if self.payload_kg is None else float(np.median(self.payload_kg))
+        return None if self.payload_kg is None else median(self.payload_kg)
 
     def model_inputs(self, reference_payload_kg: float | None = None) -> ModelInputs:
         """Per-sample inputs of the calibration model."""

@@ -23,6 +23,7 @@ import importlib
 import itertools
 import os
 import threading
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -35,10 +36,38 @@ from kinecal.typing import Float
 if TYPE_CHECKING:
     from kinecal.models._model import CalibrationModel, ModelInputs
 
+# The header fields of _ckernel.c, in its order: a build of other source (an editable
+# install not rebuilt after a change) is not used.
+_FIELDS = (
+    *("n", "sets", "markers", "c", "P", "K", "n_products", "jacobian", "cam_rotation"),
+    *(
+        "load",
+        "link",
+        "shoulder",
+        "elbow",
+        "wrist",
+        "n_bodies",
+        "n_link",
+        "n_ntm",
+        "nb",
+    ),
+    *("ntm_start", "lam_start", "link_start", "i_row_idx", "i_cam_idx", "i_base_idx"),
+    *("i_ntm_joints", "i_bodies", "i_products", "r_rows", "r_base", "r_cam", "r_lam"),
+    *("r_link", "r_ntm", "r_xsign"),
+)
+
 _ckernel: Any
 try:
     _ckernel = importlib.import_module("kinecal.models._ckernel")
 except ImportError:  # built without a C compiler: the numpy code runs
+    _ckernel = None
+if _ckernel is not None and tuple(_ckernel.FIELDS) != _FIELDS:
+    warnings.warn(
+        f"kinecal's compiled model kernel ({_ckernel.__file__}) does not match this "
+        "version of kinecal (rebuild it: pip install -e . or make); the numpy code runs.",
+        RuntimeWarning,
+        stacklevel=1,
+    )
     _ckernel = None
 
 __all__ = ["compiled_kernel_available", "kernel_name", "set_kernel_threads"]
@@ -173,7 +202,7 @@ def _pack(
 
     header = dict(static.header, c=c, K=K, jacobian=int(jacobian))
     ints: list[np.ndarray] = []
-    offset = len(_ckernel.FIELDS)
+    offset = len(_FIELDS)
     for name, table in static.tables.items():
         header[name] = offset
         ints.append(table.ravel())
@@ -233,7 +262,7 @@ def _pack(
     for name, table in reals.items():
         header[name] = at
         at += table.size
-    head = np.array([header[f] for f in _ckernel.FIELDS], np.int64)
+    head = np.array([header[f] for f in _FIELDS], np.int64)
     return (
         np.concatenate([head, *ints]),
         np.concatenate([np.ravel(t) for t in reals.values()]),

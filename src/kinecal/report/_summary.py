@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 
+from kinecal._stats import median
 from kinecal._version import __version__
 from kinecal.identification import CalibrationResult, ComparisonRow, Metrics
 
@@ -65,7 +66,7 @@ def calibration_summary(
         "before": _metrics(result.metrics_before),
         "after": _metrics(result.metrics_after),
         "sigma0": result.sigma0,
-        "noise_sigma_mm": float(np.median(result.weights.sigma) * 1e3),
+        "noise_sigma_mm": median(result.weights.sigma) * 1e3,
         "prior_scale_by_evidence": dict(result.prior_factors),
         "identifiability": {
             "estimated": ident.rank,

@@ -1,0 +1,54 @@
+"""The scipy baseline as a whole process, like ``kinecal calibrate`` is measured.
+
+``python -m benchmarks._scipy_fd CASE.npz POSES.csv OUT.npy`` reads the poses from the CSV
+file (as the command does), builds the model that CASE describes, and fits it from
+CASE's start with scipy's ``least_squares`` and finite-difference Jacobians, the same fit
+as the in-process baseline of :mod:`benchmarks.__main__`; it writes the parameters to OUT.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+
+
+def main(argv: list[str]) -> int:
+    from scipy.optimize import least_squares
+
+    from kinecal.identification import Weights, residuals
+    from kinecal.io import read_measurements
+    from kinecal.models import CalibrationModel, ModelSpec
+    from kinecal.robot import load_robot
+
+    case, csv, out = argv
+    data = np.load(case)
+    robot = load_robot(str(data["robot"]))
+    meas = read_measurements(csv, robot)
+    spec = ModelSpec(
+        **{
+            k: tuple(v) if isinstance(v, list) else v
+            for k, v in json.loads(str(data["spec"])).items()
+        }
+    )
+    model = CalibrationModel(robot, spec)
+    x0, free = data["x0"], data["free"]
+    w = Weights(data["sigma"])
+    payload = float(data["payload"]) if data["payload"] > 0 else None
+    inputs = meas.model_inputs(payload)
+
+    def f(z: np.ndarray) -> np.ndarray:
+        x = x0.copy()
+        x[free] = z
+        return residuals(model, x, meas, w, inputs=inputs).r.reshape(-1)
+
+    sol = least_squares(f, x0[free], jac="2-point", method="trf", x_scale="jac")
+    x = x0.copy()
+    x[free] = sol.x
+    np.save(out, x)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
