@@ -292,4 +292,6 @@ def test_a_kernel_built_from_other_source_is_not_used():
     )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
-    assert r.stdout.startswith("False kinecal's compiled model kernel (stale.so) does not")
+    assert r.stdout.startswith(
+        "False kinecal's compiled model kernel (stale.so) does not"
+    )

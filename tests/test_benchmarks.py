@@ -1,0 +1,76 @@
+"""The benchmarks' helpers run (the benchmarks themselves are `make bench`, not tests)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+
+import numpy as np
+from benchmarks.__main__ import _median_time, _model_code
+
+from kinecal.identification import Weights, calibrate, residuals
+from kinecal.io import measurements_to_csv
+from kinecal.models import CalibrationModel, ModelSpec
+from kinecal.simulation import LaserTracker, experiment2
+
+
+def test_the_whole_process_scipy_baseline_fits_the_poses(tmp_path):
+    """benchmarks._scipy_fd reads the poses from CSV and fits the model from the given
+    start with scipy: the fit brings the residuals from millimetres to the noise."""
+    from benchmarks import _scipy_fd
+
+    e = experiment2(5, n_train=40, n_side=4, tracker=LaserTracker(5e-6, 0.0))
+    robot = e.truth.robot
+    cal = calibrate(robot, e.train, "kinematic")
+    model = CalibrationModel(robot, ModelSpec.preset("kinematic", cam_rotation=False))
+    free = np.array([s == "estimated" for s in cal.calibrated.status])
+    x0, w = cal.registered, Weights(np.full(e.train.n, 5e-6))
+    csv = tmp_path / "poses.csv"
+    csv.write_text(measurements_to_csv(e.train, robot))
+    case = tmp_path / "case.npz"
+    spec = json.dumps(dataclasses.asdict(model.spec))
+    np.savez(
+        case, spec=spec, robot=robot.name, x0=x0, free=free, sigma=w.sigma, payload=0.0
+    )
+    assert _scipy_fd.main([str(case), str(csv), str(tmp_path / "x.npy")]) == 0
+    x = np.load(tmp_path / "x.npy")
+
+    def rms(p):
+        return float(np.sqrt(np.mean(residuals(model, p, e.train, w).r ** 2)))
+
+    assert rms(x0) > 50 and rms(x) < 3  # in noise sigmas
+
+
+def test_timing_and_code_switch_helpers(monkeypatch):
+    monkeypatch.delenv("KINECAL_KERNEL", raising=False)
+    calls = []
+    t, out = _median_time(lambda: calls.append(1) or len(calls), 5)
+    assert len(calls) == 5 and out == 5 and 0 <= t.best <= t
+    with _model_code("numpy"):
+        assert os.environ["KINECAL_KERNEL"] == "numpy"
+    assert "KINECAL_KERNEL" not in os.environ
+    monkeypatch.setenv("KINECAL_KERNEL", "c")
+    with _model_code("numpy"):
+        pass
+    assert os.environ["KINECAL_KERNEL"] == "c"
+
+
+def test_the_instruction_count_helper_evaluates_the_model(tmp_path):
+    from benchmarks import _instructions
+
+    model = CalibrationModel(
+        experiment2(5, n_train=10, n_side=3).truth.robot, ModelSpec.preset("full")
+    )
+    q = np.random.default_rng(0).uniform(-1, 1, size=(20, 6))
+    path = tmp_path / "case.npz"
+    np.savez(
+        path,
+        spec=json.dumps(dataclasses.asdict(model.spec)),
+        robot=model.robot.name,
+        params=model.nominal,
+        q_ctrl=q,
+        p_cam=np.zeros((20, 3)),
+        load_scale=np.ones(20),
+    )
+    assert _instructions.main([str(path), "2"]) == 0
