@@ -880,7 +880,7 @@ static int tables_valid(const long long *h, Py_ssize_t n_ints, Py_ssize_t n_real
         h[H_LINK_START] + nlink > P || !in_range(h[H_LINK], 0, 3))
         return -1;
     long long n_lump = h[H_LINK] == 0 ? 0 : (h[H_LINK] == 1 ? 2 : 3);
-    if (n_lump && (!in_range(h[H_SHOULDER], 1, n) || !in_range(h[H_ELBOW], 1, n + 1) ||
+    if (n_lump && (!in_range(h[H_SHOULDER], 1, n + 1) || !in_range(h[H_ELBOW], 1, n + 1) ||
                    !in_range(h[H_WRIST], 0, n + 1)))
         return -1;
     if (n_lump + 4 * h[H_NBODIES] != nlink)
