@@ -270,20 +270,9 @@ def main(argv: list[str] | None = None) -> int:
     w = rk.weights
     inp = sub.model_inputs(rk.calibrated.reference_payload_kg)
 
-    def fd_fit() -> np.ndarray:
-        from scipy.optimize import least_squares
+    from benchmarks._scipy_fd import fd_fit
 
-        def f(z: np.ndarray) -> np.ndarray:
-            x = x0.copy()
-            x[free] = z
-            return residuals(model, x, sub, w, inputs=inp).r.reshape(-1)
-
-        sol = least_squares(f, x0[free], jac="2-point", method="trf", x_scale="jac")
-        x = x0.copy()
-        x[free] = sol.x
-        return x
-
-    t_fd, x_fd = _median_time(fd_fit, 1)
+    t_fd, x_fd = _median_time(lambda: fd_fit(model, x0, free, sub, w, inp), 1)
     from dataclasses import replace
 
     rms_fd = evaluate(replace(rk.calibrated, params=x_fd), test).metrics.rms_mm

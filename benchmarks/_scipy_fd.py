@@ -10,14 +10,31 @@ from __future__ import annotations
 
 import json
 import sys
+from typing import Any
 
 import numpy as np
 
 
-def main(argv: list[str]) -> int:
+def fd_fit(model: Any, x0: Any, free: Any, meas: Any, w: Any, inputs: Any) -> Any:
+    """The baseline: scipy's ``least_squares`` with 2-point finite differences over the
+    ``free`` parameters from ``x0``, on the model's whitened residuals; the parameters."""
     from scipy.optimize import least_squares
 
-    from kinecal.identification import Weights, residuals
+    from kinecal.identification import residuals
+
+    def f(z: np.ndarray) -> np.ndarray:
+        x = x0.copy()
+        x[free] = z
+        return residuals(model, x, meas, w, inputs=inputs).r.reshape(-1)
+
+    sol = least_squares(f, x0[free], jac="2-point", method="trf", x_scale="jac")
+    x = x0.copy()
+    x[free] = sol.x
+    return x
+
+
+def main(argv: list[str]) -> int:
+    from kinecal.identification import Weights
     from kinecal.io import read_measurements
     from kinecal.models import CalibrationModel, ModelSpec
     from kinecal.robot import load_robot
@@ -36,16 +53,7 @@ def main(argv: list[str]) -> int:
     x0, free = data["x0"], data["free"]
     w = Weights(data["sigma"])
     payload = float(data["payload"]) if data["payload"] > 0 else None
-    inputs = meas.model_inputs(payload)
-
-    def f(z: np.ndarray) -> np.ndarray:
-        x = x0.copy()
-        x[free] = z
-        return residuals(model, x, meas, w, inputs=inputs).r.reshape(-1)
-
-    sol = least_squares(f, x0[free], jac="2-point", method="trf", x_scale="jac")
-    x = x0.copy()
-    x[free] = sol.x
+    x = fd_fit(model, x0, free, meas, w, meas.model_inputs(payload))
     np.save(out, x)
     return 0
 
