@@ -8,8 +8,8 @@
  * (Eq. 22, 24, 26), the deflected chain, and every Jacobian column, including the
  * dependence of the torques on the geometry (the torque adjoint of _compliance.py).
  * kinecal/models/_kernel.py packs the model into two tables (int64 and float64) whose
- * layout is given by the header below; FIELDS exports its names, in order, so that the
- * Python side builds it by name.
+ * layout is given by the header below; FIELDS exports its names, in order, and the
+ * Python side does not use a build whose names differ from its own (a stale build).
  *
  * Every per-pose quantity is a vector of LANES poses (GCC/Clang vector extensions; one
  * pose with other compilers), so each arithmetic operation serves several poses, as
