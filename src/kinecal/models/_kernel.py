@@ -105,10 +105,12 @@ def kernel_name(model: CalibrationModel) -> str:
 
 @dataclass(frozen=True)
 class _Static:
-    """The integer tables of one model (they depend on its terms, not on values)."""
+    """What of the kernel's tables depends on the model's terms only: the header and the
+    integer tables (``ints``; the per-call fields c, K and jacobian are set by
+    :func:`_pack`), and where the parameters go in the real tables."""
 
-    header: dict[str, int]
-    tables: dict[str, np.ndarray]
+    ints: np.ndarray
+    n_products: int
     lam_idx: np.ndarray
     link: slice
     ntm: slice
@@ -121,9 +123,9 @@ def tables(model: CalibrationModel) -> _Static | None:
     if _ckernel is None or model._prismatic.any():
         return None
     spec = model.spec
-    n = model.n_joints
-    n_lump = {"paper": 2, "rfcm": 3}.get(spec.link, 0)
+    n, S, M = model.n_joints, len(spec.sets), len(spec.markers)
     n_link = len(model._link_names)
+    n_lump = n_link - 4 * len(spec.link_bodies)  # the lumped moments come first
     prods = []
     for j, kcol in model._products:
         if kcol < n_lump:
@@ -138,11 +140,11 @@ def tables(model: CalibrationModel) -> _Static | None:
         or n_link > _ckernel.MAX_LINK
     ):
         return None
-    cam_idx = -np.ones((len(spec.markers), 6), np.int64)
+    cam_idx = -np.ones((M, 6), np.int64)
     cam_idx[:, : model._cam_idx.shape[1]] = model._cam_idx
     sw = model._sw
     nb = len(model._ntm_cols)
-    tables = {
+    int_tables = {
         "i_row_idx": np.asarray(model._row_idx, np.int64),
         "i_cam_idx": cam_idx,
         "i_base_idx": np.asarray(model._base_idx, np.int64),
@@ -150,10 +152,23 @@ def tables(model: CalibrationModel) -> _Static | None:
         "i_bodies": np.array(spec.link_bodies, np.int64),
         "i_products": np.array(prods, np.int64).reshape(-1, 5),
     }
+    # Sizes of the real tables, in the order _pack writes them.
+    real_sizes = {
+        "r_rows": 8 * n,
+        "r_base": 24 * S,
+        "r_cam": 21 * M,
+        "r_lam": n,
+        "r_link": n_link,
+        "r_ntm": len(spec.ntm_joints) * nb,
+        "r_xsign": 1,
+    }
     header = {
         "n": n,
-        "sets": len(spec.sets),
-        "markers": len(spec.markers),
+        "sets": S,
+        "markers": M,
+        "c": 0,
+        "K": 0,
+        "jacobian": 0,
         "P": model.size,
         "n_products": len(prods),
         "cam_rotation": int(spec.cam_rotation),
@@ -170,9 +185,18 @@ def tables(model: CalibrationModel) -> _Static | None:
         "lam_start": model._load_start,
         "link_start": model._link_start,
     }
+    offset = len(_FIELDS)
+    for name, table in int_tables.items():
+        header[name] = offset
+        offset += table.size
+    offset = 0
+    for name, size in real_sizes.items():
+        header[name] = offset
+        offset += size
+    head = np.array([header[f] for f in _FIELDS], np.int64)
     return _Static(
-        header=header,
-        tables=tables,
+        ints=np.concatenate([head, *(t.ravel() for t in int_tables.values())]),
+        n_products=len(prods),
         lam_idx=model._lam_idx,
         link=slice(model._link_start, model._link_start + n_link),
         ntm=slice(model._ntm_start, model._ntm_start + len(spec.ntm_joints) * nb),
@@ -200,13 +224,9 @@ def _pack(
     """The header with the integer tables, and the real tables, for parameters ``p``."""
     from kinecal.models._model import _euler_axes
 
-    header = dict(static.header, c=c, K=K, jacobian=int(jacobian))
-    ints: list[np.ndarray] = []
-    offset = len(_FIELDS)
-    for name, table in static.tables.items():
-        header[name] = offset
-        ints.append(table.ravel())
-        offset += table.size
+    ints = static.ints.copy()
+    for name, value in (("c", c), ("K", K), ("jacobian", int(jacobian))):
+        ints[_FIELDS.index(name)] = value
 
     rows = model._rows(p)  # (n, 5): offset, d, a, alpha, beta
     row_table = np.column_stack(
@@ -249,24 +269,16 @@ def _pack(
     else:
         axes_c = np.zeros((len(model.spec.markers), 9))
     cam = np.concatenate([R_c.reshape(-1, 9), t_c, axes_c], axis=1)
-    reals = {
-        "r_rows": row_table,
-        "r_base": base,
-        "r_cam": cam,
-        "r_lam": p[static.lam_idx] if model.spec.load else np.zeros(model.n_joints),
-        "r_link": p[static.link],
-        "r_ntm": p[static.ntm],
-        "r_xsign": np.array([static.x_sign]),
-    }
-    at = 0
-    for name, table in reals.items():
-        header[name] = at
-        at += table.size
-    head = np.array([header[f] for f in _FIELDS], np.int64)
-    return (
-        np.concatenate([head, *ints]),
-        np.concatenate([np.ravel(t) for t in reals.values()]),
+    reals = (  # in the order of tables()' real_sizes
+        row_table,
+        base,
+        cam,
+        p[static.lam_idx] if model.spec.load else np.zeros(model.n_joints),
+        p[static.link],
+        p[static.ntm],
+        np.array([static.x_sign]),
     )
+    return ints, np.concatenate([np.ravel(t) for t in reals])
 
 
 # Threads of one evaluation: one per CPU for large batches; 1 in worker processes. Below
@@ -339,7 +351,7 @@ def evaluate(
     """``(p_user (N, 3), R_user_cam (N, 3, 3) or None, J (P', c, N) or None,
     theta (n, N))`` of :meth:`CalibrationModel.evaluate` by the compiled kernel."""
     c = 6 if orientation else 3
-    K = static.header["n_products"] if (jacobian and products) else 0
+    K = static.n_products if (jacobian and products) else 0
     ints, reals = _pack(static, model, p, c, K, jacobian)
     theta_c, cos_c, sin_c = model._coupled(inputs)
     basis = model._ntm_bases(inputs)  # (n_ntm, nb, N), kept with the inputs
