@@ -178,6 +178,32 @@ def test_sensor_experiment_workflow(run_cli, tmp_path):
     )
     assert res.returncode == 0, res.stderr
     assert json.loads(res.stdout)["rms_mm"] < 0.03
+    # Issue 19: a new session that sees two spheres is registered, with a warning that
+    # the rotation about the line through them is undetermined (was a traceback).
+    lines = (d / "test.csv").read_text().splitlines()
+    col = lines[0].split(",").index("target")
+    first_two = sorted({ln.split(",")[col] for ln in lines[1:]})[:2]
+    two = tmp_path / "two.csv"
+    two.write_text(
+        "\n".join(
+            [lines[0]] + [ln for ln in lines[1:] if ln.split(",")[col] in first_two]
+        )
+        + "\n"
+    )
+    res = run_cli(
+        "evaluate",
+        str(two),
+        "--model",
+        str(out / "model.yaml"),
+        "--targets",
+        str(d / "targets.csv"),
+        "--refit",
+        "user",
+        "--json",
+    )
+    assert res.returncode == 0, res.stderr
+    assert "Traceback" not in res.stderr and "not determined" in res.stderr
+    assert json.loads(res.stdout)["rms_mm"] < 0.1
     res = run_cli(
         "calibrate",
         str(d / "train.csv"),

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from scipy.special import chdtri
 
-from kinecal.identification._calibrate import chi2_isf
+from kinecal.identification._uncertainty import chi2_isf
 
 
 @pytest.mark.parametrize("df", [1, 2, 3, 4, 5, 6, 9])
@@ -22,15 +22,14 @@ def test_chi2_quantile_rejects_bad_arguments():
 def test_evaluations_are_reused_only_where_they_apply(exp2_exact):
     import numpy as np
 
-    from kinecal.identification import Weights, residuals
-    from kinecal.identification._calibrate import _Evaluations
+    from kinecal.identification import EvaluationCache, Weights, residuals
     from kinecal.models import CalibrationModel, ModelSpec
 
     e = exp2_exact
     meas = e.train
     cm = CalibrationModel(e.truth.robot, ModelSpec.preset("full", cam_rotation=False))
     inputs = meas.model_inputs()
-    ev = _Evaluations(meas, inputs)
+    ev = EvaluationCache(meas, inputs)
     w1, w2 = Weights.default(meas), Weights(np.full(meas.n, 2e-5))
     x = cm.nominal.copy()
     b = ev(cm, x, w1, jacobian=True)
@@ -57,14 +56,13 @@ def test_a_jacobian_after_a_plain_evaluation_reuses_its_forward_kinematics(
     fresh block exactly."""
     import numpy as np
 
-    from kinecal.identification import Weights, residuals
-    from kinecal.identification._calibrate import _Evaluations
+    from kinecal.identification import EvaluationCache, Weights, residuals
     from kinecal.models import CalibrationModel, ModelSpec
 
     meas = exp2_exact.train
     cm = CalibrationModel(exp2_exact.truth.robot, ModelSpec.preset("full"))
     inputs = meas.model_inputs()
-    ev = _Evaluations(meas, inputs)
+    ev = EvaluationCache(meas, inputs)
     w1, w2 = Weights.default(meas), Weights(np.full(meas.n, 2e-5))
     x = cm.nominal.copy()
     x[cm.layout.index("joint2.lambda")] = 1e-3
@@ -86,8 +84,8 @@ def test_a_run_stopped_by_its_iteration_limit_names_where_it_still_drifts():
     poses hardly determine (one tiny curvature); the warning names it with its value."""
     import numpy as np
 
-    from kinecal.identification._calibrate import _drift
     from kinecal.identification._lm import LMResult
+    from kinecal.identification._solve import _drift
     from kinecal.models import CalibrationModel, ModelSpec
     from kinecal.robot import load_robot
 
@@ -105,11 +103,12 @@ def test_a_run_stopped_by_its_iteration_limit_names_where_it_still_drifts():
             x, 1.0, 200, 400, False, status, "", A, g, np.ones(3), np.ones(3)
         )
 
-    text = _drift(cm, result("max_iter"), free, "none")
+    text, names = _drift(cm, result("max_iter"), free, "none")
     assert "drifts along joint6.lambda (now -0.037 rad/m)" in text
+    assert names == ("joint6.lambda",)
     assert "--priors all" in text and "joint5" not in text
-    assert "--priors" not in _drift(cm, result("max_iter"), free, "all")
-    assert _drift(cm, result("stalled"), free, "none") == ""
+    assert "--priors" not in _drift(cm, result("max_iter"), free, "all")[0]
+    assert _drift(cm, result("stalled"), free, "none") == ("", ())
 
 
 def test_the_unconstrained_prefit_stops_early_on_a_compliant_robot(monkeypatch):
@@ -119,19 +118,20 @@ def test_the_unconstrained_prefit_stops_early_on_a_compliant_robot(monkeypatch):
     final estimate moves by at most 0.11 of its standard deviations here."""
     import numpy as np
 
-    from kinecal.identification import _calibrate as C
+    from kinecal.identification import _options, _priors
+    from kinecal.identification import calibrate as calibrate_
     from kinecal.robot import load_robot
     from kinecal.simulation import LaserTracker, experiment2, random_truth
 
     robot = load_robot("fanuc-lrmate200id")
     truth = random_truth(robot, seed=5, compliance=3e-3)
     meas = experiment2(5, truth=truth, tracker=LaserTracker(5e-6, 0.0)).train
-    fast = C.calibrate(robot, meas, "full")
+    fast = calibrate_(robot, meas, "full")
     pre = fast.stages[1]
     assert pre.name == "stage 1: kinematic (no priors)"
     assert pre.iterations <= 15 and pre.status == "stol", (pre.iterations, pre.status)
-    monkeypatch.setattr(C, "_STOL_PRE", C._STOL)
-    tight = C.calibrate(robot, meas, "full")
+    monkeypatch.setattr(_priors, "STOL_PRE", _options.STOL)
+    tight = calibrate_(robot, meas, "full")
     assert tight.stages[1].iterations >= 50  # the crawl this avoids
     est = fast.calibrated.status
     z = (fast.calibrated.params - tight.calibrated.params) / tight.calibrated.std
@@ -145,15 +145,21 @@ def test_parameters_left_without_a_prior_and_loosely_determined_are_named(exp2_e
     first; the default priors leave nothing to name."""
     import re
 
-    from kinecal.identification import CalibrationOptions, calibrate
-    from kinecal.identification._calibrate import build_prior
+    from kinecal.identification import CalibrationOptions, build_prior, calibrate
 
     robot, meas = exp2_exact.truth.robot, exp2_exact.train
     found = {}
     for priors in ("none", "compliance", "all"):
         res = calibrate(robot, meas, "full", CalibrationOptions(priors=priors))
-        text = [w for w in res.warnings if "without a prior" in w]
-        found[priors] = (res, text)
+        diags = res.diagnostics_with("loose_parameters")
+        found[priors] = (res, [d.message for d in diags])
+        if diags:  # the structured field names the same parameters as the message
+            (d,) = diags
+            assert (
+                list(d.parameters)
+                == re.findall(r"([\w.]+) \([\d.e+]+x\)", d.message)[:8]
+                or len(d.parameters) > 8
+            )
     assert found["all"][1] == []
     res, (text,) = found["none"]
     names = re.findall(r"([\w.]+) \(([\d.e+]+)x\)", text)

@@ -71,7 +71,8 @@ def test_outliers_are_reported_by_row_and_downweighted_by_huber():
     flagged = {o.row for o in plain.outliers}
     assert set((bad + 1).tolist()) <= flagged  # rows are 1-based data rows
     assert len(flagged) <= len(bad) + 2
-    assert any("outliers" in w for w in plain.warnings)
+    (found,) = plain.diagnostics_with("outliers")
+    assert set(found.rows) == flagged
     assert robust.calibrated.info["n"] == train.n  # nothing dropped
     e_plain = evaluate(plain.calibrated, test).metrics.rms_mm
     e_robust = evaluate(robust.calibrated, test).metrics.rms_mm
@@ -229,7 +230,8 @@ def test_one_tool_orientation_stays_bounded_and_warns(exp2_exact):
     layout = res.model.layout
     assert np.all(np.abs(res.params[layout.group_indices("base")][:3]) < 10.0)
     assert np.all(np.abs(res.params[layout.group_indices("cam")]) < 1.0)
-    assert any("do not determine cam." in w for w in res.warnings)
+    (lost,) = res.diagnostics_with("frames_undetermined")
+    assert any(name.startswith("cam.") for name in lost.parameters)
     assert res.metrics_after.rms_mm < 0.1
     held = evaluate(res.calibrated, e.test.subset(same[300:]))
     assert held.metrics.rms_mm < 0.2
@@ -239,6 +241,8 @@ def test_sensor_data_on_two_targets_warns_about_the_user_frame(exp1_exact):
     e = exp1_exact
     two = e.train.subset(np.flatnonzero(e.train.target_index < 2))
     res = calibrate(ROBOT, two, "kinematic")
-    assert any("sees 2 target(s)" in w for w in res.warnings), res.warnings
+    (few,) = res.diagnostics_with("targets_few")
+    assert "sees 2 target(s)" in few.message
+    assert few.parameters == ("base.r", "base.w", "base.p")
     four = calibrate(ROBOT, e.train, "kinematic")
-    assert not any("target(s)" in w for w in four.warnings)
+    assert not four.diagnostics_with("targets_few")

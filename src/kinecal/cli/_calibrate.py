@@ -292,6 +292,9 @@ def evaluate(
     cal = load_model(model_path)
     meas = read_measurements(data, cal.model.robot, targets)
     ev = run_evaluate(cal, meas, refit_user=refit == "user")
+    for d in ev.diagnostics:
+        if d.severity == "warning":
+            click.echo(f"warning   {d.message}", err=True)
     if errors_out:
         lines = ["row,ex_mm,ey_mm,ez_mm,err_mm"]
         for r, e, d in zip(meas.rows, ev.error_xyz_mm, ev.errors_mm):

@@ -13,7 +13,7 @@ from kinecal.geometry._euler import (
     transform_to_euler,
     wpr_to_matrix,
 )
-from kinecal.geometry._fit import kabsch_umeyama, solve_axyb
+from kinecal.geometry._fit import kabsch_umeyama, rigid_fit_nearest, solve_axyb
 from kinecal.geometry._quat import matrix_to_quat_wxyz, quat_wxyz_to_matrix
 from kinecal.geometry._se3 import (
     make_transform,
@@ -46,6 +46,7 @@ __all__ = [
     "matrix_to_wpr",
     "project_to_so3",
     "quat_wxyz_to_matrix",
+    "rigid_fit_nearest",
     "rot_x",
     "rot_y",
     "rot_z",

@@ -13,10 +13,10 @@ from __future__ import annotations
 import numpy as np
 
 from kinecal.geometry._se3 import make_transform
-from kinecal.geometry._so3 import project_to_so3
-from kinecal.typing import ArrayLike, Pose
+from kinecal.geometry._so3 import project_to_so3, so3_exp
+from kinecal.typing import ArrayLike, Float, Pose
 
-__all__ = ["kabsch_umeyama", "solve_axyb"]
+__all__ = ["kabsch_umeyama", "rigid_fit_nearest", "solve_axyb"]
 
 
 def kabsch_umeyama(
@@ -80,6 +80,54 @@ def kabsch_umeyama(
         scale = float(np.sum(S * np.diag(D)) / var_a)
     t = cb - scale * R @ ca
     return make_transform(R, t), scale
+
+
+def rigid_fit_nearest(
+    p_src: ArrayLike, p_dst: ArrayLike, R_start: ArrayLike
+) -> tuple[Float, Float, bool]:
+    """The rigid motion ``p_dst ≈ R p_src + t`` (Kabsch), also for degenerate point sets.
+
+    Parameters
+    ----------
+    p_src, p_dst : (n, 3) corresponding points [m].
+    R_start : (3, 3) rotation to stay close to where the points do not fix it.
+
+    Returns
+    -------
+    R, t : the rotation and translation.
+    determined : False where the points (one point, or all on one line) leave a rotation
+        free; ``R`` is then the rotation nearest ``R_start`` that fits them.
+    """
+    a = np.asarray(p_src, dtype=np.float64)
+    b = np.asarray(p_dst, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] != 3 or a.shape != b.shape or a.shape[0] == 0:
+        raise ValueError(
+            f"p_src and p_dst must both have shape (n, 3), n >= 1; got {a.shape} and "
+            f"{b.shape}."
+        )
+    if a.shape[0] >= 3:
+        try:
+            T, _ = kabsch_umeyama(a, b)
+            return T[:3, :3], T[:3, 3], True
+        except ValueError:  # collinear: fall through
+            pass
+    ca, cb = a.mean(axis=0), b.mean(axis=0)
+    A, B = a - ca, b - cb
+    R = np.array(R_start, dtype=np.float64)
+    if np.abs(A).max(initial=0.0) > 0.0 and np.abs(B).max(initial=0.0) > 0.0:
+        u_src = np.linalg.svd(A, full_matrices=False)[2][0]
+        u_dst = np.linalg.svd(B, full_matrices=False)[2][0]
+        if float(np.sum((A @ u_src) * (B @ u_dst))) < 0.0:
+            u_dst = -u_dst
+        v = R @ u_src  # the line's direction as R_start maps it; turn it onto u_dst
+        axis = np.cross(v, u_dst)
+        angle = np.arctan2(np.linalg.norm(axis), float(v @ u_dst))
+        if np.linalg.norm(axis) > 1e-15:
+            R = so3_exp(axis / np.linalg.norm(axis) * angle) @ R
+        elif angle > np.pi / 2:  # opposite directions: half a turn about a normal
+            normal = np.linalg.svd(v[None, :])[2][-1]
+            R = so3_exp(normal * np.pi) @ R
+    return R, cb - R @ ca, False
 
 
 def solve_axyb(A: ArrayLike, B: ArrayLike) -> tuple[Pose, Pose]:

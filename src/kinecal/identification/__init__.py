@@ -1,15 +1,12 @@
-"""Identification: residuals, LM solver, three stages (Sec. 4), identifiability, metrics."""
+"""Identification: residuals, LM solver, stages (Sec. 4, Fig. 6), identifiability, metrics."""
 
 from kinecal.identification._calibrate import (
-    PRIOR_SIGMA,
-    CalibrationOptions,
     CalibrationResult,
-    Outlier,
-    StageLog,
     calibrate,
-    spec_for,
+    default_stages,
 )
 from kinecal.identification._calibrated import STATUSES, CalibratedModel
+from kinecal.identification._diagnostics import CODES, Diagnostic, Outlier, StageLog
 from kinecal.identification._evaluate import (
     ComparisonRow,
     CrossValidation,
@@ -20,6 +17,7 @@ from kinecal.identification._evaluate import (
     evaluate,
     kfold_indices,
     refit,
+    refit_diagnosed,
     registered_model,
     train_test_split,
 )
@@ -40,6 +38,20 @@ from kinecal.identification._lm import (
 )
 from kinecal.identification._measurements import KINDS, Measurements
 from kinecal.identification._metrics import Metrics, metrics_from_errors
+from kinecal.identification._options import PRIOR_SIGMA, CalibrationOptions
+from kinecal.identification._priors import EvidencePriors, Priors, build_prior
+from kinecal.identification._problem import (
+    EvaluationCache,
+    Problem,
+    Stage,
+    State,
+    spec_for,
+)
+from kinecal.identification._registration import (
+    Registration,
+    initial_registration,
+    register,
+)
 from kinecal.identification._residuals import ResidualBlock, Weights, residuals
 from kinecal.identification._select import (
     Candidate,
@@ -47,8 +59,18 @@ from kinecal.identification._select import (
     candidate_specs,
     select_model,
 )
+from kinecal.identification._stages import (
+    FullStage,
+    Identify,
+    KinematicStage,
+    Register,
+    RobustRejection,
+    TransmissionStage,
+)
+from kinecal.identification._uncertainty import Diagnose, Uncertainty
 
 __all__ = [
+    "CODES",
     "KINDS",
     "PRIOR_SIGMA",
     "STATUSES",
@@ -58,32 +80,53 @@ __all__ = [
     "Candidate",
     "ComparisonRow",
     "CrossValidation",
+    "Diagnose",
+    "Diagnostic",
     "DroppedParameter",
     "Evaluation",
+    "EvaluationCache",
+    "EvidencePriors",
+    "FullStage",
     "Identifiability",
+    "Identify",
+    "KinematicStage",
     "LMOptions",
     "LMResult",
     "Measurements",
     "Metrics",
     "Outlier",
+    "Priors",
+    "Problem",
+    "Register",
+    "Registration",
     "ResidualBlock",
+    "RobustRejection",
     "Selection",
+    "Stage",
     "StageLog",
+    "State",
+    "TransmissionStage",
+    "Uncertainty",
     "Weights",
     "analyse_identifiability",
+    "build_prior",
     "calibrate",
     "candidate_specs",
     "compare_models",
     "correlation_from_covariance",
     "cross_validate",
     "cross_validate_many",
+    "default_stages",
     "evaluate",
     "initial_frames",
+    "initial_registration",
     "kfold_indices",
     "metrics_from_errors",
     "normal_equations",
     "priority_order",
     "refit",
+    "refit_diagnosed",
+    "register",
     "registered_model",
     "residuals",
     "select_model",

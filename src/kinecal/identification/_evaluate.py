@@ -2,23 +2,22 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from kinecal._parallel import parallel_map
-from kinecal.errors import IdentifiabilityError
-from kinecal.geometry import kabsch_umeyama, matrix_to_euler_zyx
 from kinecal.identification._calibrate import (
     CalibrationOptions,
     CalibrationResult,
     calibrate,
 )
 from kinecal.identification._calibrated import CalibratedModel
-from kinecal.identification._lm import LMOptions, solve_lm
+from kinecal.identification._diagnostics import Diagnostic
 from kinecal.identification._measurements import Measurements
 from kinecal.identification._metrics import Metrics, metrics_from_errors
-from kinecal.identification._residuals import Weights, residuals
+from kinecal.identification._registration import register
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float
@@ -31,6 +30,7 @@ __all__ = [
     "evaluate",
     "kfold_indices",
     "refit",
+    "refit_diagnosed",
     "registered_model",
     "train_test_split",
 ]
@@ -44,6 +44,7 @@ class Evaluation:
     errors_mm: Float  # (N,) 3-D error norms
     error_xyz_mm: Float  # (N, 3) model minus measurement, user frame
     calibrated: CalibratedModel  # the model used (after any refit)
+    diagnostics: list[Diagnostic] = field(default_factory=list)  # of the refit
 
 
 def refit(
@@ -56,18 +57,37 @@ def refit(
     """Re-estimate some parameters of a calibration on new data, the rest held.
 
     With ``groups=('base',)`` this registers new user frames: one per set of ``meas``
-    (a new tracker set-up), started by a closed-form fit of the model's points.
+    (a new tracker set-up), started in closed form (:mod:`._registration`, the path
+    calibration and cross-validation take too); ``'cam'`` does the same for the cam
+    frames (a re-mounted probe). Findings of the registration (a set whose points do not
+    fix its rotation) are issued as warnings.
 
     Parameters
     ----------
     calibrated : CalibratedModel
     meas : Measurements
     groups : parameter groups to re-estimate ('base', 'cam', 'joint', 'ntm', ...).
-    names : exact parameter names to re-estimate instead of groups.
+    names : exact parameter names to re-estimate instead of groups (only those move).
     """
+    cal, found = refit_diagnosed(calibrated, meas, groups, names=names)
+    for d in found:
+        if d.severity == "warning":
+            warnings.warn(d.message, stacklevel=2)
+    return cal
+
+
+def refit_diagnosed(
+    calibrated: CalibratedModel,
+    meas: Measurements,
+    groups: tuple[str, ...] = ("base",),
+    *,
+    names: list[str] | None = None,
+) -> tuple[CalibratedModel, list[Diagnostic]]:
+    """:func:`refit`, returning its diagnostics instead of warning."""
     old = calibrated.model
     spec = old.spec
-    new_sets = "base" in groups and tuple(meas.set_labels) != tuple(spec.sets)
+    solve = groups if names is None else ()
+    new_sets = "base" in solve and tuple(meas.set_labels) != tuple(spec.sets)
     if new_sets:
         model = CalibrationModel(old.robot, replace(spec, sets=meas.set_labels))
         model = model.with_references(
@@ -84,51 +104,35 @@ def refit(
         model, x = old, calibrated.params.copy()
         status, std = list(calibrated.status), calibrated.std.copy()
         m = calibrated.align(meas)
-    inputs = m.model_inputs(calibrated.reference_payload_kg)
-    if "base" in groups:
-        # Closed form: model points in the robot base frame, Kabsch to the measurements.
-        base_idx = model.base_index
-        probe = x.copy()
-        probe[base_idx] = 0.0
-        R_ref = np.broadcast_to(np.eye(3), model.R_ref_base.shape)
-        p_base = model.with_references(R_ref).evaluate(probe, inputs).p_user
-        ref = m.reference_points()
-        R_new = model.R_ref_base.copy()
-        for s in range(len(model.spec.sets)):
-            rows = m.set_index == s
-            if rows.sum() < 3:
-                raise IdentifiabilityError(
-                    f"{meas.source}: set {model.spec.sets[s]!r} has {rows.sum()} rows; "
-                    "refitting its user frame needs at least 3."
-                )
-            T, _ = kabsch_umeyama(p_base[rows], ref[rows])
-            R_new[s] = np.eye(3)
-            x[base_idx[s]] = np.concatenate([T[:3, 3], matrix_to_euler_zyx(T[:3, :3])])
-        model = model.with_references(R_new)
-    groups_arr = np.array([s.group for s in model.layout.specs])
-    free = (
-        np.isin(groups_arr, groups)
-        if names is None
-        else np.isin(model.layout.names, names)
-    )
+    layout = model.layout
+    if names is None:
+        free = np.isin([s.group for s in layout.specs], groups)
+    else:
+        unknown = [n for n in names if n not in layout]
+        if unknown:
+            raise ValueError(
+                f"refit: unknown parameter {unknown[0]!r}; the model has "
+                f"{layout.size} parameters (see its layout)."
+            )
+        free = np.isin(layout.names, names)
     free &= np.array([st != "unidentifiable" for st in status])
-    w = Weights.default(m)
-
-    def fun(xx: Float, jac: bool) -> tuple[Float, Float | None]:
-        blk = residuals(model, xx, m, w, inputs=inputs, jacobian=jac)
-        return blk.r, blk.J
-
-    res = solve_lm(
-        fun, x, free, model.layout.scales, LMOptions(max_iter=100), label="refit"
-    )
-    return CalibratedModel(
+    reg = register(
         model,
-        res.x,
+        x,
+        m,
+        free,
+        groups=solve,
+        inputs=m.model_inputs(calibrated.reference_payload_kg),
+    )
+    cal = CalibratedModel(
+        reg.model,
+        reg.x,
         std,
         status,
         calibrated.reference_payload_kg,
         info={**calibrated.info, "refit": list(groups) if names is None else names},
     )
+    return cal, list(reg.diagnostics)
 
 
 def evaluate(
@@ -142,11 +146,18 @@ def evaluate(
         Re-estimate only the user frame(s) on ``meas`` first: the data come from a new
         tracker set-up (DESIGN §11).
     """
-    cal = refit(calibrated, meas, ("base",)) if refit_user else calibrated
+    found: list[Diagnostic] = []
+    cal = calibrated
+    if refit_user:
+        cal, found = refit_diagnosed(calibrated, meas, ("base",))
     blk = cal.predict(meas)
     met = metrics_from_errors(blk.raw_position, blk.raw_rotation)
     return Evaluation(
-        met, np.linalg.norm(blk.raw_position, axis=1) * 1e3, blk.raw_position * 1e3, cal
+        met,
+        np.linalg.norm(blk.raw_position, axis=1) * 1e3,
+        blk.raw_position * 1e3,
+        cal,
+        found,
     )
 
 

@@ -18,10 +18,10 @@ import numpy as np
 
 from kinecal.errors import IdentifiabilityError
 from kinecal.geometry import (
-    kabsch_umeyama,
     make_transform,
     matrix_to_euler_zyx,
     project_to_so3,
+    rigid_fit_nearest,
     solve_axyb,
     transform_inv,
 )
@@ -29,7 +29,7 @@ from kinecal.identification._measurements import Measurements
 from kinecal.models import CalibrationModel
 from kinecal.typing import Float
 
-__all__ = ["initial_frames"]
+__all__ = ["closed_form_frames", "euler_with_reference", "initial_frames"]
 
 _GIMBAL_MARGIN = np.radians(15.0)
 
@@ -42,8 +42,9 @@ def _flange(
 
 def _init_point(
     model: CalibrationModel, params: Float, meas: Measurements, n_iter: int = 50
-) -> tuple[Float, Float, Float]:
-    """Base rotations (S, 3, 3), base translations (S, 3), tool points (M, 3)."""
+) -> tuple[Float, Float, Float, list[int]]:
+    """Base rotations (S, 3, 3), base translations (S, 3), tool points (M, 3), and the
+    sets whose points do not fix their rotation."""
     R_fl, o_fl = _flange(model, params, meas)
     S, M = len(model.spec.sets), len(model.spec.markers)
     _, t_cam = model.cam_frames(params)
@@ -57,6 +58,7 @@ def _init_point(
     si, mi = meas.set_index, meas.marker_index
     p = meas.p
     prev = np.inf
+    loose: set[int] = set()
     for _ in range(n_iter):
         p_base = o_fl + np.einsum("nij,nj->ni", R_fl, tool[mi])
         for s in range(S):
@@ -66,8 +68,11 @@ def _init_point(
                     f"{meas.source}: set {model.spec.sets[s]!r} has {rows.sum()} rows; "
                     "a user frame needs at least 3."
                 )
-            T, _ = kabsch_umeyama(p_base[rows], p[rows])
-            R_b[s], t_b[s] = T[:3, :3], T[:3, 3]
+            R_b[s], t_b[s], determined = rigid_fit_nearest(
+                p_base[rows], p[rows], R_b[s]
+            )
+            if not determined:
+                loose.add(s)
         # Linear solve for tool points and base translations with rotations fixed.
         N = meas.n
         A = np.zeros((N, 3, 3 * M + 3 * S))
@@ -89,7 +94,7 @@ def _init_point(
         if abs(prev - res) <= 1e-12 * max(res, 1e-9):
             break
         prev = res
-    return R_b, t_b, tool
+    return R_b, t_b, tool, sorted(loose)
 
 
 def _init_pose(
@@ -126,8 +131,9 @@ def _init_pose(
 
 def _init_sensor(
     model: CalibrationModel, params: Float, meas: Measurements
-) -> tuple[Float, Float, Float, Float]:
-    """Cam frames (M) by a linear hand-eye solve, then user frames (S) by Kabsch."""
+) -> tuple[Float, Float, Float, Float, list[int]]:
+    """Cam frames (M) by a linear hand-eye solve, then user frames (S) by Kabsch; the
+    sets whose targets do not fix their rotation."""
     assert meas.targets is not None and meas.target_index is not None
     R_fl, o_fl = _flange(model, params, meas)
     S, Mk = len(model.spec.sets), len(model.spec.markers)
@@ -174,27 +180,23 @@ def _init_sensor(
     t_c = np.stack([full[12 * m + 9 : 12 * m + 12] for m in range(Mk)])
     R_b = np.zeros((S, 3, 3))
     t_b = np.zeros((S, 3))
+    loose = []
     for s in range(S):
         seen = [k for k in range(K) if np.any(key == s * K + k)]
         b_base = np.array(
             [full[n_x + 3 * (s * K + k) : n_x + 3 * (s * K + k) + 3] for k in seen]
         )
-        p_user = meas.targets[seen]
-        if len(seen) >= 3:
-            try:
-                T, _ = kabsch_umeyama(b_base, p_user)
-                R_b[s], t_b[s] = T[:3, :3], T[:3, 3]
-                continue
-            except ValueError:
-                pass
-        # Fewer than 3 (or collinear) targets: the user-frame rotation is not observable
-        # from positions; keep the nominal rotation and match the centroids.
-        R_b[s] = np.eye(3)
-        t_b[s] = p_user.mean(axis=0) - b_base.mean(axis=0)
-    return R_b, t_b, R_c, t_c
+        # Fewer than 3 (or collinear) targets leave a rotation free: the one nearest the
+        # nominal (identity) that fits them.
+        R_b[s], t_b[s], determined = rigid_fit_nearest(
+            b_base, meas.targets[seen], np.eye(3)
+        )
+        if not determined:
+            loose.append(s)
+    return R_b, t_b, R_c, t_c, loose
 
 
-def _euler_with_reference(R: Float) -> tuple[Float, Float]:
+def euler_with_reference(R: Float) -> tuple[Float, Float]:
     """Reference rotation and Euler angles: identity unless near gimbal lock."""
     rwp = matrix_to_euler_zyx(R)
     if abs(abs(rwp[1]) - np.pi / 2) < _GIMBAL_MARGIN:
@@ -205,7 +207,7 @@ def _euler_with_reference(R: Float) -> tuple[Float, Float]:
 def initial_frames(
     model: CalibrationModel, params: Float, meas: Measurements
 ) -> tuple[CalibrationModel, Float]:
-    """Starting user and cam frames from the nominal kinematics in ``params``.
+    """Starting user and cam frames from the kinematics in ``params``.
 
     Returns
     -------
@@ -213,6 +215,15 @@ def initial_frames(
         The same model, with reference rotations where a frame is near gimbal lock.
     params : (P,) the parameters with every user and cam frame set.
     """
+    out, x, _ = closed_form_frames(model, params, meas)
+    return out, x
+
+
+def closed_form_frames(
+    model: CalibrationModel, params: Float, meas: Measurements
+) -> tuple[CalibrationModel, Float, list[int]]:
+    """:func:`initial_frames`, and the sets whose data do not fix their user frame's
+    rotation (one point, or all on one line)."""
     x = params.copy()
     R_ref_b = model.R_ref_base.copy()
     R_ref_c = model.R_ref_cam.copy()
@@ -221,20 +232,21 @@ def initial_frames(
     base_idx = work.base_index
     x[base_idx] = 0.0
     if meas.kind == "point":
-        R_b, t_b, tool = _init_point(work, x, meas)
+        R_b, t_b, tool, loose = _init_point(work, x, meas)
         R_c, t_c = None, tool
     elif meas.kind == "pose":
         R_b, t_b, R_c, t_c = _init_pose(work, x, meas)
+        loose = []
     else:
-        R_b, t_b, R_c, t_c = _init_sensor(work, x, meas)
+        R_b, t_b, R_c, t_c, loose = _init_sensor(work, x, meas)
     for s in range(len(model.spec.sets)):
-        R_ref_b[s], rwp = _euler_with_reference(R_b[s])
+        R_ref_b[s], rwp = euler_with_reference(R_b[s])
         x[base_idx[s]] = np.concatenate([t_b[s], rwp])
     cam_idx = model.cam_index
     for m in range(len(model.spec.markers)):
         x[cam_idx[m, :3]] = t_c[m]
         if model.spec.cam_rotation and R_c is not None:
-            R_ref_c[m], rwp = _euler_with_reference(R_c[m])
+            R_ref_c[m], rwp = euler_with_reference(R_c[m])
             x[cam_idx[m, 3:]] = rwp
     out = model.with_references(R_ref_b, R_ref_c if model.spec.cam_rotation else None)
-    return out, x
+    return out, x, loose

@@ -35,6 +35,7 @@ __all__ = [
     "loss_weights",
     "normal_equations",
     "objective",
+    "psd_inverse",
     "solve_fixed_step",
     "solve_lm",
     "spd_solve",
@@ -169,6 +170,14 @@ def spd_solve(M: Float, b: Float, rcond: float | None = None) -> Float:
         return np.asarray(np.linalg.solve(L.T, np.linalg.solve(L, b)), np.float64)
     except np.linalg.LinAlgError:
         return np.asarray(np.linalg.lstsq(M, b, rcond=rcond)[0], np.float64)
+
+
+def psd_inverse(A: Float, rcond: float) -> Float:
+    """Pseudo-inverse of a symmetric positive semi-definite matrix, eigenvalues below
+    ``rcond`` times the largest left out."""
+    evals, evecs = np.linalg.eigh(A)
+    good = evals > evals.max() * rcond
+    return (evecs[:, good] / evals[good]) @ evecs[:, good].T
 
 
 def objective(r: Float, opts: LMOptions) -> tuple[float, Float]:

@@ -1,0 +1,95 @@
+"""What the identification found worth telling: structured diagnostics and stage logs.
+
+Every finding of a stage is a :class:`Diagnostic` with a stable ``code`` (what tests and
+programs match), the parameters or data rows it concerns, and a message for people. The
+codes are listed in :data:`CODES`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+__all__ = ["CODES", "Diagnostic", "Outlier", "StageLog"]
+
+CODES: dict[str, str] = {
+    "not_converged": "a stage stopped before convergence (parameters: where it drifts)",
+    "targets_few": "a set sees fewer than three targets, or all on one line "
+    "(parameters: the rotation of its user frame)",
+    "frames_undetermined": "user and tool frame parameters the poses cannot separate",
+    "priors_widened": "the data show larger deviations from nominal than the priors "
+    "allowed (parameters: the single ones widened)",
+    "no_covariance": "the normal matrix could not be inverted",
+    "outliers": "rows whose error is improbable under the fitted noise (rows: file rows)",
+    "prior_dominated": "parameters determined mostly by their prior",
+    "loose_parameters": "parameters without a prior that the poses hardly determine",
+    "overfit_risk": "many parameters for the number of residuals",
+    "rotation_undetermined": "a registration could not fix a frame's rotation fully",
+}
+
+
+@dataclass(frozen=True)
+class Diagnostic:
+    """One finding of a calibration stage.
+
+    Attributes
+    ----------
+    code : str, one of :data:`CODES`.
+    message : str, the finding in words (what the console and the report show).
+    parameters : names of the parameters concerned (exact layout names).
+    rows : data rows concerned (row numbers of the source file, 1-based data rows).
+    stage : name of the stage that found it.
+    severity : 'warning' (shown to the user) or 'info' (log and report only).
+    """
+
+    code: str
+    message: str
+    parameters: tuple[str, ...] = ()
+    rows: tuple[int, ...] = ()
+    stage: str = ""
+    severity: str = "warning"
+
+    def __post_init__(self) -> None:
+        if self.code not in CODES:
+            raise ValueError(f"unknown diagnostic code {self.code!r}; see CODES.")
+        if self.severity not in ("warning", "info"):
+            raise ValueError(
+                f"severity must be 'warning' or 'info'; got {self.severity!r}."
+            )
+
+    def __str__(self) -> str:
+        return self.message
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "code": self.code,
+            "severity": self.severity,
+            "stage": self.stage,
+            "message": self.message,
+            "parameters": list(self.parameters),
+            "rows": list(self.rows),
+        }
+
+
+@dataclass
+class StageLog:
+    """What one stage (one solver run) did."""
+
+    name: str
+    n_free: int
+    rms_before_mm: float
+    rms_after_mm: float
+    iterations: int
+    status: str
+    success: bool
+    seconds: float
+    iteration_log: list[dict[str, float]] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Outlier:
+    """A row whose error is improbable under the fitted noise."""
+
+    row: int
+    error_mm: float
+    z: float

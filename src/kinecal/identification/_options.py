@@ -1,0 +1,116 @@
+"""Settings of a calibration and the physical scales of the priors.
+
+The priors are Gaussian, centred on the start value (nominal geometry, zero for the
+transmission and compliance terms), with the standard deviations of :data:`PRIOR_SIGMA`
+(theory.md, Eq. (T-1)).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinecal.identification._lm import LMOptions
+
+__all__ = ["PRIOR_GROUPS", "PRIOR_SIGMA", "CalibrationOptions"]
+
+# Prior standard deviations (SI) by parameter group and kind: physical scales of the
+# deviations from nominal (DH), of transmission errors (NTM) and of per-unit-weight
+# compliance and link moments; the mean is the start value (nominal, or zero).
+PRIOR_SIGMA: dict[tuple[str, str], float] = {
+    ("joint", "length"): 1e-3,  # 1 mm
+    ("joint", "angle"): np.radians(0.1),  # 0.1 deg
+    ("ntm", "ntm"): 5e-4,  # rad
+    ("load", "compliance"): 1e-3,  # rad/m, i.e. 1e-5 rad/(N m) for a 10 kg payload
+    ("link", "moment"): 2.0,  # m: link first moment per unit payload weight
+    ("link", "ratio"): 10.0,  # link mass per payload mass
+}
+# Which groups carry a prior for each value of CalibrationOptions.priors.
+PRIOR_GROUPS: dict[str, tuple[str, ...]] = {
+    "none": (),
+    "compliance": ("load", "link"),
+    "all": ("joint", "ntm", "load", "link"),
+}
+# Groups of the unified kinematic model (stage 1).
+KINEMATIC_GROUPS = ("base", "joint", "cam")
+# Initial LM damping for a start next to the optimum (a lifted start, or the result of a
+# fit with other weights or priors): Madsen, Nielsen & Tingleff, "Methods for non-linear
+# least squares problems" (2004), Sec. 3.2, advise 1e-6 when the start is believed good
+# and 1e-3 otherwise (LMOptions' default, used from nominal kinematics).
+MU0_WARM = 1e-6
+# Stop an LM run once a step moves the estimate by about 1.4 % of its standard deviations
+# (LMOptions.stol): further digits are far below the statistical uncertainty.
+STOL = 1e-4
+# The unconstrained stage-1 pre-fit only gives the noise and the scale of the geometry
+# priors before the real stage 1 starts from it: stopping at steps of sqrt(2 x 1e-2), about
+# 14 % of a standard deviation, is close enough. On a robot with large joint compliances,
+# which the kinematic model cannot fit, the pre-fit otherwise crawls for 100 iterations.
+STOL_PRE = 1e-2
+
+
+@dataclass(frozen=True)
+class CalibrationOptions:
+    """Settings of :func:`~kinecal.identification.calibrate`.
+
+    Attributes
+    ----------
+    stage2 : {'direct', 'project', 'none'}
+        How stage 2 fits the transmission terms: directly on the position residuals, by
+        the paper's projection to joint space (Eq. 29), or not at all.
+    loss : {'linear', 'huber', 'soft_l1'}
+    f_scale_mm : float or None
+        Where the robust loss bends (in mm of position error); default three times a
+        robust estimate of the noise.
+    max_iter : int
+    drop_tol, weak_tol : float
+        Identifiability tolerances (see :func:`analyse_identifiability`).
+    outlier_p : float
+        A row is reported as an outlier when its error is this unlikely under the fitted
+        noise (chi distribution of the row's components).
+    variance_components : bool
+        Without per-row sigmas in the data, estimate the noise from the residuals (for pose
+        data separately for position and orientation) and weight by it, so priors and data
+        are balanced.
+    priors : {'none', 'compliance', 'all'}
+        Gaussian priors with physical scales (:data:`PRIOR_SIGMA`), making the estimate a
+        maximum a posteriori one: 'all' (default) on the joint geometry, the transmission
+        terms, the payload compliance and the link moments; 'compliance' on the payload
+        and link-weight terms only (their product lambda* s is otherwise only weakly split);
+        'none' is the paper's plain least squares.
+    prior_sigma : dict, optional
+        Per-parameter overrides ``{name: sigma (SI)}``; ``inf`` removes a prior.
+    prior_scale : float
+        Multiplies every prior sigma (``--model auto`` tries several).
+    adapt_priors : bool
+        Empirical Bayes. Widen the joint-geometry priors when an unconstrained kinematic
+        fit shows larger deviations from nominal than they allow (method of moments on
+        the well-determined parameters; never narrowed; reported in the warnings), and
+        scale the transmission, payload and link-weight priors by maximum evidence
+        (0.01x to 3x, ``CalibrationResult.prior_factors``), so terms the data do not
+        support are shrunk instead of fitted to noise.
+    """
+
+    stage2: str = "direct"
+    loss: str = "linear"
+    f_scale_mm: float | None = None
+    max_iter: int = 100
+    drop_tol: float = 1e-6
+    weak_tol: float = 1e-3
+    outlier_p: float = 1e-5
+    variance_components: bool = True
+    priors: str = "all"
+    prior_sigma: dict[str, float] | None = None
+    prior_scale: float = 1.0
+    adapt_priors: bool = True
+
+    def __post_init__(self) -> None:
+        if self.priors not in PRIOR_GROUPS:
+            raise ValueError(
+                f"priors must be 'none', 'compliance' or 'all'; got {self.priors!r}."
+            )
+        if self.stage2 not in ("direct", "project", "none"):
+            raise ValueError(
+                f"stage2 must be 'direct', 'project' or 'none'; got {self.stage2!r}."
+            )
+        LMOptions(loss=self.loss)  # validates the loss name

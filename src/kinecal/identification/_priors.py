@@ -1,0 +1,266 @@
+"""Priors: physical scales, adapted to the data by empirical Bayes (theory.md §4).
+
+:class:`Priors` sets Gaussian priors (:data:`PRIOR_SIGMA`, Eq. (T-1)) and widens the
+joint-geometry ones where an unconstrained stage-1 fit shows larger deviations from nominal
+(method of moments, Eq. (T-4)). :class:`EvidencePriors` scales the transmission and
+compliance priors by maximum evidence (Eq. (T-5)) and repeats stage 3 with them.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from kinecal._stats import median
+from kinecal.identification._diagnostics import Diagnostic
+from kinecal.identification._lm import (
+    Prior,
+    loss_weights,
+    normal_equations,
+    psd_inverse,
+)
+from kinecal.identification._options import (
+    PRIOR_GROUPS,
+    PRIOR_SIGMA,
+    STOL_PRE,
+    CalibrationOptions,
+)
+from kinecal.identification._problem import Problem, State
+from kinecal.identification._solve import noise_from_residuals, run_lm
+from kinecal.models import CalibrationModel
+from kinecal.typing import Float
+
+__all__ = ["EvidencePriors", "Priors", "build_prior"]
+
+log = logging.getLogger(__name__)
+
+_EVIDENCE_GROUPS = ("ntm", "load", "link")
+_EVIDENCE_FACTORS = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
+
+
+def build_prior(
+    model: CalibrationModel, start: Float, options: CalibrationOptions
+) -> Prior:
+    """Priors of :data:`PRIOR_SIGMA` (or the robot file's ``priors``) for the groups
+    chosen in ``options.priors``, centred on ``start``; ``options.prior_sigma``
+    overrides single parameters (Eq. (T-1))."""
+    sigma = np.full(model.size, np.inf)
+    groups = PRIOR_GROUPS[options.priors]
+    table = {**PRIOR_SIGMA, **model.robot.prior_sigma}  # the robot file may override
+    for i, s in enumerate(model.layout.specs):
+        if s.group in groups:
+            sigma[i] = table.get((s.group, s.kind), np.inf) * options.prior_scale
+    for name, value in (options.prior_sigma or {}).items():
+        sigma[model.layout.index(name)] = float(value)
+    return Prior(start.copy(), sigma)
+
+
+@dataclass(frozen=True)
+class Priors:
+    """Set the priors, centred on the registered parameters.
+
+    When the joint geometry has priors (or pose data need their noise), a first stage-1
+    fit without priors runs: its residuals give the noise (a prior weighed against the
+    registration residuals, the nominal model's error far above the noise, would hold the
+    fit back, inflate the noise estimate and so keep the prior too strong: a
+    self-confirming misfit seen on real mocap data), and its deviations from nominal the
+    scale of the joint-geometry priors (:func:`adapt_prior`; ``priors_widened``).
+    """
+
+    name: str = "priors"
+
+    def __call__(self, problem: Problem, state: State) -> State:
+        kin = problem.kinematic
+        prior = build_prior(state.model, state.x, problem.options)
+        state = state.but(prior=prior)
+        use_prior_kin = state.active_prior(kin) is not None
+        needed = use_prior_kin or (
+            problem.estimate_noise and problem.meas.kind == "pose"
+        )
+        if not needed:
+            return state
+        x_reg = state.x
+        name = "stage 1: kinematic" + (" (no priors)" if use_prior_kin else "")
+        state, pre = run_lm(
+            problem,
+            state,
+            name,
+            x_reg,
+            state.free & kin,
+            replace(state.lm, stol=STOL_PRE),
+            required=False,
+        )
+        state = state.but(x=pre.x)
+        if problem.estimate_noise:
+            w = noise_from_residuals(
+                problem, state, pre.x, int((state.free & kin).sum())
+            )
+            state = state.but(weights=w, noise_estimated=True)
+        if use_prior_kin and problem.options.adapt_priors and pre.success:
+            prior, widened = adapt_prior(problem, state, pre.x, x_reg, prior)
+            state = state.but(prior=prior)
+            if widened:
+                state = state.note(
+                    Diagnostic(
+                        "priors_widened",
+                        "the data show larger deviations from nominal than the default "
+                        "priors allow; priors widened: "
+                        + ", ".join(f"{what} {value}" for what, value in widened)
+                        + ".",
+                        parameters=tuple(
+                            w for w, _ in widened if w in state.model.layout
+                        ),
+                        stage=self.name,
+                    )
+                )
+        return state
+
+
+def adapt_prior(
+    problem: Problem, state: State, x: Float, x_nominal: Float, prior: Prior
+) -> tuple[Prior, list[tuple[str, str]]]:
+    """Joint-geometry prior scales from an unconstrained fit (empirical Bayes).
+
+    For each kind (lengths, angles) the prior variance is estimated by the method of
+    moments, ``tau^2 = mean(dx^2 - var(dx))`` over the free parameters of that kind with a
+    finite prior, ``dx`` the deviation from nominal and ``var`` its variance from the
+    unconstrained fit (Eq. (T-4)). The prior sigma becomes ``max(sigma, tau)``: a robot
+    whose geometry departs from its nominal table by more than the default prior allows is
+    not pulled back, while a poorly determined parameter (large ``var``) does not widen it.
+    """
+    cm = state.model
+    free = state.free & problem.kinematic
+    fidx = np.flatnonzero(free)
+    blk = problem.evaluations(cm, x, state.weights, jacobian=True)
+    assert blk.J is not None
+    scales = cm.layout.scales[fidx]
+    JtJ, _ = normal_equations(blk.r, blk.J, fidx, scales)
+    dof = max(blk.r.size - fidx.size, 1)
+    s0sq = float(np.sum(blk.r**2)) / dof
+    var = s0sq * np.diag(psd_inverse(JtJ, 1e-12)) * scales**2
+    sigma = prior.sigma.copy()
+    widened: list[tuple[str, str]] = []
+    kinds = np.array([cm.layout.specs[i].kind for i in fidx])
+    groups = np.array([cm.layout.specs[i].group for i in fidx])
+    for kind, unit, factor in (("length", "mm", 1e3), ("angle", "deg", np.degrees(1))):
+        sel = (groups == "joint") & (kinds == kind) & np.isfinite(sigma[fidx])
+        if not sel.any():
+            continue
+        idx = fidx[sel]
+        dx = x[idx] - x_nominal[idx]
+        tau2 = float(np.mean(dx**2 - var[sel]))  # Eq. (T-4)
+        current = median(sigma[idx])
+        if tau2 > current**2:
+            tau = float(np.sqrt(tau2))
+            sigma[idx] = np.maximum(sigma[idx], tau)
+            widened.append((f"joint {kind}s", f"{tau * factor:.3g} {unit}"))
+        # A deviation the data determine clearly (beyond 3 of its own std) and beyond
+        # its prior is not pulled back: its prior widens to the deviation itself.
+        clear = (np.abs(dx) > 3.0 * np.sqrt(var[sel])) & (np.abs(dx) > sigma[idx])
+        for i, d in zip(idx[clear], dx[clear]):
+            sigma[i] = abs(d)
+            widened.append((cm.layout.names[i], f"{abs(d) * factor:.3g} {unit}"))
+    return Prior(prior.mean, sigma), widened
+
+
+@dataclass(frozen=True)
+class EvidencePriors:
+    """Scale the transmission, payload and link-weight priors by maximum evidence
+    (:func:`evidence_prior`) and, when a scale changed, run stage 3 again with them."""
+
+    name: str = "stage 3: all (evidence priors)"
+
+    def __call__(self, problem: Problem, state: State) -> State:
+        prior = state.active_prior()
+        if (
+            prior is None
+            or not problem.options.adapt_priors
+            or not np.any(state.free & ~problem.kinematic)
+        ):
+            return state
+        lm3 = replace(state.lm, max_iter=max(state.lm.max_iter, 200))
+        prior, chosen = evidence_prior(problem, state, prior)
+        state = state.but(prior=prior, prior_factors=chosen)
+        if any(f != 1.0 for f in chosen.values()):
+            log.info("prior scales from the evidence: %s", chosen)
+            state, res = run_lm(
+                problem, state, self.name, state.x, state.free, lm3, prior, lifted=True
+            )
+            state = state.but(x=res.x)
+        return state
+
+
+def evidence_prior(
+    problem: Problem, state: State, prior: Prior
+) -> tuple[Prior, dict[str, float]]:
+    """Prior scales of the transmission and compliance groups by maximum evidence.
+
+    With the model linearised at the state's parameters (whitened residuals ``r``,
+    Jacobian ``J``) and the prior ``N(m, S)``, the data are Gaussian with covariance
+    ``I + J S Jᵀ`` about the prediction at ``m``; its log density (the evidence, Eq. (T-5))
+    is evaluated through Woodbury's identity for each candidate scale of a group's sigmas,
+    by coordinate ascent over the groups. A group the data do not support gets a smaller
+    prior (it is shrunk towards zero), one they do support keeps or widens it (at most
+    3x). Parameters without a prior enter with a very wide one, the same for every
+    candidate, so they do not bias the comparison. With a robust loss the rows carry
+    their IRLS weights.
+    """
+    cm, x, lm = state.model, state.x, state.lm
+    fidx = np.flatnonzero(state.free)
+    groups = np.array([cm.layout.specs[i].group for i in fidx])
+    tune = [
+        g
+        for g in _EVIDENCE_GROUPS
+        if np.any((groups == g) & np.isfinite(prior.sigma[fidx]))
+    ]
+    if not tune:
+        return prior, {}
+    blk = problem.evaluations(cm, x, state.weights, jacobian=True)
+    assert blk.J is not None
+    sc = cm.layout.scales[fidx]
+    sw = np.sqrt(loss_weights(np.sum(blk.r**2, axis=1) / lm.f_scale**2, lm.loss)[1])
+    JtJ, Jtr = normal_equations(blk.r, blk.J, fidx, sc, sw)
+    # b = r + J (m - x): the data about the prediction at the prior mean
+    d = (prior.mean[fidx] - x[fidx]) / sc
+    Jtb = Jtr + JtJ @ d
+    btb = float(np.sum((blk.r * sw[:, None]) ** 2) + 2.0 * (Jtr @ d) + d @ JtJ @ d)
+    base_var = np.where(
+        np.isfinite(prior.sigma[fidx]), (prior.sigma[fidx] / sc) ** 2, 1e8
+    )
+
+    def log_evidence(var: Float) -> float:
+        # Eq. (T-5): -1/2 (b^T (I + J S J^T)^-1 b + log det(I + J S J^T)), by Woodbury
+        M = JtJ + np.diag(1.0 / var)
+        try:
+            L = np.linalg.cholesky(M)
+        except np.linalg.LinAlgError:
+            return -np.inf
+        y = np.linalg.solve(L, Jtb)
+        quad = btb - float(y @ y)
+        logdet = float(np.sum(np.log(var))) + 2.0 * float(np.sum(np.log(np.diag(L))))
+        return -0.5 * (quad + logdet)
+
+    factors = {g: 1.0 for g in tune}
+
+    def variance() -> Float:
+        v = base_var.copy()
+        for g, f in factors.items():
+            v[groups == g] *= f * f
+        return v
+
+    for _ in range(2):  # coordinate ascent
+        for g in tune:
+            best = (log_evidence(variance()), factors[g])
+            for f in _EVIDENCE_FACTORS:
+                factors[g] = f
+                le = log_evidence(variance())
+                if le > best[0] + 1e-9:
+                    best = (le, f)
+            factors[g] = best[1]
+    sigma = prior.sigma.copy()
+    for g, f in factors.items():
+        sel = (problem.groups == g) & np.isfinite(sigma)
+        sigma[sel] *= f
+    return Prior(prior.mean, sigma), factors

@@ -1,0 +1,300 @@
+"""The two objects every calibration stage works on: the problem and the state.
+
+A stage is a callable ``stage(problem, state) -> state`` (:class:`Stage`). The
+:class:`Problem` holds what does not change during a calibration (robot, data, model
+structure, options, the evaluation cache); the :class:`State` holds what the stages
+build up (parameters, which of them are free, weights, priors, logs and diagnostics).
+States are immutable: a stage returns a new one (:meth:`State.but`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Protocol
+
+import numpy as np
+
+from kinecal.errors import DataError, IdentifiabilityError
+from kinecal.identification._diagnostics import Diagnostic, Outlier, StageLog
+from kinecal.identification._identifiability import Identifiability
+from kinecal.identification._lm import LMOptions, Prior
+from kinecal.identification._measurements import Measurements
+from kinecal.identification._options import (
+    KINEMATIC_GROUPS,
+    STOL,
+    CalibrationOptions,
+)
+from kinecal.identification._residuals import ResidualBlock, Weights, residuals
+from kinecal.models import CalibrationModel, ModelInputs, ModelSpec
+from kinecal.robot import RobotDescription
+from kinecal.typing import Float
+
+__all__ = ["EvaluationCache", "Problem", "Stage", "State"]
+
+Progress = Callable[[str, str], None]
+
+
+class EvaluationCache:
+    """Residual blocks of one calibration: each point is evaluated once.
+
+    The identification revisits points (a stage starts where the last one ended, the
+    priors, stage 2 and the uncertainty look at a stage's solution, the log reports the
+    error before and after each stage). The last few blocks are kept, keyed by the model,
+    the parameters and the weights; raw position errors do not depend on the weights.
+    Each block also keeps the model's forward state, so the Jacobian at a point evaluated
+    before (the LM's accepted trial point, typically) skips the forward kinematics.
+    """
+
+    def __init__(self, meas: Measurements, inputs: ModelInputs, keep: int = 3) -> None:
+        self.meas = meas
+        self.inputs = inputs
+        self._keep = keep
+        self._blocks: list[tuple[CalibrationModel, bytes, Weights, ResidualBlock]] = []
+
+    def __call__(
+        self,
+        cm: CalibrationModel,
+        x: Float,
+        w: Weights,
+        *,
+        jacobian: bool = False,
+        products: bool = False,
+    ) -> ResidualBlock:
+        """The residual block at ``x`` (see :func:`residuals`)."""
+        key = np.asarray(x, np.float64).tobytes()
+        n_cols = cm.size + (len(cm.link_products) if products else 0)
+        forward = None  # the model's forward state at x, from any block (any weights)
+        for m, k, ww, blk in reversed(self._blocks):
+            if m is cm and k == key:
+                if ww is w and (
+                    not jacobian or (blk.J is not None and blk.J.shape[-1] >= n_cols)
+                ):
+                    return blk
+                forward = forward or blk.forward
+        blk = residuals(
+            cm,
+            x,
+            self.meas,
+            w,
+            inputs=self.inputs,
+            jacobian=jacobian,
+            products=products,
+            keep=True,
+            reuse=forward,
+        )
+        self._blocks = [*self._blocks[-(self._keep - 1) :], (cm, key, w, blk)]
+        return blk
+
+    def raw_position(self, cm: CalibrationModel, x: Float, w: Weights) -> Float:
+        """Position errors (N, 3) at ``x`` [m], from any block kept at that point."""
+        key = np.asarray(x, np.float64).tobytes()
+        for m, k, _, blk in reversed(self._blocks):
+            if m is cm and k == key:
+                return blk.raw_position
+        return self(cm, x, w).raw_position
+
+    def rms_mm(self, cm: CalibrationModel, x: Float, w: Weights) -> float:
+        """RMS of the 3-D position errors at ``x`` [mm]."""
+        e_p = self.raw_position(cm, x, w)
+        return float(np.sqrt(np.mean(np.sum(e_p**2, axis=1)))) * 1e3
+
+
+def spec_for(
+    robot: RobotDescription,
+    meas: Measurements,
+    model: str | ModelSpec,
+    **options: object,
+) -> ModelSpec:
+    """The model spec of a preset name (or a given spec) fitted to the data's structure.
+
+    The data decides the user frames (one per set), the cam frames (one per marker) and
+    whether the cam rotation is observable (not for position-only data).
+    """
+    cam_rotation = meas.kind != "point"
+    if isinstance(model, ModelSpec):
+        return replace(
+            model,
+            sets=meas.set_labels,
+            markers=meas.marker_labels,
+            cam_rotation=cam_rotation,
+        )
+    return ModelSpec.preset(
+        model,
+        cam_rotation=cam_rotation,
+        sets=meas.set_labels,
+        markers=meas.marker_labels,
+        has_self_weight=robot.self_weight is not None,
+        **options,  # type: ignore[arg-type]
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """What a calibration works on and does not change.
+
+    Attributes
+    ----------
+    robot, meas, options :
+        The robot, the data (SI) and the settings.
+    model : CalibrationModel
+        The model structure at nominal kinematics (a stage may replace the state's model by
+        one with other reference rotations, never with another layout).
+    inputs : ModelInputs of ``meas``.
+    evaluations : EvaluationCache shared by the stages.
+    reference_payload_kg : the payload defining the unit weight of lambda*.
+    groups : (P,) group of every parameter ('base', 'joint', 'cam', 'ntm', 'load', 'link').
+    kinematic : (P,) bool, the unified kinematic parameters (stage 1).
+    frames : (P,) bool, the user and cam frame parameters (registration).
+    """
+
+    robot: RobotDescription
+    meas: Measurements
+    options: CalibrationOptions
+    model: CalibrationModel
+    inputs: ModelInputs
+    evaluations: EvaluationCache
+    reference_payload_kg: float | None
+    groups: np.ndarray
+    kinematic: np.ndarray
+    frames: np.ndarray
+    progress: Progress = field(default=lambda stage, detail: None)
+
+    @classmethod
+    def make(
+        cls,
+        robot: RobotDescription,
+        meas: Measurements,
+        model: str | ModelSpec = "full",
+        options: CalibrationOptions | None = None,
+        progress: object | None = None,
+    ) -> Problem:
+        """Check that the data can determine the model and set the problem up.
+
+        Raises
+        ------
+        DataError
+            The data does not fit the robot (joint count).
+        IdentifiabilityError
+            Fewer residuals than parameters.
+        """
+        if meas.n_joints != robot.n_joints:
+            raise DataError(
+                f"{meas.source} has {meas.n_joints} joint columns; robot {robot.name} "
+                f"has {robot.n_joints} joints."
+            )
+        spec = spec_for(robot, meas, model)
+        cm = CalibrationModel(robot, spec)
+        c = meas.components
+        if meas.n * c <= cm.size:
+            raise IdentifiabilityError(
+                f"{meas.source}: {meas.n} poses give {meas.n * c} residuals, but the "
+                f"'{spec.name}' model has {cm.size} parameters; measure at least "
+                f"{cm.size // c + 1} poses (several times more for a reliable result)."
+            )
+        ref_payload = meas.reference_payload() or robot.payload_kg
+        inputs = meas.model_inputs(ref_payload)
+        groups = np.array([s.group for s in cm.layout.specs])
+        say = progress if callable(progress) else (lambda stage, detail: None)
+        return cls(
+            robot,
+            meas,
+            options or CalibrationOptions(),
+            cm,
+            inputs,
+            EvaluationCache(meas, inputs),
+            ref_payload,
+            groups,
+            np.isin(groups, KINEMATIC_GROUPS),
+            np.isin(groups, ("base", "cam")),
+            say,
+        )
+
+    @property
+    def n_residuals(self) -> int:
+        """Residual components of the data (rows times 3 or 6)."""
+        return self.meas.n * self.meas.components
+
+    @property
+    def estimate_noise(self) -> bool:
+        """Whether the noise comes from the residuals (no sigmas in the data)."""
+        return self.options.variance_components and self.meas.sigma is None
+
+    def start(self) -> State:
+        """The state before any stage: nominal parameters, default weights."""
+        return State(
+            model=self.model,
+            x=self.model.nominal.copy(),
+            weights=Weights.default(self.meas),
+            lm=LMOptions(max_iter=self.options.max_iter, stol=STOL),
+            free=np.ones(self.model.size, bool),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class State:
+    """What the stages have found so far.
+
+    Attributes
+    ----------
+    model : CalibrationModel (the problem's, with the reference rotations registration set)
+    x : (P,) current parameters (SI).
+    weights : Weights, the sigmas that whiten the residuals.
+    lm : LMOptions of the data term (its loss and where it bends).
+    free : (P,) bool, parameters to estimate (after the identifiability analysis: the
+        identifiable ones).
+    x_registered : (P,) parameters after registration (the "before calibration" state).
+    identifiability : Identifiability or None.
+    prior : Prior or None, the Gaussian priors (``inf``: none for that parameter).
+    prior_factors : scales applied to the groups' priors by maximum evidence.
+    noise_estimated : whether the noise was estimated from the residuals.
+    covariance, std, sigma0 : uncertainty at the solution (after :class:`Uncertainty`).
+    outliers : rows improbable under the fitted noise (after :class:`Diagnose`).
+    stages, diagnostics : the log of every solver run and every finding.
+    """
+
+    model: CalibrationModel
+    x: Float
+    weights: Weights
+    lm: LMOptions
+    free: np.ndarray
+    x_registered: Float | None = None
+    identifiability: Identifiability | None = None
+    prior: Prior | None = None
+    prior_factors: dict[str, float] = field(default_factory=dict)
+    noise_estimated: bool = False
+    covariance: Float | None = None
+    std: Float | None = None
+    sigma0: float = float("nan")
+    outliers: tuple[Outlier, ...] = ()
+    stages: tuple[StageLog, ...] = ()
+    diagnostics: tuple[Diagnostic, ...] = ()
+
+    def but(self, **changes: object) -> State:
+        """A copy with some fields changed."""
+        return replace(self, **changes)  # type: ignore[arg-type]
+
+    def note(self, *found: Diagnostic) -> State:
+        """A copy with diagnostics added."""
+        return replace(self, diagnostics=(*self.diagnostics, *found))
+
+    def active_prior(self, mask: np.ndarray | None = None) -> Prior | None:
+        """The prior restricted to ``mask`` (default: all), or None when it holds none of
+        the free parameters there."""
+        if self.prior is None:
+            return None
+        keep = self.free if mask is None else self.free & mask
+        if not np.any(np.isfinite(self.prior.sigma) & keep):
+            return None
+        if mask is None:
+            return self.prior
+        return Prior(self.prior.mean, np.where(mask, self.prior.sigma, np.inf))
+
+
+class Stage(Protocol):
+    """A step of the identification: ``stage(problem, state) -> state``."""
+
+    @property
+    def name(self) -> str: ...
+
+    def __call__(self, problem: Problem, state: State) -> State: ...

@@ -1,0 +1,185 @@
+"""One solver run of a stage, logged; the noise level from the residuals.
+
+:func:`run_lm` is what every non-linear stage calls: Levenberg-Marquardt on the problem's
+residuals over the free parameters, optionally from the lifted start (:mod:`._lift`), with a
+:class:`StageLog` and, when it did not converge, a ``not_converged`` diagnostic naming
+where the estimate still drifts.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from kinecal.identification._diagnostics import Diagnostic, StageLog
+from kinecal.identification._lift import lifted_start
+from kinecal.identification._lm import (
+    LMOptions,
+    LMResult,
+    Prior,
+    objective,
+    solve_lm,
+    spd_solve,
+)
+from kinecal.identification._options import MU0_WARM
+from kinecal.identification._problem import Problem, State
+from kinecal.identification._residuals import Weights
+from kinecal.models import CalibrationModel
+from kinecal.typing import Float
+
+__all__ = ["noise_from_residuals", "run_lm"]
+
+log = logging.getLogger(__name__)
+
+
+def run_lm(
+    problem: Problem,
+    state: State,
+    name: str,
+    x0: Float,
+    free: np.ndarray,
+    lm: LMOptions,
+    prior: Prior | None = None,
+    *,
+    required: bool = True,
+    lifted: bool = False,
+) -> tuple[State, LMResult]:
+    """Levenberg-Marquardt over ``free`` from ``x0`` with the state's model and weights.
+
+    Parameters
+    ----------
+    required : bool
+        Whether non-convergence makes the calibration unsuccessful (a pre-fit is not).
+    lifted : bool
+        Start from the lifted start of the link products (:func:`lifted_start`), kept
+        only where it does not raise the cost, with little initial damping.
+
+    Returns
+    -------
+    state : the state with the run's :class:`StageLog` (and a ``not_converged``
+        diagnostic); its parameters are unchanged.
+    result : LMResult
+    """
+    ev, cm, w = problem.evaluations, state.model, state.weights
+    before = ev.rms_mm(cm, x0, w)
+    problem.progress(name, f"{int(free.sum())} parameters")
+    t0 = time.perf_counter()
+    if lifted:
+        x0 = _lift(problem, cm, x0, free, lm, w, prior)
+        lm = replace(lm, mu0=MU0_WARM)
+
+    def fun(x: Float, jac: bool) -> tuple[Float, Float | None]:
+        # A lifted stage's Jacobians carry the product columns (served from the cache).
+        blk = ev(cm, x, w, jacobian=jac, products=lifted)
+        return blk.r, blk.J
+
+    res = solve_lm(fun, x0, free, cm.layout.scales, lm, prior=prior, label=name)
+    after = ev.rms_mm(cm, res.x, w)
+    entry = StageLog(
+        name,
+        int(free.sum()),
+        before,
+        after,
+        res.n_iter,
+        res.status,
+        res.success or not required,
+        time.perf_counter() - t0,
+        res.log,
+    )
+    log.info(
+        "%s: rms %.4f -> %.4f mm (%s, %d it)",
+        name,
+        before,
+        after,
+        res.status,
+        res.n_iter,
+    )
+    out = state.but(stages=(*state.stages, entry))
+    if not res.success and required:
+        drift, where = _drift(cm, res, free, problem.options.priors)
+        out = out.note(
+            Diagnostic(
+                "not_converged",
+                f"{name} did not converge: {res.message}{drift}.",
+                parameters=where,
+                stage=name,
+            )
+        )
+    return out, res
+
+
+def _lift(
+    problem: Problem,
+    cm: CalibrationModel,
+    x0: Float,
+    free: np.ndarray,
+    lm: LMOptions,
+    w: Weights,
+    prior: Prior | None,
+) -> Float:
+    """The lifted start (:mod:`._lift`), kept where it does not raise the cost."""
+    if not any(free[a] and free[b] for a, b in cm.link_products):
+        return x0
+    ev = problem.evaluations
+    blk = ev(cm, x0, w, jacobian=True, products=True)
+    assert blk.J is not None
+    cost0, drho = objective(blk.r, lm)
+    sw = None if lm.loss == "linear" else np.sqrt(drho)
+    x1 = lifted_start(cm, x0, blk.r, blk.J, free, prior, sw)
+    # With the Jacobian the stage's LM starts with (served from the cache then).
+    cost1 = objective(ev(cm, x1, w, jacobian=True, products=True).r, lm)[0]
+    if prior is not None:
+        cost0, cost1 = cost0 + prior.cost(x0), cost1 + prior.cost(x1)
+    return x1 if cost1 <= cost0 else x0
+
+
+def _drift(
+    cm: CalibrationModel, res: LMResult, free: np.ndarray, priors: str
+) -> tuple[str, tuple[str, ...]]:
+    """Where a run that hit its iteration limit was still going: the parameters that
+    dominate the remaining Gauss-Newton step (in characteristic units), with their
+    values. Such a run crawls down a long valley, typically a term the poses hardly
+    determine (a joint compliance whose torque stays small at every pose, say)."""
+    if res.status != "max_iter" or res.gradient.size == 0:
+        return "", ()
+    dz = -spd_solve(res.normal_matrix, res.gradient, rcond=1e-14)
+    size = np.abs(dz)
+    if not np.isfinite(size).all() or size.max() == 0.0:
+        return "", ()
+    fidx = np.flatnonzero(free)
+    lead = [k for k in np.argsort(-size)[:3] if size[k] >= 0.3 * size.max()]
+    parts, names = [], []
+    for k in lead:
+        spec = cm.layout.specs[fidx[k]]
+        unit = spec.unit
+        names.append(spec.name)
+        parts.append(
+            f"{spec.name} (now {res.x[fidx[k]] * unit.to_file:.4g} {unit.file_unit})"
+        )
+    text = "; the estimate still drifts along " + ", ".join(parts)
+    text += ", which these poses hardly determine"
+    if priors != "all":
+        text += " (the default priors, --priors all, hold such terms)"
+    return text, tuple(names)
+
+
+def noise_from_residuals(
+    problem: Problem, state: State, x: Float, n_free: int
+) -> Weights:
+    """Noise per component from the residuals at ``x``, corrected for the parameters
+    fitted (theory.md, Eq. (T-2)).
+
+    Pose data get separate position and orientation sigmas (variance components).
+    """
+    blk = problem.evaluations(state.model, x, state.weights)
+    m = blk.r.size
+    n = problem.meas.n
+    dof_scale = np.sqrt(m / max(m - n_free, 1))  # Eq. (T-2)
+    s_p = float(np.sqrt(np.mean(blk.raw_position**2))) * dof_scale
+    if blk.raw_rotation is None:
+        return Weights(np.full(n, max(s_p, 1e-12)))
+    s_r = float(np.sqrt(np.mean(blk.raw_rotation**2))) * dof_scale
+    return Weights(np.full(n, max(s_p, 1e-12)), np.full(n, max(s_r, 1e-12)))

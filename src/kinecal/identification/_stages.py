@@ -1,0 +1,358 @@
+"""The stages of a calibration (paper Sec. 4, Fig. 6), each ``(problem, state) -> state``.
+
+0. :class:`Register`: closed-form user and cam frames from nominal kinematics, refined by
+   LM: the "before calibration" state.
+1. :class:`Identify`: the parameters the poses determine (the rest are held).
+2. :class:`~kinecal.identification._priors.Priors`: Gaussian priors with physical scales,
+   the geometry ones adapted to the data.
+3. :class:`KinematicStage` (paper stage 1): the unified kinematic parameters.
+4. :class:`TransmissionStage` (paper stage 2): the Fourier coefficients by linear least
+   squares, directly on the position residuals or by the paper's projection (Eq. 29).
+5. :class:`FullStage` (paper stage 3): every parameter together, from stages 1-2.
+6. :class:`~kinecal.identification._priors.EvidencePriors`: transmission and compliance
+   prior scales by maximum evidence, stage 3 again when they change.
+7. :class:`RobustRejection`: gross errors (a placeholder until issue 25: it does nothing).
+8. :class:`~kinecal.identification._uncertainty.Uncertainty` and
+   :class:`~kinecal.identification._uncertainty.Diagnose`.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from kinecal._stats import median
+from kinecal.errors import IdentifiabilityError
+from kinecal.identification._diagnostics import Diagnostic, StageLog
+from kinecal.identification._identifiability import analyse_identifiability
+from kinecal.identification._lm import LMOptions
+from kinecal.identification._options import STOL
+from kinecal.identification._problem import Problem, State
+from kinecal.identification._registration import initial_registration
+from kinecal.identification._residuals import residuals
+from kinecal.identification._solve import noise_from_residuals, run_lm
+from kinecal.models import CalibrationModel, ntm_basis
+from kinecal.typing import Float
+
+__all__ = [
+    "FullStage",
+    "Identify",
+    "KinematicStage",
+    "Register",
+    "RobustRejection",
+    "TransmissionStage",
+    "robust_sigma",
+]
+
+# Median of the chi distribution with c degrees of freedom (norm of a c-D unit Gaussian).
+_CHI_MEDIAN = {3: 1.5381722, 6: 2.3660319}
+
+
+def robust_sigma(r: Float) -> float:
+    """Noise per component from the median row norm (whitened units)."""
+    c = r.shape[1]
+    med = median(np.linalg.norm(r, axis=1))
+    return med / _CHI_MEDIAN.get(c, np.sqrt(c - 0.5))
+
+
+@dataclass(frozen=True)
+class Register:
+    """User and cam frames from nominal kinematics (:mod:`._registration`), then LM on
+    them; for pose data without sigmas, the position and orientation noise from its
+    residuals and the LM once more with those weights."""
+
+    name: str = "registration"
+
+    def __call__(self, problem: Problem, state: State) -> State:
+        problem.progress("init", "closed-form user and cam frames")
+        model, x, found = initial_registration(
+            state.model, state.x, problem.meas, inputs=problem.inputs
+        )
+        # In a calibration the identifiability analysis decides (and reports) what the
+        # poses leave undetermined: the closed form's finding is only a note.
+        state = state.but(model=model).note(
+            *(replace(d, severity="info") for d in found)
+        )
+        frames = problem.frames
+        state, res = run_lm(problem, state, self.name, x, frames, state.lm)
+        x = res.x
+        if problem.meas.kind == "pose" and problem.estimate_noise:
+            w = noise_from_residuals(problem, state, x, int(frames.sum()))
+            state = state.but(weights=w, noise_estimated=True)
+            state, res = run_lm(problem, state, self.name, x, frames, state.lm)
+            x = res.x
+        return state.but(x=x, x_registered=x)
+
+
+def _generic_point(model: CalibrationModel, x: Float) -> Float:
+    """``x`` with compliance terms at generic values, for the structural rank.
+
+    lambda* is non-zero (else the link moments would have no effect at all) but tiny:
+    the analysis looks at the small-compliance limit, where parameters that differ only
+    through second-order effects (lambda* times the change of a torque with the geometry,
+    ~1e-4 of their effect) count as redundant, as they are in practice.
+    """
+    g = x.copy()
+    for i, s in enumerate(model.layout.specs):
+        if s.kind == "compliance":
+            g[i] = 1e-7
+        elif s.kind == "moment":
+            g[i] = 0.3 + 0.1 * (i % 3)
+        elif s.kind == "ratio":
+            g[i] = 1.0
+    return g
+
+
+@dataclass(frozen=True)
+class Identify:
+    """The identifiability analysis (:func:`analyse_identifiability`) at a generic point:
+    parameters the poses cannot determine are held at their start values.
+
+    Diagnostics: ``targets_few`` (sensor sets seeing fewer than three targets, or all on
+    one line), ``frames_undetermined`` (user and tool frame parameters that trade off).
+
+    Raises
+    ------
+    IdentifiabilityError
+        Fewer residuals than identifiable parameters.
+    """
+
+    name: str = "identifiability"
+
+    def __call__(self, problem: Problem, state: State) -> State:
+        problem.progress("identifiability", "scaled Jacobian")
+        cm, meas, opts = state.model, problem.meas, problem.options
+        blk = residuals(
+            cm,
+            _generic_point(cm, state.x),
+            meas,
+            state.weights,
+            inputs=problem.inputs,
+            jacobian=True,
+        )
+        assert blk.J is not None
+        ident = analyse_identifiability(
+            blk.J.transpose(2, 1, 0).reshape(cm.size, -1).T,  # (m, P), no copy
+            cm.layout,
+            np.ones(cm.size, bool),
+            drop_tol=opts.drop_tol,
+            weak_tol=opts.weak_tol,
+        )
+        found = _few_targets(problem, cm)
+        specs = cm.layout.specs
+        lost = tuple(
+            d.name
+            for d in ident.dropped
+            if specs[cm.layout.index(d.name)].group in ("base", "cam")
+        )
+        if lost:
+            found.append(
+                Diagnostic(
+                    "frames_undetermined",
+                    f"the poses do not determine {', '.join(lost)}: the user frame and "
+                    "the tool offset trade off (too little variation of the tool "
+                    "orientation). They are kept at their starting values; predictions "
+                    "at orientations unlike the calibration poses can be far off. "
+                    "Measure with varied orientations.",
+                    parameters=lost,
+                    stage=self.name,
+                )
+            )
+        if problem.n_residuals <= ident.free.sum():
+            raise IdentifiabilityError(
+                f"{meas.source}: {meas.n} poses ({problem.n_residuals} residuals) cannot "
+                f"determine {int(ident.free.sum())} parameters."
+            )
+        return state.but(free=ident.free, identifiability=ident).note(*found)
+
+
+def _few_targets(problem: Problem, cm: CalibrationModel) -> list[Diagnostic]:
+    """Sensor sets that see fewer than three targets, or all on one line."""
+    meas = problem.meas
+    if meas.kind != "sensor" or meas.targets is None:
+        return []
+    assert meas.target_index is not None
+    found = []
+    for si, label in enumerate(meas.set_labels):
+        seen = np.unique(meas.target_index[meas.set_index == si])
+        pts = meas.targets[seen]
+        spread = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)
+        if seen.size < 3 or spread[1] < 1e-3 * max(spread[0], 1e-12):
+            found.append(
+                Diagnostic(
+                    "targets_few",
+                    f"set {label or '(default)'} sees {seen.size} target(s)"
+                    + (" on one line" if seen.size >= 3 else "")
+                    + ": the rotation of its user frame about the line through them "
+                    "is not determined, so predictions at other targets are "
+                    "unreliable. Measure at least three targets not on one line.",
+                    parameters=tuple(cm.layout.names[i] for i in cm.base_index[si, 3:]),
+                    stage="identifiability",
+                )
+            )
+    return found
+
+
+@dataclass(frozen=True)
+class KinematicStage:
+    """Paper stage 1: the unified kinematic parameters by LM, with the joint-geometry
+    priors (MAP). Without a pre-fit by :class:`Priors`, this is the first fit, and its
+    residuals give the noise. With a robust loss, once more with the loss bending at
+    three times a robust noise estimate (or ``f_scale_mm``)."""
+
+    name: str = "stage 1: kinematic"
+
+    def __call__(self, problem: Problem, state: State) -> State:
+        kin = state.free & problem.kinematic
+        prior = state.active_prior(problem.kinematic)
+        state, res = run_lm(problem, state, self.name, state.x, kin, state.lm, prior)
+        state = state.but(x=res.x)
+        if problem.estimate_noise and not state.noise_estimated:
+            w = noise_from_residuals(problem, state, state.x, int(kin.sum()))
+            state = state.but(weights=w, noise_estimated=True)
+        opts = problem.options
+        if opts.loss == "linear":
+            return state
+        r1 = problem.evaluations(state.model, state.x, state.weights).r
+        if opts.f_scale_mm is not None:
+            f_scale = opts.f_scale_mm * 1e-3 / median(state.weights.sigma)
+        else:
+            f_scale = 3.0 * robust_sigma(r1) * np.sqrt(r1.shape[1])
+        lm = LMOptions(
+            max_iter=opts.max_iter, loss=opts.loss, f_scale=f_scale, stol=STOL
+        )
+        state = state.but(lm=lm)
+        state, res = run_lm(
+            problem, state, f"{self.name} (robust)", state.x, kin, lm, prior
+        )
+        return state.but(x=res.x)
+
+
+@dataclass(frozen=True)
+class TransmissionStage:
+    """Paper stage 2: the Fourier coefficients of the transmission errors by linear least
+    squares ('direct': on the whitened residuals; 'project': the residuals projected to
+    joints by Eq. (29), then a Fourier fit per joint). Kept only if it lowers the error."""
+
+    name: str = "stage 2: transmission"
+
+    def __call__(self, problem: Problem, state: State) -> State:
+        method = problem.options.stage2
+        cols = state.free & (problem.groups == "ntm")
+        if not np.any(cols) or method == "none":
+            return state
+        ev, cm, w = problem.evaluations, state.model, state.weights
+        before = ev.rms_mm(cm, state.x, w)
+        t0 = time.perf_counter()
+        problem.progress(self.name, method)
+        fit = _stage2_project if method == "project" else _stage2_direct
+        x2 = fit(problem, state, cols)
+        after = ev.rms_mm(cm, x2, w)
+        if after > before:  # a linear fit cannot be trusted to help: keep stage 1
+            x2, after = state.x, before
+        entry = StageLog(
+            f"{self.name} ({method})",
+            int(cols.sum()),
+            before,
+            after,
+            1,
+            "linear",
+            True,
+            time.perf_counter() - t0,
+        )
+        return state.but(x=x2, stages=(*state.stages, entry))
+
+
+def _stage2_direct(problem: Problem, state: State, cols: np.ndarray) -> Float:
+    """Fourier coefficients by linear least squares on the whitened residuals."""
+    blk = problem.evaluations(state.model, state.x, state.weights, jacobian=True)
+    assert blk.J is not None
+    idx = np.flatnonzero(cols)
+    A = blk.J[:, :, idx].reshape(-1, idx.size)
+    delta, *_ = np.linalg.lstsq(A, -blk.r.reshape(-1), rcond=None)  # Eq. (T-3)
+    out = state.x.copy()
+    out[idx] += delta
+    return out
+
+
+def _stage2_project(problem: Problem, state: State, cols: np.ndarray) -> Float:
+    """The paper's stage 2: residuals to joint space by Eq. (29), then a Fourier fit of
+    each joint's errors (Eq. 17) by linear least squares (the samples are not uniform in
+    angle, so not a DFT)."""
+    cm, meas = state.model, problem.meas
+    spec = cm.spec
+    joints = list(spec.ntm_joints)
+    blk = problem.evaluations(cm, state.x, state.weights)
+    Jq = cm.joint_jacobian(state.x, problem.inputs)[:, :3, :]  # (N, 3, n) position
+    Jt = Jq[:, :, [j - 1 for j in joints]]
+    e = -blk.raw_position  # joint errors that would remove the residual
+    if len(joints) == 3:
+        dth = np.linalg.solve(Jt, e[:, :, None])[:, :, 0]  # Eq. (29), per point 3x3
+    else:
+        dth = (np.linalg.pinv(Jt) @ e[:, :, None])[:, :, 0]  # Eq. (29), least squares
+    out = state.x.copy()
+    specs = cm.layout.specs
+    all_cols = (["k0"] if spec.ntm_offset else []) + [
+        f"k{ab}{h}" for h in range(1, spec.ntm_order + 1) for ab in "ab"
+    ]
+    for k, j in enumerate(joints):
+        idx = np.array(
+            [i for i in np.flatnonzero(cols) if specs[i].name.startswith(f"joint{j}.")]
+        )
+        if idx.size == 0:
+            continue
+        B = ntm_basis(meas.q_ctrl[:, j - 1], spec.ntm_order, spec.ntm_offset)
+        col_names = [specs[i].name.split(".", 1)[1] for i in idx]
+        Bsel = B[:, [all_cols.index(cn) for cn in col_names]]
+        coef, *_ = np.linalg.lstsq(Bsel, dth[:, k], rcond=None)  # Eq. (17) fitted
+        out[idx] += coef
+    return out
+
+
+@dataclass(frozen=True)
+class FullStage:
+    """Paper stage 3: every identifiable parameter together, from the lifted start of the
+    link products, with all priors. Without sigmas in the data, the noise is estimated
+    again from its residuals; if it moved by more than 20 %, once more with it (the
+    priors were weighed against the wrong noise)."""
+
+    name: str = "stage 3: all"
+
+    def __call__(self, problem: Problem, state: State) -> State:
+        if not np.any(state.free & ~problem.kinematic):
+            return state
+        lm3 = replace(state.lm, max_iter=max(state.lm.max_iter, 200))
+        prior = state.active_prior()
+        state, res = run_lm(
+            problem, state, self.name, state.x, state.free, lm3, prior, lifted=True
+        )
+        state = state.but(x=res.x)
+        if problem.estimate_noise:
+            w3 = noise_from_residuals(problem, state, state.x, int(state.free.sum()))
+            if abs(np.log(w3.sigma[0] / state.weights.sigma[0])) > np.log(1.2):
+                state = state.but(weights=w3)
+                state, res = run_lm(
+                    problem,
+                    state,
+                    self.name,
+                    state.x,
+                    state.free,
+                    lm3,
+                    prior,
+                    lifted=True,
+                )
+                state = state.but(x=res.x)
+        return state
+
+
+@dataclass(frozen=True)
+class RobustRejection:
+    """Gross-error rejection. A placeholder: it returns the state unchanged (issue 25
+    makes it an iterative robust fit that excludes the rows it rejects)."""
+
+    name: str = "robust rejection"
+
+    def __call__(self, problem: Problem, state: State) -> State:
+        return state
