@@ -106,7 +106,7 @@ def lifted_start(
     # model of the data plus the model's own priors (a small bilinear problem).
     x1 = x.copy()
     x1[native] = z[: native.size]
-    mu = z[native.size :]
+    mu = z[native.size :]  # Eq. (T-2): mu_jk = lambda*_j s_k
     for i_s in np.flatnonzero(lifted):
         ks = [k for k, (_, _, ss) in enumerate(pairs) if ss == i_s]
         lams = x1[[pairs[k][1] for k in ks]]

@@ -202,6 +202,7 @@ class Prior:
 
     def cost(self, x: Float) -> float:
         d = (x - self.mean) / self.sigma
+        # Eq. (T-5): the prior term of the MAP objective
         return 0.5 * float(np.sum(np.where(np.isfinite(self.sigma), d * d, 0.0)))
 
     @property
@@ -254,7 +255,7 @@ def solve_lm(
     def normal(xx: Float, rr: Float, JJ: Float, ww: Float) -> tuple[Float, Float]:
         sw_ = None if opts.loss == "linear" else np.sqrt(ww)
         A_, g_ = normal_equations(rr, JJ, fidx, s, sw_)
-        A_ += np.diag(prec)
+        A_ += np.diag(prec)  # the prior of Eq. (T-5), in scaled variables
         if prior is not None:
             g_ = g_ + prec * (xx[fidx] - pmean) / s
         return A_, g_
@@ -402,6 +403,6 @@ def solve_fixed_step(
         Jf = J[:, :, fidx].reshape(-1, fidx.size)
         rf = r.reshape(-1)
         costs.append(0.5 * float(rf @ rf))
-        step = np.linalg.lstsq(Jf, -rf, rcond=None)[0]
-        x[fidx] += zeta * step
+        step = np.linalg.lstsq(Jf, -rf, rcond=None)[0]  # (J^T J)^-1 J^T dq, Eq. (28)
+        x[fidx] += zeta * step  # the paper's update, step (3) after Eq. (28)
     return x, costs

@@ -111,7 +111,7 @@ def residuals(
         keep=keep,
         reuse=reuse,
     )
-    e_p = out.p_user - meas.reference_points()
+    e_p = out.p_user - meas.reference_points()  # model minus measurement; Eq. (6)
     inv_s = 1.0 / weights.sigma
     if not pose:
         r = e_p * inv_s[:, None]
@@ -121,7 +121,9 @@ def residuals(
         return ResidualBlock(r, J, e_p, None, out.forward)
     assert out.R_user_cam is not None and meas.R_user_cam is not None
     assert weights.sigma_rot is not None
-    e_r = so3_log(out.R_user_cam @ np.swapaxes(meas.R_user_cam, 1, 2))
+    e_r = so3_log(
+        out.R_user_cam @ np.swapaxes(meas.R_user_cam, 1, 2)
+    )  # log(R R_meas^T)
     inv_sr = 1.0 / weights.sigma_rot
     r = np.concatenate([e_p * inv_s[:, None], e_r * inv_sr[:, None]], axis=1)
     J = None

@@ -170,14 +170,14 @@ def noise_from_residuals(
     problem: Problem, state: State, x: Float, n_free: int
 ) -> Weights:
     """Noise per component from the residuals at ``x``, corrected for the parameters
-    fitted (theory.md, Eq. (T-2)).
+    fitted (theory.md, Eq. (T-6)).
 
     Pose data get separate position and orientation sigmas (variance components).
     """
     blk = problem.evaluations(state.model, x, state.weights)
     m = blk.r.size
     n = problem.meas.n
-    dof_scale = np.sqrt(m / max(m - n_free, 1))  # Eq. (T-2)
+    dof_scale = np.sqrt(m / max(m - n_free, 1))  # Eq. (T-6)
     s_p = float(np.sqrt(np.mean(blk.raw_position**2))) * dof_scale
     if blk.raw_rotation is None:
         return Weights(np.full(n, max(s_p, 1e-12)))

@@ -271,7 +271,7 @@ def _stage2_direct(problem: Problem, state: State, cols: np.ndarray) -> Float:
     assert blk.J is not None
     idx = np.flatnonzero(cols)
     A = blk.J[:, :, idx].reshape(-1, idx.size)
-    delta, *_ = np.linalg.lstsq(A, -blk.r.reshape(-1), rcond=None)  # Eq. (T-3)
+    delta, *_ = np.linalg.lstsq(A, -blk.r.reshape(-1), rcond=None)  # Eq. (T-1)
     out = state.x.copy()
     out[idx] += delta
     return out

@@ -1,6 +1,6 @@
 """The last stages: uncertainty of the estimate, and what is worth telling about it.
 
-:class:`Uncertainty` computes ``cov = s0^2 (J^T W J + P)^-1`` at the solution (Eq. (T-6)),
+:class:`Uncertainty` computes ``cov = s0^2 (J^T W J + P)^-1`` at the solution (Eq. (T-3)),
 the standard deviations and ``s0``. :class:`Diagnose` reports rows with improbable errors
 (``outliers``), parameters their prior determines (``prior_dominated``), parameters
 without a prior the poses hardly determine (``loose_parameters``) and a high ratio of
@@ -31,7 +31,7 @@ log = logging.getLogger(__name__)
 @dataclass(frozen=True)
 class Uncertainty:
     """Covariance ``s0^2 (J^T W J + P)^-1`` of the free parameters at the solution
-    (``W``: robust row weights, ``P``: prior precision; Eq. (T-6)), their standard
+    (``W``: robust row weights, ``P``: prior precision; Eq. (T-3)), their standard
     deviations and the a-posteriori standard deviation of unit weight ``s0``."""
 
     name: str = "uncertainty"
@@ -55,7 +55,7 @@ class Uncertainty:
         found = []
         try:
             cov_f = sigma0**2 * psd_inverse(A, 1e-14) * np.outer(scales, scales)
-            cov[np.ix_(fidx, fidx)] = cov_f  # Eq. (T-6)
+            cov[np.ix_(fidx, fidx)] = cov_f  # Eq. (T-3)
         except np.linalg.LinAlgError:
             found.append(
                 Diagnostic(
@@ -211,7 +211,7 @@ def find_outliers(
     sigma = robust_sigma(r)
     if sigma <= 0:
         return []
-    z = np.linalg.norm(r, axis=1) / sigma
+    z = np.linalg.norm(r, axis=1) / sigma  # Eq. (T-4)
     thr = math.sqrt(chi2_isf(c, p))  # chi-square quantile: P(X > thr^2) = p
     bad = np.flatnonzero(z > thr)
     err = np.linalg.norm(e_pos, axis=1) * 1e3
