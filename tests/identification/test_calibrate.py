@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from scipy.special import chdtri
 
-from kinecal.identification._uncertainty import chi2_isf
+from kinecal.identification._robust import chi2_isf
 
 
 @pytest.mark.parametrize("df", [1, 2, 3, 4, 5, 6, 9])

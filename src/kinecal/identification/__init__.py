@@ -6,6 +6,7 @@ from kinecal.identification._calibrate import (
     default_stages,
 )
 from kinecal.identification._calibrated import STATUSES, CalibratedModel
+from kinecal.identification._diagnose import Diagnose
 from kinecal.identification._diagnostics import CODES, Diagnostic, Outlier, StageLog
 from kinecal.identification._evaluate import (
     ComparisonRow,
@@ -38,6 +39,7 @@ from kinecal.identification._lm import (
 )
 from kinecal.identification._measurements import KINDS, Measurements
 from kinecal.identification._metrics import Metrics, metrics_from_errors
+from kinecal.identification._noise import NoiseModel
 from kinecal.identification._options import PRIOR_SIGMA, CalibrationOptions
 from kinecal.identification._priors import EvidencePriors, Priors, build_prior
 from kinecal.identification._problem import (
@@ -45,6 +47,7 @@ from kinecal.identification._problem import (
     Problem,
     Stage,
     State,
+    run_stages,
     spec_for,
 )
 from kinecal.identification._registration import (
@@ -53,6 +56,7 @@ from kinecal.identification._registration import (
     register,
 )
 from kinecal.identification._residuals import ResidualBlock, Weights, residuals
+from kinecal.identification._robust import RobustRejection
 from kinecal.identification._select import (
     Candidate,
     Selection,
@@ -64,10 +68,9 @@ from kinecal.identification._stages import (
     Identify,
     KinematicStage,
     Register,
-    RobustRejection,
     TransmissionStage,
 )
-from kinecal.identification._uncertainty import Diagnose, Uncertainty
+from kinecal.identification._uncertainty import Uncertainty
 
 __all__ = [
     "CODES",
@@ -94,6 +97,7 @@ __all__ = [
     "LMResult",
     "Measurements",
     "Metrics",
+    "NoiseModel",
     "Outlier",
     "Priors",
     "Problem",
@@ -129,6 +133,7 @@ __all__ = [
     "register",
     "registered_model",
     "residuals",
+    "run_stages",
     "select_model",
     "solve_fixed_step",
     "solve_lm",

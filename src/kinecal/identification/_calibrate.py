@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinecal.identification._calibrated import CalibratedModel
+from kinecal.identification._diagnose import Diagnose
 from kinecal.identification._diagnostics import Diagnostic, Outlier, StageLog
 from kinecal.identification._identifiability import (
     Identifiability,
@@ -25,19 +26,26 @@ from kinecal.identification._identifiability import (
 from kinecal.identification._lm import Prior
 from kinecal.identification._measurements import Measurements
 from kinecal.identification._metrics import Metrics, metrics_from_errors
+from kinecal.identification._noise import NoiseModel
 from kinecal.identification._options import PRIOR_SIGMA, CalibrationOptions
 from kinecal.identification._priors import EvidencePriors, Priors, build_prior
-from kinecal.identification._problem import Problem, Stage, State, spec_for
+from kinecal.identification._problem import (
+    Problem,
+    Stage,
+    State,
+    run_stages,
+    spec_for,
+)
 from kinecal.identification._residuals import Weights
+from kinecal.identification._robust import RobustRejection, chi2_isf
 from kinecal.identification._stages import (
     FullStage,
     Identify,
     KinematicStage,
     Register,
-    RobustRejection,
     TransmissionStage,
 )
-from kinecal.identification._uncertainty import Diagnose, Uncertainty, chi2_isf
+from kinecal.identification._uncertainty import Uncertainty
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float
@@ -58,15 +66,19 @@ __all__ = [
 
 def default_stages(options: CalibrationOptions | None = None) -> tuple[Stage, ...]:
     """The identification of Fig. 6 with kinecal's additions, in order."""
-    return (
+    fit = (
         Register(),  # closed-form frames, LM on them: the "before" state
         Identify(),  # hold what the poses cannot determine
         Priors(),  # physical priors, geometry ones adapted to the data
         KinematicStage(),  # paper stage 1
         TransmissionStage(),  # paper stage 2
         FullStage(),  # paper stage 3
+        NoiseModel(),  # pose data: the orientation weight that predicts positions best
         EvidencePriors(),  # compliance priors by maximum evidence, stage 3 again
-        RobustRejection(),
+    )
+    return (
+        *fit,
+        RobustRejection(fit),  # gross errors out: the fit again on the clean rows
         Uncertainty(),
         Diagnose(),
     )
@@ -106,9 +118,8 @@ def calibrate(
     """
     t_start = time.perf_counter()
     problem = Problem.make(robot, meas, model, options, progress)
-    state = problem.start()
-    for stage in default_stages(problem.options) if stages is None else stages:
-        state = stage(problem, state)
+    recipe = default_stages(problem.options) if stages is None else stages
+    state = run_stages(problem, problem.start(), recipe)
     return CalibrationResult.from_state(problem, state, time.perf_counter() - t_start)
 
 
@@ -125,7 +136,9 @@ class CalibrationResult:
     identifiability : Identifiability
     stages : list of StageLog
     metrics_before, metrics_after : Metrics on the calibration data.
-    outliers : rows with improbable errors (never dropped silently).
+    outliers : rows kept whose errors are improbable under the noise of the others.
+    rejected : rows rejected as gross errors and left out of the fit (with their error
+        and z at the final fit; never dropped silently: also in ``diagnostics``).
     diagnostics : every finding of the stages (:class:`Diagnostic`, with a code).
     success : bool, every stage converged.
     sigma0 : a-posteriori standard deviation of unit weight.
@@ -142,6 +155,7 @@ class CalibrationResult:
     metrics_after: Metrics
     outliers: list[Outlier]
     diagnostics: list[Diagnostic]
+    rejected: list[Outlier]
     success: bool
     sigma0: float
     weights: Weights
@@ -153,7 +167,8 @@ class CalibrationResult:
     def from_state(
         cls, problem: Problem, state: State, seconds: float = 0.0
     ) -> CalibrationResult:
-        """The result of the stages that produced ``state``."""
+        """The result of the stages that produced ``state`` (on the rows it uses)."""
+        problem = problem.on(state)
         cm, meas = state.model, problem.meas
         x_reg = state.x_registered if state.x_registered is not None else state.x
         ev = problem.evaluations
@@ -176,6 +191,11 @@ class CalibrationResult:
                 "kind": meas.kind,
                 "n": meas.n,
                 "model": cm.spec.name,
+                **(
+                    {"rejected_rows": [o.row for o in state.rejected]}
+                    if state.rejected
+                    else {}
+                ),
             },
         )
         return cls(
@@ -194,6 +214,7 @@ class CalibrationResult:
             metrics_after=metrics_from_errors(after.raw_position, after.raw_rotation),
             outliers=list(state.outliers),
             diagnostics=list(state.diagnostics),
+            rejected=list(state.rejected),
             success=all(s.success for s in state.stages),
             sigma0=state.sigma0,
             weights=state.weights,

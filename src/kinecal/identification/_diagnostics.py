@@ -25,6 +25,12 @@ CODES: dict[str, str] = {
     "loose_parameters": "parameters without a prior that the poses hardly determine",
     "overfit_risk": "many parameters for the number of residuals",
     "rotation_undetermined": "a registration could not fix a frame's rotation fully",
+    "rows_rejected": "rows rejected as gross errors and left out of the fit (rows: file "
+    "lines)",
+    "rejection_refused": "more than half the rows stand apart: none rejected",
+    "systematic_residuals": "the largest residuals follow a joint angle or gravity load: "
+    "a model error, not gross errors",
+    "noise_model": "the noise (variance components) estimated from the residuals",
 }
 
 

@@ -82,6 +82,14 @@ class CalibrationOptions:
         Per-parameter overrides ``{name: sigma (SI)}``; ``inf`` removes a prior.
     prior_scale : float
         Multiplies every prior sigma (``--model auto`` tries several).
+    reject : {'auto', 'off'}
+        Gross-error rejection (:class:`~kinecal.identification.RobustRejection`): rows far
+        beyond the noise of the others, standing apart from them and not following the
+        pose, are left out and the fit repeated ('auto'); 'off' only reports them.
+    reject_z : float or None
+        Reject every row whose error exceeds this many robust noise sigmas (whitened row
+        norm over the robust per-component sigma), without the test that it stands
+        apart; default: automatic (chi quantile of ``outlier_p``, standing apart).
     adapt_priors : bool
         Empirical Bayes. Widen the joint-geometry priors when an unconstrained kinematic
         fit shows larger deviations from nominal than they allow (method of moments on
@@ -103,8 +111,14 @@ class CalibrationOptions:
     prior_sigma: dict[str, float] | None = None
     prior_scale: float = 1.0
     adapt_priors: bool = True
+    reject: str = "auto"
+    reject_z: float | None = None
 
     def __post_init__(self) -> None:
+        if self.reject not in ("auto", "off"):
+            raise ValueError(f"reject must be 'auto' or 'off'; got {self.reject!r}.")
+        if self.reject_z is not None and not self.reject_z > 0:
+            raise ValueError(f"reject_z must be positive; got {self.reject_z!r}.")
         if self.priors not in PRIOR_GROUPS:
             raise ValueError(
                 f"priors must be 'none', 'compliance' or 'all'; got {self.priors!r}."

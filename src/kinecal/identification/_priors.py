@@ -21,6 +21,7 @@ from kinecal.identification._lm import (
     normal_equations,
     psd_inverse,
 )
+from kinecal.identification._noise import estimate_noise
 from kinecal.identification._options import (
     PRIOR_GROUPS,
     PRIOR_SIGMA,
@@ -28,7 +29,7 @@ from kinecal.identification._options import (
     CalibrationOptions,
 )
 from kinecal.identification._problem import Problem, State
-from kinecal.identification._solve import noise_from_residuals, run_lm
+from kinecal.identification._solve import run_lm
 from kinecal.models import CalibrationModel
 from kinecal.typing import Float
 
@@ -94,10 +95,7 @@ class Priors:
         )
         state = state.but(x=pre.x)
         if problem.estimate_noise:
-            w = noise_from_residuals(
-                problem, state, pre.x, int((state.free & kin).sum())
-            )
-            state = state.but(weights=w, noise_estimated=True)
+            state = estimate_noise(problem, state, pre.x, state.free & kin, None)
         if use_prior_kin and problem.options.adapt_priors and pre.success:
             prior, widened = adapt_prior(problem, state, pre.x, x_reg, prior)
             state = state.but(prior=prior)

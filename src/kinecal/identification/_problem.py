@@ -9,7 +9,7 @@ States are immutable: a stage returns a new one (:meth:`State.but`).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
 from typing import Protocol
 
@@ -30,7 +30,7 @@ from kinecal.models import CalibrationModel, ModelInputs, ModelSpec
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float
 
-__all__ = ["EvaluationCache", "Problem", "Stage", "State"]
+__all__ = ["EvaluationCache", "Problem", "Stage", "State", "run_stages"]
 
 Progress = Callable[[str, str], None]
 
@@ -146,6 +146,8 @@ class Problem:
     groups : (P,) group of every parameter ('base', 'joint', 'cam', 'ntm', 'load', 'link').
     kinematic : (P,) bool, the unified kinematic parameters (stage 1).
     frames : (P,) bool, the user and cam frame parameters (registration).
+    root : the problem on every row of the data, when this one is restricted to some
+        (:meth:`on`); None for the root itself.
     """
 
     robot: RobotDescription
@@ -159,6 +161,8 @@ class Problem:
     kinematic: np.ndarray
     frames: np.ndarray
     progress: Progress = field(default=lambda stage, detail: None)
+    root: Problem | None = None
+    _views: dict[bytes, Problem] = field(default_factory=dict, repr=False)
 
     @classmethod
     def make(
@@ -210,6 +214,42 @@ class Problem:
             say,
         )
 
+    def on(self, state: State) -> Problem:
+        """The problem on the rows the state uses (``state.active``; all by default).
+
+        Sub-problems are kept, so the stages that follow one another on the same rows
+        share their evaluations.
+        """
+        root = self.root or self
+        if state.active is None or state.active.all():
+            return root
+        key = np.packbits(state.active).tobytes()
+        view = root._views.get(key)
+        if view is None:
+            meas = root.meas.subset(state.active)
+            inputs = meas.model_inputs(root.reference_payload_kg)
+            view = replace(
+                root,
+                meas=meas,
+                inputs=inputs,
+                evaluations=EvaluationCache(meas, inputs),
+                root=root,
+                _views={},
+            )
+            root._views.clear()  # one view at a time: rejection moves on
+            root._views[key] = view
+        return view
+
+    def with_options(self, options: CalibrationOptions) -> Problem:
+        """The same root problem with other options (and its own evaluations)."""
+        root = self.root or self
+        return replace(
+            root,
+            options=options,
+            evaluations=EvaluationCache(root.meas, root.inputs),
+            _views={},
+        )
+
     @property
     def n_residuals(self) -> int:
         """Residual components of the data (rows times 3 or 6)."""
@@ -220,15 +260,21 @@ class Problem:
         """Whether the noise comes from the residuals (no sigmas in the data)."""
         return self.options.variance_components and self.meas.sigma is None
 
-    def start(self) -> State:
-        """The state before any stage: nominal parameters, default weights."""
-        return State(
-            model=self.model,
-            x=self.model.nominal.copy(),
-            weights=Weights.default(self.meas),
-            lm=LMOptions(max_iter=self.options.max_iter, stol=STOL),
-            free=np.ones(self.model.size, bool),
+    def start(self, active: np.ndarray | None = None) -> State:
+        """The state before any stage: nominal parameters, default weights, on the rows
+        ``active`` of the data (all by default)."""
+        root = self.root or self
+        state = State(
+            model=root.model,
+            x=root.model.nominal.copy(),
+            weights=Weights.default(root.meas),
+            lm=LMOptions(max_iter=root.options.max_iter, stol=STOL),
+            free=np.ones(root.model.size, bool),
         )
+        if active is None:
+            return state
+        state = state.but(active=np.asarray(active, bool))
+        return state.but(weights=Weights.default(root.on(state).meas))
 
 
 @dataclass(frozen=True, eq=False)
@@ -248,7 +294,13 @@ class State:
     prior : Prior or None, the Gaussian priors (``inf``: none for that parameter).
     prior_factors : scales applied to the groups' priors by maximum evidence.
     noise_estimated : whether the noise was estimated from the residuals.
+    noise_groups : how the noise estimate grouped the residuals, in words.
+    noise : the estimated noise when the fit weighs the data otherwise (orientations
+        down-weighted to predict positions better); None when ``weights`` is the noise.
     covariance, std, sigma0 : uncertainty at the solution (after :class:`Uncertainty`).
+    active : (N,) bool over the rows of the data, the rows in use (None: all); rows that
+        robust rejection excluded are False.
+    rejected : the rows excluded as gross errors, with their errors and z.
     outliers : rows improbable under the fitted noise (after :class:`Diagnose`).
     stages, diagnostics : the log of every solver run and every finding.
     """
@@ -263,9 +315,13 @@ class State:
     prior: Prior | None = None
     prior_factors: dict[str, float] = field(default_factory=dict)
     noise_estimated: bool = False
+    noise_groups: tuple[str, ...] = ()
+    noise: Weights | None = None
     covariance: Float | None = None
     std: Float | None = None
     sigma0: float = float("nan")
+    active: np.ndarray | None = None
+    rejected: tuple[Outlier, ...] = ()
     outliers: tuple[Outlier, ...] = ()
     stages: tuple[StageLog, ...] = ()
     diagnostics: tuple[Diagnostic, ...] = ()
@@ -289,6 +345,13 @@ class State:
         if mask is None:
             return self.prior
         return Prior(self.prior.mean, np.where(mask, self.prior.sigma, np.inf))
+
+
+def run_stages(problem: Problem, state: State, stages: Iterable[Stage]) -> State:
+    """Run ``stages`` in order, each on the rows its input state uses."""
+    for stage in stages:
+        state = stage(problem.on(state), state)
+    return state
 
 
 class Stage(Protocol):

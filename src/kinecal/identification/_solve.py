@@ -1,4 +1,4 @@
-"""One solver run of a stage, logged; the noise level from the residuals.
+"""One solver run of a stage, logged.
 
 :func:`run_lm` is what every non-linear stage calls: Levenberg-Marquardt on the problem's
 residuals over the free parameters, optionally from the lifted start (:mod:`._lift`), with a
@@ -30,7 +30,7 @@ from kinecal.identification._residuals import Weights
 from kinecal.models import CalibrationModel
 from kinecal.typing import Float
 
-__all__ = ["noise_from_residuals", "run_lm"]
+__all__ = ["run_lm"]
 
 log = logging.getLogger(__name__)
 
@@ -164,22 +164,3 @@ def _drift(
     if priors != "all":
         text += " (the default priors, --priors all, hold such terms)"
     return text, tuple(names)
-
-
-def noise_from_residuals(
-    problem: Problem, state: State, x: Float, n_free: int
-) -> Weights:
-    """Noise per component from the residuals at ``x``, corrected for the parameters
-    fitted (theory.md, Eq. (T-6)).
-
-    Pose data get separate position and orientation sigmas (variance components).
-    """
-    blk = problem.evaluations(state.model, x, state.weights)
-    m = blk.r.size
-    n = problem.meas.n
-    dof_scale = np.sqrt(m / max(m - n_free, 1))  # Eq. (T-6)
-    s_p = float(np.sqrt(np.mean(blk.raw_position**2))) * dof_scale
-    if blk.raw_rotation is None:
-        return Weights(np.full(n, max(s_p, 1e-12)))
-    s_r = float(np.sqrt(np.mean(blk.raw_rotation**2))) * dof_scale
-    return Weights(np.full(n, max(s_p, 1e-12)), np.full(n, max(s_r, 1e-12)))

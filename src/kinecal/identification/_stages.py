@@ -11,9 +11,10 @@
 5. :class:`FullStage` (paper stage 3): every parameter together, from stages 1-2.
 6. :class:`~kinecal.identification._priors.EvidencePriors`: transmission and compliance
    prior scales by maximum evidence, stage 3 again when they change.
-7. :class:`RobustRejection`: gross errors (a placeholder until issue 25: it does nothing).
+7. :class:`~kinecal.identification._robust.RobustRejection`: gross errors out, the fit
+   again on the clean rows.
 8. :class:`~kinecal.identification._uncertainty.Uncertainty` and
-   :class:`~kinecal.identification._uncertainty.Diagnose`.
+   :class:`~kinecal.identification._diagnose.Diagnose`.
 """
 
 from __future__ import annotations
@@ -28,11 +29,12 @@ from kinecal.errors import IdentifiabilityError
 from kinecal.identification._diagnostics import Diagnostic, StageLog
 from kinecal.identification._identifiability import analyse_identifiability
 from kinecal.identification._lm import LMOptions
+from kinecal.identification._noise import estimate_noise
 from kinecal.identification._options import STOL
 from kinecal.identification._problem import Problem, State
 from kinecal.identification._registration import initial_registration
 from kinecal.identification._residuals import residuals
-from kinecal.identification._solve import noise_from_residuals, run_lm
+from kinecal.identification._solve import run_lm
 from kinecal.models import CalibrationModel, ntm_basis
 from kinecal.typing import Float
 
@@ -41,7 +43,6 @@ __all__ = [
     "Identify",
     "KinematicStage",
     "Register",
-    "RobustRejection",
     "TransmissionStage",
     "robust_sigma",
 ]
@@ -79,8 +80,7 @@ class Register:
         state, res = run_lm(problem, state, self.name, x, frames, state.lm)
         x = res.x
         if problem.meas.kind == "pose" and problem.estimate_noise:
-            w = noise_from_residuals(problem, state, x, int(frames.sum()))
-            state = state.but(weights=w, noise_estimated=True)
+            state = estimate_noise(problem, state, x, frames, None)
             state, res = run_lm(problem, state, self.name, x, frames, state.lm)
             x = res.x
         return state.but(x=x, x_registered=x)
@@ -210,8 +210,7 @@ class KinematicStage:
         state, res = run_lm(problem, state, self.name, state.x, kin, state.lm, prior)
         state = state.but(x=res.x)
         if problem.estimate_noise and not state.noise_estimated:
-            w = noise_from_residuals(problem, state, state.x, int(kin.sum()))
-            state = state.but(weights=w, noise_estimated=True)
+            state = estimate_noise(problem, state, state.x, kin, prior)
         opts = problem.options
         if opts.loss == "linear":
             return state
@@ -330,9 +329,10 @@ class FullStage:
         )
         state = state.but(x=res.x)
         if problem.estimate_noise:
-            w3 = noise_from_residuals(problem, state, state.x, int(state.free.sum()))
-            if abs(np.log(w3.sigma[0] / state.weights.sigma[0])) > np.log(1.2):
-                state = state.but(weights=w3)
+            new = estimate_noise(problem, state, state.x, state.free, prior)
+            moved = np.abs(np.log(new.weights.sigma / state.weights.sigma))
+            if moved.max() > np.log(1.2):
+                state = new
                 state, res = run_lm(
                     problem,
                     state,
@@ -344,15 +344,4 @@ class FullStage:
                     lifted=True,
                 )
                 state = state.but(x=res.x)
-        return state
-
-
-@dataclass(frozen=True)
-class RobustRejection:
-    """Gross-error rejection. A placeholder: it returns the state unchanged (issue 25
-    makes it an iterative robust fit that excludes the rows it rejects)."""
-
-    name: str = "robust rejection"
-
-    def __call__(self, problem: Problem, state: State) -> State:
         return state
