@@ -33,7 +33,6 @@ from kinecal.typing import Float
 
 __all__ = [
     "TorqueAdjoint",
-    "general_link_names",
     "general_link_pattern",
     "general_link_torque_basis",
     "gravity_columns",
@@ -176,11 +175,6 @@ def _elbow_to_wrist(
     w = w - vdot(w, z_el) * z_el
     norm = np.sqrt(vdot(w, w))
     return w / norm, norm
-
-
-def general_link_names(bodies: tuple[int, ...]) -> list[str]:
-    """Parameter names of the general link model: mass and first moment per body."""
-    return [f"link{k}.{c}" for k in bodies for c in ("m", "mx", "my", "mz")]
 
 
 def general_link_pattern(

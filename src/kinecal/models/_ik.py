@@ -17,7 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinecal.geometry import so3_log
-from kinecal.models._model import CalibrationModel, ModelInputs
+from kinecal.models._inputs import ModelInputs
+from kinecal.models._model import CalibrationModel
 from kinecal.typing import Float
 
 __all__ = ["IKResult", "solve_ik"]
