@@ -16,6 +16,9 @@ every worker sets the OpenBLAS libraries it has loaded (numpy's and scipy's, as 
 wheels ship them) to one thread, and the ``kinecal`` command asks for one BLAS thread from
 the start (:func:`single_thread_blas`). Another BLAS (MKL, Accelerate) keeps its own
 setting in the workers: set its thread count to 1 before numpy is imported.
+
+The CPU count (:func:`available_cpus`) and the compiled model kernel's thread setting live
+in :mod:`kinecal._cpu`, below both this module and :mod:`kinecal.models`.
 """
 
 from __future__ import annotations

@@ -196,17 +196,20 @@ class ModelDefinition:
         specs: list[ParamSpec] = []
         nominal: list[float] = []
 
+        def add(spec: ParamSpec, value: float = 0.0) -> int:
+            specs.append(spec)
+            nominal.append(float(value))
+            return len(specs) - 1
+
         # ---------------------------------------------------------- frames: user <- base
         # Joint 1's theta offset and d are absorbed by the base frame (Eq. 10).
         off1, d1 = chain.theta_offset[0], chain.d[0]
         T_base_b0 = chain.T_base_0 @ make_transform(rot_z(off1), [0.0, 0.0, d1])
         base0 = transform_to_euler(T_base_b0)  # Eq. (8) at the nominal base
-        base_idx = []
-        for set_label in spec.sets:
-            base_idx.append(range(len(specs), len(specs) + 6))
-            for key, v in zip(FRAME_FIELDS, base0):
-                specs.append(_frame_spec("base", set_label, key))
-                nominal.append(float(v))
+        base_idx = [
+            [add(_frame_spec("base", s, key), v) for key, v in zip(FRAME_FIELDS, base0)]
+            for s in spec.sets
+        ]
 
         # ---------------------------------------------------------- joint rows (Eq. 10)
         row_const = np.zeros((n, 5))
@@ -239,17 +242,10 @@ class ModelDefinition:
                 fields = {"theta_offset": off, "d": d, "a": a, "alpha": al}
             for c, key in enumerate(ROW_FIELDS):
                 if key in fields:
-                    row_idx[i, c] = len(specs)
-                    specs.append(
-                        ParamSpec(
-                            f"joint{j}.{key}",
-                            _ROW_KINDS[c],
-                            "joint",
-                            joint=j,
-                            field=key,
-                        )
+                    row = ParamSpec(
+                        f"joint{j}.{key}", _ROW_KINDS[c], "joint", joint=j, field=key
                     )
-                    nominal.append(float(fields[key]))
+                    row_idx[i, c] = add(row, fields[key])
 
         # ---------------------------------------------------------- frames: flange <- cam
         # The last row keeps only its rotation; its offset, d, a, alpha, the physical
@@ -264,12 +260,13 @@ class ModelDefinition:
         )
         cam0 = transform_to_euler(T_fc)
         cam_keys = FRAME_FIELDS if spec.cam_rotation else FRAME_FIELDS[:3]
-        cam_idx = []
-        for marker in spec.markers:
-            cam_idx.append(range(len(specs), len(specs) + len(cam_keys)))
-            for key in cam_keys:
-                specs.append(_frame_spec("cam", marker, key))
-                nominal.append(float(cam0[FRAME_FIELDS.index(key)]))
+        cam_idx = [
+            [
+                add(_frame_spec("cam", m, key), cam0[FRAME_FIELDS.index(key)])
+                for key in cam_keys
+            ]
+            for m in spec.markers
+        ]
         # Reference rotations (fixed): identity for identified rotations; the nominal
         # rotation when the cam rotation is not identified.
         R_ref_base = np.broadcast_to(np.eye(3), (len(spec.sets), 3, 3)).copy()
@@ -283,23 +280,14 @@ class ModelDefinition:
         ntm_start = len(specs)
         for j in spec.ntm_joints:  # Eq. (16-17): one series per joint
             for coef in ntm_terms:
-                specs.append(
-                    ParamSpec(f"joint{j}.{coef}", "ntm", "ntm", joint=j, field=coef)
-                )
-                nominal.append(0.0)
+                add(ParamSpec(f"joint{j}.{coef}", "ntm", "ntm", joint=j, field=coef))
         load_start = len(specs)
-        if spec.load:  # Eq. (24): lambda* per joint
-            for j in range(1, n + 1):
-                specs.append(
-                    ParamSpec(
-                        f"joint{j}.lambda",
-                        "compliance",
-                        "load",
-                        joint=j,
-                        field="lambda",
-                    )
+        for j in range(1, n + 1) if spec.load else ():  # Eq. (24): lambda* per joint
+            add(
+                ParamSpec(
+                    f"joint{j}.lambda", "compliance", "load", joint=j, field="lambda"
                 )
-                nominal.append(0.0)
+            )
         link_start = len(specs)
         lumped: list[str] = []
         if spec.link == "paper":  # Eq. (25-26): s1*, s2*
@@ -307,20 +295,11 @@ class ModelDefinition:
         elif spec.link == "rfcm":
             lumped = ["s1", "s2_shoulder", "s2_elbow"]
         for term in lumped:
-            specs.append(ParamSpec(f"link.{term}", "moment", "link", field=term))
-            nominal.append(0.0)
-        bodies = [(k, term) for k in spec.link_bodies for term in _BODY_TERMS]
-        for k, term in bodies:  # the general form of Eq. (25), per body
-            specs.append(
-                ParamSpec(
-                    f"link{k}.{term}",
-                    "ratio" if term == "m" else "moment",
-                    "link",
-                    joint=k,
-                    field=term,
-                )
-            )
-            nominal.append(0.0)
+            add(ParamSpec(f"link.{term}", "moment", "link", field=term))
+        for k in spec.link_bodies:  # the general form of Eq. (25), per body
+            for term in _BODY_TERMS:
+                kind = "ratio" if term == "m" else "moment"
+                add(ParamSpec(f"link{k}.{term}", kind, "link", joint=k, field=term))
         link_names = tuple(s.name for s in specs[link_start:])
         layout = ParameterLayout(specs)
 
@@ -356,8 +335,8 @@ class ModelDefinition:
             row_mask=row_idx >= 0,
             has_beta=bool(np.any(row_idx[:, BETA] >= 0)),
             cam_keys=cam_keys,
-            base_idx=np.array([list(r) for r in base_idx]),
-            cam_idx=np.array([list(r) for r in cam_idx]),
+            base_idx=np.array(base_idx),
+            cam_idx=np.array(cam_idx),
             R_ref_base=R_ref_base,
             R_ref_cam=R_ref_cam,
             ntm_terms=tuple(ntm_terms),

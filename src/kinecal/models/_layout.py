@@ -2,7 +2,9 @@
 
 Every model parameter has an exact name (``"base.x"``, ``"joint3.a"``, ``"cam.r"``,
 ``"joint2.ka1"``, ``"joint2.lambda"``, ``"link.s1"``) bound to one index of the flat SI
-vector. Parameters are never bound by substring, and no helper mutates a shared dict.
+vector. Parameters are never bound by substring, and no helper mutates a shared dict;
+what a name says (group, joint, set or marker label, field) is in fields of its
+:class:`ParamSpec`, which :meth:`ParameterLayout.select` queries.
 
 Kinds fix the SI unit, the unit shown in files and reports, and the characteristic scale
 used to scale the identification Jacobian (``docs/conventions.md``).
