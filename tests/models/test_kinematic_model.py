@@ -314,3 +314,26 @@ def test_row_angles_by_sums_equal_the_direct_sines_and_cosines(rng, kernel):
         rtol=0,
         atol=1e-12,
     )
+
+
+def test_issue_19_the_model_definition_is_frozen_and_survives_pickling(rng):
+    """The definition's tables cannot be changed behind the evaluators' back, also after
+    a round trip through pickle (results of worker processes)."""
+    import pickle
+
+    model = CalibrationModel(
+        load_robot("fanuc-lrmate200id"), ModelSpec.preset("full", sets=("", "b"))
+    )
+    again = pickle.loads(pickle.dumps(model))
+    for m in (model, again):
+        for name in ("nominal", "base_index", "cam_index", "R_ref_base", "g_hat"):
+            with pytest.raises(ValueError, match="read-only"):
+                getattr(m, name)[0] = 0.0
+        with pytest.raises(AttributeError):
+            m.definition.row_idx = None
+    inp = _random_inputs(model.robot, rng, sets=2)
+    x = _generic_params(model, rng, lam=1e-3)
+    a = model.evaluate(x, inp, orientation=True, jacobian=True)
+    b = again.evaluate(x, inp, orientation=True, jacobian=True)
+    for name in ("p_user", "R_user_cam", "J_p", "J_w", "theta"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))

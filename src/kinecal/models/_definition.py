@@ -179,6 +179,11 @@ class ModelDefinition:
             if isinstance(value, np.ndarray):
                 value.flags.writeable = False
 
+    def __setstate__(self, state: dict[str, object]) -> None:
+        """Unpickling (a worker process's result): read-only arrays again."""
+        self.__dict__.update(state)
+        self.__post_init__()
+
     # ------------------------------------------------------------------ construction
     @classmethod
     def build(cls, robot: RobotDescription, spec: ModelSpec) -> ModelDefinition:
