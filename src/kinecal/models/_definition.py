@@ -201,8 +201,8 @@ class ModelDefinition:
         specs: list[ParamSpec] = []
         nominal: list[float] = []
 
-        def add(spec: ParamSpec, value: float = 0.0) -> int:
-            specs.append(spec)
+        def add(param: ParamSpec, value: float = 0.0) -> int:
+            specs.append(param)
             nominal.append(float(value))
             return len(specs) - 1
 
@@ -212,8 +212,11 @@ class ModelDefinition:
         T_base_b0 = chain.T_base_0 @ make_transform(rot_z(off1), [0.0, 0.0, d1])
         base0 = transform_to_euler(T_base_b0)  # Eq. (8) at the nominal base
         base_idx = [
-            [add(_frame_spec("base", s, key), v) for key, v in zip(FRAME_FIELDS, base0)]
-            for s in spec.sets
+            [
+                add(_frame_spec("base", lab, key), v)
+                for key, v in zip(FRAME_FIELDS, base0)
+            ]
+            for lab in spec.sets
         ]
 
         # ---------------------------------------------------------- joint rows (Eq. 10)
@@ -287,12 +290,10 @@ class ModelDefinition:
             for coef in ntm_terms:
                 add(ParamSpec(f"joint{j}.{coef}", "ntm", "ntm", joint=j, field=coef))
         load_start = len(specs)
-        for j in range(1, n + 1) if spec.load else ():  # Eq. (24): lambda* per joint
-            add(
-                ParamSpec(
-                    f"joint{j}.lambda", "compliance", "load", joint=j, field="lambda"
-                )
-            )
+        if spec.load:  # Eq. (24): lambda* per joint
+            for j in range(1, n + 1):
+                name = f"joint{j}.lambda"
+                add(ParamSpec(name, "compliance", "load", joint=j, field="lambda"))
         link_start = len(specs)
         lumped: list[str] = []
         if spec.link == "paper":  # Eq. (25-26): s1*, s2*
