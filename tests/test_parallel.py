@@ -93,19 +93,3 @@ def test_a_kinecal_command_runs_with_one_blas_thread():
     )
     line = [ln for ln in out.stdout.splitlines() if ln.startswith("threads")]
     assert line and set(line[0].split()[1:]) == {"1"}, out.stdout + out.stderr
-
-
-def test_a_container_cpu_quota_caps_the_workers(tmp_path):
-    from kinecal._parallel import _cgroup_cpu_quota
-
-    f = tmp_path / "cpu.max"
-    for text, want in (
-        ("max 100000\n", None),
-        ("200000 100000\n", 2),
-        ("150000 100000\n", 2),
-        ("50000 100000\n", 1),
-        ("garbage", None),
-    ):
-        f.write_text(text)
-        assert _cgroup_cpu_quota(f) == want, text
-    assert _cgroup_cpu_quota(tmp_path / "missing") is None

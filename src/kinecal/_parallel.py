@@ -16,6 +16,9 @@ every worker sets the OpenBLAS libraries it has loaded (numpy's and scipy's, as 
 wheels ship them) to one thread, and the ``kinecal`` command asks for one BLAS thread from
 the start (:func:`single_thread_blas`). Another BLAS (MKL, Accelerate) keeps its own
 setting in the workers: set its thread count to 1 before numpy is imported.
+
+The CPU count (:func:`available_cpus`) and the compiled model kernel's thread setting live
+in :mod:`kinecal._cpu`, below both this module and :mod:`kinecal.models`.
 """
 
 from __future__ import annotations
@@ -24,8 +27,9 @@ import ctypes
 import os
 import sys
 from collections.abc import Callable, Iterable
-from pathlib import Path
 from typing import Any, TypeVar
+
+from kinecal._cpu import available_cpus, set_kernel_threads
 
 # multiprocessing and concurrent.futures are imported where used: the kinecal command
 # imports this module at start (single_thread_blas), and they cost ~40 ms to load.
@@ -49,33 +53,6 @@ _BLAS_THREAD_VARS = (
     "VECLIB_MAXIMUM_THREADS",
     "BLIS_NUM_THREADS",
 )
-
-
-def available_cpus() -> int:
-    """CPUs this process may use: its affinity mask where the OS has one, capped by a
-    cgroup (v2) CPU quota, as a container's ``--cpus`` sets it."""
-    try:
-        n = len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - macOS, Windows
-        n = os.cpu_count() or 1
-    quota = _cgroup_cpu_quota(Path("/sys/fs/cgroup/cpu.max"))
-    return max(1, min(n, quota)) if quota is not None else n
-
-
-def _cgroup_cpu_quota(path: Path) -> int | None:
-    """CPUs allowed by a cgroup v2 ``cpu.max`` file (``"QUOTA PERIOD"`` in us, or
-    ``"max PERIOD"`` for none), rounded up; None where there is no limit or no file."""
-    try:
-        fields = path.read_text().split()
-    except OSError:
-        return None
-    if len(fields) != 2 or fields[0] == "max":
-        return None
-    try:
-        quota, period = int(fields[0]), int(fields[1])
-    except ValueError:
-        return None
-    return -(-quota // period) if quota > 0 and period > 0 else None
 
 
 def single_thread_blas() -> bool:
@@ -139,8 +116,6 @@ def _one_blas_thread() -> None:
     """Worker initializer: one thread for every loaded OpenBLAS and for the compiled
     model kernel (the workers already use every core)."""
     set_blas_threads(1)
-    from kinecal.models._kernel import set_kernel_threads
-
     set_kernel_threads(1)
 
 

@@ -10,6 +10,7 @@ from kinecal.models import (
     CalibrationModel,
     ModelInputs,
     ModelSpec,
+    _numpy_forward,
     chain_frames,
     load_torques,
     ntm_basis,
@@ -320,8 +321,10 @@ def test_link_product_columns(spec, rng, kernel):
     )
     # joint Jacobian at the deflected pose, link torques at the undeflected one
     Jq = model.joint_jacobian(p, inp)[:, :3]
-    fr0 = model._frames(FANUC.coupling @ q.T + model._ntm(p, inp)[0], model._rows(p))
-    T = model._link_basis(fr0)  # (n, n_link, N)
+    defn = model.definition
+    theta0 = FANUC.coupling @ q.T + _numpy_forward.ntm_errors(defn, p, inp)[0]
+    fr0 = _numpy_forward.chain(defn, theta0, defn.rows(p))
+    T = _numpy_forward.link_basis(defn, fr0)  # (n, n_link, N)
     s_cols = np.zeros((25, 3, L.group_indices("link").size))
     for i, (lam, s) in enumerate(pairs):
         j = lam - model.layout.index("joint1.lambda")

@@ -209,10 +209,10 @@ def test_inconsistent_tables_are_refused_not_read(rng):
 
     model = CalibrationModel(FANUC, ModelSpec.preset("full"))
     inp = _inputs(FANUC, rng, 8)
-    static = model._kernel_static
-    ints, reals = _kernel._pack(static, model, model.nominal, 3, 0, True)
-    th, cq, sq = model._coupled(inp)
-    basis = model._ntm_bases(inp)
+    static = _kernel.tables(model.definition)
+    ints, reals = _kernel._pack(static, model.definition, model.nominal, 3, 0, True)
+    th, cq, sq = model.definition.coupled(inp)
+    basis = model.definition.ntm_bases(inp)
     out = [
         np.empty((8, 3)),
         np.empty(0),

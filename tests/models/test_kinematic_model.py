@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from kinecal.geometry import so3_log
-from kinecal.models import CalibrationModel, ModelInputs, ModelSpec
+from kinecal.models import CalibrationModel, ModelInputs, ModelSpec, _numpy_forward
 from kinecal.robot import builtin_robot_names, load_robot
 from tests.helpers import assert_jacobian_matches_fd
 
@@ -239,7 +239,7 @@ def test_quantities_of_the_poses_alone_are_computed_once_per_inputs(
     """The coupled angles with their cosines and sines and the Fourier bases are kept
     with the inputs object: a second evaluation computes none of them, and its results
     equal those of a fresh inputs object. The returned angles are not the kept array."""
-    import kinecal.models._model as model_module
+    import kinecal.models._definition as definition_module
 
     robot = load_robot("fanuc-lrmate200id")
     model = CalibrationModel(robot, ModelSpec.preset("kinematic"))
@@ -247,9 +247,9 @@ def test_quantities_of_the_poses_alone_are_computed_once_per_inputs(
     inp = _random_inputs(robot, rng)
     params = _generic_params(full, rng, lam=1e-3)
     calls = []
-    real = model_module.ntm_basis_rows
+    real = definition_module.ntm_basis_rows
     monkeypatch.setattr(
-        model_module, "ntm_basis_rows", lambda *a: calls.append(1) or real(*a)
+        definition_module, "ntm_basis_rows", lambda *a: calls.append(1) or real(*a)
     )
     with pytest.raises(
         ValueError, match="read-only"
@@ -261,7 +261,7 @@ def test_quantities_of_the_poses_alone_are_computed_once_per_inputs(
     assert len(calls) == 3  # joints 1-3
     kept = dict(inp._derived)
     with pytest.raises(ValueError, match="read-only"):  # shared by every evaluation
-        full._coupled(inp)[1][0, 0] = 0.0
+        full.definition.coupled(inp)[1][0, 0] = 0.0
     again = full.evaluate(params, inp, jacobian=True)
     assert len(calls) == 3 and inp._derived.keys() == kept.keys()
     assert all(inp._derived[k] is v for k, v in kept.items())
@@ -292,17 +292,19 @@ def test_row_angles_by_sums_equal_the_direct_sines_and_cosines(rng, kernel):
     params = _generic_params(model, rng, lam=1e-3)
     ntm = L.group_indices("ntm")
     params[ntm] = rng.normal(size=ntm.size) * 1e-3
-    rows = model._rows(params)
-    coupled = model._coupled(inp)
-    dth, _ = model._ntm(params, inp)
-    ct, st = model._row_trig(rows, coupled, dth)
+    defn = model.definition
+    rows = defn.rows(params)
+    coupled = defn.coupled(inp)
+    dth, _ = _numpy_forward.ntm_errors(defn, params, inp)
+    ct, st = _numpy_forward.row_trig(defn, rows, coupled, dth)
     th = robot.coupling @ inp.q_ctrl.T + rows[:, 0, None] + dth
     np.testing.assert_allclose(ct, np.cos(th), rtol=0, atol=1e-15)
     np.testing.assert_allclose(st, np.sin(th), rtol=0, atol=1e-15)
 
     big = params.copy()
     big[L.index("joint2.k0")] = 0.05  # rad, beyond the series
-    assert model._row_trig(rows, coupled, model._ntm(big, inp)[0]) is None
+    big_dth = _numpy_forward.ntm_errors(defn, big, inp)[0]
+    assert _numpy_forward.row_trig(defn, rows, coupled, big_dth) is None
     shifted = big.copy()
     shifted[L.index("joint2.k0")] = 0.0
     shifted[L.index("joint2.theta_offset")] += 0.05
@@ -312,3 +314,26 @@ def test_row_angles_by_sums_equal_the_direct_sines_and_cosines(rng, kernel):
         rtol=0,
         atol=1e-12,
     )
+
+
+def test_issue_19_the_model_definition_is_frozen_and_survives_pickling(rng):
+    """The definition's tables cannot be changed behind the evaluators' back, also after
+    a round trip through pickle (results of worker processes)."""
+    import pickle
+
+    model = CalibrationModel(
+        load_robot("fanuc-lrmate200id"), ModelSpec.preset("full", sets=("", "b"))
+    )
+    again = pickle.loads(pickle.dumps(model))
+    for m in (model, again):
+        for name in ("nominal", "base_index", "cam_index", "R_ref_base", "g_hat"):
+            with pytest.raises(ValueError, match="read-only"):
+                getattr(m, name)[0] = 0.0
+        with pytest.raises(AttributeError):
+            m.definition.row_idx = None
+    inp = _random_inputs(model.robot, rng, sets=2)
+    x = _generic_params(model, rng, lam=1e-3)
+    a = model.evaluate(x, inp, orientation=True, jacobian=True)
+    b = again.evaluate(x, inp, orientation=True, jacobian=True)
+    for name in ("p_user", "R_user_cam", "J_p", "J_w", "theta"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))

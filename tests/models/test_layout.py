@@ -118,3 +118,83 @@ def test_transfer_between_layouts(rng):
     assert w[kin.layout.index("joint3.a")] == v[full.layout.index("joint3.a")]
     back = full.layout.transfer(w, kin.layout)
     assert back[full.layout.index("link.s1")] == 0.0
+
+
+STRUCTURED = {
+    "full, labelled sets and markers": ModelSpec.preset(
+        "full", sets=("", "b"), markers=("m", "n")
+    ),
+    "rfcm, Hayati, position only": ModelSpec.preset(
+        "rfcm", hayati=(2,), cam_rotation=False, markers=("", "tip")
+    ),
+    "general link bodies": ModelSpec(
+        load=True, link="paper", link_bodies=(2, 5), ntm_joints=(2,), ntm_order=3
+    ),
+}
+
+
+def _name_from_fields(s):
+    """The name a parameter must have, from its structured fields alone."""
+    if s.group in ("base", "cam"):
+        assert s.joint is None and isinstance(s.label, str)
+        return f"{s.group}{'@' + s.label if s.label else ''}.{s.field}"
+    assert s.label is None
+    if s.group == "link":
+        return f"link{s.joint if s.joint is not None else ''}.{s.field}"
+    assert s.group in ("joint", "ntm", "load") and s.joint is not None
+    return f"joint{s.joint}.{s.field}"
+
+
+@pytest.mark.parametrize("case", list(STRUCTURED))
+def test_issue_19_every_parameter_says_what_it_is_in_fields(case):
+    """Group, joint (or body), set/marker label and field of every parameter agree with
+    its name, which stays as in model.yaml."""
+    m = CalibrationModel(FANUC, STRUCTURED[case])
+    for s in m.layout.specs:
+        assert _name_from_fields(s) == s.name
+        assert s.field and (s.joint is None or s.joint >= 1)
+
+
+def test_issue_19_labelled_frames_are_found_by_their_group_not_their_name():
+    """``cam@n.x`` is a cam-frame parameter: its group says so (its name's first part,
+    'cam@n', does not: the reason a warning on frames never fired for labelled ones)."""
+    spec = ModelSpec.preset("kinematic", sets=("", "b"), markers=("m", "n"))
+    L = CalibrationModel(FANUC, spec).layout
+    s = L.specs[L.index("cam@n.x")]
+    assert (s.group, s.label, s.field, s.joint) == ("cam", "n", "x", None)
+    assert s.name.split(".", 1)[0] == "cam@n"
+    frames = L.select(group=("base", "cam"))
+    assert [L.names[i] for i in frames] == [
+        n for n in L.names if n.startswith(("base", "cam"))
+    ]
+    assert len(frames) == 4 * 6
+
+
+def test_issue_19_select_by_group_joint_field_and_label():
+    spec = ModelSpec.preset("full", sets=("", "b"), markers=("m", "n"))
+    m = CalibrationModel(FANUC, spec)
+    L = m.layout
+    names = np.array(L.names)
+    np.testing.assert_array_equal(
+        L.select(group="base", field=("r", "w", "p")), m.base_index[:, 3:].ravel()
+    )
+    np.testing.assert_array_equal(L.select(group="cam", label="n"), m.cam_index[1])
+    np.testing.assert_array_equal(L.select(group="base", label=""), m.base_index[0])
+    assert list(names[L.select(joint=2, group="ntm")]) == [
+        f"joint2.{c}" for c in ("k0", "ka1", "kb1", "ka2", "kb2")
+    ]
+    assert list(names[L.select(joint=3)]) == [
+        *(f"joint3.{k}" for k in ("theta_offset", "d", "a", "alpha")),
+        *(f"joint3.{c}" for c in ("k0", "ka1", "kb1", "ka2", "kb2")),
+        "joint3.lambda",
+    ]
+    assert list(names[L.select(field="lambda")]) == [
+        f"joint{j}.lambda" for j in range(1, 7)
+    ]
+    np.testing.assert_array_equal(L.select(group="load"), L.group_indices("load"))
+    assert list(names[L.select(group="link", joint=None)]) == ["link.s1", "link.s2"]
+    # label=None: the parameters that are not of a frame; no criterion: all
+    assert len(L.select(label=None)) == m.size - 24
+    np.testing.assert_array_equal(L.select(), np.arange(m.size))
+    assert L.select(group="joint", joint=7).size == 0
+    assert L.select(group="joint", joint=7).dtype == np.intp

@@ -1,5 +1,6 @@
 """Models: parameter layout, unified kinematic model (Eq. 6-10), compliance (Eq. 11-26)."""
 
+from kinecal._cpu import set_kernel_threads
 from kinecal.models._chain import ChainFrames, chain_frames
 from kinecal.models._compliance import (
     link_torque_basis,
@@ -7,18 +8,16 @@ from kinecal.models._compliance import (
     ntm_basis,
     ntm_names,
 )
+from kinecal.models._definition import ModelDefinition
 from kinecal.models._ik import IKResult, solve_ik
-from kinecal.models._kernel import (
-    compiled_kernel_available,
-    kernel_name,
-    set_kernel_threads,
-)
+from kinecal.models._inputs import ModelInputs
+from kinecal.models._kernel import compiled_kernel_available
 from kinecal.models._layout import KINDS, ParameterLayout, ParamKind, ParamSpec
 from kinecal.models._model import (
     CalibrationModel,
     ForwardState,
-    ModelInputs,
     ModelOutput,
+    kernel_name,
 )
 from kinecal.models._spec import PRESETS, ModelSpec, parallel_pairs
 
@@ -29,6 +28,7 @@ __all__ = [
     "ChainFrames",
     "ForwardState",
     "IKResult",
+    "ModelDefinition",
     "ModelInputs",
     "ModelOutput",
     "ModelSpec",

@@ -200,18 +200,18 @@ def chain_frames(
         c0, c1, c2 = R[i, 0], R[i, 1], R[i, 2]
         cti, sti = ct[i], st[i]
         x = ax[i]
-        np.multiply(c0, cti, out=x)
+        np.multiply(c0, cti, out=x)  # Eq. (10): Rz(theta_i)
         x += c1 * sti
         v = c1 * cti
         v -= c0 * sti
-        oi = o[i + 1]  # o_i + a x' + d c2
+        oi = o[i + 1]  # Eq. (10): o_i + a x' + d c2, Tz(d_i) Tx(a_i)
         np.multiply(x, a[i], out=oi)
         oi += o[i]
         if dT is not None:
             oi += c2 * dT[i]
         elif d[i] != 0.0:
             oi += c2 * d[i]
-        y, z = R[i + 1, 1], R[i + 1, 2]
+        y, z = R[i + 1, 1], R[i + 1, 2]  # Eq. (10): Rx(alpha_i)
         np.multiply(v, ca[i], out=y)
         y += c2 * sa[i]
         np.multiply(c2, ca[i], out=z)

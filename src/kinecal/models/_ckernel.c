@@ -2,12 +2,14 @@
  * kinecal.models._ckernel: the calibration model's forward kinematics and exact parameter
  * Jacobian in compiled code, several poses at a time.
  *
- * It computes what CalibrationModel.evaluate computes with numpy (kinecal/models/_model.py;
- * the math is in docs/theory.md and the paper's Eq. 7-10, 16-26) for all-revolute arms:
+ * It computes what CalibrationModel.evaluate computes with numpy (kinecal/models/
+ * _numpy_forward.py and _numpy_jacobian.py; the math is in docs/theory.md and the paper's
+ * Eq. 7-10, 16-26, the Jacobian of Eq. 28) for all-revolute arms:
  * the undeflected chain, the load and link torques (Eq. 21, 25), the deflections
  * (Eq. 22, 24, 26), the deflected chain, and every Jacobian column, including the
  * dependence of the torques on the geometry (the torque adjoint of _compliance.py).
- * kinecal/models/_kernel.py packs the model into two tables (int64 and float64) whose
+ * kinecal/models/_kernel.py packs the model's definition (ModelDefinition,
+ * kinecal/models/_definition.py) into two tables (int64 and float64) whose
  * layout is given by the header below; FIELDS exports its names, in order, and the
  * Python side does not use a build whose names differ from its own (a stale build).
  *
@@ -205,8 +207,8 @@ typedef struct {
     vd ax[NMAX][3];       /* direction of row i's a (and its alpha axis) */
 } Chain;
 
-/* Frames of the rows Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta), from frame 0 as placed
-   (models._chain.chain_frames). */
+/* Frames of the rows Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta) (Eq. 10; beta of Hayati
+   rows), from frame 0 as placed (models._chain.chain_frames). */
 INLINE void chain(int n, const double *rows, const vd *ct, const vd *st, Chain *F)
 {
     for (int i = 0; i < n; i++) {
@@ -418,7 +420,7 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
         F = &F1;
     }
 
-    /* The measured point: p_user = T_user_flange (t_fc + R_fc p_cam). */
+    /* The measured point (Eq. 6-7): p_user = T_user_flange (t_fc + R_fc p_cam). */
     double lanes[3][LANES];
     vd pc[3], p_cam_fl[3], p_u[3];
     for (int l = 0; l < LANES; l++)
@@ -448,7 +450,7 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
     if (!h[H_JACOBIAN])
         return;
 
-    /* ------------------------------------------------------------------ Jacobian */
+    /* ----------------------------------------------------- Jacobian (Eq. 28) */
     double *J = in->J;
 #define PUT(col, vec)                                                                    \
     do {                                                                                 \
@@ -457,7 +459,8 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
             vstore(dst_ + r_ * N, (vec)[r_]);                                            \
     } while (0)
 
-    /* d output / d theta_i (deflected chain): [z_i x (p - o_i); z_i]. */
+    /* d output / d theta_i (deflected chain): [z_i x (p - o_i); z_i], the columns of
+       J(theta) in Eq. (14) and (21). */
     vd G[NMAX][CMAX];
     for (int i = 0; i < n; i++) {
         vd rel[3];
@@ -600,7 +603,8 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
             }
         }
 
-        /* lambda* columns: d output / d theta_j tau_j; link columns and products. */
+        /* lambda* columns (Eq. 24): d output / d theta_j tau_j; link columns and products
+           (Eq. 26). */
         vd col[CMAX];
         for (int j = 0; j < n; j++) {
             for (int q = 0; q < c; q++)
@@ -626,7 +630,7 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
             PUT(h[H_LINK_START] + kc, linkcol[kc]);
     }
 
-    /* Joint rows (deflected chain) plus the torque terms. */
+    /* Joint rows (Eq. 10; deflected chain) plus the torque terms. */
     for (int i = 0; i < n; i++) {
         const long long *idx = row_idx + 5 * i;
         vd col[CMAX], rel[3];
@@ -674,7 +678,8 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
         }
     }
 
-    /* NTM terms turn their joint: through the chain and through the torques. */
+    /* NTM terms (Eq. 14, 17) turn their joint: through the chain and through the
+       torques. */
     for (int kk = 0; kk < nntm; kk++) {
         int j = (int)ntm_j[kk];
         vd dturn[CMAX], col[CMAX];

@@ -33,7 +33,6 @@ from kinecal.typing import Float
 
 __all__ = [
     "TorqueAdjoint",
-    "general_link_names",
     "general_link_pattern",
     "general_link_torque_basis",
     "gravity_columns",
@@ -178,11 +177,6 @@ def _elbow_to_wrist(
     return w / norm, norm
 
 
-def general_link_names(bodies: tuple[int, ...]) -> list[str]:
-    """Parameter names of the general link model: mass and first moment per body."""
-    return [f"link{k}.{c}" for k in bodies for c in ("m", "mx", "my", "mz")]
-
-
 def general_link_pattern(
     bodies: tuple[int, ...], prismatic: np.ndarray
 ) -> list[tuple[int, int]]:
@@ -216,6 +210,7 @@ def general_link_torque_basis(
             if prismatic[j]:  # a force along the axis; moments give none
                 out[j, 4 * b] = vdot(zj, g)
                 continue
+            # Eq. (25), general: the mass at o_k and the first moment of body k
             out[j, 4 * b] = vdot(zj, vcross(frames.origin[k] - frames.origin[j], g))
             out[j, 4 * b + 1 : 4 * b + 4] = vdot(zj, vcross(frames.cols[k], g))
     return out
@@ -328,7 +323,7 @@ def torque_adjoint(
     # per pose), so that every term of a joint shares the weight H_j.
     gz = vcross(g, Z)
     gz *= load_scale
-    up_w = vcross(p_load, gz)  # axis still: (omega × p + vel) · (ĝ × z)
+    up_w = vcross(p_load, gz)  # d Eq. (21), axis still: (omega × p + vel) · (ĝ × z)
     down_w = vcross(vcross(Z, p_load - frames.origin[:n]), g)  # axis moved
     down_w *= load_scale
     # Revolute: 'still' always, minus 'still' plus 'moved' once the axis moves.
@@ -380,7 +375,7 @@ def _link_terms(
         acc.add(wf, j, w, vv)  # [moved wf] - [moved el - 1 and wf]
         acc.add(t_free, j, -w, -vv)
 
-    j_sh, j_el = sh - 1, el - 1
+    j_sh, j_el = sh - 1, el - 1  # d Eq. (25), Table 1
     acc.add(sh - 1, j_sh, vcross(z_sh, s_x * vcross(x_hat, g) + s_u_sh * ug))
     acc.add(sh, j_sh, s_x * vcross(x_hat, vcross(g, z_sh)))
     du_terms(j_sh, s_u_sh, vcross(g, z_sh))

@@ -17,7 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinecal.geometry import so3_log
-from kinecal.models._model import CalibrationModel, ModelInputs
+from kinecal.models._inputs import ModelInputs
+from kinecal.models._model import CalibrationModel
 from kinecal.typing import Float
 
 __all__ = ["IKResult", "solve_ik"]
@@ -133,7 +134,7 @@ def solve_ik(
         for _ in range(8):
             A = JJt + lam2[rows, None, None] * np.eye(6)
             y = np.linalg.solve(A, e[:, :, None])[:, :, 0]
-            dq = np.einsum("mji,mj->mi", J, y)
+            dq = np.einsum("mji,mj->mi", J, y)  # Eq. (29), every joint, damped
             q_new = np.clip(qa + dq, lim[:, 0], lim[:, 1])
             q_try = q.copy()
             q_try[rows] = q_new

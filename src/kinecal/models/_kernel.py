@@ -1,20 +1,24 @@
 """The compiled model kernel: :meth:`CalibrationModel.evaluate` in C, for every pose.
 
-``kinecal.models._ckernel`` (``_ckernel.c``) computes what the numpy code of
-:mod:`kinecal.models._model` computes (forward kinematics of both chains, the compliance
-torques and deflections, every Jacobian column including the torques' dependence on the
-geometry) for all-revolute arms of up to 16 joints with any of the model's terms: Hayati
-rows, Fourier transmission errors, payload and link compliance (lumped and general), several
-user frames and markers, orientation. It is built when the package is installed with a C
-compiler at hand; without one, or for a model it does not cover (prismatic joints), the
-numpy code runs. Both give the same numbers to rounding (tested).
+``kinecal.models._ckernel`` (``_ckernel.c``) computes what the numpy code
+(:mod:`kinecal.models._numpy_forward`, :mod:`kinecal.models._numpy_jacobian`) computes:
+forward kinematics of both chains, the compliance torques and deflections, every Jacobian
+column including the torques' dependence on the geometry, for all-revolute arms of up to
+16 joints with any of the model's terms: Hayati rows, Fourier transmission errors, payload
+and link compliance (lumped and general), several user frames and markers, orientation.
+It is built when the package is installed with a C compiler at hand; without one, or for
+a model it does not cover (prismatic joints), the numpy code runs. Both give the same
+numbers to rounding (tested). This module reads only the public
+:class:`~kinecal.models.ModelDefinition` of a model: :func:`tables` packs what of it does
+not change between calls (once per model), :func:`_pack` what depends on the parameters.
 
 The environment variable ``KINECAL_KERNEL`` chooses: ``auto`` (default: C where it
 applies), ``numpy`` (never C), ``c`` (C required: an error where it is not built).
-:func:`kernel_name` tells which code evaluates a model.
+:func:`kinecal.models.kernel_name` tells which code evaluates a model.
 
 The kernel releases the interpreter lock; large batches are split over threads
-(:func:`set_kernel_threads`; one per CPU by default, one in kinecal's worker processes).
+(:func:`kinecal._cpu.set_kernel_threads`; one per CPU by default, one in kinecal's worker
+processes).
 """
 
 from __future__ import annotations
@@ -26,15 +30,15 @@ import threading
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from kinecal.errors import ConfigError
+from kinecal._cpu import kernel_threads
+from kinecal.errors import ConfigError, DataError
+from kinecal.models._definition import ModelDefinition
+from kinecal.models._inputs import ModelInputs
 from kinecal.typing import Float
-
-if TYPE_CHECKING:
-    from kinecal.models._model import CalibrationModel, ModelInputs
 
 # The header fields of _ckernel.c, in its order: a build of other source (an editable
 # install not rebuilt after a change) is not used.
@@ -70,7 +74,7 @@ if _ckernel is not None and tuple(_ckernel.FIELDS) != _FIELDS:
     )
     _ckernel = None
 
-__all__ = ["compiled_kernel_available", "kernel_name", "set_kernel_threads"]
+__all__ = ["KernelTables", "active_tables", "compiled_kernel_available", "tables"]
 
 _MODES = ("auto", "c", "numpy")
 # Kinds of a link product's torque basis value (the link_T column it reads); see
@@ -98,13 +102,8 @@ def _mode() -> str:
     return mode
 
 
-def kernel_name(model: CalibrationModel) -> str:
-    """``'c'`` or ``'numpy'``: the code that evaluates ``model`` now."""
-    return "c" if active_tables(model) is not None else "numpy"
-
-
 @dataclass(frozen=True)
-class _Static:
+class KernelTables:
     """What of the kernel's tables depends on the model's terms only: the header and the
     integer tables (``ints``; the per-call fields c, K and jacobian are set by
     :func:`_pack`), and where the parameters go in the real tables."""
@@ -117,17 +116,17 @@ class _Static:
     x_sign: float
 
 
-def tables(model: CalibrationModel) -> _Static | None:
+def tables(defn: ModelDefinition) -> KernelTables | None:
     """The model's tables, or None where the kernel is not built or does not apply
-    (computed once, by the model's constructor)."""
-    if _ckernel is None or model._prismatic.any():
+    (computed once per model)."""
+    if _ckernel is None or defn.prismatic.any():
         return None
-    spec = model.spec
-    n, S, M = model.n_joints, len(spec.sets), len(spec.markers)
-    n_link = len(model._link_names)
-    n_lump = n_link - 4 * len(spec.link_bodies)  # the lumped moments come first
+    spec = defn.spec
+    n, S, M = defn.n_joints, len(spec.sets), len(spec.markers)
+    n_link = len(defn.link_names)
+    n_lump = defn.n_lumped  # the lumped moments come first
     prods = []
-    for j, kcol in model._products:
+    for j, kcol in defn.products:
         if kcol < n_lump:
             prods.append((j, kcol, _XHAT if kcol == 0 else _UHAT, 0, 0))
         else:
@@ -141,13 +140,13 @@ def tables(model: CalibrationModel) -> _Static | None:
     ):
         return None
     cam_idx = -np.ones((M, 6), np.int64)
-    cam_idx[:, : model._cam_idx.shape[1]] = model._cam_idx
-    sw = model._sw
-    nb = len(model._ntm_cols)
+    cam_idx[:, : defn.cam_idx.shape[1]] = defn.cam_idx
+    sw = defn.self_weight
+    nb = len(defn.ntm_terms)
     int_tables = {
-        "i_row_idx": np.asarray(model._row_idx, np.int64),
+        "i_row_idx": np.asarray(defn.row_idx, np.int64),
         "i_cam_idx": cam_idx,
-        "i_base_idx": np.asarray(model._base_idx, np.int64),
+        "i_base_idx": np.asarray(defn.base_idx, np.int64),
         "i_ntm_joints": np.array([j - 1 for j in spec.ntm_joints], np.int64),
         "i_bodies": np.array(spec.link_bodies, np.int64),
         "i_products": np.array(prods, np.int64).reshape(-1, 5),
@@ -169,7 +168,7 @@ def tables(model: CalibrationModel) -> _Static | None:
         "c": 0,
         "K": 0,
         "jacobian": 0,
-        "P": model.size,
+        "P": defn.size,
         "n_products": len(prods),
         "cam_rotation": int(spec.cam_rotation),
         "load": int(spec.load),
@@ -181,9 +180,9 @@ def tables(model: CalibrationModel) -> _Static | None:
         "n_link": n_link,
         "n_ntm": len(spec.ntm_joints),
         "nb": nb,
-        "ntm_start": model._ntm_start,
-        "lam_start": model._load_start,
-        "link_start": model._link_start,
+        "ntm_start": defn.ntm_start,
+        "lam_start": defn.load_start,
+        "link_start": defn.link_start,
     }
     offset = len(_FIELDS)
     for name, table in int_tables.items():
@@ -194,41 +193,46 @@ def tables(model: CalibrationModel) -> _Static | None:
         header[name] = offset
         offset += size
     head = np.array([header[f] for f in _FIELDS], np.int64)
-    return _Static(
+    return KernelTables(
         ints=np.concatenate([head, *(t.ravel() for t in int_tables.values())]),
         n_products=len(prods),
-        lam_idx=model._lam_idx,
-        link=slice(model._link_start, model._link_start + n_link),
-        ntm=slice(model._ntm_start, model._ntm_start + len(spec.ntm_joints) * nb),
-        x_sign=float(getattr(model, "_x_sign", 1.0)),
+        lam_idx=defn.lam_idx,
+        link=defn.link_slice,
+        ntm=defn.ntm_slice,
+        x_sign=defn.x_sign,
     )
 
 
-def active_tables(model: CalibrationModel) -> _Static | None:
-    """The model's tables where the compiled kernel evaluates it now, else None."""
+def active_tables(
+    defn: ModelDefinition, static: KernelTables | None
+) -> KernelTables | None:
+    """``static`` (the model's :func:`tables`) where the compiled kernel evaluates the
+    model of ``defn`` now (``KINECAL_KERNEL``), else None."""
     if _mode() == "numpy":
         return None
-    static = model._kernel_static
     if static is None and _mode() == "c":
         raise ConfigError(
             f"KINECAL_KERNEL=c, but the compiled kernel does not cover this model of "
-            f"{model.robot.name} (prismatic joints, more than {_ckernel.MAX_JOINTS} "
+            f"{defn.robot.name} (prismatic joints, more than {_ckernel.MAX_JOINTS} "
             f"joints or more than {_ckernel.MAX_PRODUCTS} link terms)."
         )
     return static
 
 
 def _pack(
-    static: _Static, model: CalibrationModel, p: Float, c: int, K: int, jacobian: bool
+    static: KernelTables,
+    defn: ModelDefinition,
+    p: Float,
+    c: int,
+    K: int,
+    jacobian: bool,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The header with the integer tables, and the real tables, for parameters ``p``."""
-    from kinecal.models._model import _euler_axes
-
     ints = static.ints.copy()
     for name, value in (("c", c), ("K", K), ("jacobian", int(jacobian))):
         ints[_FIELDS.index(name)] = value
 
-    rows = model._rows(p)  # (n, 5): offset, d, a, alpha, beta
+    rows = defn.rows(p)  # (n, 5): offset, d, a, alpha, beta (Eq. 10)
     row_table = np.column_stack(
         [
             np.cos(rows[:, 0]),
@@ -241,39 +245,28 @@ def _pack(
             np.sin(rows[:, 4]),
         ]
     )
-    R_b, t_b = model.base_frames(p)
-    base_v = p[model._base_idx]
+    S, M = len(defn.spec.sets), len(defn.spec.markers)
+    R_b, t_b = defn.base_frames(p)  # Eq. (8)
     base = np.concatenate(
         [
             R_b.reshape(-1, 9),
             t_b,
-            R_b @ model.g_hat,
-            np.stack(
-                [
-                    _euler_axes(model.R_ref_base[s], base_v[s, 3:]).T.ravel()
-                    for s in range(len(model.spec.sets))
-                ]
-            ),
+            R_b @ defn.g_hat,
+            defn.base_axes(p).transpose(0, 2, 1).reshape(S, 9),
         ],
         axis=1,
     )
-    R_c, t_c = model.cam_frames(p)
-    if model.spec.cam_rotation:
-        cam_v = p[model._cam_idx]
-        axes_c = np.stack(
-            [
-                _euler_axes(model.R_ref_cam[m], cam_v[m, 3:]).T.ravel()
-                for m in range(len(model.spec.markers))
-            ]
-        )
+    R_c, t_c = defn.cam_frames(p)  # Eq. (9)
+    if defn.spec.cam_rotation:
+        axes_c = defn.cam_axes(p).transpose(0, 2, 1).reshape(M, 9)
     else:
-        axes_c = np.zeros((len(model.spec.markers), 9))
+        axes_c = np.zeros((M, 9))
     cam = np.concatenate([R_c.reshape(-1, 9), t_c, axes_c], axis=1)
     reals = (  # in the order of tables()' real_sizes
         row_table,
         base,
         cam,
-        p[static.lam_idx] if model.spec.load else np.zeros(model.n_joints),
+        p[static.lam_idx] if defn.spec.load else np.zeros(defn.n_joints),
         p[static.link],
         p[static.ntm],
         np.array([static.x_sign]),
@@ -281,36 +274,18 @@ def _pack(
     return ints, np.concatenate([np.ravel(t) for t in reals])
 
 
-# Threads of one evaluation: one per CPU for large batches; 1 in worker processes. Below
-# about 1500 poses a thread costs more than it saves (2-core VM, full model: 2000 poses
-# 0.9 ms on one thread and on two; 6855 poses 4-5 ms on one, 2.5-3 ms on two).
-_threads: int | None = None
-_cpus: int | None = None
+# Threads of one evaluation: up to kinecal._cpu.kernel_threads() (one per CPU, 1 in worker
+# processes) for large batches. Below about 1500 poses a thread costs more than it saves
+# (2-core VM, full model: 2000 poses 0.9 ms on one thread and on two; 6855 poses 4-5 ms on
+# one, 2.5-3 ms on two).
 _MIN_POSES_PER_THREAD = 1500
 _pool: Any = None
 _pool_size = 0
 _pool_lock = threading.Lock()
 
 
-def set_kernel_threads(count: int | None) -> None:
-    """Threads the compiled kernel may split one evaluation over (None: one per CPU)."""
-    global _threads
-    if count is not None and count < 1:
-        raise ValueError(f"count must be >= 1 or None; got {count}.")
-    _threads = count
-
-
 def _thread_count(N: int) -> int:
-    global _cpus
-    if _threads is not None:
-        most = _threads
-    else:
-        if _cpus is None:
-            from kinecal._parallel import available_cpus
-
-            _cpus = available_cpus()
-        most = _cpus
-    return max(1, min(most, N // _MIN_POSES_PER_THREAD))
+    return max(1, min(kernel_threads(), N // _MIN_POSES_PER_THREAD))
 
 
 def _executor(count: int) -> Any:
@@ -338,8 +313,8 @@ if hasattr(os, "register_at_fork"):
 
 
 def evaluate(
-    static: _Static,
-    model: CalibrationModel,
+    static: KernelTables,
+    defn: ModelDefinition,
     p: Float,
     inputs: ModelInputs,
     *,
@@ -352,14 +327,14 @@ def evaluate(
     theta (n, N))`` of :meth:`CalibrationModel.evaluate` by the compiled kernel."""
     c = 6 if orientation else 3
     K = static.n_products if (jacobian and products) else 0
-    ints, reals = _pack(static, model, p, c, K, jacobian)
-    theta_c, cos_c, sin_c = model._coupled(inputs)
-    basis = model._ntm_bases(inputs)  # (n_ntm, nb, N), kept with the inputs
+    ints, reals = _pack(static, defn, p, c, K, jacobian)
+    theta_c, cos_c, sin_c = defn.coupled(inputs)
+    basis = defn.ntm_bases(inputs)  # (n_ntm, nb, N), kept with the inputs
     N, n = inputs.q_ctrl.shape
     p_user = np.empty((N, 3))
     R_uc = np.empty((N, 3, 3)) if orientation else np.empty(0)
     theta = np.empty((n, N))
-    J = alloc((model.size + K, c, N)) if jacobian else np.empty(0)
+    J = alloc((defn.size + K, c, N)) if jacobian else np.empty(0)
     args = (
         ints,
         reals,
@@ -392,8 +367,6 @@ def evaluate(
             for f in futures:
                 f.result()
     except IndexError as exc:  # a set or marker index out of range
-        from kinecal.errors import DataError
-
         raise DataError(str(exc)) from None
     return (
         p_user,

@@ -2,7 +2,9 @@
 
 Every model parameter has an exact name (``"base.x"``, ``"joint3.a"``, ``"cam.r"``,
 ``"joint2.ka1"``, ``"joint2.lambda"``, ``"link.s1"``) bound to one index of the flat SI
-vector. Parameters are never bound by substring, and no helper mutates a shared dict.
+vector. Parameters are never bound by substring, and no helper mutates a shared dict;
+what a name says (group, joint, set or marker label, field) is in fields of its
+:class:`ParamSpec`, which :meth:`ParameterLayout.select` queries.
 
 Kinds fix the SI unit, the unit shown in files and reports, and the characteristic scale
 used to scale the identification Jacobian (``docs/conventions.md``).
@@ -13,6 +15,7 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -57,15 +60,55 @@ KINDS: dict[str, ParamKind] = {
 
 @dataclass(frozen=True)
 class ParamSpec:
-    """One named parameter: ``name``, ``kind`` (a key of :data:`KINDS`) and ``group``."""
+    """One named parameter, with what its name says as fields of their own.
+
+    The model builds every spec of its layout (:class:`~kinecal.models.CalibrationModel`);
+    code that needs to know what a parameter is reads these fields (or
+    :meth:`ParameterLayout.select`), never the parts of its name.
+
+    Attributes
+    ----------
+    name : str
+        Exact name, as in ``model.yaml``: ``"base.x"``, ``"cam@n.r"``, ``"joint3.a"``,
+        ``"joint2.ka1"``, ``"joint2.lambda"``, ``"link.s1"``, ``"link3.mx"``.
+    kind : str
+        Key of :data:`KINDS` (the unit and the characteristic scale).
+    group : str
+        ``'base'`` (user frame of a set), ``'cam'`` (cam frame of a marker), ``'joint'``
+        (a row of the chain, Eq. 10), ``'ntm'`` (Fourier coefficient, Eq. 16), ``'load'``
+        (compliance lambda*, Eq. 24) or ``'link'`` (link self-weight, Eq. 25-26).
+    joint : int or None
+        1-based joint of a row, a Fourier series or a compliance; the body (DH frame
+        number) of a general link term (``link3.mx``: 3); None for frames and the lumped
+        link moments.
+    label : str or None
+        Set label of a user frame, marker label of a cam frame (``''`` for the default
+        one); None for the other groups.
+    field : str
+        The term within its frame, row, series or body: ``'x'``, ``'r'``,
+        ``'theta_offset'``, ``'beta'``, ``'ka1'``, ``'lambda'``, ``'s1'``, ``'mx'``.
+    """
 
     name: str
     kind: str
     group: str
+    joint: int | None = None
+    label: str | None = None
+    field: str = ""
 
     @property
     def unit(self) -> ParamKind:
         return KINDS[self.kind]
+
+
+class _Any:
+    """Marker of a :meth:`ParameterLayout.select` criterion not given."""
+
+    def __repr__(self) -> str:
+        return "ANY"
+
+
+_ANY: Any = _Any()
 
 
 class ParameterLayout:
@@ -134,6 +177,34 @@ class ParameterLayout:
             [i for i, s in enumerate(self._specs) if s.group == group], dtype=np.intp
         )
 
+    def select(
+        self,
+        *,
+        group: str | Iterable[str] = _ANY,
+        joint: int | None = _ANY,
+        field: str | Iterable[str] = _ANY,
+        label: str | None = _ANY,
+    ) -> np.ndarray:
+        """Indices (in layout order) of the parameters matching every criterion given.
+
+        ``group`` and ``field`` take one value or several (any of them matches);
+        ``joint`` and ``label`` one value, None included (``label=None``: parameters
+        without a label, i.e. not of a frame). Example: the user-frame rotations of
+        set ``'b'``, ``select(group='base', label='b', field=('r', 'w', 'p'))``.
+        """
+        groups, fields = _one_or_more(group), _one_or_more(field)
+        return np.array(
+            [
+                i
+                for i, s in enumerate(self._specs)
+                if (groups is None or s.group in groups)
+                and (joint is _ANY or s.joint == joint)
+                and (fields is None or s.field in fields)
+                and (label is _ANY or s.label == label)
+            ],
+            dtype=np.intp,
+        )
+
     @property
     def groups(self) -> list[str]:
         out: list[str] = []
@@ -188,3 +259,10 @@ class ParameterLayout:
             if s.name in source:
                 out[i] = v[source.index(s.name)]
         return out
+
+
+def _one_or_more(value: str | Iterable[str]) -> tuple[str, ...] | None:
+    """A :meth:`ParameterLayout.select` criterion as a tuple (None: not given)."""
+    if value is _ANY:
+        return None
+    return (value,) if isinstance(value, str) else tuple(value)

@@ -1,0 +1,157 @@
+"""The package's shape: no import cycle between its modules, no module too long to read.
+
+Both read the source (``ast``), not the imported package, so that an import made only
+inside a function or under ``TYPE_CHECKING`` counts as well.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import kinecal
+
+SRC = Path(kinecal.__file__).resolve().parent.parent
+MAX_LINES = 600  # STYLE: aim under 500, 600 the hard stop for this wave
+# Issue 19 splits identification/_calibrate.py (1118 lines) at the same time; until then
+# the line count covers every other folder.
+LINE_COUNT_EXEMPT = ("kinecal/identification/",)
+
+
+def _modules() -> dict[str, Path]:
+    """Dotted name -> file of every module and package of kinecal."""
+    out = {}
+    for f in sorted((SRC / "kinecal").rglob("*.py")):
+        parts = f.relative_to(SRC).with_suffix("").parts
+        out[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = f
+    return out
+
+
+def _imports(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
+    """The kinecal modules ``name`` imports, anywhere in its source.
+
+    ``from a.b import c`` is an import of the module ``a.b.c`` where there is one, else of
+    ``a.b``. A module's own ancestor packages are left out: Python initialises them before
+    the module itself runs, so importing them orders nothing.
+    """
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            found.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                module = ".".join([*base, *([node.module] if node.module else [])])
+            else:
+                module = node.module or ""
+            for a in node.names:
+                sub = f"{module}.{a.name}"
+                found.add(sub if sub in modules else module)
+    return {
+        m for m in found if m in modules and m != name and not name.startswith(m + ".")
+    }
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan, iterative)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    out: list[list[str]] = []
+    for root in graph:
+        if root in index:
+            continue
+        work = [(root, iter(sorted(graph[root])))]
+        index[root] = low[root] = len(index)
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            v, children = work[-1]
+            w = next(children, None)
+            if w is not None:
+                if w not in index:
+                    index[w] = low[w] = len(index)
+                    stack.append(w)
+                    on_stack.add(w)
+                    work.append((w, iter(sorted(graph[w]))))
+                elif w in on_stack:
+                    low[v] = min(low[v], index[w])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[v])
+            if low[v] == index[v]:
+                comp = []
+                while True:
+                    w = stack.pop()
+                    on_stack.discard(w)
+                    comp.append(w)
+                    if w == v:
+                        break
+                if len(comp) > 1:
+                    out.append(sorted(comp))
+    return out
+
+
+def _graph() -> dict[str, set[str]]:
+    modules = _modules()
+    return {name: _imports(name, path, modules) for name, path in modules.items()}
+
+
+def test_the_cycle_finder_finds_a_cycle():
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}, "e": set()}
+    assert _cycles(graph) == [["a", "b", "c"]]
+    assert _cycles({"a": {"b"}, "b": set()}) == []
+
+
+def test_issue_19_no_import_cycle_between_kinecal_modules():
+    graph = _graph()
+    assert len(graph) > 50 and "kinecal.models._kernel" in graph
+    assert _cycles(graph) == []
+
+
+def test_issue_19_the_cpu_count_sits_below_the_model_and_the_workers():
+    """The CPU count and the kernel's thread setting import nothing of kinecal; the
+    worker processes and the kernel both use them, and the model never imports the
+    workers' module (the circle _parallel -> models._kernel -> models._model before)."""
+    graph = _graph()
+    assert graph["kinecal._cpu"] == set()
+    assert "kinecal._cpu" in graph["kinecal._parallel"]
+    assert "kinecal._cpu" in graph["kinecal.models._kernel"]
+    models = [m for m in graph if m.startswith("kinecal.models")]
+    assert not [m for m in models if "kinecal._parallel" in graph[m]]
+
+
+def test_issue_19_the_kernel_reads_only_the_model_definition():
+    """No ``model._private`` in the compiled kernel's Python side: it takes the public
+    ModelDefinition (and the façade module is not imported there)."""
+    graph = _graph()
+    assert "kinecal.models._model" not in graph["kinecal.models._kernel"]
+    assert "kinecal.models._definition" in graph["kinecal.models._kernel"]
+    src = (SRC / "kinecal/models/_kernel.py").read_text()
+    tree = ast.parse(src)
+    private = sorted(
+        {
+            f"{n.value.id}.{n.attr}"
+            for n in ast.walk(tree)
+            if isinstance(n, ast.Attribute)
+            and isinstance(n.value, ast.Name)
+            and n.value.id in ("defn", "model")
+            and n.attr.startswith("_")
+        }
+    )
+    assert private == []
+
+
+def test_issue_19_no_module_over_600_lines():
+    too_long = {}
+    for path in sorted((SRC / "kinecal").rglob("*.py")):
+        rel = path.relative_to(SRC).as_posix()
+        if rel.startswith(LINE_COUNT_EXEMPT):
+            continue
+        lines = len(path.read_text().splitlines())
+        if lines > MAX_LINES:
+            too_long[rel] = lines
+    assert too_long == {}
