@@ -13,9 +13,7 @@ import kinecal
 
 SRC = Path(kinecal.__file__).resolve().parent.parent
 MAX_LINES = 600  # STYLE: aim under 500, 600 the hard stop for this wave
-# Issue 19 splits identification/_calibrate.py (1118 lines) at the same time; until then
-# the line count covers every other folder.
-LINE_COUNT_EXEMPT = ("kinecal/identification/",)
+LINE_COUNT_EXEMPT: tuple[str, ...] = ()  # every module counts
 
 
 def _modules() -> dict[str, Path]:

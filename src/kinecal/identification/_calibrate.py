@@ -76,9 +76,10 @@ def default_stages(options: CalibrationOptions | None = None) -> tuple[Stage, ..
         NoiseModel(),  # pose data: the orientation weight that predicts positions best
         EvidencePriors(),  # compliance priors by maximum evidence, stage 3 again
     )
+    probe = (*fit[:2], KinematicStage())  # a robust kinematic fit finds suspects
     return (
         *fit,
-        RobustRejection(fit),  # gross errors out: the fit again on the clean rows
+        RobustRejection(fit, probe),  # gross errors out: the fit again on clean rows
         Uncertainty(),
         Diagnose(),
     )

@@ -40,11 +40,10 @@ def priority_order(layout: ParameterLayout) -> np.ndarray:
 
     def key(i: int) -> tuple[int, int, int]:
         s = layout.specs[i]
-        field_name = s.name.rsplit(".", 1)[-1]
         if s.group == "joint":
-            sub = _JOINT_FIELD_RANK.get(field_name, 5)
+            sub = _JOINT_FIELD_RANK.get(s.field, 5)
         elif s.group == "ntm":
-            sub = 1 if field_name == "k0" else 0
+            sub = 1 if s.field == "k0" else 0
         else:
             sub = 0
         return (_GROUP_RANK.get(s.group, 9), sub, i)

@@ -33,7 +33,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from kinecal._stats import median
 from kinecal.identification._diagnostics import Diagnostic, Outlier
 from kinecal.identification._measurements import Measurements
 from kinecal.identification._press import loo_position_errors, rms_mm
@@ -53,6 +52,8 @@ __all__ = [
 ]
 
 _MAX_ROUNDS = 6
+# Suspects left out of the test fit are at most this fraction of the rows.
+_MAX_SUSPECT = 0.3
 # A candidate must exceed this multiple of the largest z of the rows within the quantile.
 # On the shipped FR3 camera data (heavy-tailed, informative far rows) the farthest rows of
 # the 5-fold training sets reach 2.8 times; gross errors on the twin, hundreds of times.
@@ -63,31 +64,12 @@ _RHO_SYSTEMATIC = 0.5
 _GATHERED = 2.0 / 3.0
 
 
-def full_weights(problem: Problem, state: State) -> Weights:
-    """The state's noise model on every row of the root problem.
-
-    Sigmas given in the data hold per row; estimated ones (the variance components, not
-    any other weighting of the fit) are one value per component kind here.
-    """
-    root = problem.root or problem
-    meas = root.meas
-    default = Weights.default(meas)
-    if meas.sigma is not None:
-        return default
-    w = state.noise if state.noise is not None else state.weights
-    sigma = np.full(meas.n, median(w.sigma))
-    rot = None
-    if w.sigma_rot is not None:
-        rot = (
-            meas.sigma_rot
-            if meas.sigma_rot is not None
-            else np.full(meas.n, median(w.sigma_rot))
-        )
-    return Weights(sigma, rot)
-
-
 def row_z(problem: Problem, state: State) -> tuple[Float, Float, Float]:
     """Robust ``z`` of every row of the data at the state's fit (Eq. (T-4)).
+
+    Without sigmas in the data the rows are whitened by robust scales of their own, one
+    per component kind (the median position and orientation errors of the rows in use),
+    so gross errors do not hide behind a noise estimate they inflated.
 
     Returns
     -------
@@ -96,13 +78,22 @@ def row_z(problem: Problem, state: State) -> tuple[Float, Float, Float]:
     r : (N, c) whitened residuals.
     """
     root = problem.root or problem
+    meas = root.meas
     blk = residuals(
-        state.model, state.x, root.meas, full_weights(root, state), inputs=root.inputs
+        state.model, state.x, meas, Weights.default(meas), inputs=root.inputs
     )
-    active = state.active if state.active is not None else np.ones(root.meas.n, bool)
-    sigma = robust_sigma(blk.r[active])
-    z = np.linalg.norm(blk.r, axis=1) / max(sigma, 1e-300)
-    return z, np.linalg.norm(blk.raw_position, axis=1) * 1e3, blk.r
+    active = state.active if state.active is not None else np.ones(meas.n, bool)
+    r = blk.r
+    if meas.sigma is None:
+        parts = [blk.raw_position]
+        if blk.raw_rotation is not None:
+            parts.append(blk.raw_rotation)
+        r = np.concatenate(
+            [e / max(robust_sigma(e[active]), 1e-300) for e in parts], axis=1
+        )
+    sigma = robust_sigma(r[active])
+    z = np.linalg.norm(r, axis=1) / max(sigma, 1e-300)
+    return z, np.linalg.norm(blk.raw_position, axis=1) * 1e3, r
 
 
 def gross(
@@ -182,12 +173,6 @@ def _sample(n: int, flagged: np.ndarray) -> np.ndarray:
     return np.flatnonzero(keep | flagged)
 
 
-def _joint_of(name: str) -> int:
-    """The joint a joint-term name belongs to (``joint3.lambda`` -> 3), else 0."""
-    head = name.split(".", 1)[0]
-    return int(head[5:]) if head.startswith("joint") and head[5:].isdigit() else 0
-
-
 @dataclass(frozen=True)
 class _Score:
     """A linearised fit of the full model's extra terms on some rows."""
@@ -201,10 +186,14 @@ class _Score:
     kind: str  # 'load' or 'ntm': the term that explains most
 
 
-def compliance_score(problem: Problem, state: State, rows: np.ndarray) -> _Score:
+def compliance_score(
+    problem: Problem, state: State, rows: np.ndarray, fit: np.ndarray
+) -> _Score:
     """What the full model's extra terms (transmission, payload and link compliance, in
     the lifted coordinates of Eq. (T-2)) explain of the position errors of ``rows``: a
-    linearised least-squares fit of them with the present parameters."""
+    linearised least-squares fit of them with the present parameters on the rows ``fit``
+    (bool over ``rows``), applied to all of them (so rows left out of it are predicted,
+    not absorbed)."""
     full, xf = _transferred(state.model, state.x)
     meas = problem.meas.subset(rows)
     w = Weights(np.ones(meas.n), None if meas.kind != "pose" else np.ones(meas.n))
@@ -222,15 +211,18 @@ def compliance_score(problem: Problem, state: State, rows: np.ndarray) -> _Score
     present = np.isin(names, state.model.layout.names)
     groups = np.array([sp.group for sp in full.layout.specs])
     extra = ~present & np.isin(groups, ("ntm", "load"))
-    col_joint = [_joint_of(n) for n in names] + [
-        _joint_of(names[a]) for a, _ in full.link_products
+    specs = full.layout.specs
+    col_joint = [sp.joint or 0 for sp in specs] + [
+        specs[a].joint or 0 for a, _ in full.link_products
     ]
     col_kind = list(groups) + ["load"] * len(full.link_products)
     cols = np.concatenate([present | extra, np.ones(len(full.link_products), bool)])
     idx = np.flatnonzero(cols)
     A = blk.J[:, :3, idx]  # (n, 3, k)
     e = blk.raw_position
-    delta, *_ = np.linalg.lstsq(A.reshape(-1, idx.size), -e.reshape(-1), rcond=None)
+    delta, *_ = np.linalg.lstsq(
+        A[fit].reshape(-1, idx.size), -e[fit].reshape(-1), rcond=None
+    )
     rest = e + A @ delta
     # The part each joint's new terms explain (their columns' share of the correction).
     new_cols = [k for k, i in enumerate(idx) if i >= full.size or extra[i]]
@@ -239,11 +231,11 @@ def compliance_score(problem: Problem, state: State, rows: np.ndarray) -> _Score
         key = (col_joint[idx[k]], str(col_kind[idx[k]]))
         share[key] = share.get(key, 0.0) + float(np.sum((A[:, :, k] * delta[k]) ** 2))
     joint, kind = max(share, key=lambda kk: share[kk]) if share else (0, "load")
-    m = e.size
+    m = e[fit].size
     k_now = int(np.sum(state.free))
     k_full = k_now + len(new_cols)
-    now = float(np.sqrt(np.sum(e**2) / max(m - k_now, 1) * 3.0)) * 1e3
-    after = float(np.sqrt(np.sum(rest**2) / max(m - k_full, 1) * 3.0)) * 1e3
+    now = float(np.sqrt(np.sum(e[fit] ** 2) / max(m - k_now, 1) * 3.0)) * 1e3
+    after = float(np.sqrt(np.sum(rest[fit] ** 2) / max(m - k_full, 1) * 3.0)) * 1e3
     return _Score(
         rows,
         np.linalg.norm(e, axis=1),
@@ -287,8 +279,9 @@ def residual_structure(
     """Whether the errors (``err``, rows of ``problem``) follow the pose.
 
     A model without every compliance term: systematic when a linearised fit of the full
-    model's extra terms (:func:`compliance_score`) halves the error variance and, if rows
-    are ``flagged``, brings at least two thirds of them below half their error. A model
+    model's extra terms on the rows not ``flagged`` (:func:`compliance_score`) halves
+    their error variance and, if rows are flagged, predicts at least two thirds of them
+    to within half their error. A model
     with every term: systematic when the errors' rank correlation with a joint angle or
     gravity load reaches 0.5 and two thirds of the flagged rows lie in that variable's
     upper (or lower) third. None for fewer than 10 rows. Large data are sampled.
@@ -298,7 +291,7 @@ def residual_structure(
     rows = _sample(err.size, flagged)
     f = flagged[rows]
     if _lacks_terms(state.model):
-        sc = compliance_score(problem, state, rows)
+        sc = compliance_score(problem, state, rows, ~f)
         explained = sc.after_mm**2 < 0.5 * sc.now_mm**2
         follow = (
             float(np.mean(sc.err_after[f] < 0.5 * sc.err[f])) >= _GATHERED
@@ -368,9 +361,12 @@ class RobustRejection:
     Attributes
     ----------
     fit : the stages repeated on the cleaned rows (registration to the evidence priors).
+    probe : the stages of the robust fit on every row that finds the suspects
+        (registration, identifiability and stage 1, run with a Huber loss).
     """
 
     fit: tuple[Stage, ...] = ()
+    probe: tuple[Stage, ...] = ()
     name: str = "robust rejection"
 
     def __call__(self, problem: Problem, state: State) -> State:
@@ -380,32 +376,26 @@ class RobustRejection:
         root = problem.root or problem
         meas = root.meas
         c, n = meas.components, meas.n
-        everything = np.ones(n, bool)
         t0 = math.sqrt(chi2_isf(c, opts.outlier_p))
-        robust_start = False
+        limit = opts.reject_z if opts.reject_z is not None else t0
         found: list[Diagnostic] = []
         current = state  # the accepted fit
+        # Suspects: rows far from a robust fit of the kinematic model on every row (a
+        # plain least-squares fit bends towards gross errors and hides them).
+        rob_problem = root.with_options(
+            replace(opts, loss=opts.loss if opts.loss != "linear" else "huber")
+        )
+        rob = run_stages(rob_problem, rob_problem.start(), self.probe or self.fit)
+        z, _, _ = row_z(rob_problem, rob)
+        suspect = _largest(z > limit, z, _MAX_SUSPECT * n)
         for _ in range(_MAX_ROUNDS):
-            in_use = current.active if current.active is not None else everything
-            z, _, _ = row_z(root, current)
-            suspect = (z > t0) if opts.reject_z is None else (z > opts.reject_z)
+            in_use = current.active if current.active is not None else np.ones(n, bool)
             if not suspect.any():
                 break
-            if not robust_start and opts.loss == "linear":
-                # Gross errors pull a plain least-squares fit (and inflate the errors of
-                # the other rows): find the suspects at a fit with a Huber loss.
-                robust_start = True
-                rob_problem = root.with_options(replace(opts, loss="huber"))
-                rob = run_stages(rob_problem, rob_problem.start(), self.fit)
-                z, _, _ = row_z(rob_problem, rob)
-                suspect = (z > t0) if opts.reject_z is None else (z > opts.reject_z)
-            # The test itself is made at a fit without every suspect (no gross error left
-            # to pull it): rows far from it that stand apart are rejected, the others
-            # come back.
+            # The test is made at a fit without every suspect (no gross error left to
+            # pull it): rows far from it that stand apart are rejected, the others come
+            # back.
             probe = _keep_enough(root, suspect)
-            if 2 * int(probe.sum()) > n:
-                found.append(_refused(meas, probe, self.name))
-                break
             trimmed = run_stages(root, root.start(~probe), self.fit)
             z, err, _ = row_z(root, trimmed)
             reject = _keep_enough(
@@ -413,9 +403,10 @@ class RobustRejection:
             )
             if not reject.any() or np.array_equal(~reject, in_use):
                 break
-            st = residual_structure(
-                root.on(trimmed), trimmed, err[~probe], reject[~probe]
-            )
+            if 2 * int(reject.sum()) > n:
+                found.append(_refused(meas, reject, self.name))
+                break
+            st = residual_structure(root, trimmed, err, reject)
             if st is not None and st.systematic:
                 view = problem.on(current)
                 found.append(systematic_diagnostic(view, current, st, self.name))
@@ -429,9 +420,24 @@ class RobustRejection:
             if not _predicts_better(root, trial, current):
                 break  # the rows carry information the others confirm: keep them
             current = trial
+            # Confirm at the new fit: rows beyond the limit there (the rejected ones
+            # and any the gross errors hid) are the next suspects.
+            z, _, _ = row_z(root, current)
+            suspect = _largest(z > limit, z, _MAX_SUSPECT * n) | reject
         if current.active is None or current.active.all():
             return current.note(*found)
         return _report(root, current, found, self.name)
+
+
+def _largest(mask: np.ndarray, z: Float, most: float) -> np.ndarray:
+    """``mask`` limited to its ``most`` rows of largest ``z``."""
+    k = int(most)
+    if mask.sum() <= k:
+        return mask
+    out = np.zeros_like(mask)
+    idx = np.flatnonzero(mask)
+    out[idx[np.argsort(-z[idx])[:k]]] = True
+    return out
 
 
 def _refused(meas: Measurements, rows: np.ndarray, stage: str) -> Diagnostic:

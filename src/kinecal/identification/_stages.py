@@ -33,7 +33,7 @@ from kinecal.identification._noise import estimate_noise
 from kinecal.identification._options import STOL
 from kinecal.identification._problem import Problem, State
 from kinecal.identification._registration import initial_registration
-from kinecal.identification._residuals import residuals
+from kinecal.identification._residuals import Weights, residuals
 from kinecal.identification._solve import run_lm
 from kinecal.models import CalibrationModel, ntm_basis
 from kinecal.typing import Float
@@ -47,6 +47,10 @@ __all__ = [
     "robust_sigma",
 ]
 
+# Stage 3 re-estimates the noise and refits until no sigma moves by more than 20 %
+# (at most this many times).
+_NOISE_ROUNDS = 3
+_NOISE_TOL = 1.2
 # Median of the chi distribution with c degrees of freedom (norm of a c-D unit Gaussian).
 _CHI_MEDIAN = {3: 1.5381722, 6: 2.3660319}
 
@@ -297,14 +301,13 @@ def _stage2_project(problem: Problem, state: State, cols: np.ndarray) -> Float:
         f"k{ab}{h}" for h in range(1, spec.ntm_order + 1) for ab in "ab"
     ]
     for k, j in enumerate(joints):
-        idx = np.array(
-            [i for i in np.flatnonzero(cols) if specs[i].name.startswith(f"joint{j}.")]
+        idx = np.intersect1d(
+            cm.layout.select(group="ntm", joint=j), np.flatnonzero(cols)
         )
         if idx.size == 0:
             continue
         B = ntm_basis(meas.q_ctrl[:, j - 1], spec.ntm_order, spec.ntm_offset)
-        col_names = [specs[i].name.split(".", 1)[1] for i in idx]
-        Bsel = B[:, [all_cols.index(cn) for cn in col_names]]
+        Bsel = B[:, [all_cols.index(specs[i].field) for i in idx]]
         coef, *_ = np.linalg.lstsq(Bsel, dth[:, k], rcond=None)  # Eq. (17) fitted
         out[idx] += coef
     return out
@@ -314,8 +317,9 @@ def _stage2_project(problem: Problem, state: State, cols: np.ndarray) -> Float:
 class FullStage:
     """Paper stage 3: every identifiable parameter together, from the lifted start of the
     link products, with all priors. Without sigmas in the data, the noise is estimated
-    again from its residuals; if it moved by more than 20 %, once more with it (the
-    priors were weighed against the wrong noise)."""
+    again from its residuals (Helmert, per set or marker where they differ); while a
+    sigma moves by more than 20 %, once more with it (the priors were weighed against
+    the wrong noise)."""
 
     name: str = "stage 3: all"
 
@@ -328,20 +332,23 @@ class FullStage:
             problem, state, self.name, state.x, state.free, lm3, prior, lifted=True
         )
         state = state.but(x=res.x)
-        if problem.estimate_noise:
+        for _ in range(_NOISE_ROUNDS if problem.estimate_noise else 0):
+            # Variance components iterated with the fit (Eq. (T-6)): the priors were
+            # weighed against the noise of the earlier, smaller models.
             new = estimate_noise(problem, state, state.x, state.free, prior)
-            moved = np.abs(np.log(new.weights.sigma / state.weights.sigma))
-            if moved.max() > np.log(1.2):
-                state = new
-                state, res = run_lm(
-                    problem,
-                    state,
-                    self.name,
-                    state.x,
-                    state.free,
-                    lm3,
-                    prior,
-                    lifted=True,
-                )
-                state = state.but(x=res.x)
+            if _noise_moved(state.weights, new.weights) <= np.log(_NOISE_TOL):
+                state = new  # the estimate at this fit; no refit for a small change
+                break
+            state, res = run_lm(
+                problem, new, self.name, state.x, state.free, lm3, prior, lifted=True
+            )
+            state = state.but(x=res.x)
         return state
+
+
+def _noise_moved(a: Weights, b: Weights) -> float:
+    """Largest change of a sigma between two noise models (log ratio)."""
+    moved = np.abs(np.log(b.sigma / a.sigma))
+    if a.sigma_rot is not None and b.sigma_rot is not None:
+        moved = np.maximum(moved, np.abs(np.log(b.sigma_rot / a.sigma_rot)))
+    return float(moved.max())
