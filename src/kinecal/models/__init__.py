@@ -8,6 +8,7 @@ from kinecal.models._compliance import (
     ntm_names,
 )
 from kinecal.models._ik import IKResult, solve_ik
+from kinecal.models._ik_lm import solve_ik_lm
 from kinecal.models._kernel import (
     compiled_kernel_available,
     kernel_name,
@@ -45,4 +46,5 @@ __all__ = [
     "parallel_pairs",
     "set_kernel_threads",
     "solve_ik",
+    "solve_ik_lm",
 ]
