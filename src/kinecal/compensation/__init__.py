@@ -1,7 +1,12 @@
 """Compensation: corrected joint targets from a calibrated model (DESIGN §10), and the
 calibrated kinematic part for the controller (a chain for URDF, a DH table)."""
 
-from kinecal.compensation._compensate import STATUS, CompensationResult, compensate
+from kinecal.compensation._compensate import (
+    STATUS,
+    CompensationResult,
+    compensate,
+    program_targets,
+)
 from kinecal.compensation._export import (
     COUPLING_MODES,
     Element,
@@ -32,5 +37,6 @@ __all__ = [
     "geometry_loss",
     "has_compliance",
     "kinematic_params",
+    "program_targets",
     "robot_base_offset",
 ]

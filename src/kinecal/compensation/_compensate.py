@@ -21,10 +21,10 @@ import numpy as np
 
 from kinecal.errors import DataError
 from kinecal.identification import CalibratedModel
-from kinecal.models import solve_ik_lm
+from kinecal.models import ModelInputs, solve_ik_lm
 from kinecal.typing import ArrayLike, Float
 
-__all__ = ["STATUS", "CompensationResult", "compensate"]
+__all__ = ["STATUS", "CompensationResult", "compensate", "program_targets"]
 
 STATUS = ("ok", "unreachable", "joint_limit")
 
@@ -172,3 +172,35 @@ def compensate(
         res.cond,
         res.iterations,
     )
+
+
+def program_targets(
+    calibrated: CalibratedModel,
+    q_program: ArrayLike,
+    *,
+    set_index: np.ndarray | None = None,
+    marker_index: np.ndarray | None = None,
+) -> tuple[Float, Float]:
+    """Where a program's joint targets are meant to put the tool: the pose the *nominal*
+    robot has there (the program was taught or planned on it), hanging from the
+    calibrated base and carrying the calibrated tool.
+
+    That is the calibrated model with its joint rows nominal and no compliance or
+    transmission terms. Compensating to these poses (position and orientation) makes the
+    real flange take the nominal flange pose, so any tool defined on the controller
+    lands where the program meant.
+
+    Returns
+    -------
+    p_user : (N, 3) [m] and R_user_cam : (N, 3, 3), in the user frame.
+    """
+    from kinecal.compensation._export import kinematic_params
+
+    model = calibrated.model
+    x = kinematic_params(calibrated)
+    joints = model.layout.group_indices("joint")
+    x[joints] = model.nominal[joints]
+    inp = ModelInputs.make(q_program, set_index=set_index, marker_index=marker_index)
+    out = model.evaluate(x, inp, orientation=True)
+    assert out.R_user_cam is not None
+    return out.p_user, out.R_user_cam
