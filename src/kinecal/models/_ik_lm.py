@@ -170,24 +170,27 @@ def _damped_step(A: Float, r: Float, lam: Float, free: np.ndarray, cut: Float) -
     Rows with ``cut`` > 0 (M,) leave out the directions whose singular value is below
     ``cut`` times the largest (a truncated pseudo-inverse): a point target does not
     chase its orientation along a nearly singular direction with large joint motion.
+    Only rows that may be that ill-conditioned (by the cheap Frobenius bound
+    ``||S|| ||S^-1|| >= cond(S)``, ``S = A A^T``) get a singular value decomposition.
     """
     Af = A * free[:, None, :]
-    scale = np.einsum("mij,mij->m", Af, Af) / 6 + 1e-300
+    S = Af @ np.swapaxes(Af, 1, 2)
+    scale = np.trace(S, axis1=1, axis2=2) / 6 + 1e-300
     mu2 = lam * scale
-    dq = np.empty(Af.shape[::2])
-    plain = cut <= 0.0
-    if plain.any():
-        Ap = Af[plain]
-        AAt = Ap @ np.swapaxes(Ap, 1, 2) + mu2[plain, None, None] * np.eye(6)
-        y = np.linalg.solve(AAt, r[plain, :, None])[:, :, 0]
-        dq[plain] = np.einsum("mji,mj->mi", Ap, y)
-    if not plain.all():
-        t = ~plain
-        U, sv, Vt = np.linalg.svd(Af[t], full_matrices=False)
-        keep = sv >= cut[t, None] * sv[:, :1]
-        filt = np.where(keep, sv / (sv * sv + mu2[t, None]), 0.0)
-        coef = np.einsum("mji,mj->mi", U, r[t]) * filt
-        dq[t] = np.einsum("mki,mk->mi", Vt, coef)
+    Sinv = np.linalg.inv(S + mu2[:, None, None] * np.eye(6))
+    dq = np.einsum("mji,mjk,mk->mi", Af, Sinv, r)
+    check = cut > 0.0
+    if check.any():
+        bound = np.linalg.norm(S[check], axis=(1, 2)) * np.linalg.norm(
+            Sinv[check], axis=(1, 2)
+        )
+        rows = np.flatnonzero(check)[bound > cut[check] ** -2]
+        if rows.size:
+            U, sv, Vt = np.linalg.svd(Af[rows], full_matrices=False)
+            keep = sv >= cut[rows, None] * sv[:, :1]
+            filt = np.where(keep, sv / (sv * sv + mu2[rows, None]), 0.0)
+            coef = np.einsum("mji,mj->mi", U, r[rows]) * filt
+            dq[rows] = np.einsum("mki,mk->mi", Vt, coef)
     return dq
 
 
@@ -394,10 +397,14 @@ class _State:
             lam = np.where(taken == 1.0, lam * 0.1, lam * 10.0)
             lam = np.where(np.isnan(taken), lam * 10.0, lam)
             self.lam[rows] = np.clip(lam, _LAMBDA_MIN, _LAMBDA_MAX)
-            self.fails[rows] = np.where(np.isnan(taken), self.fails[rows] + 1, 0)
+            # A row stops after steps that barely help: it sits at the best compromise
+            # of position and orientation (point targets near a singular pose), or
+            # converges too slowly for the chord Jacobian (the polish takes over).
+            slow = cost_new > 0.25 * cost
+            self.fails[rows] = np.where(slow, self.fails[rows] + 1, 0)
             self._update(rows)
             task_met = np.where(w_o[rows] > 0, self.both[rows], self.met[rows])
-            stop = task_met | (self.fails[rows] >= 4) | (self.lam[rows] >= _LAMBDA_MAX)
+            stop = task_met | (self.fails[rows] >= 3) | (self.lam[rows] >= _LAMBDA_MAX)
             self.active[rows[stop]] = False
         return it
 
