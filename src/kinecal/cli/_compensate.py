@@ -90,8 +90,7 @@ def compensate(
     """
     from pathlib import Path
 
-    from kinecal.io import load_model
-    from kinecal.io._programs import detect_program_format
+    from kinecal.io import detect_program_format, load_model
 
     fmt = fmt or detect_program_format(targets) or "csv"
     if not Path(targets).is_file():
@@ -252,8 +251,9 @@ def _program(cal, path: str, fmt: str, tol_mm: float, scale, decimals):
 
     from kinecal.compensation import compensate as run_compensation
     from kinecal.compensation import program_targets
-    from kinecal.io import atomic_write_bytes, atomic_write_text
-    from kinecal.io._programs import (
+    from kinecal.io import (
+        atomic_write_bytes,
+        atomic_write_text,
         program_bytes,
         program_joints,
         read_program,

@@ -77,8 +77,7 @@ def export_urdf(
         geometry_loss,
         has_compliance,
     )
-    from kinecal.io import atomic_write_text, load_model
-    from kinecal.io._urdf_export import robot_yaml_text, urdf_text
+    from kinecal.io import atomic_write_text, load_model, robot_yaml_text, urdf_text
 
     cal = load_model(model_path)
     robot = cal.model.robot
