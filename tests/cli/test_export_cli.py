@@ -13,6 +13,15 @@ from kinecal.io import save_model, write_measurements
 from kinecal.simulation import LaserTracker, experiment2
 
 
+def _in_process(capsys, *args):
+    """Run the command in this process (for error messages: no interpreter start-up)."""
+    from kinecal.cli import main
+
+    code = main(list(args))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
 @pytest.fixture(scope="module")
 def models(tmp_path_factory):
     """A kinematic and a full model of the tracker twin, and held-out data."""
@@ -82,7 +91,7 @@ def test_issue_23_urdf_reproduces_kinecal_evaluate_on_held_out_points(
     assert rms_urdf == pytest.approx(rms_eval, rel=1e-3)  # the issue asks for 1 %
 
 
-def test_full_model_urdf_states_what_it_leaves_out(run_cli, models, tmp_path):
+def test_full_model_urdf_states_what_it_leaves_out(run_cli, models, tmp_path, capsys):
     urdf = tmp_path / "full.urdf"
     res = run_cli(
         "export-urdf",
@@ -104,12 +113,20 @@ def test_full_model_urdf_states_what_it_leaves_out(run_cli, models, tmp_path):
     assert "full model" in comment and "kinematic part" in comment
     assert "j3 = J3 + 1 * J2" in comment
     # Never overwritten without --force.
-    res = run_cli("export-urdf", str(models / "full.yaml"), "--out", str(urdf))
-    assert res.returncode == 2 and "--force" in res.stderr
-    res = run_cli(
-        "export-urdf", str(models / "full.yaml"), "--out", str(urdf), "--set", "x"
+    code, _, err = _in_process(
+        capsys, "export-urdf", str(models / "full.yaml"), "--out", str(urdf)
     )
-    assert res.returncode == 2 and "set 'x' is not in the model" in res.stderr
+    assert code == 2 and "--force" in err
+    code, _, err = _in_process(
+        capsys,
+        "export-urdf",
+        str(models / "full.yaml"),
+        "--out",
+        str(urdf),
+        "--set",
+        "x",
+    )
+    assert code == 2 and "set 'x' is not in the model" in err
 
 
 def test_yaml_dh_loads_as_robot_and_fk_matches_the_model(run_cli, models, tmp_path):
@@ -142,7 +159,7 @@ def test_yaml_dh_loads_as_robot_and_fk_matches_the_model(run_cli, models, tmp_pa
         )
 
 
-def test_fk_model_json_and_errors(run_cli, models):
+def test_fk_model_json_and_errors(run_cli, models, capsys):
     res = run_cli(
         "fk",
         "--model",
@@ -195,5 +212,5 @@ def test_fk_model_json_and_errors(run_cli, models):
             "has 6 joints; got 2",
         ),
     ):
-        res = run_cli(*args)
-        assert res.returncode == 2 and match in res.stderr, (args, res.stderr)
+        code, _, err = _in_process(capsys, *args)
+        assert code == 2 and match in err, (args, err)

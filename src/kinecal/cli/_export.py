@@ -198,18 +198,24 @@ def _loss_poses(cal, data: str | None, targets: str | None):
     from pathlib import Path
 
     from kinecal.compensation import kinematic_params
+    from kinecal.errors import CalibError
     from kinecal.io import read_measurements
     from kinecal.models import ModelInputs
 
-    source = data
-    if source is None:
-        src = cal.info.get("source")
-        if isinstance(src, str) and Path(src).is_file():
-            source = src
-    if source is None:
+    meas = None
+    if data is not None:
+        meas = cal.align(read_measurements(data, cal.model.robot, targets))
+        source = data
+    else:  # the calibration data, when the model names a file that reads
+        source = cal.info.get("source")
+        if isinstance(source, str) and Path(source).is_file():
+            try:
+                meas = cal.align(read_measurements(source, cal.model.robot, targets))
+            except CalibError:
+                meas = None
+    if meas is None:
         q = _random_poses(cal.model.robot, 1000)
         return ModelInputs.make(q), "1000 random poses inside the joint limits", []
-    meas = cal.align(read_measurements(source, cal.model.robot, targets))
     inputs = meas.model_inputs(cal.reference_payload_kg)
     full = cal.metrics(meas)
     geo = replace(cal, params=kinematic_params(cal)).metrics(meas)
