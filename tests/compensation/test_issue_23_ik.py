@@ -133,3 +133,31 @@ def test_solver_shapes_and_a_target_already_met(tracker_twin, rng, n_targets):
     np.testing.assert_array_equal(res.q_ctrl, q)
     with pytest.raises(ValueError, match="q_seed must have shape"):
         solve_ik_lm(cal.model, cal.params, p, q[:, :5])
+
+
+@pytest.mark.parametrize("key", ["fr3-7dof-mdh", "prismatic", "ur10-hayati"])
+def test_compensation_on_other_arms(key, rng):
+    """A redundant 7-joint arm, an arm with a prismatic joint, a UR10 with Hayati rows:
+    point and pose targets near the program joints are met on the full model."""
+    from tests.compensation.test_issue_23_export import _case, _poses
+
+    cal = _case(key, rng, sets=("",), markers=("",))
+    robot = cal.model.robot
+    lim = robot.limits
+    goal = _poses(robot, rng, 40)
+    span = np.where(np.isfinite(lim), lim, [-np.pi, np.pi])
+    goal = np.clip(
+        goal,
+        span[:, 0] + 0.1 * np.ptp(span, axis=1),
+        span[:, 1] - 0.1 * np.ptp(span, axis=1),
+    )
+    out = cal.model.evaluate(cal.params, ModelInputs.make(goal), orientation=True)
+    step = np.where(robot.prismatic, 1e-3, np.radians(0.2))
+    program = goal + step * rng.standard_normal(goal.shape)
+    pose = compensate(cal, out.p_user, program, R_target=out.R_user_cam)
+    point = compensate(cal, out.p_user, program)
+    assert pose.ok.all() and point.ok.all()
+    assert (
+        pose.error[pose.ok].max() < 1e-10 and pose.rotation_error[pose.ok].max() < 1e-9
+    )
+    assert point.error.max() < 1e-10
