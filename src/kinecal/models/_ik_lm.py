@@ -10,15 +10,18 @@ always the model's own):
 
 (``w``, ``length``, weighs 1 rad of orientation like ``w`` metres of position). A *pose*
 target must meet both. A *point* target (a position; the orientation wanted is the seed's)
-must meet the position, and meets the orientation where the two can be met together; near
-a singular pose (the stretched elbow) they cannot, and the position is then met from the
-best compromise of both with the least joint motion.
+must meet the position, and meets the orientation where the pose task is well conditioned;
+near a singular pose (the stretched elbow, a straight wrist) the orientation is given up
+along the nearly singular directions, and the tool turns a little instead of the joints
+moving a lot.
 
 1. Damped least squares (Levenberg-Marquardt per target) on ``[e_p; w e_o]`` with a
    backtracking line search and the geometric Jacobian (``joint_jacobian`` times the
    coupling). That Jacobian omits how the small compliance and transmission terms change
    with ``q``; it is computed again only when a full step fails to shrink the residual
-   ten-fold (a chord method: one Jacobian serves most targets to the end).
+   ten-fold (a chord method: one Jacobian serves most targets to the end). Point
+   targets leave out the directions whose singular value is below 2 % of the largest
+   (a truncated pseudo-inverse). A target stops after three steps that barely help.
 2. Newton polish, where phase 1 left the task unmet: the same damped step, nearly
    undamped, with the exact Jacobian of the full model (central differences of the
    forward map), which converges quadratically next to singular poses too. Point
@@ -68,11 +71,11 @@ class IKResult:
     converged : (N,) bool, the primary task met (position, and orientation for pose
         targets, below tolerance) within the limits.
     iterations : int, the largest number of iterations any target needed.
-    cond : (N,) or None, condition number of the task Jacobian at the solution (the position rows
-        for point targets; position and ``length``-weighted orientation rows for pose
-        targets); inf where it is singular.
-    limit_joint : (N,) int or None, 0-based joint at a limit that blocks an unconverged target
-        (its step points out of the box), -1 for none.
+    cond : (N,) or None, condition number of the task Jacobian at the solution (the
+        position rows for point targets; position and ``length``-weighted orientation
+        rows for pose targets); inf where it is singular.
+    limit_joint : (N,) int or None, 0-based joint at a limit that blocks an unconverged
+        target (its last step pointed out of the box), -1 for none.
     n_iter : (N,) int or None, iterations per target (both phases).
 
     The last three are None from ``solve_ik(method="dls")``.
@@ -225,10 +228,12 @@ def solve_ik_lm(
         orientation the model gives at the seed is wanted, and every target is a point
         target.
     point_only : bool or (N,) bool, optional
-        Point targets: the position must be met, the orientation is met where it can be
-        met together with the position; where it cannot (near a singular pose), the
-        position is met with the least joint motion from the best compromise of both.
-        Default: True where ``R_target`` is omitted, False where it is given.
+        Point targets: the position must be met; the orientation is met where the pose
+        task is well conditioned. Near a singular pose, the directions of the weighted
+        pose Jacobian with a singular value below 2 % of the largest are left out of
+        the first phase, and the polish meets the position with minimum-norm steps:
+        the tool turns a little instead of the joints moving a lot. Default: True where
+        ``R_target`` is omitted, False where it is given.
     set_index, marker_index, load_scale : (N,) per-target model inputs (see ModelInputs).
     limits : (n, 2) controller joint limits [rad, m]; default the robot's.
     tol_position, tol_rotation : the task is met below these [m], [rad].
