@@ -41,8 +41,7 @@ def compensation_cases(
     """Record the compensation cases with ``record(name, seconds, target, **extra)``."""
     from kinecal.compensation import compensate
     from kinecal.identification import Measurements, calibrate
-    from kinecal.simulation import LaserTracker
-    from kinecal.simulation._truth import paper_truth
+    from kinecal.simulation import LaserTracker, paper_truth
 
     rng = np.random.default_rng(23)
     truth = paper_truth(2, seed=23)

@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 from kinecal.identification import CalibratedModel, Measurements, calibrate
-from kinecal.simulation import LaserTracker
-from kinecal.simulation._truth import TrueRobot, paper_truth
+from kinecal.simulation import LaserTracker, TrueRobot, paper_truth
 
 # Joint box of the calibration poses and the targets [deg]: J2 and J3 reach the
 # stretched elbow; the wrist turns widely.
