@@ -374,6 +374,9 @@ def main(argv: list[str] | None = None) -> int:
     q_seed = q + np.radians(0.2) * rng.standard_normal(q.shape)
     t, cr = _median_time(lambda: compensate(cal, p_t, q_seed), max(rep // 2, 1))
     record("compensate_10000", t, "<= 1 s", ok=int(np.sum(cr.status == "ok")))
+    from benchmarks._compensation import compensation_cases
+
+    compensation_cases(record, max(rep // 2, 1), _median_time)
 
     # 6. stripe extraction, 1280 x 1024 images
     sen = paper_sensor()

@@ -34,7 +34,7 @@ def cli() -> None:
 
 
 def _register() -> None:
-    from kinecal.cli import _calibrate, _compensate, _fk, _sensor, _simulate
+    from kinecal.cli import _calibrate, _compensate, _export, _fk, _sensor, _simulate
 
     for cmd in (
         _fk.fk,
@@ -43,6 +43,7 @@ def _register() -> None:
         _calibrate.calibrate,
         _calibrate.evaluate,
         _compensate.compensate,
+        _export.export_urdf,
         _simulate.simulate,
         _simulate.compare,
         _simulate.demo,

@@ -1,4 +1,4 @@
-"""``kinecal compensate`` (DESIGN §11)."""
+"""``kinecal compensate`` (DESIGN §11; program files: issue 23)."""
 
 from __future__ import annotations
 
@@ -9,6 +9,8 @@ import click
 
 from kinecal.cli._common import model_file_option
 
+_FORMATS = ("csv", "fanuc-ls", "urscript", "rapid", "krl")
+
 
 @click.command()
 @click.argument("targets", type=click.Path(dir_okay=False))
@@ -18,7 +20,16 @@ from kinecal.cli._common import model_file_option
     "out_path",
     required=True,
     type=click.Path(dir_okay=False),
-    help="CORRECTED.csv: the same rows with corrected joints, err_mm and status.",
+    help="CORRECTED.csv (the same rows with corrected joints; the program's joints kept in "
+    "j*_program columns; rot_err_deg, dq_max_deg, cond, limit_joint (1-based, 0: none), "
+    "err_mm, status), or the corrected program.",
+)
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(_FORMATS),
+    help="Input format (default: from the extension: .ls FANUC TP, .script URScript, "
+    ".mod/.modx/.prg ABB RAPID, .src/.dat KUKA KRL, else CSV).",
 )
 @click.option(
     "--tol-mm",
@@ -28,9 +39,28 @@ from kinecal.cli._common import model_file_option
     help="A row is reachable when the model's predicted error is below this [mm].",
 )
 @click.option(
+    "--payload-kg",
+    type=float,
+    help="Payload at the tool [kg] (default: the calibration's reference payload).",
+)
+@click.option(
+    "--decimals",
+    type=click.IntRange(0, 12),
+    help="Program files: decimals of the written joints (default: the file's, at least "
+    "FANUC 3, URScript 8, RAPID/KRL 4).",
+)
+@click.option(
+    "--report",
+    "report_path",
+    type=click.Path(dir_okay=False),
+    help="Program files: a CSV with one row per joint target (program and corrected "
+    "joints, predicted error, condition number, status).",
+)
+@click.option(
     "--allow-unreachable",
     is_flag=True,
-    help="Write the file even if some rows are unreachable (they are flagged).",
+    help="Write the file even if some rows are unreachable (they are flagged; in a "
+    "program they keep their joints).",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary.")
 @click.option("--force", is_flag=True, help="Overwrite --out.")
@@ -38,31 +68,144 @@ def compensate(
     targets: str,
     model_path: str,
     out_path: str,
+    fmt: str | None,
     tol_mm: float,
+    payload_kg: float | None,
+    decimals: int | None,
+    report_path: str | None,
     allow_unreachable: bool,
     as_json: bool,
     force: bool,
 ) -> None:
-    """Corrected controller angles so the robot reaches TARGETS.csv.
+    """Corrected controller angles so the robot reaches TARGETS.
 
-    TARGETS has x_mm, y_mm, z_mm (tool point wanted in the user frame; optional qw..qz)
-    and the program's nominal joints j1_deg..jN_deg as seeds (they pick the IK branch).
-    Position-only targets keep the seed's tool orientation. Unreachable or out-of-limit
-    rows are listed and the command exits with code 4 unless --allow-unreachable.
+    TARGETS.csv has x_mm, y_mm, z_mm (tool point wanted in the user frame; optional
+    qw..qz) and the program's nominal joints j1_deg..jN_deg as seeds (they pick the IK
+    branch). A position-only target keeps the seed's tool orientation wherever the pose
+    is not nearly singular. A program file (FANUC .ls, URScript, ABB RAPID, KUKA KRL):
+    each joint target is moved so that the real robot takes the flange pose the nominal
+    robot has at the programmed joints; the rest of the program is kept byte for byte.
+    Unreachable or out-of-limit rows are listed, and the command exits with code 4
+    unless --allow-unreachable.
     """
+    from pathlib import Path
+
+    from kinecal.io import detect_program_format, load_model
+
+    fmt = fmt or detect_program_format(targets) or "csv"
+    if not Path(targets).is_file():
+        raise FileNotFoundError(f"{targets}: file not found.")
+    cal = load_model(model_path)
+    scale = _load_scale(cal, payload_kg)
+    if fmt == "csv":
+        res, rows = _csv(cal, targets, tol_mm, scale)
+    else:
+        res, rows = _program(cal, targets, fmt, tol_mm, scale, decimals)
+    bad = [i for i, s in enumerate(res.status) if s != "ok"]
+    for i in bad[:50]:
+        joint = ""
+        if res.limit_joint[i] >= 0:
+            joint = f" (J{res.limit_joint[i] + 1} beyond its limit)"
+        click.echo(
+            f"{targets}: {rows.where[i]}: {res.status[i]}{joint}: predicted error "
+            f"{res.error[i] * 1e3:.4f} mm",
+            err=True,
+        )
+    if len(bad) > 50:
+        click.echo(f"... and {len(bad) - 50} more rows", err=True)
+    ok = res.status == "ok"
+    summary = {
+        "n": len(res.status),
+        "ok": int(ok.sum()),
+        "unreachable": len(bad),
+        "max_err_mm": float(res.error[ok].max() * 1e3) if ok.any() else None,
+        "max_dq_deg": float(_dq_deg(res)[ok].max()) if ok.any() else None,
+        "out": out_path,
+    }
+    if bad and not allow_unreachable:
+        from kinecal.cli import EXIT_UNREACHABLE
+
+        summary["out"] = None
+        click.echo(
+            json.dumps(summary)
+            if as_json
+            else f"{len(bad)} of {summary['n']} targets cannot be reached; nothing "
+            "written (use --allow-unreachable to write them flagged)."
+        )
+        sys.exit(EXIT_UNREACHABLE)
+    rows.write(out_path, report_path, force)
+    if as_json:
+        click.echo(json.dumps(summary))
+    else:
+        click.echo(
+            f"{summary['ok']} of {summary['n']} targets compensated; largest predicted "
+            f"error {summary['max_err_mm'] or 0:.6f} mm; wrote {out_path}"
+        )
+
+
+def _load_scale(cal, payload_kg):
+    from kinecal.errors import DataError
+
+    if payload_kg is None:
+        return None
+    if not payload_kg >= 0:
+        raise DataError(f"--payload-kg must be >= 0; got {payload_kg}.")
+    ref = cal.reference_payload_kg
+    if ref is None:
+        if cal.model.spec.load:
+            raise DataError(
+                "the model has no reference payload (its compliance is per unit of the "
+                "calibration's load): --payload-kg cannot be used."
+            )
+        return None
+    return payload_kg / ref
+
+
+def _dq_deg(res):
     import numpy as np
 
-    from kinecal.cli import EXIT_UNREACHABLE
-    from kinecal.compensation import compensate as run_compensation
-    from kinecal.io import atomic_write_text, load_model, read_compensation_targets
+    return np.degrees(np.abs(res.joint_change)).max(axis=1)
 
-    cal = load_model(model_path)
+
+class _Output:
+    """What a run writes, and how each row is named in messages."""
+
+    def __init__(self, where, write):
+        self.where = where
+        self.write = write
+
+
+def _diagnostics(res, i: int) -> list[str]:
+    """The diagnostic columns of row i: every one numeric, the status last."""
+    import numpy as np
+
+    return [
+        f"{np.degrees(res.rotation_error[i]):.6f}",
+        f"{_dq_deg(res)[i]:.6f}",
+        f"{res.cond[i]:.4g}",
+        str(int(res.limit_joint[i]) + 1),  # 1-based; 0: none
+        f"{res.error[i] * 1e3:.6f}",
+        str(res.status[i]),
+    ]
+
+
+# err_mm and status stay the last two columns, as before issue 23.
+_DIAG_HEADER = ["rot_err_deg", "dq_max_deg", "cond", "limit_joint", "err_mm", "status"]
+
+
+def _csv(cal, targets: str, tol_mm: float, scale):
+    import numpy as np
+
+    from kinecal.compensation import compensate as run_compensation
+    from kinecal.io import atomic_write_text, read_compensation_targets
+
     tg = read_compensation_targets(targets, cal.model.robot)
     spec = cal.model.spec
     set_index = _map_labels(tg.set_labels, tg.set_index, spec.sets, targets, "set")
     marker_index = _map_labels(
         tg.marker_labels, tg.marker_index, spec.markers, targets, "marker"
     )
+    N = tg.p.shape[0]
     res = run_compensation(
         cal,
         tg.p,
@@ -70,53 +213,103 @@ def compensate(
         R_target=tg.R,
         set_index=set_index,
         marker_index=marker_index,
+        load_scale=None if scale is None else np.full(N, scale),
         tol=tol_mm * 1e-3,
     )
-    bad = np.flatnonzero(~res.ok)
-    for i in bad[:50]:
-        click.echo(
-            f"{targets}: line {tg.table.lines[i]}: {res.status[i]}: target "
-            f"({tg.p[i, 0] * 1e3:.3f}, {tg.p[i, 1] * 1e3:.3f}, {tg.p[i, 2] * 1e3:.3f}) mm, "
-            f"predicted error {res.error[i] * 1e3:.4f} mm",
-            err=True,
-        )
-    if bad.size > 50:
-        click.echo(f"... and {bad.size - 50} more rows", err=True)
-    summary = {
-        "n": int(tg.p.shape[0]),
-        "ok": int(res.ok.sum()),
-        "unreachable": int(bad.size),
-        "max_err_mm": float(res.error[res.ok].max() * 1e3) if res.ok.any() else None,
-        "out": out_path,
-    }
-    if bad.size and not allow_unreachable:
-        summary["out"] = None
-        click.echo(
-            json.dumps(summary)
-            if as_json
-            else f"{bad.size} of {summary['n']} targets cannot be reached; nothing written "
-            "(use --allow-unreachable to write them flagged)."
-        )
-        sys.exit(EXIT_UNREACHABLE)
     header = list(tg.table.header)
     cols = {c: header.index(c) for c in tg.joint_columns}
-    lines = [",".join([*header, "err_mm", "status"])]
-    for i, row in enumerate(tg.table.rows):
-        out = list(row)
-        for k, c in enumerate(tg.joint_columns):
-            unit = c.rsplit("_", 1)[1]
-            v = res.q_ctrl[i, k]
-            val = {"deg": np.degrees(v), "rad": v, "mm": v * 1e3, "m": v}[unit]
-            out[cols[c]] = f"{val:.8f}"
-        lines.append(",".join([*out, f"{res.error[i] * 1e3:.6f}", str(res.status[i])]))
-    atomic_write_text(out_path, "\n".join(lines) + "\n", force=force)
-    if as_json:
-        click.echo(json.dumps(summary))
-    else:
+    units = [c.rsplit("_", 1)[1] for c in tg.joint_columns]
+    to_file = {"deg": 180.0 / np.pi, "rad": 1.0, "mm": 1e3, "m": 1.0}
+
+    def write(out_path, _report, force):
+        lines = [
+            ",".join(
+                [*header, *(f"{c}_program" for c in tg.joint_columns), *_DIAG_HEADER]
+            )
+        ]
+        for i, row in enumerate(tg.table.rows):
+            out = list(row)
+            for k, c in enumerate(tg.joint_columns):
+                out[cols[c]] = f"{res.q_ctrl[i, k] * to_file[units[k]]:.8f}"
+            lines.append(
+                ",".join(
+                    [
+                        *out,
+                        *(row[cols[c]] for c in tg.joint_columns),
+                        *_diagnostics(res, i),
+                    ]
+                )
+            )
+        atomic_write_text(out_path, "\n".join(lines) + "\n", force=force)
+
+    where = [f"line {ln}" for ln in tg.table.lines]
+    return res, _Output(where, write)
+
+
+def _program(cal, path: str, fmt: str, tol_mm: float, scale, decimals):
+    import numpy as np
+
+    from kinecal.compensation import compensate as run_compensation
+    from kinecal.compensation import program_targets
+    from kinecal.io import (
+        atomic_write_bytes,
+        atomic_write_text,
+        program_bytes,
+        program_joints,
+        read_program,
+        write_program,
+        written_joints,
+    )
+    from kinecal.models import ModelInputs
+
+    robot = cal.model.robot
+    prog = read_program(path, fmt)
+    q_prog = program_joints(prog, robot)
+    N = q_prog.shape[0]
+    p_t, R_t = program_targets(cal, q_prog)
+    ls = None if scale is None else np.full(N, scale)
+    res = run_compensation(
+        cal, p_t, q_prog, R_target=R_t, load_scale=ls, tol=tol_mm * 1e-3
+    )
+    if prog.skipped:
         click.echo(
-            f"{summary['ok']} of {summary['n']} targets compensated; "
-            f"largest predicted error {summary['max_err_mm'] or 0:.6f} mm; wrote {out_path}"
+            f"{path}: {prog.skipped} Cartesian targets left as they are (only joint "
+            "targets are compensated).",
+            err=True,
         )
+    keep = res.status != "ok"
+    text = write_program(prog, res.q_ctrl, robot, decimals=decimals, keep=keep)
+    # The predicted error of what is written (the joints rounded to the file's decimals).
+    q_w = written_joints(prog, text, robot)
+    out = cal.model.evaluate(cal.params, ModelInputs.make(q_w, load_scale=ls)).p_user
+    err_w = np.linalg.norm(out - p_t, axis=1)
+
+    def write(out_path, report_path, force):
+        if report_path:
+            head = [
+                "point",
+                "line",
+                *(f"j{k + 1}_program" for k in range(robot.n_joints)),
+            ]
+            head += [f"j{k + 1}" for k in range(robot.n_joints)]
+            lines = [",".join([*head, "err_written_mm", *_DIAG_HEADER])]
+            deg = np.where(robot.prismatic, 1e3, 180.0 / np.pi)
+            for i, pt in enumerate(prog.points):
+                vals = [f"{v:.8f}" for v in (*(q_prog[i] * deg), *(q_w[i] * deg))]
+                name = pt.name.replace(",", ";").replace('"', "'")
+                row = [name, str(pt.line), *vals, f"{err_w[i] * 1e3:.6f}"]
+                lines.append(",".join([*row, *_diagnostics(res, i)]))
+            atomic_write_text(report_path, "\n".join(lines) + "\n", force=force)
+        atomic_write_bytes(out_path, program_bytes(text), force=force)
+        click.echo(
+            f"{path}: {int((~keep).sum())} joint targets corrected; largest error as "
+            f"written {err_w[~keep].max() * 1e3 if (~keep).any() else 0:.4f} mm "
+            "(the joints rounded to the file's decimals).",
+            err=True,
+        )
+
+    where = [f"line {pt.line} ({pt.name})" for pt in prog.points]
+    return res, _Output(where, write)
 
 
 def _map_labels(labels, index, own, path, what):

@@ -3,8 +3,12 @@
 Given tool points (optionally with orientations) wanted in the user frame and the program's
 nominal joints as seeds (they pick the IK branch), find controller angles that the
 calibrated model - kinematics, transmission errors and compliance - maps onto the targets.
-Position-only targets keep the tool orientation the robot has at the seed. The output is
-what a controller loads: controller angles, coupling undone (FANUC J3 from the horizontal).
+
+A point target (position only) is met exactly and keeps the tool orientation the model
+gives at the seed as closely as the position allows (exactly, away from singular poses).
+A pose target (with orientation) must meet both. The output is what a controller loads:
+controller angles, coupling undone (FANUC J3 from the horizontal), with per target the
+predicted residual, the condition number of the task there and the joint change.
 
 .. math:: q^* = \\arg\\min_q \\| p_{model}(q) - p_{target} \\|, \\quad q \\in [q_{lo}, q_{hi}]
 """
@@ -17,10 +21,10 @@ import numpy as np
 
 from kinecal.errors import DataError
 from kinecal.identification import CalibratedModel
-from kinecal.models import ModelInputs, solve_ik
-from kinecal.typing import Float
+from kinecal.models import ModelInputs, solve_ik_lm
+from kinecal.typing import ArrayLike, Float
 
-__all__ = ["STATUS", "CompensationResult", "compensate"]
+__all__ = ["STATUS", "CompensationResult", "compensate", "program_targets"]
 
 STATUS = ("ok", "unreachable", "joint_limit")
 
@@ -32,32 +36,48 @@ class CompensationResult:
     Attributes
     ----------
     q_ctrl : (N, n) corrected controller joint values [rad; m for prismatic joints].
+    q_program : (N, n) the program's joints (the seeds) [rad; m].
     error : (N,) position error the calibrated model predicts at ``q_ctrl`` [m].
-    rotation_error : (N,) orientation error the model predicts [rad].
-    status : (N,) str: 'ok', 'unreachable' (error above tolerance) or 'joint_limit'
-        (the solution would need a joint beyond its limit).
-    iterations : int
+    rotation_error : (N,) orientation error the model predicts [rad] (for point targets:
+        how far the tool turned from the seed's orientation to meet the point).
+    status : (N,) str: 'ok', 'unreachable' (out of reach of the model, joint limits or
+        not) or 'joint_limit' (reachable only with a joint beyond its limit: see
+        ``limit_joint``).
+    limit_joint : (N,) int, 0-based joint that would have to go furthest beyond its limit
+        for a 'joint_limit' target, else -1.
+    cond : (N,) condition number of the task Jacobian at the solution (position rows for
+        point targets).
+    iterations : int, the most iterations any target needed.
     """
 
     q_ctrl: Float
+    q_program: Float
     error: Float
     rotation_error: Float
     status: np.ndarray
+    limit_joint: np.ndarray
+    cond: Float
     iterations: int
 
     @property
     def ok(self) -> np.ndarray:
         return self.status == "ok"
 
+    @property
+    def joint_change(self) -> Float:
+        """``q_ctrl - q_program`` (N, n) [rad; m]."""
+        return self.q_ctrl - self.q_program
+
 
 def compensate(
     calibrated: CalibratedModel,
-    p_target: Float,
-    q_seed: Float,
+    p_target: ArrayLike,
+    q_seed: ArrayLike,
     *,
-    R_target: Float | None = None,
+    R_target: ArrayLike | None = None,
     set_index: np.ndarray | None = None,
     marker_index: np.ndarray | None = None,
+    load_scale: ArrayLike | None = None,
     tol: float = 1e-6,
     tol_rotation: float = 1e-6,
     max_iter: int = 50,
@@ -68,10 +88,19 @@ def compensate(
     ----------
     calibrated : CalibratedModel
     p_target : (N, 3) wanted tool points in the user frame [m].
-    q_seed : (N, n) the program's nominal controller angles [rad].
-    R_target : (N, 3, 3), optional wanted tool orientations; default: keep the seed's.
-    set_index, marker_index : which user frame / tool marker each row uses (default 0).
-    tol, tol_rotation : a row is 'ok' when the model error is below these [m, rad].
+    q_seed : (N, n) the program's nominal controller angles [rad; m].
+    R_target : (N, 3, 3), optional wanted tool orientations in the user frame (pose
+        targets); default: point targets, keeping the seed's orientation where possible.
+    set_index, marker_index : (N,) which user frame / tool marker each row uses (default 0).
+    load_scale : (N,) payload relative to the model's reference payload (default 1).
+    tol, tol_rotation : a row is 'ok' when the model error is below these [m, rad]
+        (orientation only for pose targets).
+    max_iter : iterations of the damped least-squares phase of the IK.
+
+    Raises
+    ------
+    DataError
+        Wrong shapes or non-finite values.
     """
     model = calibrated.model
     n = model.n_joints
@@ -81,40 +110,97 @@ def compensate(
         raise DataError(f"p_target must have shape (N, 3); got {p.shape}.")
     if q0.shape != (p.shape[0], n):
         raise DataError(f"q_seed must have shape ({p.shape[0]}, {n}); got {q0.shape}.")
-    lim = model.robot.limits
-    outside = np.any((q0 < lim[:, 0]) | (q0 > lim[:, 1]), axis=1)
-    q_start = np.clip(q0, lim[:, 0], lim[:, 1])
-    R_t = R_target
-    if R_t is None:
-        inp = ModelInputs.make(q_start, set_index=set_index, marker_index=marker_index)
-        R_t = model.evaluate(calibrated.params, inp, orientation=True).R_user_cam
-    res = solve_ik(
+    if not (np.isfinite(p).all() and np.isfinite(q0).all()):
+        raise DataError("p_target and q_seed must be finite.")
+    ls = None if load_scale is None else np.asarray(load_scale, np.float64).reshape(-1)
+    res = solve_ik_lm(
         model,
         calibrated.params,
         p,
-        q_start,
-        R_target=R_t,
+        q0,
+        R_target=R_target,
         set_index=set_index,
         marker_index=marker_index,
-        tol_position=min(tol, 1e-10) if tol > 0 else 1e-10,
-        tol_rotation=min(tol_rotation, 1e-9),
+        load_scale=ls,
+        tol_position=min(tol, 1e-11),
+        tol_rotation=min(tol_rotation, 1e-10),
         max_iter=max_iter,
     )
-    status = np.full(p.shape[0], "ok", dtype=object)
-    bad_err = (res.position_error > tol) | (res.rotation_error > tol_rotation)
-    status[bad_err] = "unreachable"
-    # A solution pinned to a limit that still misses is a limit problem, not reach.
-    at_limit = np.any(
-        np.isclose(res.q_ctrl, lim[:, 0], atol=1e-9)
-        | np.isclose(res.q_ctrl, lim[:, 1], atol=1e-9),
-        axis=1,
-    )
-    status[bad_err & (at_limit | outside)] = "joint_limit"
-    status[~res.within_limits] = "joint_limit"
+    assert res.cond is not None
+    pose = R_target is not None
+    ok = (res.position_error <= tol) & res.within_limits
+    if pose:
+        ok &= res.rotation_error <= tol_rotation
+    status = np.where(ok, "ok", "unreachable").astype(object)
+    limit_joint = np.full(ok.shape, -1)
+    bad = np.flatnonzero(~ok)
+    if bad.size:
+        # Beyond the limits or out of reach? Solve the failed rows again without limits:
+        # where that meets the target, the joint furthest outside its limit is to blame.
+        free = solve_ik_lm(
+            model,
+            calibrated.params,
+            p[bad],
+            res.q_ctrl[bad],
+            R_target=None if R_target is None else np.asarray(R_target)[bad],
+            point_only=R_target is None,
+            set_index=None if set_index is None else np.asarray(set_index)[bad],
+            marker_index=None
+            if marker_index is None
+            else np.asarray(marker_index)[bad],
+            load_scale=None if ls is None else ls[bad],
+            limits=np.tile([-np.inf, np.inf], (n, 1)),
+            tol_position=min(tol, 1e-11),
+            tol_rotation=min(tol_rotation, 1e-10),
+            max_iter=max_iter,
+        )
+        lim = model.robot.limits
+        outside = np.maximum(lim[:, 0] - free.q_ctrl, free.q_ctrl - lim[:, 1])
+        reached = free.position_error <= tol
+        if pose:
+            reached &= free.rotation_error <= tol_rotation
+        blame = reached & (outside.max(axis=1) > 0)
+        limit_joint[bad[blame]] = np.argmax(outside[blame], axis=1)
+        status[bad[blame]] = "joint_limit"
     return CompensationResult(
         res.q_ctrl,
+        q0.copy(),
         res.position_error,
         res.rotation_error,
         status.astype(str),
+        limit_joint,
+        res.cond,
         res.iterations,
     )
+
+
+def program_targets(
+    calibrated: CalibratedModel,
+    q_program: ArrayLike,
+    *,
+    set_index: np.ndarray | None = None,
+    marker_index: np.ndarray | None = None,
+) -> tuple[Float, Float]:
+    """Where a program's joint targets are meant to put the tool: the pose the *nominal*
+    robot has there (the program was taught or planned on it), hanging from the
+    calibrated base and carrying the calibrated tool.
+
+    That is the calibrated model with its joint rows nominal and no compliance or
+    transmission terms. Compensating to these poses (position and orientation) makes the
+    real flange take the nominal flange pose, so any tool defined on the controller
+    lands where the program meant.
+
+    Returns
+    -------
+    p_user : (N, 3) [m] and R_user_cam : (N, 3, 3), in the user frame.
+    """
+    from kinecal.compensation._export import kinematic_params
+
+    model = calibrated.model
+    x = kinematic_params(calibrated)
+    joints = model.layout.group_indices("joint")
+    x[joints] = model.nominal[joints]
+    inp = ModelInputs.make(q_program, set_index=set_index, marker_index=marker_index)
+    out = model.evaluate(x, inp, orientation=True)
+    assert out.R_user_cam is not None
+    return out.p_user, out.R_user_cam

@@ -23,6 +23,17 @@ from kinecal.io._files import (
     write_json,
 )
 from kinecal.io._model_file import FORMAT_VERSION, load_model, model_to_dict, save_model
+from kinecal.io._programs import (
+    PROGRAM_FORMATS,
+    Program,
+    ProgramPoint,
+    detect_program_format,
+    program_bytes,
+    program_joints,
+    read_program,
+    write_program,
+    written_joints,
+)
 from kinecal.io._sensor_files import (
     image_files,
     load_sensor,
@@ -33,14 +44,19 @@ from kinecal.io._sensor_files import (
     write_image,
     write_stripes,
 )
+from kinecal.io._urdf_export import robot_yaml_text, urdf_text
 
 __all__ = [
     "FORMAT_VERSION",
+    "PROGRAM_FORMATS",
     "CompensationTargets",
+    "Program",
+    "ProgramPoint",
     "Table",
     "Targets",
     "atomic_write_bytes",
     "atomic_write_text",
+    "detect_program_format",
     "file_sha256",
     "image_files",
     "joint_column_names",
@@ -49,18 +65,25 @@ __all__ = [
     "measurements_to_csv",
     "model_to_dict",
     "prepare_output_dir",
+    "program_bytes",
+    "program_joints",
     "read_cloud",
     "read_compensation_targets",
     "read_image",
     "read_measurements",
+    "read_program",
     "read_table",
     "read_targets",
+    "robot_yaml_text",
     "save_model",
     "save_sensor",
+    "urdf_text",
     "write_cloud",
     "write_image",
     "write_json",
     "write_measurements",
+    "write_program",
     "write_stripes",
     "write_targets",
+    "written_joints",
 ]

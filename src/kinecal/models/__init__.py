@@ -10,6 +10,7 @@ from kinecal.models._compliance import (
 )
 from kinecal.models._definition import ModelDefinition
 from kinecal.models._ik import IKResult, solve_ik
+from kinecal.models._ik_lm import solve_ik_lm
 from kinecal.models._inputs import ModelInputs
 from kinecal.models._kernel import compiled_kernel_available
 from kinecal.models._layout import KINDS, ParameterLayout, ParamKind, ParamSpec
@@ -45,4 +46,5 @@ __all__ = [
     "parallel_pairs",
     "set_kernel_threads",
     "solve_ik",
+    "solve_ik_lm",
 ]

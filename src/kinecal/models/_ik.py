@@ -1,5 +1,8 @@
 """Vectorised numerical inverse kinematics on a calibration model.
 
+Two methods share :func:`solve_ik`: this module's plain damped least squares ('dls', pose
+planning from rough seeds) and :mod:`kinecal.models._ik_lm` ('lm', compensation).
+
 Solves ``model(q_ctrl) = target`` for N targets at once by damped least squares
 (Levenberg-Marquardt per target): each iteration evaluates the model with every error term
 and takes ``dq = C^-1 J^T (J J^T + lambda^2 I)^-1 e`` with the geometric Jacobian ``J``
@@ -12,38 +15,17 @@ Orientation errors are weighted by a characteristic length so a 1 mrad error cou
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
 from kinecal.geometry import so3_log
+from kinecal.models._ik_lm import IKResult, solve_ik_lm
 from kinecal.models._inputs import ModelInputs
 from kinecal.models._model import CalibrationModel
 from kinecal.typing import Float
 
 __all__ = ["IKResult", "solve_ik"]
-
-
-@dataclass(frozen=True)
-class IKResult:
-    """Joint solutions and how well they reach the targets.
-
-    Attributes
-    ----------
-    q_ctrl : (N, n) controller joint values [rad].
-    position_error : (N,) remaining position error [m].
-    rotation_error : (N,) remaining orientation error [rad] (0 if not constrained).
-    within_limits : (N,) bool, every joint inside its limits.
-    converged : (N,) bool, errors below tolerance and within limits.
-    iterations : int
-    """
-
-    q_ctrl: Float
-    position_error: Float
-    rotation_error: Float
-    within_limits: np.ndarray
-    converged: np.ndarray
-    iterations: int
 
 
 def solve_ik(
@@ -61,6 +43,8 @@ def solve_ik(
     tol_rotation: float = 1e-9,
     max_iter: int = 50,
     length: float = 0.5,
+    method: Literal["dls", "lm"] = "dls",
+    point_only: np.ndarray | bool | None = None,
 ) -> IKResult:
     """Controller angles that put the cam origin on ``p_target`` (and cam axes on ``R_target``).
 
@@ -76,7 +60,34 @@ def solve_ik(
     limits : (n, 2) controller joint limits [rad]; default the robot's.
     tol_position, tol_rotation : convergence tolerances [m], [rad].
     length : characteristic length weighting orientation errors [m].
+    method : {'dls', 'lm'}
+        'dls': plain damped least squares with the geometric Jacobian, for rough seeds
+        (pose planning: the simulated experiments are defined by its results, so it
+        stays as it is). 'lm': Levenberg-Marquardt with a line search, a Newton polish
+        on the exact Jacobian, point targets and per-target diagnostics, for seeds near
+        the solution (compensation; :func:`kinecal.models._ik_lm.solve_ik_lm`).
+    point_only : with 'lm': targets whose orientation is met only where it can be met
+        together with the position (default: all when ``R_target`` is omitted).
     """
+    if method == "lm":
+        return solve_ik_lm(
+            model,
+            params,
+            p_target,
+            q_seed,
+            R_target=R_target,
+            point_only=point_only,
+            set_index=set_index,
+            marker_index=marker_index,
+            load_scale=load_scale,
+            limits=limits,
+            tol_position=tol_position,
+            tol_rotation=tol_rotation,
+            max_iter=max_iter,
+            length=length,
+        )
+    if method != "dls":
+        raise ValueError(f"method must be 'dls' or 'lm'; got {method!r}.")
     q = np.array(q_seed, dtype=np.float64)
     N = q.shape[0]
     lim = model.robot.limits if limits is None else np.asarray(limits, dtype=np.float64)

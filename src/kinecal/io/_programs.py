@@ -1,0 +1,361 @@
+"""Joint targets in robot programs: read them, write corrected values back in place.
+
+Only the numbers of joint targets are touched; every other byte of the program is kept
+(line ends, comments, Cartesian targets, speeds). Supported (one text format per vendor
+family, joint targets only):
+
+==========  =========================  ==========================================  =====
+format      files                      joint target                                unit
+==========  =========================  ==========================================  =====
+fanuc-ls    FANUC TP ASCII ``.ls``     ``/POS`` records ``P[n]{ GP1: ... J1= x``   deg
+                                       ``deg, ... }`` (joint representation; the
+                                       first motion group)
+urscript    URScript ``.script``       ``movej([q1, ..., q6], ...)`` and the same  rad
+                                       first argument of ``movel``, ``movep``,
+                                       ``servoj``
+rapid       ABB RAPID ``.mod/.modx/``  ``jointtarget name := [[j1, ..., j6],``     deg
+            ``.prg``                   ``[eax]]`` and ``MoveAbsJ [[...], [...]]``
+krl         KUKA KRL ``.src/.dat``     ``{A1 x, A2 x, ...}`` aggregates (AXIS,     deg
+                                       E6AXIS), external axes E1.. kept
+==========  =========================  ==========================================  =====
+
+Prismatic joints are in mm in every format but URScript (metres). Cartesian targets
+(FANUC ``X = .. mm``, URScript ``p[...]``, RAPID ``robtarget``, KRL ``{X .., A ..}``
+frames) are left as they are and counted; compensating them needs the controller's user
+and tool frames, which kinecal does not know.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from kinecal.errors import DataError
+from kinecal.robot import RobotDescription
+from kinecal.typing import Float
+
+__all__ = [
+    "PROGRAM_FORMATS",
+    "Program",
+    "ProgramPoint",
+    "detect_program_format",
+    "program_bytes",
+    "program_joints",
+    "read_program",
+    "write_program",
+    "written_joints",
+]
+
+PROGRAM_FORMATS = ("fanuc-ls", "urscript", "rapid", "krl")
+_EXTENSIONS = {
+    ".ls": "fanuc-ls",
+    ".script": "urscript",
+    ".urscript": "urscript",
+    ".mod": "rapid",
+    ".modx": "rapid",
+    ".prg": "rapid",
+    ".src": "krl",
+    ".dat": "krl",
+}
+_UNIT = {"fanuc-ls": "deg", "urscript": "rad", "rapid": "deg", "krl": "deg"}
+_MIN_DECIMALS = {"fanuc-ls": 3, "urscript": 8, "rapid": 4, "krl": 4}
+_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+
+
+@dataclass(frozen=True)
+class ProgramPoint:
+    """One joint target of a program.
+
+    Attributes
+    ----------
+    name : how the program names it ('P[3]', 'jpos10', 'movej', 'XP1', ...).
+    line : 1-based line of its first joint value.
+    spans : (start, end) character spans of the joint values j1..jN in the text; for
+        FANUC the span holds the blanks before the number (its column width).
+    values : the values as written [deg or rad; mm or m].
+    decimals : decimals of each value as written.
+    """
+
+    name: str
+    line: int
+    spans: tuple[tuple[int, int], ...]
+    values: tuple[float, ...]
+    decimals: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class Program:
+    """A program's text and its joint targets.
+
+    Attributes
+    ----------
+    path, format : where it came from, one of :data:`PROGRAM_FORMATS`.
+    text : the whole program (decoded so that it encodes back to the same bytes).
+    points : joint targets in the order of the text.
+    skipped : Cartesian targets found and left as they are.
+    """
+
+    path: str
+    format: str
+    text: str
+    points: tuple[ProgramPoint, ...]
+    skipped: int
+
+
+def detect_program_format(path: str | Path) -> str | None:
+    """The program format of a file by its extension, or None (a CSV of targets)."""
+    return _EXTENSIONS.get(Path(path).suffix.lower())
+
+
+def _decimals(token: str) -> int:
+    m = re.match(r"[-+]?\d*\.?(\d*)", token.strip())
+    return len(m.group(1)) if m and "." in token else 0
+
+
+def _line(text: str, pos: int) -> int:
+    return text.count("\n", 0, pos) + 1
+
+
+def _point(text: str, name: str, spans: list[tuple[int, int]]) -> ProgramPoint:
+    vals = []
+    for a, b in spans:
+        try:
+            vals.append(float(text[a:b]))
+        except ValueError:  # pragma: no cover - the patterns only match numbers
+            raise DataError(
+                f"line {_line(text, a)}: not a number {text[a:b]!r}."
+            ) from None
+    return ProgramPoint(
+        name,
+        _line(text, spans[0][0]),
+        tuple(spans),
+        tuple(vals),
+        tuple(_decimals(text[a:b]) for a, b in spans),
+    )
+
+
+def _fanuc(text: str) -> tuple[list[ProgramPoint], int]:
+    pos = re.search(r"^/POS\b", text, re.M)
+    if pos is None:
+        return [], 0
+    end = re.search(r"^/END\b", text[pos.end() :], re.M)
+    stop = pos.end() + end.start() if end else len(text)
+    points, skipped = [], 0
+    for rec in re.finditer(r"(P\[[^\]]*\])\s*\{(.*?)\};", text[pos.end() : stop], re.S):
+        body_at = pos.end() + rec.start(2)
+        body = rec.group(2)
+        g1 = re.search(r"GP1\s*:(.*?)(?=GP\d+\s*:|\Z)", body, re.S)
+        if g1 is None:
+            continue
+        seg, seg_at = g1.group(1), body_at + g1.start(1)
+        joints = list(re.finditer(rf"\bJ(\d+)\s*=(\s*{_NUM})\s*(?:deg|mm)", seg))
+        if not joints:
+            skipped += 1
+            continue
+        order = [int(m.group(1)) for m in joints]
+        if order != list(range(1, len(order) + 1)):
+            raise DataError(
+                f"line {_line(text, seg_at)}: {rec.group(1)} lists joints {order}; "
+                "expected J1, J2, ... in order."
+            )
+        spans = [(seg_at + m.start(2), seg_at + m.end(2)) for m in joints]
+        points.append(_point(text, rec.group(1), spans))
+    return points, skipped
+
+
+def _bracket_numbers(text: str, start: int) -> list[tuple[int, int]] | None:
+    """Spans of the numbers of the bracket list opening at ``start`` ('['), or None
+    when the list holds anything but numbers."""
+    close = text.find("]", start)
+    if close < 0:
+        return None
+    body = text[start + 1 : close]
+    spans = []
+    for part in re.finditer(r"[^,]+", body):
+        tok = part.group(0)
+        m = re.fullmatch(rf"\s*({_NUM})\s*", tok)
+        if m is None:
+            return None
+        spans.append(
+            (start + 1 + part.start() + m.start(1), start + 1 + part.start() + m.end(1))
+        )
+    return spans
+
+
+def _urscript(text: str) -> tuple[list[ProgramPoint], int]:
+    points, skipped = [], 0
+    for m in re.finditer(r"\b(movej|movel|movep|servoj)\s*\(\s*(p?)\[", text):
+        if m.group(2):  # a pose p[x, y, z, rx, ry, rz]
+            skipped += 1
+            continue
+        spans = _bracket_numbers(text, m.end() - 1)
+        if spans:
+            points.append(_point(text, m.group(1), spans))
+    return points, skipped
+
+
+def _rapid(text: str) -> tuple[list[ProgramPoint], int]:
+    points = []
+    pat = r"\bjointtarget\s+(\w+)\s*:=\s*\[\s*\[|\b(MoveAbsJ)\s*\[\s*\["
+    for m in re.finditer(pat, text, re.I):
+        spans = _bracket_numbers(text, m.end() - 1)
+        if spans:
+            points.append(_point(text, m.group(1) or m.group(2), spans))
+    skipped = len(re.findall(r"\brobtarget\s+\w+\s*:=", text, re.I))
+    return points, skipped
+
+
+def _krl(text: str) -> tuple[list[ProgramPoint], int]:
+    points, skipped = [], 0
+    for m in re.finditer(r"\{([^{}]*)\}", text):
+        body = m.group(1)
+        if re.search(r"\bX\s+" + _NUM, body):  # a Cartesian FRAME/POS/E6POS
+            skipped += 1
+            continue
+        axes = list(re.finditer(rf"\bA(\d)\s+({_NUM})", body))
+        if not axes:
+            continue
+        order = [int(a.group(1)) for a in axes]
+        if order != list(range(1, len(order) + 1)):
+            continue
+        decl = re.search(r"(\w+)\s*=\s*$", text[max(0, m.start() - 80) : m.start()])
+        name = decl.group(1) if decl else "AXIS"
+        at = m.start(1)
+        points.append(
+            _point(text, name, [(at + a.start(2), at + a.end(2)) for a in axes])
+        )
+    return points, skipped
+
+
+_READERS = {"fanuc-ls": _fanuc, "urscript": _urscript, "rapid": _rapid, "krl": _krl}
+
+
+def read_program(path: str | Path, fmt: str | None = None) -> Program:
+    """Read a program's joint targets (see the module docstring for the formats).
+
+    Raises
+    ------
+    DataError
+        Unknown format, unreadable file, a malformed joint target, no joint target.
+    """
+    p = Path(path)
+    fmt = fmt or detect_program_format(p)
+    if fmt not in _READERS:
+        raise DataError(
+            f"{p}: unknown program format {fmt!r}; expected one of {', '.join(PROGRAM_FORMATS)}."
+        )
+    try:
+        # Bytes that are not UTF-8 (Shift-JIS comments, Latin-1) survive as surrogates.
+        text = p.read_bytes().decode("utf-8", errors="surrogateescape")
+    except OSError as exc:
+        raise DataError(f"{p}: cannot read program ({exc.strerror}).") from exc
+    try:
+        points, skipped = _READERS[fmt](text)
+    except DataError as exc:
+        raise DataError(f"{p}: {exc}") from None
+    if not points:
+        raise DataError(f"{p}: no joint target found ({fmt}).")
+    return Program(str(p), fmt, text, tuple(points), skipped)
+
+
+def _scale(prog: Program, robot: RobotDescription) -> Float:
+    """Factors (n,) from the file's units to SI, per joint."""
+    pris = robot.prismatic
+    if _UNIT[prog.format] == "rad":
+        return np.ones(robot.n_joints)
+    return np.where(pris, 1e-3, np.pi / 180.0)
+
+
+def program_joints(prog: Program, robot: RobotDescription) -> Float:
+    """The program's joint targets as controller values (N, n) [rad, m].
+
+    Raises
+    ------
+    DataError
+        A target with another number of joints than the robot (naming its line).
+    """
+    n = robot.n_joints
+    for pt in prog.points:
+        if len(pt.values) < n:
+            raise DataError(
+                f"{prog.path}: line {pt.line}: {pt.name} has {len(pt.values)} joint values; "
+                f"{robot.name} has {n} joints."
+            )
+        if len(pt.values) > n and prog.format in ("fanuc-ls", "urscript"):
+            raise DataError(
+                f"{prog.path}: line {pt.line}: {pt.name} has {len(pt.values)} joint values; "
+                f"{robot.name} has {n} joints."
+            )
+    q = np.array([pt.values[:n] for pt in prog.points], dtype=np.float64)
+    return q * _scale(prog, robot)
+
+
+def _format(value: float, decimals: int) -> str:
+    s = f"{value:.{decimals}f}"
+    return f"{0.0:.{decimals}f}" if float(s) == 0.0 else s  # no '-0.000'
+
+
+def write_program(
+    prog: Program,
+    q_ctrl: Float,
+    robot: RobotDescription,
+    *,
+    decimals: int | None = None,
+    keep: np.ndarray | None = None,
+) -> str:
+    """The program text with the joint targets replaced by ``q_ctrl`` (N, n) [rad, m].
+
+    Values are written with ``decimals`` decimals (default: as many as the file has, at
+    least the format's usual: FANUC 3, URScript 8, RAPID and KRL 4); a value that reads
+    the same at that precision keeps its original text, so a program written back
+    unchanged is byte for byte the same. FANUC values keep their column (the number is
+    right-aligned in the blanks before it). Rows where ``keep`` (N,) is True are left as
+    they are; external axes (values after the n-th) are never touched.
+    """
+    q = np.asarray(q_ctrl, dtype=np.float64)
+    n = robot.n_joints
+    if q.shape != (len(prog.points), n):
+        raise ValueError(
+            f"q_ctrl must have shape ({len(prog.points)}, {n}); got {q.shape}."
+        )
+    vals = q / _scale(prog, robot)
+    edits: list[tuple[int, int, str]] = []
+    for k, pt in enumerate(prog.points):
+        if keep is not None and keep[k]:
+            continue
+        for j in range(n):
+            a, b = pt.spans[j]
+            old = prog.text[a:b]
+            dec = decimals
+            if dec is None:
+                dec = max(pt.decimals[j], _MIN_DECIMALS[prog.format])
+            new = _format(float(vals[k, j]), dec)
+            if float(_format(float(old), dec)) == float(new):
+                continue  # the same value at the written precision
+            if old[:1].isspace():  # FANUC: keep the column, and a blank after '='
+                new = new.rjust(len(old)) if len(new) < len(old) else " " + new
+            edits.append((a, b, new))
+    out = []
+    last = 0
+    for a, b, new in edits:
+        out.append(prog.text[last:a])
+        out.append(new)
+        last = b
+    out.append(prog.text[last:])
+    return "".join(out)
+
+
+def written_joints(prog: Program, text: str, robot: RobotDescription) -> Float:
+    """The joint targets (N, n) [rad, m] a written program holds (read back)."""
+    points, _ = _READERS[prog.format](text)
+    return program_joints(
+        Program(prog.path, prog.format, text, tuple(points), 0), robot
+    )
+
+
+def program_bytes(text: str) -> bytes:
+    """The bytes of a program text read by :func:`read_program`."""
+    return text.encode("utf-8", errors="surrogateescape")

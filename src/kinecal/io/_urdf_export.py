@@ -1,0 +1,129 @@
+"""Writers for the calibrated kinematic part: URDF and the robot YAML (a DH table).
+
+URDF joint origins are ``xyz`` and fixed-axis ``rpy`` (``R = Rz(yaw) Ry(pitch) Rx(roll)``).
+Roll-pitch-yaw lose precision next to ``pitch = +-90 deg`` (roll and yaw become one
+angle; a DH row with ``alpha = -90`` followed by ``theta_offset = -90``, the LR Mate's J2,
+sits exactly there), so an origin closer than ~6 deg to it is written as two: a fixed
+joint ``<name>_pre`` turning 90 deg about x into a link ``<name>_pre_link``, then the joint
+itself. Numbers are written with 17 significant digits, so the file reproduces the chain
+to rounding (1e-15 m).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from kinecal import _yaml as yaml
+from kinecal.compensation import Element, ExportedChain
+from kinecal.geometry import matrix_to_rpy, rot_x, transform_to_euler
+from kinecal.robot import RobotDescription, dump_robot
+from kinecal.typing import Pose
+
+__all__ = ["robot_yaml_text", "urdf_text"]
+
+_NEAR_LOCK = 0.995  # |sin(pitch)| above which an origin is split in two
+_Q_PRE = np.eye(4)
+_Q_PRE[:3, :3] = rot_x(np.pi / 2)
+
+
+def _num(v: float) -> str:
+    return repr(float(v) + 0.0)  # 17 significant digits at most, -0.0 as 0.0
+
+
+def _origin(T: Pose) -> str:
+    xyz = " ".join(_num(v) for v in T[:3, 3])
+    rpy = " ".join(_num(v) for v in matrix_to_rpy(T[:3, :3]))
+    return f'<origin xyz="{xyz}" rpy="{rpy}"/>'
+
+
+def _comment(lines: list[str]) -> str:
+    # "--" may not appear inside an XML comment.
+    body = "\n".join(f"  {ln}".rstrip().replace("--", "- -") for ln in lines)
+    return f"<!--\n{body}\n-->"
+
+
+def _joint_xml(e: Element, parent: str, origin: Pose) -> list[str]:
+    kind = e.kind
+    lim = e.limits
+    finite = lim is not None and bool(np.all(np.isfinite(lim)))
+    if kind == "revolute" and not finite:
+        kind = "continuous"
+    out = [f"  <joint name={quoteattr(e.name)} type={quoteattr(kind)}>"]
+    out.append(f"    <parent link={quoteattr(parent)}/>")
+    out.append(f"    <child link={quoteattr(e.child)}/>")
+    out.append(f"    {_origin(origin)}")
+    if e.kind != "fixed":
+        out.append(f'    <axis xyz="{" ".join(_num(v) for v in e.axis)}"/>')
+        if kind != "continuous":
+            lo, hi = lim if finite and lim is not None else (-1e3, 1e3)  # m: no limit
+            out.append(
+                f'    <limit lower="{_num(lo)}" upper="{_num(hi)}" effort="0" '
+                'velocity="0"/>'
+            )
+        if e.mimic is not None:
+            j, mult, off = e.mimic
+            out.append(
+                f"    <mimic joint={quoteattr(j)} multiplier={quoteattr(_num(mult))} "
+                f"offset={quoteattr(_num(off))}/>"
+            )
+    out.append("  </joint>")
+    return out
+
+
+def urdf_text(chain: ExportedChain, *, name: str, comments: list[str]) -> str:
+    """The URDF document of an exported chain.
+
+    Parameters
+    ----------
+    chain : ExportedChain (see :func:`kinecal.compensation.export_chain`).
+    name : robot name.
+    comments : lines of the comment block at the top (units, what is left out).
+    """
+    links = [chain.root]
+    joints: list[str] = []
+    for e in chain.elements:
+        parent, origin = e.parent, e.origin
+        if abs(origin[2, 0]) > _NEAR_LOCK:
+            pre = f"{e.name}_pre"
+            joints += _joint_xml(
+                Element(pre, "fixed", parent, pre, _Q_PRE), parent, _Q_PRE
+            )
+            links.append(pre)
+            parent, origin = pre, np.linalg.inv(_Q_PRE) @ origin
+        joints += _joint_xml(e, parent, origin)
+        links.append(e.child)
+    out = ['<?xml version="1.0"?>', _comment(comments)]
+    out.append(f"<robot name={quoteattr(name)}>")
+    out += [f"  <link name={quoteattr(lk)}/>" for lk in links]
+    out += joints
+    out.append("</robot>")
+    return "\n".join(out) + "\n"
+
+
+def _frame_dict_full(T: Pose) -> dict[str, float]:
+    """``{x, y, z, r, w, p}`` [mm, deg] of a frame, unrounded."""
+    v = transform_to_euler(T)
+    return {
+        **{k: float(x * 1e3) for k, x in zip("xyz", v[:3])},
+        **{k: float(np.degrees(x)) for k, x in zip("rwp", v[3:])},
+    }
+
+
+def robot_yaml_text(robot: RobotDescription, *, comments: list[str]) -> str:
+    """The robot YAML of a description with unrounded numbers (``dump_robot`` rounds to
+    1e-9 mm and deg, which a DH table with a far common normal cannot afford)."""
+    doc: dict[str, Any] = dump_robot(robot)
+    for row, j in zip(doc["joints"], robot.joints):
+        row["theta_offset"] = float(np.degrees(j.theta_offset))
+        row["d"] = float(j.d * 1e3)
+        row["a"] = float(j.a * 1e3)
+        row["alpha"] = float(np.degrees(j.alpha))
+        if "limits" in row:
+            row["limits"] = [round(float(v), 9) for v in row["limits"]]
+    doc["flange"] = _frame_dict_full(robot.T_n_flange)
+    doc["tool"] = _frame_dict_full(robot.T_flange_tool)
+    head = "".join(f"# {ln}".rstrip() + "\n" for ln in comments)
+    return head + yaml.dump(doc, sort_keys=False, width=100)
