@@ -66,7 +66,7 @@ def _logdet(S: Float) -> Float:
 
 def _trace_solve(S: Float, H: Float) -> Float:
     """``tr(S_k^-1 H_k)`` of stacks of symmetric c x c matrices (K,)."""
-    Si: Float = _inv3(S)[0] if S.shape[-1] == 3 else np.linalg.inv(S)
+    Si = _inv3(S)[0] if S.shape[-1] == 3 else np.asarray(np.linalg.inv(S), np.float64)
     return np.sum(Si * H, axis=(1, 2))  # H symmetric: tr(Si H) = sum(Si * H^T)
 
 

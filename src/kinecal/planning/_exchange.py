@@ -29,7 +29,7 @@ log = logging.getLogger(__name__)
 
 EXCHANGES = ("fedorov", "detmax", "none")
 # An exchange must improve the criterion by this fraction of its scale to be taken.
-_REL_TOL = 1e-9
+_REL_TOL = 1e-5
 
 
 @dataclass

@@ -9,12 +9,12 @@ Three instruments, as the measurement kinds of the calibration (DESIGN §7):
 
 The user frame is where the instrument or the targets are: ``T_user_base`` (the robot
 base in it) defaults to the identity. The tool (reflector or sensor frame) is the robot
-file's ``tool``.
+file's ``tool`` unless given.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -73,6 +73,7 @@ def planning_model(
     model: str,
     instrument: Instrument,
     T_user_base: Float | None = None,
+    T_flange_tool: Float | None = None,
 ) -> tuple[CalibrationModel, Float]:
     """The calibration model of a preset for this instrument, at nominal kinematics.
 
@@ -83,11 +84,19 @@ def planning_model(
     instrument : Instrument (decides whether the tool rotation is observable).
     T_user_base : (4, 4), optional
         The robot base (controller World frame) in the user frame [m]; default identity.
+    T_flange_tool : (4, 4), optional
+        The tool (reflector, sensor frame) in the physical flange frame [m]; default the
+        robot's. A reflector off the last joint's axis lets the data see that axis.
 
     Returns
     -------
     (CalibrationModel, (P,) nominal parameters with the user frame set)
     """
+    if T_flange_tool is not None:
+        T_ft = np.asarray(T_flange_tool, np.float64)
+        if T_ft.shape != (4, 4):
+            raise ValueError(f"T_flange_tool must have shape (4, 4); got {T_ft.shape}.")
+        robot = replace(robot, T_flange_tool=T_ft)
     spec = ModelSpec.preset(
         model,
         cam_rotation=instrument.kind != "point",
