@@ -450,6 +450,11 @@ def _run(kw: dict[str, Any], say: Progress) -> None:
     if cal is not None and kw["data_path"]:
         _, _, measured, measured_ti = _read_poses(kw["data_path"], robot, labels)
     n = kw["poses"] or kw["add_n"]
+    if n > cand["q"].shape[0]:
+        raise click.BadParameter(
+            f"{n} poses asked, but there are {cand['q'].shape[0]} candidates",
+            param_hint="--add" if kw["add_n"] else "--poses",
+        )
     say("plan", f"{n} of {cand['q'].shape[0]} poses, {kw['criterion']}-optimal")
     pl = plan_poses(
         env["model"],

@@ -269,4 +269,10 @@ def sensor_candidates(
         cone=np.pi,
         rejected=rejected,
     )
-    return Candidates(q[ok], ti[ok], planned.n_requested, rejected)
+    q, ti = q[ok], ti[ok]
+    # at most n, the targets taking turns (a pose of each, then the next of each, ...)
+    turn = np.zeros(ti.size, np.intp)
+    for k in range(tg.shape[0]):
+        turn[ti == k] = np.arange(int(np.sum(ti == k)))
+    keep = np.sort(np.lexsort((ti, turn))[:n])
+    return Candidates(q[keep], ti[keep], planned.n_requested, rejected)
