@@ -158,6 +158,14 @@ def plan_poses(
             "without the poses measured before, their information is taken from the "
             "calibrated standard deviations alone (correlations ignored)."
         )
+    m_res = (n + n_meas) * pb.rows
+    if m_res < 2 * pb.size:
+        warnings.append(
+            f"{n + n_meas} poses give {m_res} residuals for {pb.size} parameters: the "
+            "calibration's first, unconstrained stage is poorly determined by so few, "
+            "and the result can fall far short of the prediction; plan at least "
+            f"{-(-2 * pb.size // pb.rows)} poses."
+        )
     sel = select_poses(
         pb, n, criterion=criterion, exchange=exchange, base=base, exclude=exclude
     )
