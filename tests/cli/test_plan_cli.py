@@ -147,9 +147,7 @@ def test_generated_candidates_for_a_tracker(run_cli, tmp_path):
 
 def test_generated_sensor_views_of_targets(run_cli, tmp_path):
     t = tmp_path / "targets.csv"
-    t.write_text(
-        "target,x_mm,y_mm,z_mm\nS1,500,150,0\nS2,500,-150,0\nS3,400,0,-100\n"
-    )
+    t.write_text("target,x_mm,y_mm,z_mm\nS1,500,150,0\nS2,500,-150,0\nS3,400,0,-100\n")
     res = run_cli(
         "plan", "--robot", ROBOT, "--poses", "20", "--instrument", "sensor",
         "--targets", str(t), "--n-candidates", "60", "--noise-mm", "0.006",

@@ -135,3 +135,16 @@ def test_sensor_inputs_map_each_pose_onto_its_target(rng):
     np.testing.assert_allclose(
         cm.evaluate(x, inp2).p_user, targets[[0] * 30], atol=1e-12
     )
+
+
+def test_fewer_candidate_rows_than_parameters(rng):
+    """Three poses (9 rows) cannot determine 50 parameters: the design keeps at most 9,
+    and its prediction over those candidates stays finite."""
+    from kinecal.planning import plan_poses
+
+    cm, x = planning_model(ROBOT, "full", Instrument(), T_USER_BASE, T_TOOL)
+    q = poses(rng, 3)
+    pb = design_problem(cm, x, ModelInputs.make(q), 1e-5)
+    assert 0 < pb.size <= 9
+    pl = plan_poses(cm, x, q, 2)
+    assert np.isfinite(pl.planned.heldout_rms) and pl.warnings

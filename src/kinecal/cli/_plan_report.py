@@ -70,11 +70,12 @@ def echo_summary(doc: dict[str, Any], out: Path, rep: Path, as_json: bool) -> No
     )[:3]
     if ratios:
         med = sorted(r for r, _ in ratios)[len(ratios) // 2]
-        click.echo(
-            f"std        planned / random: median {med:.2f} over the parameters; least "
-            "determined (std / prior): "
-            + ", ".join(f"{name} {r:.2f}" for r, name in loose)
-        )
+        text = f"std        planned / random: median {med:.2f} over the parameters"
+        if loose:
+            text += "; least determined (std / prior): " + ", ".join(
+                f"{name} {r:.2f}" for r, name in loose
+            )
+        click.echo(text)
     o = doc["order"]
     click.echo(
         f"motion     {o['path_deg']:.0f} deg of largest-joint motion along the plan "

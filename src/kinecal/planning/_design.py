@@ -253,8 +253,11 @@ def design_problem(
     Fs, _ = whitened(x_struct)
     Fd, Jpos = whitened(x_design)
     P = model.size
+    J_struct = np.moveaxis(Fs, 2, 0).reshape(P, -1).T  # (m, P)
+    if J_struct.shape[0] < P:  # fewer rows than parameters: zero rows change nothing
+        J_struct = np.vstack([J_struct, np.zeros((P - J_struct.shape[0], P))])
     ident = analyse_identifiability(
-        np.moveaxis(Fs, 2, 0).reshape(P, -1).T,
+        J_struct,
         model.layout,
         np.ones(P, bool),
         drop_tol=drop_tol,
