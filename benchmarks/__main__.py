@@ -130,7 +130,15 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks")
     ap.add_argument("--out", default="benchmarks/results.json")
     ap.add_argument("--quick", action="store_true", help="fewer repeats")
+    ap.add_argument("--planning", action="store_true", help="the pose planning study")
+    ap.add_argument("--figures", help="with --planning: write its figures here")
     args = ap.parse_args(argv)
+    if args.planning:
+        from benchmarks._planning import main as planning
+
+        if args.out == ap.get_default("out"):  # not the main benchmarks' file
+            args.out = "benchmarks/planning.json"
+        return planning(args)
     rep = 3 if args.quick else 7
     # Model evaluations take milliseconds: many more repeats steady their median on a
     # shared VM (its speed drifts by 20-30 % within minutes).

@@ -34,7 +34,15 @@ def cli() -> None:
 
 
 def _register() -> None:
-    from kinecal.cli import _calibrate, _compensate, _export, _fk, _sensor, _simulate
+    from kinecal.cli import (
+        _calibrate,
+        _compensate,
+        _export,
+        _fk,
+        _plan,
+        _sensor,
+        _simulate,
+    )
 
     for cmd in (
         _fk.fk,
@@ -48,6 +56,7 @@ def _register() -> None:
         _simulate.compare,
         _simulate.demo,
         _sensor.sensor,
+        _plan.plan,
     ):
         cli.add_command(cmd)
 
