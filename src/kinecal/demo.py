@@ -139,7 +139,7 @@ def run_demo(
             title=title,
             notes=notes,
             extra_html=_recovery_html(rec, to_file, units),
-            png_dir=d / "figures",
+            figure_dir=d / "figures",
         )
         text.append(
             format_table(table, title=f"{title} ({exp.train.n} poses to calibrate)")

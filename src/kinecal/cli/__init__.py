@@ -34,7 +34,7 @@ def cli() -> None:
 
 
 def _register() -> None:
-    from kinecal.cli import _calibrate, _compensate, _fk, _sensor, _simulate
+    from kinecal.cli import _calibrate, _compensate, _fk, _report, _sensor, _simulate
 
     for cmd in (
         _fk.fk,
@@ -47,6 +47,7 @@ def _register() -> None:
         _simulate.compare,
         _simulate.demo,
         _sensor.sensor,
+        _report.report,
     ):
         cli.add_command(cmd)
 
