@@ -51,8 +51,8 @@ def _drawn_note(fig: Figure, shown: int, total: int) -> None:
         fig.text(
             W - R,
             fig.height - 6,
-            f"{shown} of {total} points drawn (the largest errors and every "
-            f"{int(np.ceil(total / shown))}th other)",
+            f"{shown} of {total} points drawn: the largest 5 % and an even sample of the "
+            "others",
             size=9,
             anchor="end",
         )

@@ -79,7 +79,7 @@ def decimate(values: ArrayLike, max_points: int = 5000) -> Int:
 
     ``values`` (N,) or (N, k): the points' sizes (e.g. |error|). Below the limit all
     points; above, the largest 5 % (by the row maximum of ``values``: the extremes stay
-    visible) plus every m-th of the others, in their original order.
+    visible) plus evenly spaced ones of the others, in their original order.
     """
     a = np.abs(np.asarray(values, float))
     a = a.reshape(a.shape[0], -1).max(axis=1) if a.ndim > 1 else a
@@ -91,7 +91,7 @@ def decimate(values: ArrayLike, max_points: int = 5000) -> Int:
     keep = np.zeros(n, bool)
     keep[top] = True
     rest = np.flatnonzero(~keep)
-    keep[rest[:: max(1, math.ceil(rest.size / (max_points - n_top)))]] = True
+    keep[rest[np.linspace(0, rest.size - 1, max_points - n_top).astype(np.intp)]] = True
     return np.flatnonzero(keep)
 
 
@@ -442,7 +442,7 @@ class Figure:
         cx, cy = (
             x
             + w
-            + 12
+            + 20
             + max((_text_w(lab, 10) for _, lab in _labelled(ts)), default=10.0),
             y + h / 2,
         )
