@@ -50,7 +50,8 @@ def _options_from(loss: str, priors: str, stage2: str):
     "out_dir",
     required=True,
     type=click.Path(file_okay=False),
-    help="Output folder for model.yaml, report.json, report.html, manifest.json.",
+    help="Output folder for model.yaml, report.json, residuals.csv (per-pose errors), "
+    "manifest.json and report.html.",
 )
 @targets_option
 @click.option(
