@@ -199,3 +199,32 @@ def test_reports_render_with_every_figure_visible(reports):
         ok, total = int(m.group(1)), int(m.group(2))
         assert total >= n and ok == total, (path.name, ok, total)
         assert '<p class="bad">figure failed to load' not in dom
+
+
+def test_issue_26_model_selection_in_the_report(result):
+    from kinecal.identification import Candidate, Selection
+
+    spec = result.calibrated.model.spec
+    cands = [
+        Candidate("kinematic", spec, 1.0, 27, 0.0213, 0.0011, 0.0195),
+        Candidate("full", spec, 1.0, 50, 0.01718, 0.0009, 0.0157, chosen=True),
+    ]
+    sel = Selection(spec, 1.0, cands, ["a warning of the selection"], folds=5)
+    summary = calibration_summary(result, extra={"model_selection": sel.as_dict()})
+    html = render_calibration_report(summary, result.calibrated, None)
+    assert "Model selection (--model auto, 5-fold cross-validation)" in html
+    # the chosen candidate's held-out RMS is a row of the accuracy table
+    assert "held-out, 5-fold CV of --model auto: full" in html
+    assert "0.01718 ± 0.00090" in html
+    assert "a warning of the selection" in html
+
+
+def test_issue_26_orientation_errors_of_pose_data_in_the_accuracy_table(result):
+    summary = calibration_summary(result)
+    assert "orientation RMS [deg]" not in render_calibration_report(
+        summary, result.calibrated, None
+    )
+    summary["before"].update(rot_rms_deg=0.2345678, rot_max_deg=0.61)
+    summary["after"].update(rot_rms_deg=0.0123456, rot_max_deg=0.0456)
+    html = render_calibration_report(summary, result.calibrated, None)
+    assert "orientation RMS [deg]" in html and "<td>0.01235</td>" in html

@@ -40,6 +40,7 @@ _MET = ("rms_mm", "std_mm", "mean_mm", "max_mm")
 def _accuracy_table(summary: Mapping[str, Any]) -> str:
     """Before / after on the calibration data, and held-out (cross-validated) rows."""
     rows = []
+    rot = summary["after"].get("rot_rms_deg") is not None  # pose data: orientation too
 
     def add(label: str, n: Any, m: Mapping[str, Any], se: Any = None) -> None:
         xyz = list(m.get("rms_xyz_mm") or [None] * 3)
@@ -48,6 +49,7 @@ def _accuracy_table(summary: Mapping[str, Any]) -> str:
             [e(label), e(n if n is not None else "—"), rms]
             + [num(m.get(k)) for k in _MET[1:]]
             + [num(x) for x in xyz]
+            + ([num(m.get("rot_rms_deg")), num(m.get("rot_max_deg"))] if rot else [])
         )
 
     add(
@@ -65,13 +67,13 @@ def _accuracy_table(summary: Mapping[str, Any]) -> str:
         k = cv.get("folds")
         add(
             f"held-out, {k}-fold cross-validation: nominal",
-            None,
+            summary["before"].get("n"),
             cv["nominal"],
             cv["nominal"].get("se_mm"),
         )
         add(
             f"held-out, {k}-fold cross-validation: this model",
-            None,
+            summary["before"].get("n"),
             cv["model"],
             cv["model"].get("se_mm"),
         )
@@ -82,12 +84,14 @@ def _accuracy_table(summary: Mapping[str, Any]) -> str:
                 m = {"rms_mm": c.get("cv_rms_mm")}
                 add(
                     f"held-out, {sel.get('folds')}-fold CV of --model auto: {c.get('label')}",
-                    None,
+                    summary["before"].get("n"),
                     m,
                     c.get("cv_se_mm"),
                 )
     head = ["data", "poses", "RMS [mm]", "Std [mm]", "Avg [mm]", "Max [mm]"]
-    return table([*head, "RMS x [mm]", "RMS y [mm]", "RMS z [mm]"], rows)
+    head += ["RMS x [mm]", "RMS y [mm]", "RMS z [mm]"]
+    head += ["orientation RMS [deg]", "orientation max [deg]"] if rot else []
+    return table(head, rows)
 
 
 def _heldout_section(summary: Mapping[str, Any]) -> list[str]:
