@@ -48,6 +48,8 @@ _KEY_PARAMETERS = (
 
 
 def _recovery_html(rec: Any, to_file: dict[str, float], units: dict[str, str]) -> str:
+    from kinecal.report._format import num, pm
+
     rows = []
     for n, e, s, q, t in zip(
         rec.names, rec.estimate, rec.std, rec.equivalent, rec.raw_truth
@@ -56,8 +58,8 @@ def _recovery_html(rec: Any, to_file: dict[str, float], units: dict[str, str]) -
             continue
         f = to_file[n]
         rows.append(
-            f"<tr><td class=l>{n}</td><td>{e * f:.5g} ± {s * f:.2g}</td><td>{q * f:.5g}</td>"
-            f"<td>{t * f:.5g}</td><td>{(e - q) / s:+.2f}</td><td class=l>{units[n]}</td></tr>"
+            f"<tr><td class=l>{n}</td><td>{pm(e * f, s * f)}</td><td>{num(q * f, 6)}</td>"
+            f"<td>{num(t * f, 6)}</td><td>{(e - q) / s:+.1f}</td><td class=l>{units[n]}</td></tr>"
         )
     return (
         "<h2>Parameter recovery (full model vs hidden truth)</h2>"
@@ -139,7 +141,7 @@ def run_demo(
             title=title,
             notes=notes,
             extra_html=_recovery_html(rec, to_file, units),
-            png_dir=d / "figures",
+            figure_dir=d / "figures",
         )
         text.append(
             format_table(table, title=f"{title} ({exp.train.n} poses to calibrate)")

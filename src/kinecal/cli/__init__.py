@@ -40,6 +40,7 @@ def _register() -> None:
         _export,
         _fk,
         _plan,
+        _report,
         _sensor,
         _simulate,
     )
@@ -57,6 +58,7 @@ def _register() -> None:
         _simulate.demo,
         _sensor.sensor,
         _plan.plan,
+        _report.report,
     ):
         cli.add_command(cmd)
 

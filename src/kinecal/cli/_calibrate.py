@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import sys
 from dataclasses import replace
 
@@ -49,7 +50,8 @@ def _options_from(loss: str, priors: str, stage2: str):
     "out_dir",
     required=True,
     type=click.Path(file_okay=False),
-    help="Output folder for model.yaml, report.json, report.html, manifest.json.",
+    help="Output folder for model.yaml, report.json, residuals.csv (per-pose errors), "
+    "manifest.json and report.html.",
 )
 @targets_option
 @click.option(
@@ -135,16 +137,24 @@ def calibrate(
     from kinecal.cli import EXIT_NOT_CONVERGED
     from kinecal.identification import calibrate as run_calibration
     from kinecal.identification import spec_for
-    from kinecal.io import prepare_output_dir, read_measurements, save_model, write_json
+    from kinecal.io import (
+        atomic_write_text,
+        prepare_output_dir,
+        read_measurements,
+        save_model,
+        write_json,
+    )
     from kinecal.models import kernel_name, parallel_pairs
-    from kinecal.report import calibration_summary
+    from kinecal.report import RESIDUALS_CSV, calibration_summary, pose_errors
 
     say = Progress(quiet)
     jobs = jobs or available_cpus()
     robot = _load_robot(robot_name)
     meas = read_measurements(data, robot, targets)
     out = prepare_output_dir(
-        out_dir, ["model.yaml", "report.json", "report.html"], force=force
+        out_dir,
+        ["model.yaml", "report.json", "report.html", RESIDUALS_CSV],
+        force=force,
     )
     say("data", f"{meas.n} {meas.kind} rows from {data}")
     opts = _options_from(loss, priors, stage2)
@@ -192,6 +202,7 @@ def calibrate(
             cv_rows[label] = {
                 "rms_mm": cv.rms_mm,
                 "se_mm": cv.rms_se_mm,
+                "rms_xyz_mm": _pooled_xyz(cv.folds),
                 "fold_rms_mm": [f.rms_mm for f in cv.folds],
                 "train_rms_mm": [f.rms_mm for f in cv.train],
             }
@@ -199,6 +210,9 @@ def calibrate(
     summary = calibration_summary(result, extra=extra)
     save_model(out / "model.yaml", result.calibrated, force=True)
     write_json(out / "report.json", summary, force=True)
+    atomic_write_text(
+        out / RESIDUALS_CSV, pose_errors(result, meas).to_csv(), force=True
+    )
     write_json(
         out / "manifest.json",
         manifest(
@@ -217,11 +231,14 @@ def calibrate(
         ),
         force=True,
     )
-    if report:
-        from kinecal.report import write_calibration_report
+    written = ["model.yaml", "report.json", RESIDUALS_CSV, "manifest.json"]
+    if report:  # drawn from the files just written, as `kinecal report DIR` does
+        from kinecal.report import write_report
 
-        say("report", "report.html")
-        write_calibration_report(out / "report.html", result, meas, summary)
+        say("report", "drawing report.html")
+        write_report(out, force=True)
+        written.append("report.html")
+        say("report", f"wrote {out / 'report.html'}")
     b, a = result.metrics_before, result.metrics_after
     click.echo(
         f"model     {spec.name}: {result.identifiability.rank} of "
@@ -244,9 +261,18 @@ def calibrate(
         click.echo(f"note      {line}")
     for w in result.warnings:
         click.echo(f"warning   {w}", err=True)
-    click.echo(f"wrote     {out / 'model.yaml'}, {out / 'report.json'}")
+    click.echo(f"wrote     {out}{os.sep}: {', '.join(written)}")
     if not result.success:
         sys.exit(EXIT_NOT_CONVERGED)
+
+
+def _pooled_xyz(folds) -> list[float]:
+    """Held-out RMS along x, y, z pooled over the folds [mm]."""
+    n = sum(f.n for f in folds)
+    return [
+        (sum(f.n * f.rms_xyz_mm[a] ** 2 for f in folds) / max(n, 1)) ** 0.5
+        for a in range(3)
+    ]
 
 
 def _load_robot(name: str):

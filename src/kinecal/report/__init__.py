@@ -1,6 +1,20 @@
-"""Reports: JSON summaries, text tables, figures (matplotlib, optional) and HTML reports."""
+"""Reports: JSON summaries, text tables, SVG figures and self-contained HTML reports.
 
-from kinecal.report._html import write_calibration_report, write_comparison_report
+No matplotlib: the figures are SVG drawn by :mod:`kinecal.report._svg`.
+"""
+
+from kinecal.report._calibration import (
+    render_calibration_report,
+    write_calibration_report,
+    write_report,
+)
+from kinecal.report._html import write_comparison_report
+from kinecal.report._poses import (
+    RESIDUALS_CSV,
+    PoseErrors,
+    pose_errors,
+    read_pose_errors,
+)
 from kinecal.report._summary import (
     calibration_summary,
     comparison_table,
@@ -9,10 +23,16 @@ from kinecal.report._summary import (
 )
 
 __all__ = [
+    "RESIDUALS_CSV",
+    "PoseErrors",
     "calibration_summary",
     "comparison_table",
     "format_table",
     "parameter_table",
+    "pose_errors",
+    "read_pose_errors",
+    "render_calibration_report",
     "write_calibration_report",
     "write_comparison_report",
+    "write_report",
 ]

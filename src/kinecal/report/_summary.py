@@ -14,13 +14,16 @@ __all__ = ["calibration_summary", "comparison_table", "format_table", "parameter
 
 
 def parameter_table(result: CalibrationResult) -> list[dict[str, Any]]:
-    """Every parameter: name, group, unit, value, std, start value, status (file units)."""
+    """Every parameter: name, group, unit, value, std, start value, status and the std
+    of its prior (None without one) (file units)."""
     cal = result.calibrated
     L = cal.model.layout
     to_file = L.to_file
+    prior = result.prior.sigma if result.prior is not None else np.full(L.size, np.inf)
     out = []
     for i, ps in enumerate(L.specs):
         std = cal.std[i] * to_file[i]
+        p_std = prior[i] * to_file[i]
         out.append(
             {
                 "name": ps.name,
@@ -30,6 +33,7 @@ def parameter_table(result: CalibrationResult) -> list[dict[str, Any]]:
                 "std": None if not np.isfinite(std) else float(std),
                 "start": float(result.registered[i] * to_file[i]),
                 "status": cal.status[i],
+                "prior_std": float(p_std) if np.isfinite(p_std) else None,
             }
         )
     return out
@@ -42,7 +46,13 @@ def _metrics(m: Metrics) -> dict[str, Any]:
 def calibration_summary(
     result: CalibrationResult, *, extra: dict[str, Any] | None = None
 ) -> dict[str, Any]:
-    """The content of ``report.json``."""
+    """The content of ``report.json``.
+
+    Besides the metrics, stages, identifiability and parameters, it holds what the
+    report's figures need beyond ``model.yaml`` and ``residuals.csv``: the correlation
+    matrix of the estimated parameters (``correlation``: names and matrix, 4 decimals)
+    and the singular values of the scaled Jacobian (``identifiability.singular_values``).
+    """
     ident = result.identifiability
     corr = result.correlation()
     names = result.calibrated.model.layout.names
@@ -82,8 +92,9 @@ def calibration_summary(
                 for d in ident.dropped
             ],
             "poorly_determined": [{"name": n, "fraction": f} for n, f in ident.weak],
-            "strong_correlations": strong[:30],
+            "strong_correlations": strong,
             "summary": ident.summary(),
+            "singular_values": [float(v) for v in ident.singular_values],
         },
         "stages": [
             {
@@ -104,6 +115,10 @@ def calibration_summary(
         ],
         "warnings": list(result.warnings),
         "parameters": parameter_table(result),
+        "correlation": {
+            "names": [names[i] for i in free],
+            "matrix": np.round(corr[np.ix_(free, free)], 4).tolist(),
+        },
         **(extra or {}),
     }
 

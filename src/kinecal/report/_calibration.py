@@ -1,0 +1,477 @@
+"""The HTML report of one calibration, drawn from its result folder.
+
+:func:`write_report` reads ``model.yaml``, ``report.json`` and ``residuals.csv`` (see
+:mod:`._poses`) and writes ``report.html``: the report is a function of these files
+alone, so ``kinecal report DIR`` redraws it, and ``kinecal calibrate`` writes it by the
+same function. Figures are inline SVG (no matplotlib, no external files).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kinecal.report import _figures as F
+from kinecal.report._format import details, e, figure, num, page, ratio, table
+from kinecal.report._poses import RESIDUALS_CSV, PoseErrors, read_pose_errors
+from kinecal.report._tables import (
+    PRIOR_DOMINATED,
+    SIGNIFICANT,
+    compliance_table,
+    dh_table,
+    frames_table,
+    parameter_table,
+)
+
+__all__ = ["render_calibration_report", "write_calibration_report", "write_report"]
+
+log = logging.getLogger(__name__)
+
+
+# ---------------------------------------------------------------------- summary parts
+_MET = ("rms_mm", "std_mm", "mean_mm", "max_mm")
+
+
+def _accuracy_table(summary: Mapping[str, Any]) -> str:
+    """Before / after on the calibration data, and held-out (cross-validated) rows."""
+    rows = []
+    rot = summary["after"].get("rot_rms_deg") is not None  # pose data: orientation too
+
+    def add(label: str, n: Any, m: Mapping[str, Any], se: Any = None) -> None:
+        xyz = list(m.get("rms_xyz_mm") or [None] * 3)
+        rms = num(m.get("rms_mm")) + (f" ± {num(se, 2)}" if se is not None else "")
+        rows.append(
+            [e(label), e(n if n is not None else "—"), rms]
+            + [num(m.get(k)) for k in _MET[1:]]
+            + [num(x) for x in xyz]
+            + ([num(m.get("rot_rms_deg")), num(m.get("rot_max_deg"))] if rot else [])
+        )
+
+    add(
+        "calibration data, before",
+        summary["before"].get("n"),
+        summary["before"],
+    )
+    add(
+        "calibration data, after",
+        summary["after"].get("n"),
+        summary["after"],
+    )
+    cv = summary.get("cross_validation")
+    if cv:
+        k = cv.get("folds")
+        add(
+            f"held-out, {k}-fold cross-validation: nominal",
+            summary["before"].get("n"),
+            cv["nominal"],
+            cv["nominal"].get("se_mm"),
+        )
+        add(
+            f"held-out, {k}-fold cross-validation: this model",
+            summary["before"].get("n"),
+            cv["model"],
+            cv["model"].get("se_mm"),
+        )
+    sel = summary.get("model_selection")
+    if sel:
+        for c in sel.get("candidates", []):
+            if c.get("chosen"):
+                m = {"rms_mm": c.get("cv_rms_mm")}
+                add(
+                    f"held-out, {sel.get('folds')}-fold CV of --model auto: {c.get('label')}",
+                    summary["before"].get("n"),
+                    m,
+                    c.get("cv_se_mm"),
+                )
+    head = ["data", "poses", "RMS [mm]", "Std [mm]", "Avg [mm]", "Max [mm]"]
+    head += ["RMS x [mm]", "RMS y [mm]", "RMS z [mm]"]
+    head += ["orientation RMS [deg]", "orientation max [deg]"] if rot else []
+    return table(head, rows)
+
+
+def _heldout_section(summary: Mapping[str, Any]) -> list[str]:
+    out = []
+    cv = summary.get("cross_validation")
+    if cv:
+        nom, mod = cv["nominal"], cv["model"]
+        folds = mod.get("fold_rms_mm") or []
+        rows = [
+            [str(i + 1), num(a), num(b), num(c)]
+            for i, (a, b, c) in enumerate(
+                zip(
+                    nom.get("fold_rms_mm") or [None] * len(folds),
+                    folds,
+                    mod.get("train_rms_mm") or [None] * len(folds),
+                )
+            )
+        ]
+        out += [
+            f"<h2>Cross-validation ({cv.get('folds')} folds)</h2>",
+            "<p>Each fold is calibrated on the other poses and scored on its own "
+            "(whole sessions per fold when the data have several sets).</p>",
+            table(
+                [
+                    "fold",
+                    "nominal: held-out RMS [mm]",
+                    "model: held-out RMS [mm]",
+                    "model: training RMS [mm]",
+                ],
+                rows,
+            ),
+        ]
+    sel = summary.get("model_selection")
+    if sel:
+        rows, cls = [], []
+        for c in sel.get("candidates", []):
+            rows.append(
+                [
+                    e(c.get("label")),
+                    e(c.get("parameters")),
+                    num(c.get("prior_scale")),
+                    num(c.get("cv_rms_mm")) + f" ± {num(c.get('cv_se_mm'), 2)}",
+                    num(c.get("train_rms_mm")),
+                    "chosen" if c.get("chosen") else "",
+                ]
+            )
+            cls.append("sig" if c.get("chosen") else "")
+        out += [
+            f"<h2>Model selection (--model auto, {sel.get('folds')}-fold cross-validation)</h2>",
+            f"<p>Rule: {e(sel.get('rule', ''))}; chosen: <b>{e(sel.get('chosen'))}</b>.</p>",
+            table(
+                [
+                    "candidate",
+                    "parameters",
+                    "prior scale",
+                    "held-out RMS ± se [mm]",
+                    "training RMS [mm]",
+                    "",
+                ],
+                rows,
+                cls=cls,
+            ),
+        ]
+        out += [f"<p class=warn>{e(w)}</p>" for w in sel.get("warnings", [])]
+    return out
+
+
+def _warnings(summary: Mapping[str, Any]) -> str:
+    """Every warning, with the full list behind those that name only the first few."""
+    items = []
+    params = summary.get("parameters", [])
+    outliers = summary.get("outliers", [])
+    for w in summary.get("warnings", []):
+        extra = ""
+        if "outlier" in w and outliers:
+            extra = details(
+                f"all {len(outliers)} rows",
+                table(
+                    ["row", "error [mm]", "z [-]"],
+                    [
+                        [str(o["row"]), num(o["error_mm"]), ratio(o["z"])]
+                        for o in outliers
+                    ],
+                ),
+            )
+        elif "mostly by their prior" in w:
+            names = [
+                f"{p['name']} ({ratio(p['std'] / p['prior_std'])})"
+                for p in params
+                if p.get("std")
+                and p.get("prior_std")
+                and p["std"] > PRIOR_DOMINATED * p["prior_std"]
+            ]
+            if names:
+                extra = details(
+                    f"all {len(names)} (std / prior std)",
+                    f"<p>{e(', '.join(names))}</p>",
+                )
+        items.append(f"<li class=warn>{e(w)}{extra}</li>")
+    return f"<ul>{''.join(items)}</ul>" if items else ""
+
+
+def _identifiability(ident: Mapping[str, Any]) -> list[str]:
+    out = ["<h2>Identifiability</h2><ul>"]
+    out += [f"<li>{e(x)}</li>" for x in ident.get("summary", [])]
+    out.append("</ul>")
+    strong = ident.get("strong_correlations", [])
+    if strong:
+        out.append(
+            details(
+                f"all {len(strong)} pairs of estimated parameters with |correlation| > 0.95",
+                table(
+                    ["parameter", "parameter", "correlation [-]"],
+                    [[e(s["a"]), e(s["b"]), num(s["correlation"])] for s in strong],
+                    left=2,
+                ),
+            )
+        )
+    return out
+
+
+# ---------------------------------------------------------------------- the page
+def render_calibration_report(
+    summary: Mapping[str, Any], cal: Any, poses: PoseErrors | None
+) -> str:
+    """The HTML text of a calibration report.
+
+    Parameters
+    ----------
+    summary : the content of ``report.json`` (:func:`calibration_summary`).
+    cal : CalibratedModel, the content of ``model.yaml``.
+    poses : per-pose errors (``residuals.csv``); None: the report has no per-pose figures.
+    """
+    ident = summary["identifiability"]
+    data = summary.get("data", {})
+    n_par = len(summary.get("parameters", [])) or cal.model.size
+    unident = ident.get("unidentifiable", [])
+    dropped = "".join(
+        f"<li>{e(d['name'])}"
+        + (
+            " ≈ "
+            + " ".join(
+                f"{c['coefficient']:+.3g}·{e(c['name'])}" for c in d["explained_by"]
+            )
+            if d.get("explained_by")
+            else " does not affect the measurements"
+        )
+        + "</li>"
+        for d in unident
+    )
+    conv = (
+        "Converged."
+        if summary.get("success")
+        else "<span class=bad>Did not converge.</span>"
+    )
+    body = [
+        "<div class=box>",
+        f"<p><b>{e(summary.get('robot'))}</b>, model <b>{e(summary.get('model'))}</b>: "
+        f"{ident.get('estimated')} of {n_par} parameters estimated from {e(data.get('n'))} "
+        f"{e(data.get('kind', ''))} poses ({e(data.get('source', ''))}). {conv} "
+        f"Noise estimate {num(summary.get('noise_sigma_mm'))} mm per axis; fit "
+        f"{num(summary.get('seconds'), 3)} s.</p>",
+        _accuracy_table(summary),
+        "<p class=muted>Errors are 3-D position errors; before: nominal kinematics with "
+        "fitted user and tool frames. Validate on poses not used here with "
+        "<code>kinecal evaluate</code>"
+        + (
+            ""
+            if summary.get("cross_validation")
+            else " or run with <code>--cv K</code>"
+        )
+        + ".</p>",
+        "<p>Not identifiable from these poses (held at their start values):</p>"
+        f"<ul>{dropped or '<li>none</li>'}</ul>",
+        _warnings(summary),
+        "</div>",
+    ]
+    body += _heldout_section(summary)
+    body += [
+        "<h2>Frames (Tables 3, 6)</h2>",
+        frames_table(cal),
+        "<h2>Joint geometry (Tables 4, 7)</h2>",
+        dh_table(cal),
+        "<h2>Joint compliance (Tables 4, 7)</h2>",
+        compliance_table(cal),
+        "<h2>All parameters</h2>",
+        "<p class=muted>Change from nominal: estimate − start value (the nominal robot; "
+        "the frames: fitted to the data with nominal kinematics; transmission and "
+        f"compliance terms: 0), highlighted where it exceeds {SIGNIFICANT:g} std. "
+        "std / prior std near 1: the value comes from the prior, not the data.</p>",
+        details(
+            f"show all {n_par}",
+            parameter_table(summary.get("parameters", [])),
+            open_=True,
+        ),
+        "<h2>Stages</h2>",
+        table(
+            [
+                "stage",
+                "parameters",
+                "RMS before [mm]",
+                "RMS after [mm]",
+                "iterations",
+                "status",
+                "time [s]",
+            ],
+            [
+                [
+                    e(s["name"]),
+                    e(s["parameters"]),
+                    num(s["rms_before_mm"]),
+                    num(s["rms_after_mm"]),
+                    e(s["iterations"]),
+                    e(s["status"]),
+                    num(s["seconds"], 3),
+                ]
+                for s in summary.get("stages", [])
+            ],
+        ),
+    ]
+    body += _identifiability(ident)
+    outliers = summary.get("outliers", [])
+    if outliers:
+        body.append("<h2>Outliers (kept in the data, reported here)</h2>")
+        body.append(
+            details(
+                f"all {len(outliers)} rows",
+                table(
+                    ["row", "error [mm]", "z [-]"],
+                    [
+                        [str(o["row"]), num(o["error_mm"]), ratio(o["z"])]
+                        for o in outliers
+                    ],
+                ),
+                open_=len(outliers) <= 20,
+            )
+        )
+    body.append("<h2>Figures</h2>")
+    body += _figures(summary, poses)
+    return page(f"kinecal calibration report: {summary.get('robot')}", "\n".join(body))
+
+
+def _figures(summary: Mapping[str, Any], poses: PoseErrors | None) -> list[str]:
+    out = []
+    if poses is not None:
+        eb = np.linalg.norm(poses.before_mm, axis=1)
+        ea = np.linalg.norm(poses.after_mm, axis=1)
+        out.append(
+            figure(
+                F.fig_errors_before_after(eb, ea, "position error per pose"),
+                "Position error per pose before and after calibration [mm] (calibration data).",
+            )
+        )
+        out.append(
+            figure(
+                F.fig_error_histogram(
+                    {"before": eb, "after": ea},
+                    "count of position errors",
+                    log=True,
+                    colors=F.COLORS,
+                ),
+                "Histogram of the position errors on the calibration data [mm].",
+            )
+        )
+    rms = {
+        "before": summary["before"].get("rms_xyz_mm"),
+        "after": summary["after"].get("rms_xyz_mm"),
+    }
+    cv = summary.get("cross_validation")
+    if cv and cv["model"].get("rms_xyz_mm"):
+        rms["held-out (cross-validation)"] = cv["model"]["rms_xyz_mm"]
+    rms = {k: v for k, v in rms.items() if v}
+    if rms:
+        out.append(
+            figure(
+                F.fig_axis_rms(rms),
+                "RMS position error along x, y, z of the user frame [mm].",
+            )
+        )
+    if poses is not None:
+        units = [f"J{j + 1} [{u}]" for j, u in enumerate(poses.joint_units)]
+        out.append(
+            figure(
+                F.fig_residuals_vs_joints(poses.q, poses.after_mm, units),
+                "Residuals after calibration against each controller joint value.",
+            )
+        )
+        out.append(
+            figure(
+                F.fig_workspace(poses.p_mm, np.linalg.norm(poses.after_mm, axis=1)),
+                "Errors after calibration over the workspace [mm].",
+            )
+        )
+    else:
+        out.append(
+            f"<p class=muted>No {RESIDUALS_CSV} in the result folder: no per-pose figures.</p>"
+        )
+    corr = summary.get("correlation")
+    if corr and len(corr.get("names", [])) > 1:
+        C = np.array(corr["matrix"], dtype=float)
+        out.append(
+            figure(
+                F.fig_correlation(C, corr["names"]),
+                "Correlations of the estimated parameters.",
+            )
+        )
+    sv = summary["identifiability"].get("singular_values")
+    if sv:
+        out.append(
+            figure(
+                F.fig_singular_values(np.array(sv, float)),
+                "Singular values of the scaled identification Jacobian.",
+            )
+        )
+    return out
+
+
+# ---------------------------------------------------------------------- files
+def write_report(
+    folder: str | Path, *, out: str | Path | None = None, force: bool = False
+) -> Path:
+    """Draw ``report.html`` from a calibration result folder.
+
+    Reads ``folder/model.yaml``, ``folder/report.json`` and, when present,
+    ``folder/residuals.csv``; writes ``out`` (default ``folder/report.html``).
+
+    Raises
+    ------
+    ConfigError, DataError
+        A file is missing or not what ``kinecal calibrate`` writes (named in the message).
+    FileExistsError
+        ``out`` exists and ``force`` is False.
+    """
+    from kinecal.errors import DataError
+    from kinecal.io import atomic_write_text, load_model
+
+    d = Path(folder)
+    target = Path(out) if out is not None else d / "report.html"
+    if target.exists() and not force:
+        raise FileExistsError(f"{target} exists; use --force to overwrite it.")
+    js = d / "report.json"
+    try:
+        summary = json.loads(js.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise DataError(
+            f"{js}: not found; is {d} a folder written by kinecal calibrate?"
+        ) from None
+    except json.JSONDecodeError as exc:
+        raise DataError(f"{js}: not valid JSON ({exc}).") from None
+    for key in ("identifiability", "before", "after", "parameters"):
+        if key not in summary:
+            raise DataError(
+                f"{js}: missing key {key!r}; not a report.json of kinecal calibrate."
+            )
+    cal = load_model(d / "model.yaml")
+    res = d / RESIDUALS_CSV
+    poses = read_pose_errors(res) if res.is_file() else None
+    return atomic_write_text(
+        target, render_calibration_report(summary, cal, poses), force=True
+    )
+
+
+def write_calibration_report(
+    path: str | Path, result: Any, meas: Any, summary: Mapping[str, Any]
+) -> Path:
+    """``report.html`` of a calibration from the objects in memory (the same page as
+    :func:`write_report` draws from the files ``kinecal calibrate`` writes)."""
+    from kinecal.io import atomic_write_text
+    from kinecal.report._poses import pose_errors
+
+    clean = json.loads(json.dumps(summary, default=_jsonable))
+    html = render_calibration_report(
+        clean, result.calibrated, pose_errors(result, meas)
+    )
+    return atomic_write_text(path, html, force=True)
+
+
+def _jsonable(x: object) -> object:
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, np.generic):
+        return x.item()
+    raise TypeError(f"not JSON serialisable: {type(x).__name__}")

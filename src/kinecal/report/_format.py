@@ -1,0 +1,139 @@
+"""Number formats and HTML pieces shared by the reports (one formatter for every table).
+
+Formats
+-------
+- errors and lengths in mm, times, ratios: 4 significant digits (``num``), e.g.
+  ``0.7972``, ``12.35``, ``1105``; scientific notation below 1e-4 and from 1e6;
+- an estimate with its standard deviation: the value rounded to the std's second
+  significant digit (``pm``), e.g. ``-1105.0294 ± 0.0020``;
+- significance (a ratio to a std): one decimal (``ratio``);
+- missing values (None, NaN): an em dash.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+import time
+from collections.abc import Iterable, Sequence
+
+from kinecal._version import __version__
+
+__all__ = ["details", "e", "figure", "num", "page", "pm", "ratio", "table"]
+
+DASH = "—"
+
+
+def e(x: object) -> str:
+    """HTML-escaped text."""
+    return html.escape(str(x))
+
+
+def _finite(v: object) -> float | None:
+    if v is None:
+        return None
+    try:
+        f = float(v)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return None
+    return f if math.isfinite(f) else None
+
+
+def num(v: object, sig: int = 4) -> str:
+    """``v`` with ``sig`` significant digits (trailing zeros kept: columns line up)."""
+    f = _finite(v)
+    if f is None:
+        return DASH
+    if f == 0.0:
+        return "0"
+    exp = math.floor(math.log10(abs(float(f"{f:.{sig - 1}e}"))))  # after rounding
+    if exp < -4 or exp >= 6:
+        return f"{f:.{sig - 1}e}"
+    return f"{f:.{max(sig - 1 - exp, 0)}f}"
+
+
+def pm(v: object, sd: object, sig: int = 6) -> str:
+    """``value ± std``, the value rounded to the std's second significant digit; without
+    a std, the value with ``sig`` significant digits."""
+    f, s = _finite(v), _finite(sd)
+    if f is None:
+        return DASH
+    if s is None or s <= 0.0:
+        return num(f, sig)
+    decimals = min(max(1 - math.floor(math.log10(s)), 0), 12)
+    if abs(f) >= 1e6 or (f != 0 and abs(f) < 1e-4 and decimals > 8):
+        return f"{num(f, 3)} ± {num(s, 2)}"
+    return f"{f:.{decimals}f} ± {s:.{decimals}f}"
+
+
+def ratio(v: object) -> str:
+    """A significance (value / std): one decimal."""
+    f = _finite(v)
+    return DASH if f is None else f"{f:.1f}"
+
+
+def table(
+    head: Sequence[str],
+    rows: Iterable[Sequence[str]],
+    left: int = 1,
+    cls: Sequence[str] = (),
+) -> str:
+    """An HTML table; cells are HTML already (escape text with :func:`e`), the first
+    ``left`` columns left-aligned; ``cls``: a CSS class per row (optional)."""
+    th = "".join(
+        f"<th{' class=l' if i < left else ''}>{e(h)}</th>" for i, h in enumerate(head)
+    )
+    body = []
+    for k, r in enumerate(rows):
+        c = cls[k] if k < len(cls) and cls[k] else ""
+        tds = "".join(
+            f"<td{' class=l' if i < left else ''}>{x}</td>" for i, x in enumerate(r)
+        )
+        body.append(f"<tr class={c}>{tds}</tr>" if c else f"<tr>{tds}</tr>")
+    return f"<table><tr>{th}</tr>{''.join(body)}</table>"
+
+
+def details(summary: str, inner: str, *, open_: bool = False) -> str:
+    """A collapsible block (``summary`` is HTML)."""
+    return f"<details{' open' if open_ else ''}><summary>{summary}</summary>{inner}</details>"
+
+
+_CSS = """
+body{font-family:-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:2em auto;
+max-width:1100px;color:#222;line-height:1.4;padding:0 1em}
+h1{font-size:1.6em;margin-bottom:.2em}
+h2{font-size:1.2em;border-bottom:1px solid #ddd;margin-top:1.6em}
+table{border-collapse:collapse;margin:.6em 0;font-size:.9em}
+td,th{border:1px solid #ccc;padding:3px 8px;text-align:right;white-space:nowrap}
+th{background:#f3f3f3}td.l,th.l{text-align:left;white-space:normal}
+tr.sig td{background:#fff4e0}tr.fixed td{color:#777}
+.box{background:#f6f8fa;border:1px solid #d0d7de;padding:.8em 1.2em;border-radius:6px}
+.warn{color:#9a6700}.bad{color:#b00}.muted{color:#666;font-size:.85em}
+details{margin:.3em 0}summary{cursor:pointer}
+figure{margin:1.2em 0}figure svg{width:100%;max-width:980px;height:auto;
+border:1px solid #eee}
+"""
+
+# After loading, record how many figures are drawn and visible (``data-figures="k/n"`` on
+# <html>) and flag broken ones on the page; tests read it with a headless browser.
+_CHECK = """<script>window.addEventListener("load",function(){
+var f=document.querySelectorAll("figure"),ok=0;for(var i=0;i<f.length;i++){
+var s=f[i].querySelector("svg"),r=s?s.getBoundingClientRect():null;
+if(s&&r.width>0&&r.height>0&&s.querySelector("path,rect,polygon,polyline")){ok++}
+else{f[i].insertAdjacentHTML("beforeend","<p class=bad>figure failed to load</p>")}}
+document.documentElement.setAttribute("data-figures",ok+"/"+f.length);});</script>"""
+
+
+def page(title: str, body: str) -> str:
+    """A whole HTML page, self-contained (inline CSS and SVG, no external files)."""
+    stamp = time.strftime("%Y-%m-%d %H:%M")
+    return (
+        f"<!DOCTYPE html><html lang=en><head><meta charset=utf-8><title>{e(title)}</title>"
+        f"<style>{_CSS}</style></head><body><h1>{e(title)}</h1>"
+        f"<p class=muted>kinecal {__version__}, {stamp}</p>{body}{_CHECK}</body></html>\n"
+    )
+
+
+def figure(svg: str, caption: str) -> str:
+    """An inline SVG figure with its caption (text, escaped here)."""
+    return f"<figure>{svg}<figcaption class=muted>{e(caption)}</figcaption></figure>"

@@ -1,0 +1,168 @@
+"""Per-pose errors of a calibration: ``residuals.csv`` in the result folder.
+
+``kinecal calibrate`` writes it beside ``model.yaml`` and ``report.json`` so that the
+HTML report is a function of the folder's files alone (``kinecal report DIR``). One row
+per measurement, in the order of the data file:
+
+``row`` (line of the data file), ``j1_deg .. jN_deg`` (controller angles; ``jK_mm`` for
+prismatic joints), ``x_mm, y_mm, z_mm`` (the reference point in the user frame: the
+measured point for tracker data, the target's known centre for sensor data), the
+position error model − measurement along x, y, z of the user frame before
+(``ex_before_mm`` ...: nominal kinematics with fitted user and tool frames) and after
+calibration (``ex_mm`` ...), and their norms ``err_before_mm``, ``err_mm``. The sign
+and columns of ``ex_mm .. err_mm`` are those of ``kinecal evaluate --errors-out``.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from kinecal.errors import DataError
+from kinecal.typing import Float, Int
+
+__all__ = ["RESIDUALS_CSV", "PoseErrors", "pose_errors", "read_pose_errors"]
+
+RESIDUALS_CSV = "residuals.csv"
+_TAIL = [
+    "x_mm",
+    "y_mm",
+    "z_mm",
+    "ex_before_mm",
+    "ey_before_mm",
+    "ez_before_mm",
+    "ex_mm",
+    "ey_mm",
+    "ez_mm",
+    "err_before_mm",
+    "err_mm",
+]
+_JOINT = re.compile(r"j(\d+)_(deg|mm)$")
+
+
+@dataclass(frozen=True)
+class PoseErrors:
+    """Per-pose data of a calibration (file units).
+
+    Attributes
+    ----------
+    row : (N,) line of each measurement in the data file.
+    q : (N, J) controller joint values [deg; mm for prismatic joints].
+    joint_units : (J,) 'deg' or 'mm' per joint.
+    p_mm : (N, 3) reference point in the user frame [mm].
+    before_mm, after_mm : (N, 3) position error (model − measurement) in the user frame
+        before and after calibration [mm].
+    """
+
+    row: Int
+    q: Float
+    joint_units: tuple[str, ...]
+    p_mm: Float
+    before_mm: Float
+    after_mm: Float
+
+    def to_csv(self) -> str:
+        """The text of ``residuals.csv`` (6 decimals: 1 nm, 1 µdeg)."""
+        head = ["row"] + [f"j{k + 1}_{u}" for k, u in enumerate(self.joint_units)]
+        data = np.column_stack(
+            [
+                self.row,
+                self.q,
+                self.p_mm,
+                self.before_mm,
+                self.after_mm,
+                np.linalg.norm(self.before_mm, axis=1),
+                np.linalg.norm(self.after_mm, axis=1),
+            ]
+        )
+        buf = io.StringIO()
+        fmt = ["%d"] + ["%.6f"] * (data.shape[1] - 1)
+        np.savetxt(
+            buf,
+            data,
+            fmt=fmt,
+            delimiter=",",
+            header=",".join(head + _TAIL),
+            comments="",
+        )
+        return buf.getvalue()
+
+
+def pose_errors(result, meas) -> PoseErrors:
+    """The per-pose errors of a :class:`~kinecal.identification.CalibrationResult` on
+    its calibration data ``meas`` (Measurements)."""
+    from kinecal.identification import residuals
+
+    cal = result.calibrated
+    m = cal.model
+    inputs = meas.model_inputs(cal.reference_payload_kg)
+    before = residuals(m, result.registered, meas, result.weights, inputs=inputs)
+    after = residuals(m, cal.params, meas, result.weights, inputs=inputs)
+    prismatic = np.array([j.kind == "prismatic" for j in m.robot.joints])
+    rows = meas.rows if meas.rows.size == meas.n else np.arange(meas.n)
+    return PoseErrors(
+        row=np.asarray(rows, np.intp),
+        q=meas.q_ctrl * np.where(prismatic, 1e3, 180.0 / np.pi),
+        joint_units=tuple("mm" if p else "deg" for p in prismatic),
+        p_mm=meas.reference_points() * 1e3,
+        before_mm=before.raw_position * 1e3,
+        after_mm=after.raw_position * 1e3,
+    )
+
+
+def read_pose_errors(path: str | Path) -> PoseErrors:
+    """Read a ``residuals.csv`` written by :meth:`PoseErrors.to_csv`.
+
+    Raises
+    ------
+    DataError
+        Missing columns or values that are not numbers (the message names the file, and
+        the column or line).
+    """
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise DataError(f"{p}: file not found.") from None
+    head = text.split("\n", 1)[0].strip().split(",")
+    joints = [
+        (int(m.group(1)), m.group(2), i)
+        for i, c in enumerate(head)
+        if (m := _JOINT.match(c))
+    ]
+    need = ["row", *_TAIL]
+    missing = [c for c in need if c not in head]
+    if missing or not joints:
+        what = f"column '{missing[0]}'" if missing else "joint columns j1_deg .."
+        raise DataError(
+            f"{p}: missing {what}; expected the columns row, j1_deg .., {', '.join(_TAIL)}."
+        )
+    try:
+        a = np.loadtxt(io.StringIO(text), delimiter=",", skiprows=1, ndmin=2)
+    except ValueError as exc:
+        raise DataError(f"{p}: {exc}".replace("\n", " ")) from None
+    if a.shape[1] != len(head):
+        raise DataError(
+            f"{p}: {a.shape[1]} values per line; the header has {len(head)}."
+        )
+    if not np.all(np.isfinite(a)):
+        r, c = np.argwhere(~np.isfinite(a))[0]
+        raise DataError(f"{p}: line {r + 2}, column '{head[c]}': not a finite number.")
+    col = {c: i for i, c in enumerate(head)}
+    joints.sort()
+
+    def take(*names: str) -> Float:
+        return a[:, [col[n] for n in names]]
+
+    return PoseErrors(
+        row=a[:, col["row"]].astype(np.intp),
+        q=a[:, [i for _, _, i in joints]],
+        joint_units=tuple(u for _, u, _ in joints),
+        p_mm=take("x_mm", "y_mm", "z_mm"),
+        before_mm=take("ex_before_mm", "ey_before_mm", "ez_before_mm"),
+        after_mm=take("ex_mm", "ey_mm", "ez_mm"),
+    )
