@@ -127,10 +127,10 @@ class _LazyImages(Sequence):
 
 
 def _register() -> None:
-    """The calibration, sphere-fit and simulation commands live in their own module."""
-    from kinecal.cli._sensor_calib import COMMANDS
+    """The calibration, sphere-fit and simulation commands live in their own modules."""
+    from kinecal.cli import _sensor_calib, _sensor_sim
 
-    for cmd in COMMANDS:
+    for cmd in (*_sensor_calib.COMMANDS, *_sensor_sim.COMMANDS):
         sensor.add_command(cmd)
 
 

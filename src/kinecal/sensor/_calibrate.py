@@ -43,8 +43,9 @@ __all__ = [
 DETECTORS = ("auto", "classic", "sb")
 
 # k3 is estimated where its standard deviation, as the displacement it makes at the
-# image corner, would be at most this [px]; otherwise it is held at 0 (k3_determined).
-K3_MAX_CORNER_PX = 0.1
+# image corner, is at most this many times the noise of one corner coordinate (the
+# a-posteriori sigma); otherwise it is held at 0 (k3_determined).
+K3_MAX_CORNER_SIGMAS = 2.0
 
 
 def _cv2() -> Any:
@@ -203,14 +204,20 @@ def k3_determined(free: BundleResult) -> tuple[bool, dict[str, float]]:
     and ``r^4``, so k3 trades against k1 and k2: its standard deviation is large, while
     holding it at 0 changes the fitted distortion over the field by far less than the
     noise (k1 and k2 take up the rest). The test: k3 is determined when its standard
-    deviation moves the image corner by at most ``K3_MAX_CORNER_PX`` (:func:
-    `k3_corner_px`). Returned with it: that standard deviation and its effect at the
-    corner.
+    deviation moves the image corner (:func:`k3_corner_px`) by at most
+    ``K3_MAX_CORNER_SIGMAS`` times the noise of one corner coordinate. Returned with it:
+    that standard deviation, its effect at the corner and the limit [px].
     """
     std = float(free.std.get("k3", 0.0))
     corner = std * k3_corner_px(free.camera)
-    test = {"k3_free": free.camera.k3, "std_free": std, "corner_px": corner}
-    return bool(np.isfinite(corner) and corner <= K3_MAX_CORNER_PX), test
+    limit = K3_MAX_CORNER_SIGMAS * free.sigma_corner_px
+    test = {
+        "k3_free": free.camera.k3,
+        "std_free": std,
+        "corner_px": corner,
+        "limit_px": limit,
+    }
+    return bool(np.isfinite(corner) and corner <= limit), test
 
 
 def detect_all(
