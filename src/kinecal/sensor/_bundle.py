@@ -22,10 +22,13 @@ pose and at most one plane).
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from kinecal._parallel import blas_threads, set_blas_threads
 from kinecal.errors import DataError
 from kinecal.geometry import skew, so3_exp
 from kinecal.sensor._camera import INTRINSICS, Camera
@@ -305,6 +308,20 @@ def _solve(
     return st, max_iter, False
 
 
+@contextmanager
+def _one_blas_thread() -> Iterator[None]:
+    """OpenBLAS on one thread inside (restored after): the normal matrices are a few
+    hundred wide, where BLAS threads gain nothing and fight over a busy machine."""
+    before = blas_threads()
+    if before:
+        set_blas_threads(1)
+    try:
+        yield
+    finally:
+        if before:
+            set_blas_threads(max(before))
+
+
 def bundle_adjust(
     camera: Camera,
     T_cam_board: Float,
@@ -334,7 +351,35 @@ def bundle_adjust(
         with stripes on two or more views).
     fixed
         Names of intrinsics (:data:`~kinecal.sensor.INTRINSICS`) held at their value.
+
+    The dense algebra runs with one BLAS thread.
     """
+    with _one_blas_thread():
+        return _bundle_adjust(
+            camera,
+            T_cam_board,
+            corners,
+            object_points,
+            stripes=stripes,
+            planes=planes,
+            adjust_planes=adjust_planes,
+            fixed=fixed,
+            max_iter=max_iter,
+        )
+
+
+def _bundle_adjust(
+    camera: Camera,
+    T_cam_board: Float,
+    corners: Float,
+    object_points: Float,
+    *,
+    stripes: Stripes | None,
+    planes: tuple[Float, Float] | None,
+    adjust_planes: np.ndarray | None,
+    fixed: tuple[str, ...],
+    max_iter: int,
+) -> BundleResult:
     corners = np.asarray(corners, float)
     obj = np.asarray(object_points, float)
     T = np.asarray(T_cam_board, float)
