@@ -150,3 +150,13 @@ def test_issue_24_joint_calibration_and_a_sphere_within_40um(sensor, session, bo
     for k, axis in (("u0", 0), ("v0", 1), ("fx", 2)):
         assert abs(f.center[axis] - c[axis]) < 4 * cc.std[k] / cc.camera.fx * c[2]
     assert abs(f.radius - 0.015) < 10e-6
+
+
+def test_calibration_input_errors(boards):
+    padded = np.pad(boards[1], ((0, 8), (0, 0)), constant_values=60)
+    with pytest.raises(DataError, match="expected one size"):
+        calibrate_camera([boards[0], padded, *boards[2:6]], TGT, jobs=1)
+    with pytest.raises(DataError, match="found in 3 of 4 images; at least 5"):
+        calibrate_camera([*boards[:3], np.full_like(boards[0], 60)], TGT, jobs=1)
+    with pytest.raises(DataError, match="k3 must be"):
+        calibrate_camera(boards[:6], TGT, k3="maybe", jobs=1)

@@ -220,20 +220,47 @@ def k3_determined(free: BundleResult) -> tuple[bool, dict[str, float]]:
     return bool(np.isfinite(corner) and corner <= limit), test
 
 
+@dataclass(frozen=True)
+class Detection:
+    """The corners found in one image (None: no board), by which detector, and the
+    image's ``(width, height)`` (None: no image)."""
+
+    corners: Float | None
+    detector: str
+    size: tuple[int, int] | None
+
+
 def detect_all(
     images: Sequence[np.ndarray | None],
     target: ChessboardTarget,
     detector: str,
     jobs: int,
-) -> list[tuple[Float | None, str]]:
+) -> list[Detection]:
     """:func:`detect_corners` of every image (None stays not found), on ``jobs`` threads
-    (OpenCV's board searches release the interpreter)."""
+    (OpenCV's board searches release the interpreter; each image is taken from
+    ``images`` once, in the thread that searches it)."""
 
-    def one(i: int) -> tuple[Float | None, str]:
+    def one(i: int) -> Detection:
         img = images[i]
-        return (None, "") if img is None else detect_corners(img, target, detector)
+        if img is None:
+            return Detection(None, "", None)
+        c, how = detect_corners(img, target, detector)
+        H, W = np.asarray(img).shape[:2]
+        return Detection(c, how, (int(W), int(H)))
 
     return thread_map(one, range(len(images)), jobs)
+
+
+def common_size(found: list[Detection], where: str) -> tuple[int, int]:
+    """The one image size (width, height) of the images with a board."""
+    sizes = [d.size for d in found if d.corners is not None and d.size is not None]
+    for sz in sizes:
+        if sz != sizes[0]:
+            raise DataError(
+                f"{where}: the images are {sizes[0][0]}x{sizes[0][1]} and "
+                f"{sz[0]}x{sz[1]}; expected one size"
+            )
+    return sizes[0]
 
 
 def free_k3_if_determined(
@@ -261,6 +288,14 @@ def free_k3_if_determined(
     return (free if test["estimated"] else res), test
 
 
+def check_options(k3: str, detector: str) -> None:
+    """Refuse unknown ``k3`` and ``detector`` choices before any work."""
+    if k3 not in ("auto", "free", "fixed"):
+        raise DataError(f"k3 must be auto, free or fixed, got {k3!r}")
+    if detector not in DETECTORS:
+        raise DataError(f"detector must be one of {DETECTORS}, got {detector!r}")
+
+
 def reject_views(per_view: Float, min_views: int) -> int | None:
     """The view to drop, if one fits far worse than the others (corners mis-detected,
     e.g. on a board cut by the image border): RMS above max(4 x median, 0.3 px)."""
@@ -286,25 +321,20 @@ def calibrate_camera(
     estimates k3 only where the views determine it (:func:`k3_determined`), ``"free"``
     always, ``"fixed"`` never (k3 = 0).
     """
+    check_options(k3, detector)
     if len(images) == 0:
         raise DataError("calibrate_camera: no images")
-    H, W = np.asarray(images[0]).shape[:2]
     found = detect_all(images, target, detector, jobs)
-    used = [k for k, (c, _) in enumerate(found) if c is not None]
-    for k in used:
-        if np.asarray(images[k]).shape[:2] != (H, W):
-            raise DataError(
-                f"calibrate_camera: image {k} is {np.asarray(images[k]).shape[:2]}, "
-                f"expected {(H, W)}"
-            )
+    used = [k for k, d in enumerate(found) if d.corners is not None]
     if len(used) < min_views:
         raise DataError(
             f"calibrate_camera: the {target.cols}x{target.rows} chessboard was found in "
             f"{len(used)} of {len(images)} images; at least {min_views} are needed"
         )
-    corners = np.stack([c for c, _ in found if c is not None])
+    size = common_size(found, "calibrate_camera")
+    corners = np.stack([d.corners for d in found if d.corners is not None])
     obj = target.object_points()
-    cam, T = zhang_start(corners, target, (W, H))
+    cam, T = zhang_start(corners, target, size)
     rejected: list[int] = []
 
     def run(c: Camera, T0: Float, fixed: tuple[str, ...]) -> BundleResult:
@@ -321,7 +351,7 @@ def calibrate_camera(
         keep = np.arange(corners.shape[0]) != drop
         corners, T = corners[keep], T[keep]
     res, test = free_k3_if_determined(run, res, k3)
-    return _camera_result(res, used, rejected, [found[k][1] for k in used], test)
+    return _camera_result(res, used, rejected, [found[k].detector for k in used], test)
 
 
 def _camera_result(

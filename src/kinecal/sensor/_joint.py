@@ -23,6 +23,8 @@ from kinecal.sensor._bundle import BundleResult, Stripes, bundle_adjust
 from kinecal.sensor._calibrate import (
     CameraCalibration,
     _camera_result,
+    check_options,
+    common_size,
     detect_all,
     free_k3_if_determined,
     pnp_poses,
@@ -79,11 +81,6 @@ class SensorCalibration:
     @property
     def sensor(self) -> Sensor:
         return Sensor(self.camera.camera, self.planes.planes)
-
-
-def _found(det: tuple[Float | None, str]) -> Float:
-    assert det[0] is not None
-    return det[0]
 
 
 def _on_target(camera: Camera, T: Float, uv: Float) -> Float:
@@ -208,6 +205,7 @@ def calibrate_sensor(
     """
     if model not in ("auto", "free", "rotary"):
         raise DataError(f"model must be auto, free or rotary, got {model!r}")
+    check_options(k3, detector)
     if len(plane_board_images) != len(stripe_images):
         raise DataError(
             f"{len(plane_board_images)} target board images but {len(stripe_images)} "
@@ -215,24 +213,22 @@ def calibrate_sensor(
         )
     idx, M = _plane_images(stripe_images, plane_indices, n_planes)
     found = detect_all(board_images, target, detector, jobs)
-    used = [k for k, (c, _) in enumerate(found) if c is not None]
+    used = [k for k, d in enumerate(found) if d.corners is not None]
     if camera is None and len(used) < min_views:
         raise DataError(
             f"the {target.cols}x{target.rows} chessboard was found in {len(used)} of "
             f"{len(board_images)} camera views; at least {min_views} are needed"
         )
     found_p = detect_all(plane_board_images, target, detector, jobs)
-    poses = [k for k, (c, _) in enumerate(found_p) if c is not None]
+    poses = [k for k, d in enumerate(found_p) if d.corners is not None]
     if len(poses) < min_poses:
         raise DataError(
             f"the board was found at {len(poses)} of {len(plane_board_images)} target "
             f"poses; at least {min_poses} are needed for the light planes"
         )
-    corners = np.stack(
-        [_found(found[k]) for k in used] + [_found(found_p[k]) for k in poses]
-    )
-    H, W = np.asarray(plane_board_images[poses[0]]).shape[:2]
-    size = (int(W), int(H))
+    both = [found[k] for k in used] + [found_p[k] for k in poses]
+    size = common_size(both, "calibrate_sensor")
+    corners = np.stack([d.corners for d in both if d.corners is not None])
     if camera is None:
         cam0, T0 = zhang_start(corners, target, size)
     else:
@@ -319,7 +315,7 @@ def calibrate_sensor(
     if camera is None:
         res, test = free_k3_if_determined(run, res, k3)
     cc = _camera_result(
-        res, used, rejected, [found[k][1] for k in used], test, n_views=n_cam
+        res, used, rejected, [found[k].detector for k in used], test, n_views=n_cam
     )
     pc = _planes_result(
         res.camera,
