@@ -120,7 +120,7 @@ def run(
             **sim,
             images=15 + 5 + 5 * 120,
         )
-        # 2. the camera alone (was 25 s for 15 images)
+        # 2. the camera alone (was 25 s for 15 images; the session now has 25)
         cam = _process(
             _kinecal(
                 "sensor",
@@ -135,7 +135,7 @@ def run(
         record(
             "calibrate_camera_cli",
             cam["wall_s"],
-            "15 images, whole process",
+            "25 images, whole process",
             **cam,
             fx_error_px=float(
                 (camera if isinstance(camera, Camera) else camera.camera).fx
@@ -163,7 +163,7 @@ def run(
         record(
             "calibrate_sensor_joint_cli",
             joint["wall_s"],
-            "15 views + 5 x 120 stripe images, whole process",
+            "25 views + 5 x 120 stripe images, whole process",
             **joint,
             reprojection_px=info["camera"]["rms_reprojection_px"],
             plane_fit_rms_mm=info["plane_fit_rms_mm"]["mean"],
