@@ -137,7 +137,7 @@ class _Problem:
     # -- residuals ---------------------------------------------------------------------
     def corner_residuals(self, st: _State) -> Float:
         X = np.einsum("vij,nj->vni", st.R, self.obj) + st.t[:, None, :]
-        return st.camera.project(X) - self.corners  # (V, N, 2) [px]
+        return st.camera.project(X) - self.corners  # Eq. (1)-(2); (V, N, 2) [px]
 
     def stripe_distances(self, st: _State) -> Float:
         sp = self.stripes
@@ -148,7 +148,7 @@ class _Problem:
         m = st.R[sp.view, :, 2]
         d = np.einsum("ij,ij->i", m, st.t[sp.view])
         X = r * (d / np.einsum("ij,ij->i", m, r))[:, None]
-        return np.einsum("ij,ij->i", X, st.n[sp.plane]) + st.b[sp.plane]
+        return np.einsum("ij,ij->i", X, st.n[sp.plane]) + st.b[sp.plane]  # Eq. (3)
 
     def cost(self, st: _State, sig: tuple[float, float]) -> float:
         rc = self.corner_residuals(st) / sig[0]

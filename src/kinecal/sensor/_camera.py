@@ -171,8 +171,8 @@ class Camera:
         radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
         drad = self.k1 + r2 * (2.0 * self.k2 + 3.0 * self.k3 * r2)  # d radial / d r2
         p1, p2 = self.p1, self.p2
-        xd = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
-        yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
+        xd = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)  # Eq. (2)
+        yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y  # Eq. (2)
         J_xy = np.empty((*x.shape, 2, 2))
         J_xy[..., 0, 0] = radial + 2.0 * x * x * drad + 2.0 * p1 * y + 6.0 * p2 * x
         J_xy[..., 0, 1] = J_xy[..., 1, 0] = (
@@ -198,7 +198,7 @@ class Camera:
         xy = P[..., :2] * iz[..., None]
         xd, J_xd_xy, J_xd_k = self._distort_jacobian(xy)
         f = np.array([self.fx, self.fy])
-        uv = xd * f + np.array([self.u0, self.v0])
+        uv = xd * f + np.array([self.u0, self.v0])  # Eq. (1)
         J_xy_P = np.zeros((*P.shape[:-1], 2, 3))
         J_xy_P[..., 0, 0] = J_xy_P[..., 1, 1] = iz
         J_xy_P[..., :, 2] = -xy * iz[..., None]

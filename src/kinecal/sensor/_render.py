@@ -13,7 +13,7 @@ planes turn about one axis (a rotary sensor), every surface point lies on exactl
 plane of the pencil, at an angle ``psi`` about the axis; the pixels sorted by that angle
 give each plane's candidates by a binary search, and the exact test runs on those only
 (other plane sets fall back to a test of every pixel). The background's read noise is
-drawn from a table. A 1280 x 1024 stripe image takes about 10 ms.
+drawn from a table. A 1280 x 1024 stripe image takes 15-20 ms.
 :meth:`StripeRenderer.true_stripe` gives the exact centre per row (where the ray meets
 the light plane on the surface), the ground truth for extraction, and the fast
 point-level mode of the simulator.
