@@ -190,7 +190,7 @@ def calibrate_camera_cmd(
 ) -> None:
     """Camera intrinsics from the chessboard images in FOLDER (*.png): Zhang's method
     refined by a bundle adjustment; standard deviations from the residuals."""
-    from kinecal.cli._sensor import _board, _LazyImages
+    from kinecal.cli._sensor_args import _board, _LazyImages
     from kinecal.io import image_files, read_image, save_sensor
     from kinecal.sensor import calibrate_camera
 
@@ -283,7 +283,7 @@ def calibrate_planes_cmd(
     """
     import numpy as np
 
-    from kinecal.cli._sensor import _board, _LazyImages, _plane_index
+    from kinecal.cli._sensor_args import _board, _LazyImages, _plane_index
     from kinecal.errors import DataError
     from kinecal.io import image_files, load_sensor, read_image, save_sensor
     from kinecal.sensor import Camera, calibrate_sensor

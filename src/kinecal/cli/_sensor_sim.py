@@ -86,7 +86,7 @@ def simulate_scan(
     """
     import numpy as np
 
-    from kinecal.cli._sensor import _triple
+    from kinecal.cli._sensor_args import _triple
     from kinecal.io import prepare_output_dir, save_sensor, write_json
     from kinecal.sensor import (
         RenderedImages,
