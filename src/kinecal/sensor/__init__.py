@@ -31,9 +31,29 @@ from kinecal.sensor._simulate import (
     sphere_scene,
 )
 from kinecal.sensor._sphere import SphereFit, fit_sphere
-from kinecal.sensor._stripes import extract_stripes, extract_stripes_all
+from kinecal.sensor._stripe_images import (
+    StripeScore,
+    StripeSpec,
+    score_centres,
+    sphere_stripe_truth,
+    synthetic_stripe,
+)
+from kinecal.sensor._stripes import (
+    BORDER,
+    FIT_FAILED,
+    NEIGHBOUR,
+    SATURATED,
+    STRIPE_COLUMNS,
+    extract_stripes,
+    extract_stripes_all,
+)
 
 __all__ = [
+    "BORDER",
+    "FIT_FAILED",
+    "NEIGHBOUR",
+    "SATURATED",
+    "STRIPE_COLUMNS",
     "CalibrationSession",
     "Camera",
     "CameraCalibration",
@@ -47,6 +67,8 @@ __all__ = [
     "SphereFit",
     "SphereSurface",
     "StripeRenderer",
+    "StripeScore",
+    "StripeSpec",
     "board_pose",
     "board_views",
     "calibrate_camera",
@@ -61,6 +83,9 @@ __all__ = [
     "paper_sensor",
     "render_chessboard",
     "rotary_planes",
+    "score_centres",
     "simulate_calibration",
     "sphere_scene",
+    "sphere_stripe_truth",
+    "synthetic_stripe",
 ]

@@ -35,7 +35,7 @@ or a second stripe beside the primary one), the curve with the largest summed st
 wins (strength x length: a long, strong, continuous stripe beats short, weak or broken
 ones); a curve that loses half of its cross-sections or more is a reflection and is
 dropped whole; curves wider than ``max_width_px`` (glare) are dropped too. The winner is
-flagged ``NEIGHBOUR`` when the loser was within four filter scales of it.
+flagged ``NEIGHBOUR`` when the loser was within six filter scales of it.
 
 Background: the coarse image's grey opening (28 px), blurred, is the background; it is
 subtracted from the smoothed value before the stripe's width and amplitude are measured,

@@ -90,6 +90,7 @@ def one_per_section(
     score: Float,
     offset: Float,
     position: Float,
+    cos: Float,
     near: float,
     n_curves: int,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -98,13 +99,16 @@ def one_per_section(
     ``section``: cross-section key of each point (its row, or ``H +`` its column);
     ``label``: its curve; ``score``: its curve's score (larger wins); ``offset``: its
     distance from its pixel; ``position``: its coordinate along the section (u in a
-    row, v in a column); ``n_curves``: the number of curve labels.
+    row, v in a column); ``cos``: the cosine between its normal and its section
+    (distances along the section times it are distances along the normal);
+    ``n_curves``: the number of curve labels.
 
     Points of one curve in one section less than two pixels apart are one crossing
     (the point with the smallest ``offset`` stands for it); a curve may cross a section
     several times (a ring crosses a column twice). Of the curves in a section, the one
     with the best score keeps its crossings and the others lose theirs. Returns the
-    kept points' indices, whether a lost crossing was within ``near`` pixels of each,
+    kept points' indices, whether a lost crossing was within ``near`` pixels of each
+    (along its normal),
     and per curve the sections it won and the sections it is in (a (2, n_curves)
     array).
     """
@@ -138,7 +142,8 @@ def one_per_section(
     o4 = np.lexsort((p_r, s_r))
     a, b = o4[:-1], o4[1:]
     pair = (s_r[a] == s_r[b]) & (win_r[a] != win_r[b])
-    pair &= np.abs(p_r[a] - p_r[b]) < near
+    c_r = cos[rep]
+    pair &= np.abs(p_r[a] - p_r[b]) * np.maximum(c_r[a], c_r[b]) < near
     flag = np.zeros(rep.size, bool)
     flag[np.where(win_r[a[pair]], a[pair], b[pair])] = True
     kept = np.flatnonzero(win_r)

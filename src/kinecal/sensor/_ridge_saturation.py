@@ -13,7 +13,10 @@ fitted by least squares with weights ``y^2`` (the variance of ``ln y`` is
 ``sigma_noise^2 / y^2``) to the background-subtracted samples along the normal that
 are neither clipped nor interpolated from a clipped pixel (three lines, one pixel apart
 along the stripe, against speckle). ``x`` is the distance along the normal from the
-ridge centre [px], ``y`` the sample over the background [grey levels].
+ridge centre [px], ``y`` the sample over the background [grey levels]. The
+interpolation flattens a narrow stripe's profile: the fitted amplitude and width are
+those of the interpolated profile (for a stripe of sigma 1.6 px the amplitude comes out
+about a quarter low), the centre is not moved by it (the profile stays symmetric).
 """
 
 from __future__ import annotations

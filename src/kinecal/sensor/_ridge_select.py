@@ -84,9 +84,11 @@ def select_centres(
     peak = np.where(pos, r_c * np.sqrt(np.abs(S2) / np.where(pos, s2, 1.0)), r_c)
     section = np.where(p.steep, p.y, H + p.x).astype(np.int64)
     position = np.where(p.steep, p.u, p.v)
+    cos = np.abs(np.where(p.steep, p.nx, p.ny))
     lab = p.label
     m = int(lab.max()) + 1 if lab.size else 0
     alive = np.ones(m, bool)
+    beside = np.zeros(lab.size, bool)  # won a section from a ridge close by
     for _ in range(3):  # curves that fail the rules leave; the others compete again
         cand = np.flatnonzero(keep & alive[lab])
         if cand.size == 0:
@@ -96,8 +98,16 @@ def select_centres(
         strongest = np.zeros(m)
         np.maximum.at(strongest, lc, p.strength[cand])
         kept, neighbour, (won, n_sec) = one_per_section(
-            section[cand], lc, score[lc], p.offset[cand], position[cand], 4 * sigma, m
+            section[cand],
+            lc,
+            score[lc],
+            p.offset[cand],
+            position[cand],
+            cos[cand],
+            6 * sigma,
+            m,
         )
+        beside[cand[kept][neighbour]] = True
         lk = lc[kept]
         wide = np.bincount(lk, width[cand[kept]], minlength=m) / np.maximum(
             np.bincount(lk, minlength=m), 1
@@ -111,17 +121,19 @@ def select_centres(
         if not np.any(alive & ~good):
             break
         alive &= good
-    final = good[lc[kept]]
-    sel, neighbour = cand[kept][final], neighbour[final]
+    sel = cand[kept][good[lc[kept]]]
+    neighbour = beside[sel]
     # Centres on unlit pixels go (the smoothing carries a ridge past the stripe's end):
     # the brighter of the two pixels a centre lies between must rise over the
-    # background by 0.3 x the smoothed value at the centre. So do the centres next to
-    # a curve's end (among the lit points), where the end bends the Hessian.
-    live = np.flatnonzero(keep & alive[lab])
-    lit = np.zeros(lab.size, bool)
-    raw = _raw_at(img, p.u[live], p.v[live], p.steep[live])
-    lit[live] = raw - bg[live] >= 0.3 * r_c[live]
-    ok = lit[sel] & _inner(lit, p)[sel]
+    # background by 0.3 x the smoothed value at the centre.
+    raw = _raw_at(img, p.u[sel], p.v[sel], p.steep[sel])
+    ok = raw - bg[sel] >= 0.3 * r_c[sel]
+    sel, neighbour = sel[ok], neighbour[ok]
+    # So do the two last cross-sections at each end of a curve, where the end bends
+    # the Hessian (not at the image border: there the stripe goes on).
+    ok = ~_ends(section[sel], lab[sel] * 2 + p.steep[sel])
+    at_border = (p.u < 2.5) | (p.v < 2.5) | (p.u > W - 3.5) | (p.v > H - 3.5)
+    ok |= at_border[sel]
     sel, neighbour = sel[ok], neighbour[ok]
     u, v = p.u[sel], p.v[sel]
     reach = int(np.ceil(3.0 * sigma)) + 1
@@ -153,16 +165,11 @@ def _raw_at(img: np.ndarray, u: Float, v: Float, steep: np.ndarray) -> Float:
     return np.maximum(first, second).astype(float)
 
 
-def _inner(alive: np.ndarray, p: RidgePoints) -> np.ndarray:
-    """Points with a linked point of their curve beyond 1.5 px on both sides along it."""
-    ei, ej = p.edges
-    live = alive[ei] & alive[ej]
-    a, b = ei[live], ej[live]
-    du, dv = p.u[b] - p.u[a], p.v[b] - p.v[a]
-    pa = dv * p.nx[a] - du * p.ny[a]  # where b lies along a's tangent (-ny, nx)
-    pb = du * p.ny[b] - dv * p.nx[b]  # where a lies along b's tangent
-    n = p.u.size
-    plus = np.bincount(a, pa > 1.5, minlength=n) + np.bincount(b, pb > 1.5, minlength=n)
-    minus = np.bincount(a, pa < -1.5, minlength=n)
-    minus += np.bincount(b, pb < -1.5, minlength=n)
-    return (plus > 0) & (minus > 0)
+def _ends(section: np.ndarray, group: np.ndarray) -> np.ndarray:
+    """Points within two sections of the first or last section of their group."""
+    n = int(group.max()) + 1 if group.size else 0
+    lo = np.full(n, np.iinfo(np.int64).max)
+    hi = np.full(n, np.iinfo(np.int64).min)
+    np.minimum.at(lo, group, section)
+    np.maximum.at(hi, group, section)
+    return (section <= lo[group] + 1) | (section >= hi[group] - 1)

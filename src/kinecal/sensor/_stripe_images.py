@@ -216,8 +216,8 @@ class StripeScore:
     centres that are not false (signed: + along the normal of :meth:`StripeSpec.normal`
     for synthetic stripes, along ``(t_v, -t_u)`` of the polyline otherwise); ``false``:
     share of the centres further than ``false_px`` from the line; ``per_section``:
-    centres (not false) per true cross-section found (1 for one centre per
-    cross-section).
+    centres (not false) within ``match_px`` of a true cross-section, per cross-section
+    found (1 for one centre per cross-section).
     """
 
     n_true: int
@@ -241,31 +241,26 @@ def score_centres(
     match_px: float = 1.0,
     margin_px: float = 0.0,
     shape: tuple[int, int] | None = None,
+    cover: Float | None = None,
 ) -> StripeScore:
     """Score centres ``uv`` (K, >=2) against a true line, a dense polyline (N, 2).
 
     The polyline's samples must be much closer than a pixel (:meth:`StripeSpec.truth`
     gives 0.05 px). With ``shape`` and ``margin_px``, true cross-sections within
     ``margin_px`` of the image border are not counted (an extractor's filters need
-    room), nor are centres there.
+    room), nor are centres there. ``cover``: the part of the line whose cross-sections
+    count for the coverage (default: all of ``truth``; e.g. where a rendered stripe is
+    bright enough to be seen), while distances are measured to all of ``truth``.
     """
     from scipy.spatial import cKDTree
 
     P = np.asarray(truth, float)
-    T = np.gradient(P, axis=0)
-    T /= np.linalg.norm(T, axis=1, keepdims=True)
-    N = np.stack([T[:, 1], -T[:, 0]], 1)
-    # The true cross-sections: crossings of integer rows where the line is steep (more
-    # vertical) and of integer columns where it is flat.
-    steep = np.abs(T[:, 1]) >= np.abs(T[:, 0])
-    cross = []
-    for axis, keep in ((1, steep), (0, ~steep)):
-        a, b = P[:-1, axis], P[1:, axis]
-        k = np.flatnonzero((np.floor(a) != np.floor(b)) & keep[:-1] & keep[1:])
-        x = np.maximum(np.floor(a[k]), np.floor(b[k]))  # the integer crossed
-        f = (x - a[k]) / (b[k] - a[k])
-        cross.append(P[k] + f[:, None] * (P[k + 1] - P[k]))
-    sections = np.concatenate(cross)
+    Q = P if cover is None else np.asarray(cover, float)
+    if P.shape[0] < 2 or Q.shape[0] < 2:
+        nan = float("nan")
+        return StripeScore(0, len(uv), nan, nan, nan, nan, nan, nan)
+    N = _normals(P)
+    sections = _sections(Q)
     C = np.asarray(uv, float)[:, :2]
     if shape is not None and margin_px > 0:
         H, W = shape
@@ -289,8 +284,12 @@ def score_centres(
     if sections.size and ok.size:
         near = cKDTree(C[~false]).query(sections, distance_upper_bound=match_px)[0]
         found = np.isfinite(near)
+        # centres at the cross-sections counted (not those beyond ``cover``)
+        at = cKDTree(sections).query(C[~false], distance_upper_bound=match_px)[0]
+        n_at = int(np.isfinite(at).sum())
     else:
         found = np.zeros(sections.shape[0], bool)
+        n_at = 0
     n_true = sections.shape[0]
     return StripeScore(
         n_true=n_true,
@@ -300,18 +299,49 @@ def score_centres(
         bias_px=float(np.mean(ok)) if ok.size else float("nan"),
         max_px=float(np.max(np.abs(ok))) if ok.size else float("nan"),
         false=float(false.mean()) if C.shape[0] else 0.0,
-        per_section=float(ok.size / max(found.sum(), 1)),
+        per_section=float(n_at / max(found.sum(), 1)),
     )
 
 
+def _normals(P: Float) -> Float:
+    """Unit normals (N, 2) ``(t_v, -t_u)`` of a dense polyline (N, 2)."""
+    T = np.gradient(P, axis=0)
+    T /= np.linalg.norm(T, axis=1, keepdims=True)
+    return np.stack([T[:, 1], -T[:, 0]], 1)
+
+
+def _sections(P: Float) -> Float:
+    """Where a dense polyline crosses integer rows (where it runs steeper than 45 deg)
+    and integer columns (elsewhere): its cross-sections (M, 2)."""
+    N = _normals(P)
+    steep = np.abs(N[:, 0]) >= np.abs(N[:, 1])
+    gap = np.hypot(*(P[1:] - P[:-1]).T) < 0.5  # not across a gap of the line
+    cross = []
+    for axis, keep in ((1, steep), (0, ~steep)):
+        a, b = P[:-1, axis], P[1:, axis]
+        k = np.flatnonzero((np.floor(a) != np.floor(b)) & keep[:-1] & keep[1:] & gap)
+        x = np.maximum(np.floor(a[k]), np.floor(b[k]))  # the integer crossed
+        f = (x - a[k]) / (b[k] - a[k])
+        cross.append(P[k] + f[:, None] * (P[k + 1] - P[k]))
+    return np.concatenate(cross)
+
+
 def sphere_stripe_truth(
-    camera: Camera, planes: LightPlanes, index: int, center: Float, radius: float
+    camera: Camera,
+    planes: LightPlanes,
+    index: int,
+    center: Float,
+    radius: float,
+    *,
+    min_cos: float = 0.1,
 ) -> Float:
     """True centre line (N, 2) of light plane ``index`` on a sphere, as rendered.
 
     The plane cuts the sphere (centre [m] and radius [m], camera frame) in a circle; its
-    points that face the camera and the light source (``planes.source``), projected with
-    the camera's distortion, sampled densely (about 0.05 px apart), inside the image.
+    points that face the camera and the light source (``planes.source``) at more than
+    ``acos(min_cos)`` from grazing (the renderer shades by that cosine: at 0.1 the
+    stripe has a tenth of its brightness), projected with the camera's distortion,
+    sampled densely (about 0.05 px apart), inside the image.
     """
     n = np.asarray(planes.n[index], float)
     b = float(planes.b[index])
@@ -334,8 +364,10 @@ def sphere_stripe_truth(
     if planes.source is None:
         raise ConfigError("sphere_stripe_truth: the planes need their light source")
     S = np.asarray(planes.source, float)
-    seen = np.einsum("ij,ij->i", normal, -X) > 0
-    lit = np.einsum("ij,ij->i", normal, S - X) > 0
+    to_cam = -X / np.linalg.norm(X, axis=1, keepdims=True)
+    to_light = (S - X) / np.linalg.norm(S - X, axis=1, keepdims=True)
+    seen = np.einsum("ij,ij->i", normal, to_cam) > min_cos
+    lit = np.einsum("ij,ij->i", normal, to_light) > min_cos
     keep = seen & lit
     if not keep.any():
         return np.zeros((0, 2))
