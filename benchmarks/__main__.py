@@ -130,7 +130,15 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks")
     ap.add_argument("--out", default="benchmarks/results.json")
     ap.add_argument("--quick", action="store_true", help="fewer repeats")
+    ap.add_argument(
+        "--stripes", action="store_true", help="only the stripe benchmarks (issue 24)"
+    )
     args = ap.parse_args(argv)
+    if args.stripes:
+        from benchmarks._stripes import main as stripes_main
+
+        out_args = [] if args.out == ap.get_default("out") else ["--out", args.out]
+        return stripes_main(out_args + (["--quick"] if args.quick else []))
     rep = 3 if args.quick else 7
     # Model evaluations take milliseconds: many more repeats steady their median on a
     # shared VM (its speed drifts by 20-30 % within minutes).
@@ -429,9 +437,15 @@ def main(argv: list[str] | None = None) -> int:
     t, _ = _median_time(start, rep)
     record("cli_help_startup", t, "<= 0.3 s")
 
+    # 9. stripe extraction: accuracy per method, a whole scan on one core (issue 24)
+    from benchmarks._stripes import stripe_benchmarks
+
+    stripes = stripe_benchmarks(args.quick)
+
     out = {
         "machine": _machine(),
         "results": results,
+        "stripes": stripes,
         "created_unix": time.time(),
         "repeats": rep,
     }

@@ -510,6 +510,19 @@ def simulate_calibration_cmd(
     click.echo(f"calibration images -> {d}", err=True)
 
 
+def _read_scan_image(path: Path) -> np.ndarray:
+    """A stripe image: grey PNGs by kinecal's fast decoder, anything else by OpenCV
+    (:func:`kinecal.io.read_image`, which also says what is wrong with a file)."""
+    from kinecal.io import read_image
+    from kinecal.sensor import decode_grey_png
+
+    try:
+        img = decode_grey_png(Path(path).read_bytes())
+    except OSError:
+        img = None
+    return read_image(path) if img is None else img
+
+
 class _LazyImages(Sequence):
     """Image files read on access (``None`` entries stay ``None``)."""
 

@@ -15,6 +15,7 @@ from kinecal.sensor._planes import (
     intersect_planes,
     rotary_planes,
 )
+from kinecal.sensor._png import decode_grey_png
 from kinecal.sensor._render import (
     ChessboardTarget,
     PlaneSurface,
@@ -73,6 +74,7 @@ __all__ = [
     "board_views",
     "calibrate_camera",
     "calibrate_planes",
+    "decode_grey_png",
     "extract_stripes",
     "extract_stripes_all",
     "find_corners",

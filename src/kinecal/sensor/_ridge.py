@@ -37,7 +37,8 @@ ones); a curve that loses half of its cross-sections or more is a reflection and
 dropped whole; curves wider than ``max_width_px`` (glare) are dropped too. The winner is
 flagged ``NEIGHBOUR`` when the loser was within six filter scales of it.
 
-Background: the coarse image's grey opening (28 px), blurred, is the background; it is
+Background: a grey opening (40 px) of the image averaged over 8 x 8 blocks, blurred, is
+the background; it is
 subtracted from the smoothed value before the stripe's width and amplitude are measured,
 and from the profiles fitted under saturation. Saturation: where the raw profile across
 a centre reaches the saturation level, the centre moves to the peak of a Gaussian fitted
@@ -60,7 +61,12 @@ import numpy as np
 
 from kinecal.errors import ConfigError
 from kinecal.sensor._cv import require_cv2
-from kinecal.sensor._ridge_link import components, link_edges, smooth_over_edges
+from kinecal.sensor._ridge_link import (
+    components,
+    curvature,
+    link_edges,
+    smooth_over_edges,
+)
 from kinecal.sensor._ridge_saturation import FIT_FAILED, SATURATED, fit_flanks
 from kinecal.sensor._ridge_select import (
     BORDER,
@@ -163,7 +169,7 @@ class _Image:
     img: np.ndarray
     noise: float  # [grey levels] of a pixel
     coarse: np.ndarray  # (h, w) float32, the image averaged over 4 x 4 blocks
-    bg: np.ndarray  # (h, w) float32, the coarse background
+    bg: np.ndarray  # (h / 2, w / 2) float32, the background over 8 x 8 blocks
     saturation: float
 
     @classmethod
@@ -180,10 +186,12 @@ class _Image:
         d = np.diff(img[::32, :: max(W // 320, 1)].astype(np.float32), axis=1).ravel()
         clip = max(4.5 * float(np.median(np.abs(d))), 3.0)
         noise = float(np.sqrt(np.mean(np.minimum(d * d, clip * clip)) / 2.0))
-        # Background: grey opening over 7 x 7 coarse pixels (28 px; a stripe is
-        # narrower and disappears), blurred.
-        bg = cv2.morphologyEx(coarse, cv2.MORPH_OPEN, np.ones((7, 7), np.uint8))
-        bg = cv2.blur(bg, (7, 7))
+        # Background: grey opening of the image averaged over 8 x 8 blocks, 5 blocks
+        # wide (40 px; a stripe is narrower and disappears), blurred.
+        h8, w8 = max(H // 8, 1), max(W // 8, 1)
+        bg = cv2.resize(coarse, (w8, h8), interpolation=cv2.INTER_AREA)
+        bg = cv2.morphologyEx(bg, cv2.MORPH_OPEN, np.ones((5, 5), np.uint8))
+        bg = cv2.blur(bg, (3, 3))
         if opt.saturation is not None:
             sat = float(opt.saturation)
         elif np.issubdtype(img.dtype, np.integer):
@@ -195,8 +203,9 @@ class _Image:
     def background(self, u: Float, v: Float) -> Float:
         """Background [grey levels] at pixels ``u, v`` (bilinear in the coarse map)."""
         h, w = self.bg.shape
-        x = np.clip((u + 0.5) / _COARSE - 0.5, 0.0, w - 1.0)
-        y = np.clip((v + 0.5) / _COARSE - 0.5, 0.0, h - 1.0)
+        H, W = self.img.shape
+        x = np.clip((u + 0.5) * (w / W) - 0.5, 0.0, w - 1.0)
+        y = np.clip((v + 0.5) * (h / H) - 0.5, 0.0, h - 1.0)
         return np.asarray(_bilinear(self.bg, x, y), float)
 
 
@@ -349,6 +358,16 @@ def _points(pre: _Image, sigma: float, low: float, cv2: Any) -> RidgePoints | No
     x, y, nx, ny, t, lam, c0 = (a[q] for a in (x, y, nx, ny, t, lam, c0))
     off_row, off_col = off_row[q], off_col[q]
     ei, ej = link_edges(x, y, nx, ny, W)
+    # The smoothing pulls the ridge of a curved stripe towards its centre of curvature
+    # by sigma^2 kappa / 2 (a ring smoothed by a Gaussian peaks at r - sigma^2 / 2r):
+    # moved back, with the curvature averaged along the curve.
+    kx, ky = curvature(x + t * nx, y + t * ny, nx, ny, ei, ej)
+    kx = smooth_over_edges(kx, ei, ej, 6)
+    ky = smooth_over_edges(ky, ei, ej, 6)
+    bend = np.clip(kx * nx + ky * ny, -0.1, 0.1)  # kappa along n [1/px]
+    t = t - 0.5 * sigma * sigma * bend
+    with np.errstate(divide="ignore", invalid="ignore"):
+        off_row, off_col = t / nx, t / ny
     # Row or column per point, from cos(2 angle) of the normal averaged along the curve.
     steep = smooth_over_edges(nx * nx - ny * ny, ei, ej, 3) >= 0
     off = np.where(steep, off_row, off_col)

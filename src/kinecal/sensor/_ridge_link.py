@@ -11,7 +11,13 @@ import numpy as np
 
 from kinecal.typing import Float
 
-__all__ = ["components", "link_edges", "one_per_section", "smooth_over_edges"]
+__all__ = [
+    "components",
+    "curvature",
+    "link_edges",
+    "one_per_section",
+    "smooth_over_edges",
+]
 
 # Backward neighbours within two pixels (dx, dy): each pair of points is tested once.
 _OFFSETS = tuple(
@@ -35,17 +41,16 @@ def link_edges(
     key = y.astype(np.int64) * width + x
     order = np.argsort(key, kind="stable")
     ks = key[order]
-    ei, ej = [], []
-    for dx, dy in _OFFSETS:
-        q = key + (dy * width + dx)
-        pos = np.minimum(np.searchsorted(ks, q), n - 1)
-        xx = x + dx
-        hit = np.flatnonzero((ks[pos] == q) & (xx >= 0) & (xx < width))
-        j = order[pos[hit]]
-        same = np.abs(nx[hit] * nx[j] + ny[hit] * ny[j]) >= _COS_LINK
-        ei.append(hit[same])
-        ej.append(j[same])
-    return np.concatenate(ei), np.concatenate(ej)
+    dx, dy = np.array(_OFFSETS).T
+    # every point's neighbours at all offsets in one search: queries (offsets, n)
+    q = (ks[None, :] + (dy * width + dx)[:, None]).ravel()
+    pos = np.minimum(np.searchsorted(ks, q), n - 1)
+    xx = (x[order][None, :] + dx[:, None]).ravel()
+    hit = np.flatnonzero((ks[pos] == q) & (xx >= 0) & (xx < width))
+    i = order[hit % n]
+    j = order[pos[hit]]
+    same = np.abs(nx[i] * nx[j] + ny[i] * ny[j]) >= _COS_LINK
+    return i[same], j[same]
 
 
 def components(n: int, ei: np.ndarray, ej: np.ndarray) -> np.ndarray:
@@ -68,6 +73,29 @@ def components(n: int, ei: np.ndarray, ej: np.ndarray) -> np.ndarray:
                 break
             lab = nxt
     return np.unique(lab, return_inverse=True)[1].reshape(-1)
+
+
+def curvature(
+    px: Float, py: Float, nx: Float, ny: Float, ei: np.ndarray, ej: np.ndarray
+) -> tuple[Float, Float]:
+    """Curvature vectors (toward the centre of curvature, length 1 / radius [1/px]).
+
+    From the turn of the unit normal ``n`` between linked points at ``px, py``: along
+    the tangent ``t`` of a curve ``dn/ds = -kappa t`` (kappa > 0 when the curve bends
+    towards ``+n``), fitted by least squares over each point's links. The vector
+    ``kappa n`` does not depend on the sign of ``n``.
+    """
+    n = px.size
+    a = np.concatenate([ei, ej])
+    b = np.concatenate([ej, ei])
+    flip = np.where(nx[a] * nx[b] + ny[a] * ny[b] < 0, -1.0, 1.0)
+    tx, ty = -ny[a], nx[a]  # tangent of a
+    ds = (px[b] - px[a]) * tx + (py[b] - py[a]) * ty
+    dn = (flip * nx[b] - nx[a]) * tx + (flip * ny[b] - ny[a]) * ty
+    num = np.bincount(a, dn * ds, minlength=n)
+    den = np.bincount(a, ds * ds, minlength=n)
+    k = -num / np.maximum(den, 1e-9)
+    return k * nx, k * ny
 
 
 def smooth_over_edges(

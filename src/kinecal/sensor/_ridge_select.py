@@ -71,80 +71,76 @@ def select_centres(
     ``min_length``: fewest cross-sections of a curve; ``max_width``: widest FWHM [px].
     """
     H, W = img.shape
-    keep = (np.abs(p.offset) <= 0.55) & (p.strength > low)
+    none = np.zeros((0, 7)), np.zeros(0, np.intp), np.zeros(0, bool)
+    lab = p.label
+    m = int(lab.max()) + 1 if lab.size else 0
+    # Points near their section's crossing and above the low threshold, of curves
+    # long and strong enough (hysteresis): all the others leave at once.
+    q = np.flatnonzero((np.abs(p.offset) <= 0.55) & (p.strength > low))
+    strongest = np.zeros(m)
+    np.maximum.at(strongest, lab[q], p.strength[q])
+    alive = (np.bincount(lab[q], minlength=m) >= min_length) & (strongest >= high)
+    q = q[alive[lab[q]]]
+    if q.size == 0:
+        return none
+    lq, st, steep = lab[q], p.strength[q], p.steep[q]
+    u, v = p.u[q], p.v[q]
     # width and amplitude over the background: a Gaussian stripe of sigma s smoothed at
     # sigma gives r = A s / S and lambda = -A s / S^3 at its centre, S^2 = s^2 + sigma^2
-    bg = background(p.u, p.v)
-    lam = -p.strength
-    r_c = p.value - 0.5 * lam * p.t * p.t - bg  # smoothed value at the centre (Taylor)
-    S2 = -r_c / lam
+    bg = background(u, v)
+    r_c = p.value[q] + 0.5 * st * p.t[q] ** 2 - bg  # smoothed value at the centre
+    S2 = r_c / st
     s2 = S2 - sigma * sigma - _EXTRA_VAR
     pos = s2 > 0.01
     width = np.where(pos, _FWHM * np.sqrt(np.where(pos, s2, 1.0)), 0.0)
-    peak = np.where(pos, r_c * np.sqrt(np.abs(S2) / np.where(pos, s2, 1.0)), r_c)
-    section = np.where(p.steep, p.y, H + p.x).astype(np.int64)
-    position = np.where(p.steep, p.u, p.v)
-    cos = np.abs(np.where(p.steep, p.nx, p.ny))
-    lab = p.label
-    m = int(lab.max()) + 1 if lab.size else 0
-    alive = np.ones(m, bool)
-    beside = np.zeros(lab.size, bool)  # won a section from a ridge close by
+    section = np.where(steep, p.y[q], H + p.x[q]).astype(np.int64)
+    position = np.where(steep, u, v)
+    cos = np.abs(np.where(steep, p.nx[q], p.ny[q]))
+    offset = p.offset[q]
+    score = np.bincount(lq, st, minlength=m)  # summed strength: strength x length
+    live = np.ones(q.size, bool)
+    beside = np.zeros(q.size, bool)  # won a section from a ridge close by
     for _ in range(3):  # curves that fail the rules leave; the others compete again
-        cand = np.flatnonzero(keep & alive[lab])
-        if cand.size == 0:
-            return np.zeros((0, 7)), np.zeros(0, np.intp), np.zeros(0, bool)
-        lc = lab[cand]
-        score = np.bincount(lc, p.strength[cand], minlength=m)
-        strongest = np.zeros(m)
-        np.maximum.at(strongest, lc, p.strength[cand])
+        c = np.flatnonzero(live)
+        if c.size == 0:
+            return none
+        lc = lq[c]
         kept, neighbour, (won, n_sec) = one_per_section(
-            section[cand],
-            lc,
-            score[lc],
-            p.offset[cand],
-            position[cand],
-            cos[cand],
-            6 * sigma,
-            m,
+            section[c], lc, score[lc], offset[c], position[c], cos[c], 6 * sigma, m
         )
-        beside[cand[kept][neighbour]] = True
+        beside[c[kept][neighbour]] = True
         lk = lc[kept]
-        wide = np.bincount(lk, width[cand[kept]], minlength=m) / np.maximum(
+        wide = np.bincount(lk, width[c[kept]], minlength=m) / np.maximum(
             np.bincount(lk, minlength=m), 1
         )
-        good = (
-            (strongest >= high)
-            & (n_sec >= min_length)
-            & (won * 2 > n_sec)
-            & (wide <= max_width)
-        )
+        good = (n_sec >= min_length) & (won * 2 > n_sec) & (wide <= max_width)
         if not np.any(alive & ~good):
             break
         alive &= good
-    sel = cand[kept][good[lc[kept]]]
-    neighbour = beside[sel]
+        live &= good[lq]
+    sel = c[kept][good[lc[kept]]]
     # Centres on unlit pixels go (the smoothing carries a ridge past the stripe's end):
     # the brighter of the two pixels a centre lies between must rise over the
     # background by 0.3 x the smoothed value at the centre.
-    raw = _raw_at(img, p.u[sel], p.v[sel], p.steep[sel])
-    ok = raw - bg[sel] >= 0.3 * r_c[sel]
-    sel, neighbour = sel[ok], neighbour[ok]
+    raw = _raw_at(img, u[sel], v[sel], steep[sel])
+    sel = sel[raw - bg[sel] >= 0.3 * r_c[sel]]
     # So do the two last cross-sections at each end of a curve, where the end bends
     # the Hessian (not at the image border: there the stripe goes on).
-    ok = ~_ends(section[sel], lab[sel] * 2 + p.steep[sel])
-    at_border = (p.u < 2.5) | (p.v < 2.5) | (p.u > W - 3.5) | (p.v > H - 3.5)
-    ok |= at_border[sel]
-    sel, neighbour = sel[ok], neighbour[ok]
-    u, v = p.u[sel], p.v[sel]
+    us, vs = u[sel], v[sel]
+    at_border = (us < 2.5) | (vs < 2.5) | (us > W - 3.5) | (vs > H - 3.5)
+    sel = sel[~_ends(section[sel], lq[sel] * 2 + steep[sel]) | at_border]
+    us, vs = u[sel], v[sel]
     reach = int(np.ceil(3.0 * sigma)) + 1
-    border = (u < reach) | (v < reach) | (u > W - 1 - reach) | (v > H - 1 - reach)
-    flags = np.where(neighbour, NEIGHBOUR, 0) | np.where(border, BORDER, 0)
-    out = np.stack(
-        [u, v, p.nx[sel], p.ny[sel], width[sel], peak[sel], flags.astype(float)], axis=1
-    )
-    rank = np.argsort(np.argsort(-score))[lab[sel]]
-    order = np.lexsort((u, v, rank))
-    return out[order], rank[order], p.steep[sel][order]
+    border = (us < reach) | (vs < reach) | (us > W - 1 - reach) | (vs > H - 1 - reach)
+    flags = np.where(beside[sel], NEIGHBOUR, 0) | np.where(border, BORDER, 0)
+    r_s, S2_s, s2_s = r_c[sel], S2[sel], s2[sel]
+    ok = pos[sel]
+    peak = np.where(ok, r_s * np.sqrt(np.abs(S2_s) / np.where(ok, s2_s, 1.0)), r_s)
+    nx, ny = p.nx[q][sel], p.ny[q][sel]
+    out = np.stack([us, vs, nx, ny, width[sel], peak, flags.astype(float)], axis=1)
+    rank = np.argsort(np.argsort(-score))[lq[sel]]
+    order = np.lexsort((us, vs, rank))
+    return out[order], rank[order], steep[sel][order]
 
 
 def _raw_at(img: np.ndarray, u: Float, v: Float, steep: np.ndarray) -> Float:
