@@ -356,31 +356,29 @@ def _points(pre: _Image, sigma: float, low: float, cv2: Any) -> RidgePoints | No
         take &= _bilinear(r2, xl + sgn * D * nx, yl + sgn * D * ny) <= top
     q = np.flatnonzero(take)
     x, y, nx, ny, t, lam, c0 = (a[q] for a in (x, y, nx, ny, t, lam, c0))
-    off_row, off_col = off_row[q], off_col[q]
     ei, ej = link_edges(x, y, nx, ny, W)
+    # Row or column per point, from cos(2 angle) of the normal averaged along the curve;
+    # the normal turned towards +u (rows) or +v (columns).
+    steep = smooth_over_edges(nx * nx - ny * ny, ei, ej, 3) >= 0
+    sgn = np.where(steep, np.sign(nx), np.sign(ny))
+    sgn[sgn == 0] = 1.0
+    nx, ny, t = nx * sgn, ny * sgn, t * sgn
     # The smoothing pulls the ridge of a curved stripe towards its centre of curvature
     # by sigma^2 kappa / 2 (a ring smoothed by a Gaussian peaks at r - sigma^2 / 2r):
     # moved back, with the curvature averaged along the curve.
     kx, ky = curvature(x + t * nx, y + t * ny, nx, ny, ei, ej)
-    kx = smooth_over_edges(kx, ei, ej, 6)
-    ky = smooth_over_edges(ky, ei, ej, 6)
-    bend = np.clip(kx * nx + ky * ny, -0.1, 0.1)  # kappa along n [1/px]
-    t = t - 0.5 * sigma * sigma * bend
+    bend = smooth_over_edges(kx * nx + ky * ny, ei, ej, 4)  # kappa along n [1/px]
+    t = t - 0.5 * sigma * sigma * np.clip(bend, -0.1, 0.1)
     with np.errstate(divide="ignore", invalid="ignore"):
-        off_row, off_col = t / nx, t / ny
-    # Row or column per point, from cos(2 angle) of the normal averaged along the curve.
-    steep = smooth_over_edges(nx * nx - ny * ny, ei, ej, 3) >= 0
-    off = np.where(steep, off_row, off_col)
-    sgn = np.where(steep, np.sign(nx), np.sign(ny))  # normal towards +u or +v
-    sgn[sgn == 0] = 1.0
+        off = np.where(steep, t / nx, t / ny)  # to the row's or column's crossing
     return RidgePoints(
         x=x,
         y=y,
         u=x + np.where(steep, off, 0.0),
         v=y + np.where(steep, 0.0, off),
-        nx=nx * sgn,
-        ny=ny * sgn,
-        t=t * sgn,
+        nx=nx,
+        ny=ny,
+        t=t,
         strength=-lam,
         value=c0,
         offset=off,
