@@ -1,10 +1,10 @@
 """Laser-stripe centres in any direction: a Hessian ridge detector (Steger's method).
 
 A stripe is a bright ridge of the image smoothed by a Gaussian of scale ``sigma``
-(matched to the stripe's width). At a pixel ``p`` the Hessian of the smoothed image
-``r`` has its most negative eigenvalue ``lambda`` across the stripe, with unit
-eigenvector ``n`` (the normal); the second-order Taylor polynomial of ``r`` along ``n``
-peaks at
+(1.5 px, matched to the stripe when it is wider). At a pixel ``p`` the Hessian of the
+smoothed image ``r`` has its most negative eigenvalue ``lambda`` across the stripe,
+with unit eigenvector ``n`` (the normal); the second-order Taylor polynomial of ``r``
+along ``n`` peaks at
 
 .. math::
 
@@ -54,7 +54,6 @@ variant of the idea, not the paper's sequential algorithm).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -96,13 +95,15 @@ class RidgeOptions:
     """Options of :func:`ridge_centres` (lengths in pixels).
 
     ``sigma_px``: the smoothing scale; None matches it to the stripe: a first pass at
-    1.5 px measures the stripe's Gaussian width (median over its centres) and, if that
-    differs by more than 25 %, the tiles are searched again at that width (clipped to
-    0.8..8 px). ``low``, ``high``: hysteresis thresholds of the ridge strength in noise
-    levels (the noise is measured on the image). ``min_length``: fewest cross-sections
-    of a kept curve. ``max_width_px``: widest stripe (FWHM) kept; None: 4 x the FWHM of
-    a stripe matched to ``sigma``. ``saturation``: grey level of a clipped pixel; None:
-    the largest value of the image's type (255, 65535).
+    1.5 px measures the stripe's Gaussian width ``s`` (median over its centres) and,
+    if ``s`` is over 2.4 px, the tiles are searched again at ``s`` (at most 8 px).
+    Narrower stripes keep 1.5 px: averaging over more pixels along the stripe makes
+    their centres less noisy under speckle (measured: 0.05 against 0.09 px RMS for a
+    stripe of 0.6 px at 0.8 px). ``low``, ``high``: hysteresis thresholds of the ridge
+    strength in noise levels (the noise is measured on the image). ``min_length``:
+    fewest cross-sections of a kept curve. ``max_width_px``: widest stripe (FWHM) kept;
+    None: 4 x the FWHM of a stripe matched to ``sigma``. ``saturation``: grey level of
+    a clipped pixel; None: the largest value of the image's type (255, 65535).
     """
 
     sigma_px: float | None = None
@@ -146,8 +147,8 @@ def ridge_centres(image: np.ndarray, options: RidgeOptions | None = None) -> Flo
     pts, curve, steep = _centres(pre, sigma, opt, cv2, loose)
     if opt.sigma_px is None and pts.shape[0]:
         s = float(np.median(pts[:, 4])) / _FWHM
-        if s > 0 and not 0.6 <= s / sigma <= 1.6:
-            sigma = float(np.clip(s, 0.8, 8.0))
+        if s > 1.6 * sigma:  # a wide stripe: match the scale to it
+            sigma = float(min(s, 8.0))
             pts, curve, steep = _centres(pre, sigma, opt, cv2, loose)
     # glare: curves wider than max_width_px on average
     max_w = opt.max_width_px or 4.0 * _FWHM * sigma
@@ -183,7 +184,7 @@ class _Image:
         )
         # Read noise: differences of neighbouring pixels of a sparse sample, winsorised
         # (the few stripe pixels in it do not count).
-        d = np.diff(img[::32, :: max(W // 320, 1)].astype(np.float32), axis=1).ravel()
+        d = np.diff(img[::64, :: max(W // 320, 1)].astype(np.float32), axis=1).ravel()
         clip = max(4.5 * float(np.median(np.abs(d))), 3.0)
         noise = float(np.sqrt(np.mean(np.minimum(d * d, clip * clip)) / 2.0))
         # Background: grey opening of the image averaged over 8 x 8 blocks, 5 blocks
@@ -209,14 +210,6 @@ class _Image:
         return np.asarray(_bilinear(self.bg, x, y), float)
 
 
-@lru_cache(maxsize=1)
-def _coarse_kernels() -> tuple[np.ndarray, np.ndarray]:
-    """A Gaussian of one coarse pixel and its second difference (float32)."""
-    g = np.exp(-0.5 * np.arange(-3.0, 4.0) ** 2)
-    g /= g.sum()
-    return g.astype(np.float32), np.convolve(g, [1.0, -2.0, 1.0]).astype(np.float32)
-
-
 def _kernel(sigma: float) -> tuple[np.ndarray, int]:
     """A sampled Gaussian of ``sigma`` [px] (float32, sum 1) and its radius (3 sigma)."""
     R = int(np.ceil(3.0 * sigma))
@@ -228,14 +221,15 @@ def _kernel(sigma: float) -> tuple[np.ndarray, int]:
 def _tiles(pre: _Image, cv2: Any) -> tuple[np.ndarray, np.ndarray]:
     """Tile rows and columns (N,) the stripe may cross, from the coarse image.
 
-    Coarse pixels whose smaller second derivative along u or v (at most half the most
-    negative eigenvalue on a ridge of any direction, at a scale of one coarse pixel)
-    is 4 noise levels below zero, and their neighbours, mark their tiles.
+    Coarse pixels whose smaller second difference along u or v (at most half the most
+    negative eigenvalue on a ridge of any direction) is 4 noise levels below zero (the
+    noise measured on the coarse image: a robust spread), and their neighbours, mark
+    their tiles.
     """
     H, W = pre.img.shape
-    kg, kxx = _coarse_kernels()
-    gxx = cv2.sepFilter2D(pre.coarse, -1, kxx, kg, borderType=cv2.BORDER_REPLICATE)
-    gyy = cv2.sepFilter2D(pre.coarse, -1, kg, kxx, borderType=cv2.BORDER_REPLICATE)
+    # second differences, smoothed across by [1, 2, 1] (Sobel's 3 x 3 kernels)
+    gxx = cv2.Sobel(pre.coarse, -1, 2, 0, ksize=3, borderType=cv2.BORDER_REPLICATE)
+    gyy = cv2.Sobel(pre.coarse, -1, 0, 2, ksize=3, borderType=cv2.BORDER_REPLICATE)
     noise = 1.4826 * float(np.median(np.abs(gxx[::6, ::6])))  # gxx has zero mean
     cand = (np.minimum(gxx, gyy) < -4.0 * max(noise, 1e-3)).view(np.uint8)
     # A tile (4 x 4 coarse pixels) is searched if a candidate is in it or next to it:
