@@ -161,7 +161,9 @@ def rendered_cases(
 
 
 def _pool(scores: list[Any]) -> dict[str, float]:
-    """Scores of several images of one case, pooled."""
+    """Scores of several images of one case, pooled (images without a visible stripe,
+    whose scores are NaN, left out)."""
+    scores = [s for s in scores if np.isfinite(s.coverage)] or scores
     n = np.array([s.n_found for s in scores], float)
     rms = np.array([s.rms_px for s in scores])
     ok = np.isfinite(rms) & (n > 0)
@@ -173,7 +175,7 @@ def _pool(scores: list[Any]) -> dict[str, float]:
         "coverage": float(np.nanmean([s.coverage for s in scores])),
         "rms_px": float(np.sqrt(mean(rms**2))),
         "bias_px": mean(np.array([s.bias_px for s in scores])),
-        "false": float(np.max([s.false for s in scores])),
+        "false": float(np.nanmax([s.false for s in scores])),
         "per_section": mean(np.array([s.per_section for s in scores])),
         "images": len(scores),
     }
@@ -305,6 +307,7 @@ def scan_speed(quick: bool) -> dict[str, Any]:
                     "wall_s": statistics.median(walls),
                     "best_wall_s": min(walls),
                     "cpu_s": statistics.median(cpus),
+                    "best_cpu_s": min(cpus),
                     "points": int(cloud.points.shape[0]),
                     "centre_error_um": float(np.linalg.norm(fit.center - c) * 1e6),
                     "radius_error_um": float((fit.radius - R) * 1e6),
@@ -356,11 +359,72 @@ def stripe_benchmarks(quick: bool = False) -> dict[str, Any]:
     return {"accuracy": acc, "scan": scan_speed(quick), "seed": SEED}
 
 
+def tables(res: dict[str, Any]) -> str:
+    """The accuracy and speed tables of docs/stripes.md, from a result of
+    :func:`stripe_benchmarks` (``python -m benchmarks._stripes --tables FILE``)."""
+
+    def cell(r: dict[str, Any]) -> str:
+        if not r["coverage"] > 0:
+            return "0 % | - | - | -"
+        return (
+            f"{100 * r['coverage']:.1f} % | {r['rms_px']:.3f} | {r['bias_px']:+.3f} | "
+            f"{100 * r['false']:.1f} %"
+        )
+
+    head = "| case | " + " | ".join(
+        f"{m}: coverage | RMS px | bias px | false" for m in METHODS
+    )
+    lines = [head + " |", "|---" * (1 + 4 * len(METHODS)) + "|"]
+    for name, r in res["accuracy"].items():
+        lines.append(f"| {name} | " + " | ".join(cell(r[m]) for m in METHODS) + " |")
+    ms = {
+        m: np.median([r[m]["ms_per_image"] for r in res["accuracy"].values()])
+        for m in METHODS
+    }
+    lines.append("")
+    lines.append(
+        "Median time per image over these cases (the benchmark's machine, all CPUs): "
+        + ", ".join(f"{m} {t:.1f} ms" for m, t in ms.items())
+        + "."
+    )
+    sc = res["scan"]
+    speed = [
+        "| 120 PNG images, 1280 x 1024, one core | wall s (best) | CPU s (best) "
+        "| points | sphere centre error um | radius error um |",
+        "|---|---|---|---|---|---|",
+    ]
+    labels = {
+        "kinecal_png_ridge": "kinecal's PNG decoder + ridge (as `reconstruct` does)",
+        "opencv_png_ridge": "OpenCV's PNG decoder + ridge",
+        "kinecal_png_rows": "kinecal's PNG decoder + per-row method",
+    }
+    for k, label in labels.items():
+        r = sc[k]
+        speed.append(
+            f"| {label} | {r['wall_s']:.2f} ({r['best_wall_s']:.2f}) | "
+            f"{r['cpu_s']:.2f} ({r.get('best_cpu_s', r['cpu_s']):.2f}) | {r['points']} | "
+            f"{r['centre_error_um']:.2f} | {r['radius_error_um']:+.2f} |"
+        )
+    speed.append("")
+    speed.append(
+        f"Target: the camera's {sc['target_s']:.2f} s (120 images at 90 Hz). Decoding "
+        f"alone: kinecal {sc['decode_kinecal_s']:.2f} s, OpenCV "
+        f"{sc['decode_opencv_s']:.2f} s. `kinecal sensor reconstruct --jobs 1` as a whole "
+        f"process on one CPU (start-up, decoding, extraction, reconstruction, CSV): "
+        f"{sc['reconstruct_process_one_cpu_s']:.2f} s."
+    )
+    return "\n".join(lines) + "\n\nSPEED\n\n" + "\n".join(speed) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks --stripes")
     ap.add_argument("--out", default="benchmarks/stripes-results.json")
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--tables", metavar="FILE", help="print the docs' tables of FILE")
     args = ap.parse_args(argv)
+    if args.tables:
+        print(tables(json.loads(Path(args.tables).read_text())))
+        return 0
     res = stripe_benchmarks(args.quick)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(args.out).with_suffix(".tmp")
