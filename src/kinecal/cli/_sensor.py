@@ -79,7 +79,8 @@ _METHOD_HELP = (
     "--sigma-px",
     type=float,
     default=None,
-    help="Smoothing scale of the ridge detector [px] (default: matched to the stripe).",
+    help="Smoothing scale of the ridge detector [px] (default: 1.5, or the stripe's own "
+    "Gaussian width when it is wider than 2.4 px).",
 )
 @click.option("--force", is_flag=True, help="Overwrite OUT.")
 def stripes(

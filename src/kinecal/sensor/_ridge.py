@@ -12,9 +12,10 @@ along ``n`` peaks at
     t = -\\frac{r_x n_x + r_y n_y}{r_{xx} n_x^2 + 2 r_{xy} n_x n_y + r_{yy} n_y^2}
       = -\\frac{\\nabla r \\cdot n}{\\lambda}
 
-(Steger 1998, Eq. 6-7); ``-lambda`` is the ridge strength. Symbols: ``r_x, r_y`` and
-``r_xx, r_xy, r_yy`` the first and second derivatives of ``r`` (central differences of
-the smoothed image) [grey levels / px, / px^2]. One centre per cross-section: where the
+(Steger 1998, Sec. 3: the line point of a 2-D line); ``-lambda`` is the ridge
+strength. Symbols: ``r_x, r_y`` and ``r_xx, r_xy, r_yy`` the first and second
+derivatives of ``r`` (central differences of the smoothed image) [grey levels / px,
+/ px^2]. One centre per cross-section: where the
 stripe runs steeper than 45 deg the local line through ``p + t n`` is cut with the
 pixel's row, ``u = x + t / n_x`` (kept if ``|t / n_x| <= 0.5``: each row has one such
 pixel), elsewhere with its column, ``v = y + t / n_y``; which of the two is decided on
@@ -22,10 +23,18 @@ the normals averaged along the curve, so that a stripe near 45 deg does not swit
 every pixel.
 
 Speed: a stripe is a thin band. A coarse pass (the image averaged over 4 x 4 blocks, its
-second derivatives at one coarse pixel) marks the 16 x 16 tiles the stripe may cross;
+second differences by 3 x 3 Sobel kernels) marks the 16 x 16 tiles the stripe may cross;
 only those tiles, padded by the filter's reach, are smoothed (one OpenCV call on a strip
 of tiles) and searched, and only pixels whose second differences pass the low threshold
-get the full Hessian.
+get the full Hessian. A line is darker on both sides: 1.5 sigma away along the normal the
+smoothed image must drop by a quarter of what the ridge's curvature predicts, on each
+side (an edge's shoulder curves down too, but does not drop on one side).
+
+Curvature: the smoothing pulls the ridge of a curved stripe towards its centre of
+curvature by ``sigma^2 kappa / 2`` (a ring of radius ``R`` smoothed by a Gaussian peaks
+at ``R - sigma^2 / 2R``); ``kappa`` is measured from the turn of the normals along the
+linked curve (:func:`~kinecal.sensor._ridge_link.curvature`, averaged over four rounds
+of neighbours) and the centre is moved back.
 
 Linking, primary stripe, false centres: accepted points are linked into curves (within
 two pixels, normals within 30 deg) and kept by hysteresis (every point's strength above
@@ -35,16 +44,18 @@ or a second stripe beside the primary one), the curve with the largest summed st
 wins (strength x length: a long, strong, continuous stripe beats short, weak or broken
 ones); a curve that loses half of its cross-sections or more is a reflection and is
 dropped whole; curves wider than ``max_width_px`` (glare) are dropped too. The winner is
-flagged ``NEIGHBOUR`` when the loser was within six filter scales of it.
+flagged ``NEIGHBOUR`` when the loser was within six filter scales of it. Centres on
+unlit pixels (past a stripe's end, where the smoothing carries the ridge on) and the last
+two cross-sections at each end of a curve (the end bends the Hessian) are dropped, not
+at the image border, where the stripe goes on.
 
 Background: a grey opening (40 px) of the image averaged over 8 x 8 blocks, blurred, is
-the background; it is
-subtracted from the smoothed value before the stripe's width and amplitude are measured,
-and from the profiles fitted under saturation. Saturation: where the raw profile across
-a centre reaches the saturation level, the centre moves to the peak of a Gaussian fitted
-(weighted log-parabola) to the unsaturated flank samples along the normal and is flagged
-``SATURATED`` (``FIT_FAILED`` when the flanks do not determine it; the ridge centre is
-kept).
+the background; it is subtracted from the smoothed value before the stripe's width and
+amplitude are measured, and from the profiles fitted under saturation. Saturation: where
+two raw pixels or more across a centre are at the saturation level, the centre moves
+to the peak of a Gaussian fitted (weighted log-parabola) to the unsaturated flank
+samples along the normal and is flagged ``SATURATED`` (``FIT_FAILED`` when the flanks do
+not determine it; the ridge centre is kept).
 
 References: C. Steger, "An unbiased detector of curvilinear structures", IEEE TPAMI
 20(2), 1998, 113-125 (the centre and the strength; the linking here is a vectorised
@@ -332,7 +343,7 @@ def _points(pre: _Image, sigma: float, low: float, cv2: Any) -> RidgePoints | No
     norm = np.hypot(nx, ny)
     norm[norm == 0] = 1.0
     nx, ny = nx / norm, ny / norm
-    t = -(gx[k] * nx + gy[k] * ny) / lam  # Steger (1998), Eq. (6)-(7)
+    t = -(gx[k] * nx + gy[k] * ny) / lam  # Steger (1998): the Newton step
     x, y, c0 = x[k], y[k], rf[f[k]]
     with np.errstate(divide="ignore", invalid="ignore"):
         off_row = t / nx  # along the row to where the line crosses it
