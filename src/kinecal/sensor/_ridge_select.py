@@ -77,9 +77,8 @@ def select_centres(
     # Points near their section's crossing and above the low threshold, of curves
     # long and strong enough (hysteresis): all the others leave at once.
     q = np.flatnonzero((np.abs(p.offset) <= 0.55) & (p.strength > low))
-    strongest = np.zeros(m)
-    np.maximum.at(strongest, lab[q], p.strength[q])
-    alive = (np.bincount(lab[q], minlength=m) >= min_length) & (strongest >= high)
+    strong = np.bincount(lab[q], p.strength[q] >= high, minlength=m) > 0
+    alive = (np.bincount(lab[q], minlength=m) >= min_length) & strong
     q = q[alive[lab[q]]]
     if q.size == 0:
         return none
