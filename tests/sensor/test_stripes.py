@@ -172,6 +172,19 @@ def test_no_stripe_no_centres():
     assert extract_stripes(img).shape[0] == 0
 
 
+def test_small_images():
+    """Images smaller than the coarse search (64 px) are searched whole; a stripe
+    shorter than min_length cross-sections is none."""
+    for shape in ((40, 15), (17, 33), (63, 63)):
+        img = np.zeros(shape, np.uint8)
+        img[:, shape[1] // 2] = 200
+        found = extract_stripes(img)
+        assert found.shape[0] == shape[0]
+        assert np.allclose(found[:, 0], shape[1] // 2, atol=0.01)
+    assert extract_stripes(np.full((3, 3), 9, np.uint8)).shape == (0, 7)
+    assert extract_stripes(np.eye(7, dtype=np.uint8) * 200).shape == (0, 7)
+
+
 def test_stripe_ends_and_borders():
     """A stripe that stops in the image: no centre beyond its end; centres within the
     filter's reach of the image border are flagged BORDER."""

@@ -187,10 +187,12 @@ class _Image:
     @classmethod
     def of(cls, img: np.ndarray, opt: RidgeOptions, cv2: Any) -> _Image:
         H, W = img.shape
-        half = cv2.resize(img, (W // 2, H // 2), interpolation=cv2.INTER_AREA)
+        half = cv2.resize(
+            img, (max(W // 2, 1), max(H // 2, 1)), interpolation=cv2.INTER_AREA
+        )
         coarse = cv2.resize(
             half.astype(np.float32),
-            (W // _COARSE, H // _COARSE),
+            (max(W // _COARSE, 1), max(H // _COARSE, 1)),
             interpolation=cv2.INTER_AREA,
         )
         # Read noise: differences of neighbouring pixels of a sparse sample, winsorised
@@ -238,6 +240,10 @@ def _tiles(pre: _Image, cv2: Any) -> tuple[np.ndarray, np.ndarray]:
     their tiles.
     """
     H, W = pre.img.shape
+    nty, ntx = -(-H // _TILE), -(-W // _TILE)
+    if min(pre.coarse.shape) < 16:  # a small image (under 64 px): search it all
+        ty, tx = np.nonzero(np.ones((nty, ntx), bool))
+        return ty, tx
     # second differences, smoothed across by [1, 2, 1] (Sobel's 3 x 3 kernels)
     gxx = cv2.Sobel(pre.coarse, -1, 2, 0, ksize=3, borderType=cv2.BORDER_REPLICATE)
     gyy = cv2.Sobel(pre.coarse, -1, 0, 2, ksize=3, borderType=cv2.BORDER_REPLICATE)
@@ -247,7 +253,6 @@ def _tiles(pre: _Image, cv2: Any) -> tuple[np.ndarray, np.ndarray]:
     # a 6 x 6 dilation anchored one pixel up and left, sampled at every tile's corner.
     per = _TILE // _COARSE
     near = cv2.dilate(cand, np.ones((per + 2, per + 2), np.uint8), anchor=(1, 1))
-    nty, ntx = -(-H // _TILE), -(-W // _TILE)
     ty, tx = np.nonzero(near[::per, ::per][:nty, :ntx])
     return ty, tx
 
