@@ -303,8 +303,8 @@ def _points(pre: _Image, sigma: float, low: float, cv2: Any) -> RidgePoints | No
         pad, (nty, ntx, T2, T2), (_TILE * s0, _TILE * s1, s0, s1), writeable=False
     )
     # Tiles side by side in one strip (T2, N * T2): one smoothing call for all.
-    strip = view[ty, tx].transpose(1, 0, 2).reshape(T2, N * T2).astype(np.float32)
-    r = cv2.sepFilter2D(strip, -1, kg, kg, borderType=cv2.BORDER_REPLICATE)
+    strip = view[ty, tx].transpose(1, 0, 2).reshape(T2, N * T2)
+    r = cv2.sepFilter2D(strip, cv2.CV_32F, kg, kg, borderType=cv2.BORDER_REPLICATE)
     # The interiors and a one-pixel ring, contiguous: (T + 2, N * (T + 2)). Differences
     # along a row cross from tile to tile only at the ring columns, not searched.
     T1 = _TILE + 2
