@@ -407,7 +407,7 @@ def tables(res: dict[str, Any]) -> str:
         )
     speed.append("")
     speed.append(
-        f"Target: the camera's {sc['target_s']:.2f} s (120 images at 90 Hz). Decoding "
+        f"Target: the camera's {sc['target_s']:.2f} s (120 images at 90 Hz). Decoding (wall) "
         f"alone: kinecal {sc['decode_kinecal_s']:.2f} s, OpenCV "
         f"{sc['decode_opencv_s']:.2f} s. `kinecal sensor reconstruct --jobs 1` as a whole "
         f"process on one CPU (start-up, decoding, extraction, reconstruction, CSV): "
