@@ -418,7 +418,7 @@ def tables(res: dict[str, Any]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks --stripes")
-    ap.add_argument("--out", default="benchmarks/stripes-results.json")
+    ap.add_argument("--out", default="benchmarks/results-stripes.json")
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--tables", metavar="FILE", help="print the docs' tables of FILE")
     args = ap.parse_args(argv)
