@@ -135,7 +135,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--robust", action="store_true", help="the breakdown study of the rejection"
     )
+    ap.add_argument(
+        "--stripes", action="store_true", help="only the stripe benchmarks (issue 24)"
+    )
     args = ap.parse_args(argv)
+    if args.stripes:
+        from benchmarks._stripes import main as stripes_main
+
+        out_args = [] if args.out == ap.get_default("out") else ["--out", args.out]
+        return stripes_main(out_args + (["--quick"] if args.quick else []))
     if args.robust:
         from benchmarks._robust import main as robust
 
@@ -479,9 +487,15 @@ def main(argv: list[str] | None = None) -> int:
     t, _ = _median_time(start, rep)
     record("cli_help_startup", t, "<= 0.3 s")
 
+    # 9. stripe extraction: accuracy per method, a whole scan on one core (issue 24)
+    from benchmarks._stripes import stripe_benchmarks
+
+    stripes = stripe_benchmarks(args.quick)
+
     out = {
         "machine": _machine(),
         "results": results,
+        "stripes": stripes,
         "created_unix": time.time(),
         "repeats": rep,
     }

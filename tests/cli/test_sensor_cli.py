@@ -121,6 +121,39 @@ def test_stripes_contract_and_no_overwrite(tmp_path, run_cli):
     assert r.returncode == 2 and "missing.png" in r.stderr
 
 
+def test_issue_24_stripes_of_any_direction_with_every_column(tmp_path, run_cli):
+    """A horizontal, curved stripe: one centre per column, with the normal, width,
+    amplitude and flags; --method rows (the first extractor) finds little of it."""
+    from kinecal.sensor import StripeSpec, score_centres, synthetic_stripe
+
+    spec = StripeSpec(angle_deg=90.0, radius_px=1500.0, speckle_k=8.0, bit_depth=16)
+    png = tmp_path / "curved.png"
+    cv2.imwrite(str(png), synthetic_stripe(spec, np.random.default_rng(5)))
+    out = tmp_path / "centres.csv"
+    r = run_cli("sensor", "stripes", str(png), "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    header = out.read_text().splitlines()[0].split(",")
+    assert header == ["u_px", "v_px", "nx", "ny", "width_px", "peak", "flags"]
+    data = np.loadtxt(out, delimiter=",", skiprows=1)
+    s = score_centres(data, spec.truth(), shape=spec.shape, margin_px=8)
+    assert s.coverage >= 0.98 and s.rms_px <= 0.15 and s.false <= 0.01
+    assert np.all(data[:, 6] == np.rint(data[:, 6]))  # flags are integers
+    assert np.median(np.abs(data[:, 3])) > 0.9  # normals along v: a flat stripe
+    assert np.median(data[:, 5]) == pytest.approx(150.0 * 257, rel=0.1)  # 16 bit
+    rows = tmp_path / "rows.csv"
+    r = run_cli("sensor", "stripes", str(png), "--out", str(rows), "--method", "rows")
+    assert r.returncode == 0, r.stderr
+    found = np.loadtxt(rows, delimiter=",", skiprows=1, ndmin=2)
+    assert score_centres(found, spec.truth(), shape=spec.shape).coverage < 0.5
+    r = run_cli(
+        "sensor", "stripes", str(png), "--out", str(rows), "--method", "rows",
+        "--sigma-px", "2", "--force",
+    )  # fmt: skip
+    assert r.returncode == 2 and "--sigma-px" in r.stderr
+    r = run_cli("sensor", "stripes", str(png), "--out", str(rows), "--sigma-px", "40")
+    assert r.returncode == 2 and "sigma_px" in r.stderr
+
+
 def test_simulate_reconstruct_fit_chain(tmp_path, run_cli):
     scan = tmp_path / "scan"
     r = run_cli(
@@ -160,6 +193,12 @@ def test_simulate_reconstruct_fit_chain(tmp_path, run_cli):
     out = json.loads(r.stdout)
     assert np.allclose(out["center_mm"], truth["center_mm"], atol=0.005)
     assert abs(out["radius_mm"] - truth["radius_mm"]) < 0.005
+    # the first extractor, for comparisons
+    rows = tmp_path / "cloud-rows.csv"
+    r = run_cli("sensor", *args, "--out", str(rows), "--method", "rows")
+    assert r.returncode == 0, r.stderr
+    r = run_cli("sensor", "fit-sphere", str(rows), "--json")
+    assert abs(json.loads(r.stdout)["radius_mm"] - truth["radius_mm"]) < 0.005
     # a camera-only file is refused by reconstruct, with the reason
     doc = yaml.safe_load((scan / "sensor.yaml").read_text())
     del doc["light_planes"]

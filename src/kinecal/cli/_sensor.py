@@ -2,10 +2,21 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
 import click
 
 from kinecal.cli._common import Progress, common_options, jobs_option
 from kinecal.cli._sensor_args import _LazyImages, _plane_index
+
+if TYPE_CHECKING:
+    import numpy as np
+
+_METHOD_HELP = (
+    "Stripe extractor: 'ridge' (Hessian ridge detector, any direction) or 'rows' "
+    "(the first per-row centroid, near-vertical stripes only; for comparisons)."
+)
 
 
 @click.group()
@@ -18,17 +29,44 @@ def sensor() -> None:
 @click.option(
     "--out", "out", required=True, type=click.Path(dir_okay=False), help="CENTERS.csv"
 )
+@click.option(
+    "--method",
+    type=click.Choice(["ridge", "rows"]),
+    default="ridge",
+    show_default=True,
+    help=_METHOD_HELP,
+)
+@click.option(
+    "--sigma-px",
+    type=float,
+    default=None,
+    help="Smoothing scale of the ridge detector [px] (default: 1.5, or the stripe's own "
+    "Gaussian width when it is wider than 2.4 px).",
+)
 @click.option("--force", is_flag=True, help="Overwrite OUT.")
-def stripes(image: str, out: str, force: bool) -> None:
-    """Sub-pixel stripe centres of one stripe image: ``u_px, v_px, peak`` per row.
+def stripes(
+    image: str, out: str, method: str, sigma_px: float | None, force: bool
+) -> None:
+    """Sub-pixel stripe centres of one stripe image, one per cross-section.
 
-    Pixel-centre convention: pixel (0, 0) spans -0.5..0.5 in u and v.
+    Writes ``u_px, v_px, nx, ny, width_px, peak, flags``: the centre, the unit normal
+    across the stripe, its width (FWHM) [px], its amplitude over the background [grey
+    levels] and flag bits (1 saturated: centre from a fit to the unsaturated flanks,
+    2 saturated and the fit failed, 4 near the image border, 8 a weaker ridge close
+    by: a reflection). One centre per image row where the stripe runs more vertically
+    than horizontally, per column elsewhere. Pixel-centre convention: pixel (0, 0)
+    spans -0.5..0.5 in u and v.
     """
     from kinecal.io import read_image, write_stripes
     from kinecal.sensor import extract_stripes
 
+    options: dict[str, Any] = {"method": method}
+    if sigma_px is not None:
+        if method != "ridge":
+            raise click.BadParameter("only for --method ridge", param_hint="--sigma-px")
+        options["sigma_px"] = sigma_px
     img = read_image(image)
-    st = extract_stripes(img)
+    st = extract_stripes(img, **options)
     write_stripes(out, st, force=force)
     click.echo(f"{st.shape[0]} stripe centres -> {out}", err=True)
 
@@ -39,11 +77,24 @@ def stripes(image: str, out: str, force: bool) -> None:
 @click.option(
     "--out", "out", required=True, type=click.Path(dir_okay=False), help="CLOUD.csv"
 )
+@click.option(
+    "--method",
+    type=click.Choice(["ridge", "rows"]),
+    default="ridge",
+    show_default=True,
+    help=_METHOD_HELP,
+)
 @jobs_option("Threads reading the images and extracting the stripes")
 @click.option("--force", is_flag=True)
 @common_options
 def reconstruct(
-    folder: str, sensor_file: str, out: str, jobs: int, force: bool, quiet: bool
+    folder: str,
+    sensor_file: str,
+    out: str,
+    method: str,
+    jobs: int,
+    force: bool,
+    quiet: bool,
 ) -> None:
     """Point cloud of one scan: FOLDER holds ``plane_NNN.png`` (light plane NNN).
 
@@ -51,7 +102,7 @@ def reconstruct(
     """
     import numpy as np
 
-    from kinecal.io import image_files, load_sensor, read_image, write_cloud
+    from kinecal.io import image_files, load_sensor, write_cloud
     from kinecal.sensor import Sensor
 
     prog = Progress(quiet)
@@ -61,7 +112,9 @@ def reconstruct(
     idx = np.array([_plane_index(f) for f in files])
     prog("images", f"{len(files)} stripe images")
     # Each image is read in the thread that extracts its stripes, and dropped after.
-    cloud = sen.scan(_LazyImages(list(files), read_image), idx, jobs=jobs)
+    cloud = sen.scan(
+        _LazyImages(list(files), _read_scan_image), idx, jobs=jobs, method=method
+    )
     write_cloud(
         out,
         cloud.points,
@@ -69,6 +122,19 @@ def reconstruct(
         force=force,
     )
     click.echo(f"{cloud.points.shape[0]} points -> {out}", err=True)
+
+
+def _read_scan_image(path: Path) -> np.ndarray:
+    """A stripe image: grey PNGs by kinecal's fast decoder, anything else by OpenCV
+    (:func:`kinecal.io.read_image`, which also says what is wrong with a file)."""
+    from kinecal.io import read_image
+    from kinecal.sensor import decode_grey_png
+
+    try:
+        img = decode_grey_png(Path(path).read_bytes())
+    except OSError:
+        img = None
+    return read_image(path) if img is None else img
 
 
 def _register() -> None:

@@ -141,9 +141,27 @@ def write_cloud(
 def write_stripes(
     path: str | Path, stripes: np.ndarray, *, force: bool = False
 ) -> Path:
-    """Write stripe centres (K, >=2) as ``u_px, v_px`` (+ ``peak``)."""
-    cols = ["u_px", "v_px"] + (["peak"] if stripes.shape[1] > 2 else [])
-    return _write_rows(path, cols, stripes[:, : len(cols)], ["%.4f"] * len(cols), force)
+    """Write stripe centres (K, 2..7) as CSV, ``u_px, v_px`` first, atomically.
+
+    Columns, as many as ``stripes`` has: ``u_px, v_px, nx, ny, width_px, peak, flags``
+    (see :data:`kinecal.sensor.STRIPE_COLUMNS`); 3 columns are the older ``u_px, v_px,
+    peak``. Positions to 1e-4 px, ``flags`` as an integer.
+    """
+    data = np.asarray(stripes, float)
+    if data.ndim != 2 or not 2 <= data.shape[1] <= 7:
+        raise DataError(
+            f"write_stripes: expected centres (K, 2..7), got shape {data.shape}"
+        )
+    if data.shape[1] == 3:
+        cols = ["u_px", "v_px", "peak"]
+    else:
+        cols = ["u_px", "v_px", "nx", "ny", "width_px", "peak", "flags"][
+            : data.shape[1]
+        ]
+    fmt = ["%.4f", "%.4f", "%.5f", "%.5f", "%.3f", "%.2f", "%d"][: len(cols)]
+    if data.shape[1] == 3:
+        fmt = ["%.4f", "%.4f", "%.2f"]
+    return _write_rows(path, cols, data, fmt, force)
 
 
 def _write_rows(

@@ -19,6 +19,7 @@ from kinecal.sensor._planes import (
     intersect_planes,
     rotary_planes,
 )
+from kinecal.sensor._png import decode_grey_png
 from kinecal.sensor._render import (
     ChessboardTarget,
     PlaneSurface,
@@ -36,10 +37,30 @@ from kinecal.sensor._simulate import (
     sphere_scene,
 )
 from kinecal.sensor._sphere import SphereFit, fit_sphere
-from kinecal.sensor._stripes import extract_stripes, extract_stripes_all
+from kinecal.sensor._stripe_images import (
+    StripeScore,
+    StripeSpec,
+    score_centres,
+    sphere_stripe_truth,
+    synthetic_stripe,
+)
+from kinecal.sensor._stripes import (
+    BORDER,
+    FIT_FAILED,
+    NEIGHBOUR,
+    SATURATED,
+    STRIPE_COLUMNS,
+    extract_stripes,
+    extract_stripes_all,
+)
 
 __all__ = [
+    "BORDER",
+    "FIT_FAILED",
     "INTRINSICS",
+    "NEIGHBOUR",
+    "SATURATED",
+    "STRIPE_COLUMNS",
     "CalibrationSession",
     "Camera",
     "CameraCalibration",
@@ -55,11 +76,14 @@ __all__ = [
     "SphereFit",
     "SphereSurface",
     "StripeRenderer",
+    "StripeScore",
+    "StripeSpec",
     "board_pose",
     "board_views",
     "calibrate_camera",
     "calibrate_planes",
     "calibrate_sensor",
+    "decode_grey_png",
     "extract_stripes",
     "extract_stripes_all",
     "find_corners",
@@ -70,6 +94,9 @@ __all__ = [
     "paper_sensor",
     "render_chessboard",
     "rotary_planes",
+    "score_centres",
     "simulate_calibration",
     "sphere_scene",
+    "sphere_stripe_truth",
+    "synthetic_stripe",
 ]

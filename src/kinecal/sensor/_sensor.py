@@ -11,7 +11,7 @@ import numpy as np
 from kinecal.errors import ConfigError, DataError
 from kinecal.sensor._camera import Camera, paper_camera
 from kinecal.sensor._planes import LightPlanes, intersect_planes, rotary_planes
-from kinecal.sensor._stripes import extract_stripes_all
+from kinecal.sensor._stripes import FIT_FAILED, extract_stripes_all
 from kinecal.typing import Float
 
 __all__ = ["ScanCloud", "Sensor", "paper_sensor"]
@@ -52,13 +52,16 @@ class Sensor:
         plane: np.ndarray | None = None,
         *,
         jobs: int = 0,
-        **extract_options: float,
+        **extract_options: Any,
     ) -> ScanCloud:
         """Point cloud of one scan: image ``k`` was taken with light plane ``plane[k]``.
 
         The stripes are extracted on ``jobs`` threads (0: one per CPU; see
         :func:`~kinecal.sensor.extract_stripes_all`, which also takes a sequence that
-        reads its images on access).
+        reads its images on access) with ``extract_options`` (``method`` and its
+        options, see :func:`~kinecal.sensor.extract_stripes`). Every centre becomes a
+        point, except those whose saturated profile could not be fitted (flag
+        ``FIT_FAILED``: their position is not known to the stripe's precision).
         """
         n = len(images)
         idx = np.arange(n) if plane is None else np.asarray(plane, np.intp)
@@ -68,6 +71,7 @@ class Sensor:
         found = [f for f in stripes if f is not None]
         if len(found) != n:
             raise DataError(f"scan: {n - len(found)} of the {n} images are missing")
+        found = [f[(f[:, 6].astype(np.int64) & FIT_FAILED) == 0] for f in found]
         uv = np.concatenate([f[:, :2] for f in found]) if found else np.zeros((0, 2))
         pl = (
             np.concatenate([np.full(f.shape[0], i) for f, i in zip(found, idx)])
