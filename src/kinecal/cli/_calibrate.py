@@ -12,11 +12,14 @@ import click
 from kinecal.cli._common import (
     MODEL_CHOICES,
     Progress,
+    allow_out_of_limits_option,
     common_options,
+    echo_diagnostics,
     jobs_option,
     manifest,
     model_file_option,
     parse_int_list,
+    read_data_checked,
     targets_option,
 )
 
@@ -106,6 +109,7 @@ def _options_from(loss: str, priors: str, stage2: str):
     "(whole sessions per fold when DATA has several sets) and of the nominal one.",
 )
 @jobs_option("Worker processes for the cross-validation of --model auto and --cv")
+@allow_out_of_limits_option
 @click.option("--force", is_flag=True, help="Overwrite results already in --out.")
 @common_options
 def calibrate(
@@ -123,6 +127,7 @@ def calibrate(
     report: bool,
     cv_folds: int | None,
     jobs: int,
+    allow_out_of_limits: bool,
     force: bool,
     quiet: bool,
 ) -> None:
@@ -140,7 +145,6 @@ def calibrate(
     from kinecal.io import (
         atomic_write_text,
         prepare_output_dir,
-        read_measurements,
         save_model,
         write_json,
     )
@@ -150,7 +154,7 @@ def calibrate(
     say = Progress(quiet)
     jobs = jobs or available_cpus()
     robot = _load_robot(robot_name)
-    meas = read_measurements(data, robot, targets)
+    meas, data_checks = read_data_checked(data, robot, targets, allow_out_of_limits)
     out = prepare_output_dir(
         out_dir,
         ["model.yaml", "report.json", "report.html", RESIDUALS_CSV],
@@ -158,7 +162,7 @@ def calibrate(
     )
     say("data", f"{meas.n} {meas.kind} rows from {data}")
     opts = _options_from(loss, priors, stage2)
-    extra: dict[str, object] = {}
+    extra: dict[str, object] = {"data_checks": [d.as_dict() for d in data_checks]}
     hay = parallel_pairs(robot) if hayati else ()
     nj = parse_int_list(ntm_joints, "--ntm-joints") or (1, 2, 3)
     if model_name == "auto":
@@ -301,6 +305,7 @@ def _load_robot(name: str):
     type=click.Path(dir_okay=False),
     help="Write per-row errors (row, ex_mm, ey_mm, ez_mm, err_mm) to this CSV.",
 )
+@allow_out_of_limits_option
 @click.option("--force", is_flag=True, help="Overwrite --errors-out.")
 def evaluate(
     data: str,
@@ -309,14 +314,16 @@ def evaluate(
     refit: str | None,
     as_json: bool,
     errors_out: str | None,
+    allow_out_of_limits: bool,
     force: bool,
 ) -> None:
     """Accuracy of a calibrated model on measurements DATA.csv (held-out poses)."""
     from kinecal.identification import evaluate as run_evaluate
-    from kinecal.io import atomic_write_text, load_model, read_measurements
+    from kinecal.io import atomic_write_text, check_data_for_model, load_model
 
     cal = load_model(model_path)
-    meas = read_measurements(data, cal.model.robot, targets)
+    meas, _ = read_data_checked(data, cal.model.robot, targets, allow_out_of_limits)
+    echo_diagnostics(check_data_for_model(meas, cal))
     ev = run_evaluate(cal, meas, refit_user=refit == "user")
     for d in ev.diagnostics:
         if d.severity == "warning":
