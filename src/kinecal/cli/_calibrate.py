@@ -323,7 +323,8 @@ def evaluate(
 
     cal = load_model(model_path)
     meas, _ = read_data_checked(data, cal.model.robot, targets, allow_out_of_limits)
-    echo_diagnostics(check_data_for_model(meas, cal))
+    meas, found = check_data_for_model(meas, cal)
+    echo_diagnostics(found)
     ev = run_evaluate(cal, meas, refit_user=refit == "user")
     for d in ev.diagnostics:
         if d.severity == "warning":

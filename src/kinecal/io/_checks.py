@@ -23,11 +23,12 @@ See docs/real-data-checklist.md.
 from __future__ import annotations
 
 from collections.abc import Iterable
+from dataclasses import replace
 
 import numpy as np
 
 from kinecal.errors import DataError
-from kinecal.geometry import matrix_to_quat_wxyz, quat_wxyz_to_matrix
+from kinecal.geometry import matrix_to_quat_wxyz, quat_wxyz_to_matrix, so3_log
 from kinecal.identification import CalibratedModel, Diagnostic, Measurements
 from kinecal.robot import RobotDescription
 
@@ -137,41 +138,48 @@ def _relative_angle(R: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(c, -1.0, 1.0))
 
 
+def _mismatch_deg(R: np.ndarray, F: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """Median misfit [deg] of the pose-to-pose rotations ``R_a^T R_b`` (rotation vectors,
+    tool frame) to the nominal ones ``F_a^T F_b`` turned by the best single rotation."""
+    w_meas = so3_log(np.einsum("nji,njk->nik", R[a], R[b]))
+    w_nom = so3_log(np.einsum("nji,njk->nik", F[a], F[b]))
+    U, _, Vt = np.linalg.svd(w_nom.T @ w_meas)  # Kabsch without translation
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0])
+    Q = Vt.T @ D @ U.T  # w_meas ~ Q w_nom
+    return float(np.degrees(np.median(np.linalg.norm(w_meas - w_nom @ Q.T, axis=1))))
+
+
 def quaternion_order(meas: Measurements, robot: RobotDescription) -> Diagnostic | None:
-    """Orientations that agree with the robot only when read otherwise (x, y, z, w order
-    or the conjugate): compares pose-to-pose rotation angles with the nominal robot's."""
+    """Orientations that agree with the robot only in x, y, z, w order (or inverted).
+
+    In the tool frame, the rotation from pose a to pose b is the nominal robot's
+    ``F_a^T F_b`` seen through the unknown but fixed tool orientation:
+    ``R_a^T R_b = Q F_a^T F_b Q^T`` whatever the user frame. Its rotation vectors are
+    those of the robot turned by ``Q``, found in closed form (Kabsch); the median misfit
+    is small for the right reading and tens of degrees for a wrong one. (The angle alone
+    would not tell: it is the same for any order of the quaternion's components.) Read in
+    x, y, z, w order, a quaternion gives ``A R^T B`` for fixed ``A``, ``B`` (an odd
+    permutation of the components is a reflection of the quaternion), so the two mistakes
+    are one for a calibration that fits the frames.
+    """
     if meas.R_user_cam is None or meas.n < 4:
         return None
     a, b = _pairs(meas)
     if a.size < 3:
         return None
     F = robot.fk_flange(meas.q_ctrl)[:, :3, :3]
-    nominal = _relative_angle(F, a, b)
+    read = _mismatch_deg(meas.R_user_cam, F, a, b)
     quat = matrix_to_quat_wxyz(meas.R_user_cam)
-    readings = {
-        "as written (w, x, y, z)": meas.R_user_cam,
-        "x, y, z, w order": quat_wxyz_to_matrix(quat[:, [3, 0, 1, 2]]),
-        "conjugated (the inverse rotations)": np.swapaxes(meas.R_user_cam, 1, 2),
-    }
-    mismatch = {
-        k: float(np.degrees(np.median(np.abs(_relative_angle(R, a, b) - nominal))))
-        for k, R in readings.items()
-    }
-    read = mismatch.pop("as written (w, x, y, z)")
-    best = min(mismatch, key=lambda k: mismatch[k])
-    if read < ORDER_MISMATCH_DEG or mismatch[best] * ORDER_FACTOR > read:
+    other = _mismatch_deg(quat_wxyz_to_matrix(quat[:, [3, 0, 1, 2]]), F, a, b)
+    if read < ORDER_MISMATCH_DEG or other * ORDER_FACTOR > read:
         return None
-    hint = (
-        "the file's qw..qz columns look like x, y, z, w: put w first"
-        if best.startswith("x, y, z")
-        else "the orientations look inverted (the rotation of the user frame in the tool "
-        "frame?): give the tool orientation in the user frame"
-    )
     return Diagnostic(
         "quaternion_order",
         f"{meas.source}: the rotations between poses differ from the robot's by "
-        f"{read:.1f} deg (median) as written, by {mismatch[best]:.2f} deg read "
-        f"{best}: {hint}.",
+        f"{read:.1f} deg (median) as written, by {other:.2f} deg with the quaternions "
+        "read in x, y, z, w order (or as the inverse rotations: the same up to the "
+        "frames): put w first in qw..qz, and give the tool's orientation in the user "
+        "frame, not the inverse.",
         stage=_STAGE,
     )
 
@@ -242,8 +250,13 @@ def data_diagnostics(
     return out + excitation(meas, robot)
 
 
-def check_data_for_model(meas: Measurements, cal: CalibratedModel) -> list[Diagnostic]:
-    """Refuse data a calibrated model cannot evaluate; note what it leaves out.
+def check_data_for_model(
+    meas: Measurements, cal: CalibratedModel
+) -> tuple[Measurements, list[Diagnostic]]:
+    """The data as the calibrated model can evaluate them, and what is left out.
+
+    Pose data for a model without tool orientation (calibrated on tracker points) keep
+    their positions only (``positions_only``); the other kinds must match.
 
     Raises
     ------
@@ -262,16 +275,15 @@ def check_data_for_model(meas: Measurements, cal: CalibratedModel) -> list[Diagn
     }
     if meas.kind == kind or {meas.kind, kind} == {"point", "pose"}:
         if meas.kind == "pose" and not cal.model.spec.cam_rotation:
-            return [
-                Diagnostic(
-                    "positions_only",
-                    f"{meas.source}: pose data, but the model was calibrated on "
-                    f"{what[str(kind)]} and has no tool orientation: only the positions "
-                    "are compared.",
-                    stage=_STAGE,
-                )
-            ]
-        return []
+            note = Diagnostic(
+                "positions_only",
+                f"{meas.source}: pose data, but the model was calibrated on "
+                f"{what[str(kind)]} and has no tool orientation: only the positions "
+                "are compared.",
+                stage=_STAGE,
+            )
+            return replace(meas, kind="point", R_user_cam=None, sigma_rot=None), [note]
+        return meas, []
     if meas.kind == "sensor" and not cal.model.spec.cam_rotation:
         why = "the model has no sensor orientation to map the measured points"
     elif meas.kind == "sensor":
