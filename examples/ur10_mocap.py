@@ -37,7 +37,7 @@ def load() -> Measurements:
 
 
 def main(out: Path) -> dict[str, object]:
-    robot = load_robot("ur10")
+    robot = load_robot("ur10e")
     meas = to_kinecal_csv(load(), robot, out / "ur10_poses.csv")
     print(
         f"{meas.n} poses of a UR10 from {SOURCE.name}, written as {out / 'ur10_poses.csv'}"

@@ -294,8 +294,8 @@ def _read(
     """The measurements, the out-of-limits finding, and whether the orientations came
     from quaternion columns."""
     t = read_table(path)
+    _check_columns(t, [c for c in t.header if _JOINT_RE.match(c)], robot.n_joints)
     joint_cols, q, limits = _joint_columns(t, robot, allow_out_of_limits)
-    _check_columns(t, joint_cols, robot.n_joints)
     kind, need = _kind(t)
     for c in need:
         if c not in t.header:
