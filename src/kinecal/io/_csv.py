@@ -295,7 +295,7 @@ def _read(
     from quaternion columns."""
     t = read_table(path)
     _check_columns(t, [c for c in t.header if _JOINT_RE.match(c)], robot.n_joints)
-    joint_cols, q, limits = _joint_columns(t, robot, allow_out_of_limits)
+    _, q, limits = _joint_columns(t, robot, allow_out_of_limits)
     kind, need = _kind(t)
     for c in need:
         if c not in t.header:
