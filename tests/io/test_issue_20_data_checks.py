@@ -65,7 +65,7 @@ def _edit_cell(text: str, line: int, column: str, value: str) -> str:
     ],
 )
 def test_issue_20_shipped_real_data_pass_without_findings(name, robot):
-    meas, found = read_data(REAL / name, robot)
+    _, found = read_data(REAL / name, robot)
     assert found == [], [d.message for d in found]
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -164,7 +164,7 @@ def test_issue_20_targets_file_in_metres_is_refused(tmp_path):
 
 def test_issue_20_sensor_points_in_metres_are_refused(tmp_path, rng):
     q = rng.uniform(-40, 40, (8, 6))
-    pc = [0.0, 0.0, 0.125] + rng.uniform(-0.02, 0.02, (8, 3))  # metres, by mistake
+    pc = np.array([0.0, 0.0, 0.125]) + rng.uniform(-0.02, 0.02, (8, 3))  # metres
     rows = [",".join(f"{v:.5f}" for v in (*qq, *pp)) for qq, pp in zip(q, pc)]
     head = "target,j1_deg,j2_deg,j3_deg,j4_deg,j5_deg,j6_deg,xc_mm,yc_mm,zc_mm"
     f = _write(tmp_path / "s.csv", head + "\n" + "\n".join("S1," + r for r in rows))
@@ -176,7 +176,7 @@ def test_issue_20_sensor_points_in_metres_are_refused(tmp_path, rng):
 # ---------------------------------------------------------------- warnings
 def test_issue_20_duplicated_rows_are_reported(tmp_path):
     lines = (REAL / "fr3_session_a.csv").read_text().splitlines()
-    dup = lines + [lines[5], lines[9], lines[5]]  # file lines 6, 10, 6 again
+    dup = [*lines, lines[5], lines[9], lines[5]]  # file lines 6, 10, 6 again
     f = _write(tmp_path / "dup.csv", "\n".join(dup) + "\n")
     meas, found = read_data(f, FR3)
     assert meas.n == 63 and _codes(found) == ["duplicate_rows"]
