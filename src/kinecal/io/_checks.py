@@ -47,7 +47,9 @@ SAME_ORIENTATION_DEG = 5.0
 # rotation angles exceeds this, and another reading fits at least 4x better.
 ORDER_MISMATCH_DEG = 3.0
 ORDER_FACTOR = 4.0
-_MAX_PAIRS = 20_000
+# Pose pairs of the quaternion check and poses of the orientation spread: a sample is
+# enough for a median and a spread, and keeps a million-row file fast.
+_MAX_PAIRS = 2_000
 _STAGE = "data"
 
 
@@ -73,8 +75,20 @@ def duplicate_rows(meas: Measurements) -> Diagnostic | None:
     if meas.target_index is not None:
         parts.append(meas.target_index[:, None])
     key = np.column_stack([np.asarray(p, dtype=np.float64) for p in parts])
-    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    dup = np.flatnonzero(first[inverse.ravel()] != np.arange(meas.n))
+    # Equal rows have equal fingerprints (the same arithmetic on the same numbers); a
+    # stable sort puts them next to each other, earliest first, and the rows themselves
+    # are compared. (np.unique on rows is ten times slower.)
+    fingerprint = np.zeros(meas.n)
+    for col, w in zip(key.T, np.random.default_rng(0).uniform(1.0, 2.0, key.shape[1])):
+        fingerprint += (
+            col * w
+        )  # element-wise: no BLAS, whose rounding depends on the row
+    order = np.argsort(fingerprint, kind="stable")
+    k = key[order]
+    same = (fingerprint[order][1:] == fingerprint[order][:-1]) & np.all(
+        k[1:] == k[:-1], axis=1
+    )
+    dup = np.sort(order[1:][same])
     if not dup.size:
         return None
     return Diagnostic(
@@ -167,9 +181,12 @@ def quaternion_order(meas: Measurements, robot: RobotDescription) -> Diagnostic 
     a, b = _pairs(meas)
     if a.size < 3:
         return None
-    F = robot.fk_flange(meas.q_ctrl)[:, :3, :3]
-    read = _mismatch_deg(meas.R_user_cam, F, a, b)
-    quat = matrix_to_quat_wxyz(meas.R_user_cam)
+    used, inv = np.unique(np.concatenate([a, b]), return_inverse=True)
+    a, b = inv[: a.size], inv[a.size :]  # into the rows used
+    F = robot.fk_flange(meas.q_ctrl[used])[:, :3, :3]
+    R = meas.R_user_cam[used]
+    read = _mismatch_deg(R, F, a, b)
+    quat = matrix_to_quat_wxyz(R)
     other = _mismatch_deg(quat_wxyz_to_matrix(quat[:, [3, 0, 1, 2]]), F, a, b)
     if read < ORDER_MISMATCH_DEG or other * ORDER_FACTOR > read:
         return None
@@ -182,6 +199,26 @@ def quaternion_order(meas: Measurements, robot: RobotDescription) -> Diagnostic 
         "frame, not the inverse.",
         stage=_STAGE,
     )
+
+
+def _orientation_spread_deg(meas: Measurements, robot: RobotDescription) -> float:
+    """Largest angle of a nominal flange orientation from the first row's [deg]; on a
+    sample of the rows first (the forward kinematics of a million rows takes a lot of
+    memory), all rows only when the sample stays within the limit."""
+    n = meas.n
+    rows = np.unique(np.linspace(0, n - 1, min(n, _MAX_PAIRS)).astype(np.intp))
+    for idx in (rows, None) if rows.size < n else (rows,):
+        sel = np.arange(n) if idx is None else idx
+        spread = 0.0
+        for a in range(0, sel.size, _MAX_PAIRS):
+            part = np.concatenate([[0], sel[a : a + _MAX_PAIRS]])
+            F = robot.fk_flange(meas.q_ctrl[part])[:, :3, :3]
+            zero = np.zeros(part.size, np.intp)
+            ang = _relative_angle(F, zero, np.arange(part.size))
+            spread = max(spread, float(np.degrees(ang.max())))
+        if spread >= SAME_ORIENTATION_DEG:
+            break
+    return spread
 
 
 def excitation(meas: Measurements, robot: RobotDescription) -> list[Diagnostic]:
@@ -210,9 +247,7 @@ def excitation(meas: Measurements, robot: RobotDescription) -> list[Diagnostic]:
             )
         )
     if meas.n >= 2:
-        F = robot.fk_flange(meas.q_ctrl)[:, :3, :3]
-        first = np.zeros(meas.n, np.intp)
-        spread = float(np.degrees(_relative_angle(F, first, np.arange(meas.n)).max()))
+        spread = _orientation_spread_deg(meas, robot)
         if spread < SAME_ORIENTATION_DEG:
             out.append(
                 Diagnostic(

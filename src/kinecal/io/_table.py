@@ -178,10 +178,11 @@ def read_table(path: str | Path) -> Table:
     if '"' in text or any(c in text for c in _ODD_BREAKS):
         return _read_quoted(p, text)
     all_lines = text.splitlines()
+    # Comments and blank lines start with '#', a comma or white space (or are empty).
     clean = "#" not in text and not any(
-        s in text for s in ("\n\n", "\n\r", "\r\r", "\n,", "\r,", "\n ", "\n\t", "\r ")
+        not s or s[0] == "," or s[0].isspace() for s in all_lines
     )
-    if clean and all_lines and not _is_skipped(all_lines[0]):
+    if clean:
         numbers = np.arange(1, len(all_lines) + 1, dtype=np.intp)
         kept = all_lines
     else:  # drop comments and blank lines, remembering the file line of each kept one
