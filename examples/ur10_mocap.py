@@ -58,9 +58,7 @@ def main(out: Path) -> dict[str, object]:
         f"{meas.n} poses of a UR10e from {SOURCE.name}, written as "
         f"{out / 'ur10_poses.csv'}"
     )
-    rows = cv_table(
-        robot, meas, leave_one_out=("nominal (frames only)", "kinematic")
-    )
+    rows = cv_table(robot, meas, leave_one_out=("nominal (frames only)", "kinematic"))
     print_table("UR10e, motion capture, 5-fold cross-validation", rows)
     res = calibrate(robot, meas, "kinematic")
     save_model(out / "model.yaml", res.calibrated, force=True)
