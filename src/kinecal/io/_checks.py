@@ -54,10 +54,11 @@ _STAGE = "data"
 
 
 class DataWarning(UserWarning):
-    """A finding about the data (``.diagnostic`` holds the structured record)."""
+    """A finding about the data; ``.diagnostic`` holds the structured record (the
+    warning's only argument is the message, so it pickles and re-creates as usual)."""
 
-    def __init__(self, diagnostic: Diagnostic) -> None:
-        super().__init__(diagnostic.message)
+    def __init__(self, message: str, diagnostic: Diagnostic | None = None) -> None:
+        super().__init__(message)
         self.diagnostic = diagnostic
 
 
@@ -78,11 +79,10 @@ def duplicate_rows(meas: Measurements) -> Diagnostic | None:
     # Equal rows have equal fingerprints (the same arithmetic on the same numbers); a
     # stable sort puts them next to each other, earliest first, and the rows themselves
     # are compared. (np.unique on rows is ten times slower.)
+    weights = np.asarray(np.random.default_rng(0).uniform(1.0, 2.0, (key.shape[1],)))
     fingerprint = np.zeros(meas.n)
-    for col, w in zip(key.T, np.random.default_rng(0).uniform(1.0, 2.0, key.shape[1])):
-        fingerprint += (
-            col * w
-        )  # element-wise: no BLAS, whose rounding depends on the row
+    for j in range(key.shape[1]):  # element-wise: BLAS rounding may depend on the row
+        fingerprint += key[:, j] * weights[j]
     order = np.argsort(fingerprint, kind="stable")
     k = key[order]
     same = (fingerprint[order][1:] == fingerprint[order][:-1]) & np.all(

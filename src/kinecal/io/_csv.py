@@ -413,7 +413,7 @@ def read_measurements(
     else:
         meas, found, _ = _read(path, robot, targets, allow_out_of_limits)
     for d in found:
-        warnings.warn(DataWarning(d), stacklevel=2)
+        warnings.warn(DataWarning(d.message, d), stacklevel=2)
     return meas
 
 
