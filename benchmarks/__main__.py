@@ -466,7 +466,12 @@ def main(argv: list[str] | None = None) -> int:
     t, _ = _median_time(lambda: fit_sphere(P), rep_fast)
     record("fit_sphere_50k", t, "<= 20 ms")
 
-    # 7b. CSV files of 1e5 and 1e6 rows (issue 26.3), each case in its own process
+    # 7b. the sensor: simulated session, calibrations, spheres, std (issue 24)
+    from benchmarks._sensor_calib import run as run_sensor
+
+    run_sensor(record, results, rep, args.quick)
+
+    # 7c. CSV files of 1e5 and 1e6 rows (issue 26.3), each case in its own process
     from benchmarks._csv import csv_cases
 
     csv_cases(record, max(rep // 3, 1))
