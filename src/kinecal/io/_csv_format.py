@@ -164,11 +164,11 @@ def csv_text(columns: Sequence[tuple[str, Column]]) -> str:
     if not columns:
         raise ValueError("csv_text: no columns.")
     n = len(columns[0][1].values)  # type: ignore[arg-type]
-    out = [(",".join(name for name, _ in columns) + "\n").encode()]
-    for a in range(0, n, _CHUNK):
+    out = [",".join(name for name, _ in columns) + "\n"]
+    for a in range(0, n, _CHUNK):  # text per block: one copy of the output at the end
         rows = slice(a, min(a + _CHUNK, n))
-        out.append(_join([format_column(c, rows) for _, c in columns]))
-    return b"".join(out).decode("utf-8")
+        out.append(_join([format_column(c, rows) for _, c in columns]).decode("utf-8"))
+    return "".join(out)
 
 
 def _raw_cells(t: Table, rows: slice) -> tuple[bytes, np.ndarray, np.ndarray]:
@@ -199,7 +199,7 @@ def table_csv(table: Table, columns: Sequence[tuple[str, Column]]) -> str:
     head = ",".join(name for name, _ in columns) + "\n"
     if not table.data or "\0" in head:  # a file with quoted cells: row by row
         return head + _table_csv_rows(table, columns)
-    out = [head.encode("utf-8")]
+    out = [head]
     for a in range(0, n, _CHUNK):
         rows = slice(a, min(a + _CHUNK, n))
         buf, starts, ends = _raw_cells(table, rows)
@@ -213,8 +213,8 @@ def table_csv(table: Table, columns: Sequence[tuple[str, Column]]) -> str:
                 blocks.append(_copied(b, starts[:, k], ends[:, k]))
             else:
                 blocks.append(format_column(c, rows))
-        out.append(_join(blocks))
-    return b"".join(out).decode("utf-8")
+        out.append(_join(blocks).decode("utf-8"))
+    return "".join(out)
 
 
 def _table_csv_rows(table: Table, columns: Sequence[tuple[str, Column]]) -> str:
