@@ -479,6 +479,11 @@ def main(argv: list[str] | None = None) -> int:
 
     run_sensor(record, results, rep, args.quick)
 
+    # 7c. CSV files of 1e5 and 1e6 rows (issue 26.3), each case in its own process
+    from benchmarks._csv import csv_cases
+
+    csv_cases(record, max(rep // 3, 1))
+
     # 8. CLI start-up
     def start() -> None:
         _run([sys.executable, "-m", "kinecal", "--help"])

@@ -29,15 +29,24 @@ def _cv(summary: dict) -> dict[str, float]:
 
 @pytest.mark.skipif(not EXAMPLES.is_dir(), reason="examples/ not in this checkout")
 def test_ur10_mocap_example(tmp_path):
+    """Issue 20: the FIGAROH 'UR10' data are from a UR10e. On its own nominal table the
+    frames-only error is 4 mm (12 mm on the CB table); the calibrated kinematic model
+    predicts every left-out pose better than the nominal one and than FIGAROH's
+    identification on the same folds (4.14-4.27 mm, from the issue)."""
     s = _run("ur10_mocap.py", tmp_path)
     cv = _cv(s)
-    assert s["n"] == 23
+    assert s["n"] == 23 and s["robot"] == "ur10e"
     nominal = cv["nominal (frames only)"]
-    assert 10.0 < nominal < 14.0
-    for model in ("kinematic, plain LS", "kinematic", "full"):
-        assert cv[model] < 0.45 * nominal, (model, cv)
+    assert 3.5 < nominal < 4.6  # 12.2 mm on the CB-series table
+    loo = {r["model"]: r["loo_rms_mm"] for r in s["cv"] if "loo_rms_mm" in r}
+    assert loo["kinematic"] < loo["nominal (frames only)"]
+    assert loo["kinematic"] < 3.9 < 4.14
     # Priors never make the full model worse than the kinematic one (issue 11).
     assert cv["full"] <= cv["kinematic"] * 1.02
+    # The right nominal passes the nominal check; the CB table fails it.
+    assert s["fit_all"]["nominal_check"] == []
+    cb = " ".join(s["cb_table_check"])
+    assert "priors hold the fit back" in cb and "joint2.d" in cb
     assert (tmp_path / "model.yaml").is_file()
     assert (tmp_path / "ur10_poses.csv").is_file()
 

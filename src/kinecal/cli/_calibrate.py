@@ -13,11 +13,14 @@ import click
 from kinecal.cli._common import (
     MODEL_CHOICES,
     Progress,
+    allow_out_of_limits_option,
     common_options,
+    echo_diagnostics,
     jobs_option,
     manifest,
     model_file_option,
     parse_int_list,
+    read_data_checked,
     targets_option,
 )
 
@@ -132,6 +135,7 @@ def _options_from(loss: str, priors: str, stage2: str):
     "instead of the automatic test.",
 )
 @jobs_option("Worker processes for the cross-validation of --model auto and --cv")
+@allow_out_of_limits_option
 @click.option("--force", is_flag=True, help="Overwrite results already in --out.")
 @common_options
 def calibrate(
@@ -152,6 +156,7 @@ def calibrate(
     reject: str,
     reject_z: float | None,
     jobs: int,
+    allow_out_of_limits: bool,
     force: bool,
     quiet: bool,
 ) -> None:
@@ -169,7 +174,6 @@ def calibrate(
     from kinecal.io import (
         atomic_write_text,
         prepare_output_dir,
-        read_measurements,
         save_model,
         write_json,
     )
@@ -179,7 +183,7 @@ def calibrate(
     say = Progress(quiet)
     jobs = jobs or available_cpus()
     robot = _load_robot(robot_name)
-    meas = read_measurements(data, robot, targets)
+    meas, data_checks = read_data_checked(data, robot, targets, allow_out_of_limits)
     out = prepare_output_dir(
         out_dir,
         ["model.yaml", "report.json", "report.html", RESIDUALS_CSV],
@@ -190,7 +194,7 @@ def calibrate(
         _options_from(loss, priors, stage2), reject=reject, reject_z=reject_z
     )
     groups = _group_labels(data, cv_groups, meas.rows) if cv_groups else None
-    extra: dict[str, object] = {}
+    extra: dict[str, object] = {"data_checks": [d.as_dict() for d in data_checks]}
     hay = parallel_pairs(robot) if hayati else ()
     nj = parse_int_list(ntm_joints, "--ntm-joints") or (1, 2, 3)
     if model_name == "auto":
@@ -382,6 +386,7 @@ def _load_robot(name: str):
     type=click.Path(dir_okay=False),
     help="Write per-row errors (row, ex_mm, ey_mm, ez_mm, err_mm) to this CSV.",
 )
+@allow_out_of_limits_option
 @click.option("--force", is_flag=True, help="Overwrite --errors-out.")
 def evaluate(
     data: str,
@@ -390,14 +395,17 @@ def evaluate(
     refit: str | None,
     as_json: bool,
     errors_out: str | None,
+    allow_out_of_limits: bool,
     force: bool,
 ) -> None:
     """Accuracy of a calibrated model on measurements DATA.csv (held-out poses)."""
     from kinecal.identification import evaluate as run_evaluate
-    from kinecal.io import atomic_write_text, load_model, read_measurements
+    from kinecal.io import atomic_write_text, check_data_for_model, load_model
 
     cal = load_model(model_path)
-    meas = read_measurements(data, cal.model.robot, targets)
+    meas, _ = read_data_checked(data, cal.model.robot, targets, allow_out_of_limits)
+    meas, found = check_data_for_model(meas, cal)
+    echo_diagnostics(found)
     what = _refit_groups(refit)
     ev = run_evaluate(cal, meas, refit=what)
     for d in ev.diagnostics:

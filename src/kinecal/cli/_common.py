@@ -25,6 +25,32 @@ targets_option = click.option(
     type=click.Path(dir_okay=False),
     help="Targets file (target, x_mm, y_mm, z_mm) for sensor data.",
 )
+allow_out_of_limits_option = click.option(
+    "--allow-out-of-limits",
+    is_flag=True,
+    help="Accept joint values more than 1 deg (1 mm) beyond the robot's limits, with a "
+    "warning, instead of refusing the file.",
+)
+
+
+def echo_diagnostics(found: Any) -> None:
+    """Print the warnings among ``Diagnostic`` records on stderr."""
+    for d in found:
+        if d.severity == "warning":
+            click.echo(f"warning   {d.message}", err=True)
+
+
+def read_data_checked(
+    data: str, robot: Any, targets: str | None, allow_out_of_limits: bool
+) -> Any:
+    """Read a measurement file and print the findings of its checks: (meas, findings)."""
+    from kinecal.io import read_data
+
+    meas, found = read_data(
+        data, robot, targets, allow_out_of_limits=allow_out_of_limits
+    )
+    echo_diagnostics(found)
+    return meas, found
 
 
 def jobs_option(what: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:

@@ -7,7 +7,11 @@ import sys
 
 import click
 
-from kinecal.cli._common import model_file_option
+from kinecal.cli._common import (
+    allow_out_of_limits_option,
+    echo_diagnostics,
+    model_file_option,
+)
 
 _FORMATS = ("csv", "fanuc-ls", "urscript", "rapid", "krl")
 
@@ -62,6 +66,7 @@ _FORMATS = ("csv", "fanuc-ls", "urscript", "rapid", "krl")
     help="Write the file even if some rows are unreachable (they are flagged; in a "
     "program they keep their joints).",
 )
+@allow_out_of_limits_option
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary.")
 @click.option("--force", is_flag=True, help="Overwrite --out.")
 def compensate(
@@ -74,6 +79,7 @@ def compensate(
     decimals: int | None,
     report_path: str | None,
     allow_unreachable: bool,
+    allow_out_of_limits: bool,
     as_json: bool,
     force: bool,
 ) -> None:
@@ -98,7 +104,7 @@ def compensate(
     cal = load_model(model_path)
     scale = _load_scale(cal, payload_kg)
     if fmt == "csv":
-        res, rows = _csv(cal, targets, tol_mm, scale)
+        res, rows = _csv(cal, targets, tol_mm, scale, allow_out_of_limits)
     else:
         res, rows = _program(cal, targets, fmt, tol_mm, scale, decimals)
     bad = [i for i, s in enumerate(res.status) if s != "ok"]
@@ -193,13 +199,33 @@ def _diagnostics(res, i: int) -> list[str]:
 _DIAG_HEADER = ["rot_err_deg", "dq_max_deg", "cond", "limit_joint", "err_mm", "status"]
 
 
-def _csv(cal, targets: str, tol_mm: float, scale):
+def _diagnostic_columns(res):
+    """The diagnostic columns of every row at once (as :func:`_diagnostics` per row)."""
+    import numpy as np
+
+    from kinecal.io import Column
+
+    values = (
+        Column.numbers(np.degrees(res.rotation_error), "%.6f"),
+        Column.numbers(_dq_deg(res), "%.6f"),
+        Column.numbers(res.cond, "%.4g"),
+        Column.numbers(np.asarray(res.limit_joint) + 1, "%d"),  # 1-based; 0: none
+        Column.numbers(res.error * 1e3, "%.6f"),
+        Column.text([str(x) for x in res.status]),
+    )
+    return list(zip(_DIAG_HEADER, values))
+
+
+def _csv(cal, targets: str, tol_mm: float, scale, allow_out_of_limits: bool):
     import numpy as np
 
     from kinecal.compensation import compensate as run_compensation
     from kinecal.io import atomic_write_text, read_compensation_targets
 
-    tg = read_compensation_targets(targets, cal.model.robot)
+    tg = read_compensation_targets(
+        targets, cal.model.robot, allow_out_of_limits=allow_out_of_limits
+    )
+    echo_diagnostics(tg.diagnostics)
     spec = cal.model.spec
     set_index = _map_labels(tg.set_labels, tg.set_index, spec.sets, targets, "set")
     marker_index = _map_labels(
@@ -216,31 +242,19 @@ def _csv(cal, targets: str, tol_mm: float, scale):
         load_scale=None if scale is None else np.full(N, scale),
         tol=tol_mm * 1e-3,
     )
-    header = list(tg.table.header)
-    cols = {c: header.index(c) for c in tg.joint_columns}
-    units = [c.rsplit("_", 1)[1] for c in tg.joint_columns]
     to_file = {"deg": 180.0 / np.pi, "rad": 1.0, "mm": 1e3, "m": 1.0}
 
     def write(out_path, _report, force):
-        lines = [
-            ",".join(
-                [*header, *(f"{c}_program" for c in tg.joint_columns), *_DIAG_HEADER]
-            )
-        ]
-        for i, row in enumerate(tg.table.rows):
-            out = list(row)
-            for k, c in enumerate(tg.joint_columns):
-                out[cols[c]] = f"{res.q_ctrl[i, k] * to_file[units[k]]:.8f}"
-            lines.append(
-                ",".join(
-                    [
-                        *out,
-                        *(row[cols[c]] for c in tg.joint_columns),
-                        *_diagnostics(res, i),
-                    ]
-                )
-            )
-        atomic_write_text(out_path, "\n".join(lines) + "\n", force=force)
+        from kinecal.io import Column, table_csv
+
+        new = {
+            c: Column.numbers(res.q_ctrl[:, k] * to_file[c.rsplit("_", 1)[1]], "%.8f")
+            for k, c in enumerate(tg.joint_columns)
+        }
+        cols = [(c, new.get(c) or Column.copy_of(c)) for c in tg.table.header]
+        cols += [(f"{c}_program", Column.copy_of(c)) for c in tg.joint_columns]
+        text = table_csv(tg.table, cols + _diagnostic_columns(res))
+        atomic_write_text(out_path, text, force=force)
 
     where = [f"line {ln}" for ln in tg.table.lines]
     return res, _Output(where, write)

@@ -8,7 +8,7 @@ from typing import Any
 
 import click
 
-from kinecal.cli._common import Progress, common_options
+from kinecal.cli._common import Progress, allow_out_of_limits_option, common_options
 from kinecal.cli._plan_report import echo_summary, plan_report
 
 _PRESETS = ("kinematic", "ntm", "rfcm", "full")
@@ -55,8 +55,13 @@ def _joint_ranges(text: str | None, robot: Any) -> Any:
     return r
 
 
-def _read_poses(path: str, robot: Any, labels: tuple[str, ...] | None) -> Any:
-    """Joint columns (and a sensor's ``target``) of a pose file: (table, cols, q, ti)."""
+def _read_poses(
+    path: str, robot: Any, labels: tuple[str, ...] | None, allow: bool | None = None
+) -> Any:
+    """Joint columns (and a sensor's ``target``) of a pose file: (table, cols, q, ti).
+
+    Candidates (``allow`` None) must lie within the limits; measured poses may pass them
+    by 1 deg (1 mm), and further with ``allow`` (--allow-out-of-limits: a warning)."""
     import re
 
     import numpy as np
@@ -84,16 +89,24 @@ def _read_poses(path: str, robot: Any, labels: tuple[str, ...] | None) -> Any:
             raise DataError(f"{path}: column '{c}': joint {k + 1} needs {want}.")
         f = {"deg": np.pi / 180, "rad": 1.0, "mm": 1e-3, "m": 1.0}[unit]
         q[:, k] = t.numbers(c) * f
+        slack = 1e-9 if allow is None else (1e-3 if prismatic else np.pi / 180)
         bad = np.flatnonzero(
-            (q[:, k] < lim[k, 0] - 1e-9) | (q[:, k] > lim[k, 1] + 1e-9)
+            (q[:, k] < lim[k, 0] - slack) | (q[:, k] > lim[k, 1] + slack)
         )
-        if bad.size:
+        if bad.size and allow:
+            click.echo(
+                f"warning   {path}: {bad.size} rows with {c} beyond the limits of "
+                f"{robot.name} (first: line {t.lines[bad[0]]}), accepted as asked.",
+                err=True,
+            )
+        elif bad.size:
             i = int(bad[0])
             g = 1.0 / f
             raise DataError(
                 f"{path}: line {t.lines[i]}, column '{c}': {q[i, k] * g:.6g} is outside "
                 f"the joint limits [{lim[k, 0] * g:.6g}, {lim[k, 1] * g:.6g}] of "
-                f"{robot.name}."
+                f"{robot.name}"
+                + ("." if allow is None else " (use --allow-out-of-limits to accept).")
             )
     ti = None
     if labels is not None and "target" in t.header:
@@ -194,6 +207,7 @@ def _options(f: Any) -> Any:
 
 @click.command()
 @_options
+@allow_out_of_limits_option
 @common_options
 def plan(**kw: Any) -> None:
     """Choose the poses that determine a calibration model best.
@@ -234,6 +248,11 @@ def _setup(kw: dict[str, Any], say: Progress) -> dict[str, Any]:
     cal = load_model(name) if sequential else None
     if cal is not None:
         robot = cal.model.robot
+        if kw["robot_name"] and load_robot(kw["robot_name"]).name != robot.name:
+            raise ConfigError(
+                f"--robot {kw['robot_name']}, but {name} was calibrated for "
+                f"{robot.name}: a model and a robot of different kinds."
+            )
     elif kw["robot_name"]:
         robot = load_robot(kw["robot_name"])
     else:
@@ -397,7 +416,9 @@ def _run(kw: dict[str, Any], say: Progress) -> None:
         )
     measured = measured_ti = None
     if cal is not None and kw["data_path"]:
-        _, _, measured, measured_ti = _read_poses(kw["data_path"], robot, labels)
+        _, _, measured, measured_ti = _read_poses(
+            kw["data_path"], robot, labels, bool(kw["allow_out_of_limits"])
+        )
     n = kw["poses"] or kw["add_n"]
     if n > cand["q"].shape[0]:
         raise click.BadParameter(

@@ -33,6 +33,23 @@ CODES: dict[str, str] = {
     "systematic_residuals": "the largest residuals follow a joint angle or gravity load: "
     "a model error, not gross errors",
     "noise_model": "the noise (variance components) estimated from the residuals",
+    # Checks of the data file before any fit (kinecal.io; stage 'data').
+    "out_of_limits": "joint values beyond the robot's limits, accepted on request "
+    "(rows: file lines)",
+    "duplicate_rows": "rows that repeat an earlier row exactly (rows: file lines of the "
+    "repeats)",
+    "payload_over_rating": "a payload above the robot's rated payload (rows: file lines)",
+    "quaternion_order": "orientations that fit the robot only when read in x, y, z, w "
+    "order",
+    "poor_excitation": "a joint that hardly moves, or a tool orientation that hardly "
+    "changes: some parameters cannot be separated",
+    "positions_only": "the data carry more than the model uses: only positions are "
+    "compared",
+    # Checks of a calibration against its nominal robot (identification._nominal_check).
+    "nominal_mismatch": "the nominal robot with fitted frames leaves errors far beyond "
+    "the calibrated ones and parameters far from nominal: a wrong nominal table or units",
+    "priors_held": "parameters the priors hold near nominal values the data clearly "
+    "reject (parameters: those held)",
 }
 
 

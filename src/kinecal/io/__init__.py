@@ -1,14 +1,17 @@
 """Files at the edges: measurement CSVs, targets, model.yaml, JSON; units via kinecal.units."""
 
+from kinecal.io._checks import DataWarning, check_data_for_model, data_diagnostics
 from kinecal.io._csv import (
     CompensationTargets,
     Table,
     Targets,
     read_compensation_targets,
+    read_data,
     read_measurements,
     read_table,
     read_targets,
 )
+from kinecal.io._csv_format import Column, csv_text, table_csv
 from kinecal.io._csv_write import (
     joint_column_names,
     measurements_to_csv,
@@ -49,13 +52,18 @@ from kinecal.io._urdf_export import robot_yaml_text, urdf_text
 __all__ = [
     "FORMAT_VERSION",
     "PROGRAM_FORMATS",
+    "Column",
     "CompensationTargets",
+    "DataWarning",
     "Program",
     "ProgramPoint",
     "Table",
     "Targets",
     "atomic_write_bytes",
     "atomic_write_text",
+    "check_data_for_model",
+    "csv_text",
+    "data_diagnostics",
     "detect_program_format",
     "file_sha256",
     "image_files",
@@ -69,6 +77,7 @@ __all__ = [
     "program_joints",
     "read_cloud",
     "read_compensation_targets",
+    "read_data",
     "read_image",
     "read_measurements",
     "read_program",
@@ -77,6 +86,7 @@ __all__ = [
     "robot_yaml_text",
     "save_model",
     "save_sensor",
+    "table_csv",
     "urdf_text",
     "write_cloud",
     "write_image",

@@ -13,23 +13,29 @@ Measurement file (header required, units in the names)::
 
 Targets file: ``target, x_mm, y_mm, z_mm[, r_mm]`` (user frame).
 
-Every problem raises :class:`DataError` naming the file, the line and the column.
+Every problem raises :class:`DataError` naming the file, the line and the column; rows that
+cannot be right are refused (joint values beyond the robot's limits, a near-miss column
+name, a targets file in metres). Findings that do not stop the run (duplicated rows, a
+payload beyond the rating, quaternions in x, y, z, w order, poses that do not excite a
+joint) are :class:`~kinecal.identification.Diagnostic` records: :func:`read_data` returns
+them, :func:`read_measurements` issues them as :class:`DataWarning`.
 """
 
 from __future__ import annotations
 
-import csv
-import math
 import re
+import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from kinecal.errors import DataError
 from kinecal.geometry import quat_wxyz_to_matrix, wpr_to_matrix
-from kinecal.identification import Measurements
+from kinecal.identification import Diagnostic, Measurements
+from kinecal.io._checks import DataWarning, data_diagnostics, near_miss
+from kinecal.io._table import Table, read_table
 from kinecal.robot import RobotDescription
 from kinecal.units import deg_to_rad, mm_to_m
 
@@ -38,6 +44,7 @@ __all__ = [
     "Table",
     "Targets",
     "read_compensation_targets",
+    "read_data",
     "read_measurements",
     "read_table",
     "read_targets",
@@ -48,91 +55,13 @@ _POINT = ("x_mm", "y_mm", "z_mm")
 _QUAT = ("qw", "qx", "qy", "qz")
 _WPR = ("w_deg", "p_deg", "r_deg")
 _SENSOR = ("target", "xc_mm", "yc_mm", "zc_mm")
+_KNOWN = _OPTIONAL | set(_POINT) | set(_QUAT) | set(_WPR) | set(_SENSOR)
 _JOINT_RE = re.compile(r"^j(\d+)_(deg|rad|mm|m)$")
 # Columns a user might mean when they forget the unit suffix.
 _UNITLESS = {"x", "y", "z", "xc", "yc", "zc", "sigma", "payload", "r"}
-
-
-@dataclass(frozen=True)
-class Table:
-    """A CSV file as strings: header, rows and the file line of each row."""
-
-    path: str
-    header: list[str]
-    rows: list[list[str]]
-    lines: list[int]
-
-    def column(self, name: str) -> list[str]:
-        k = self.header.index(name)
-        return [r[k] for r in self.rows]
-
-    def numbers(self, name: str) -> np.ndarray:
-        """Column as floats; any non-number or non-finite value is an error."""
-        k = self.header.index(name)
-        try:  # the whole column at once; cell by cell only to locate a bad value
-            out = np.array([row[k] for row in self.rows], dtype=np.float64)
-            if np.isfinite(out).all():
-                return out
-        except ValueError:
-            pass
-        out = np.empty(len(self.rows))
-        for i, (row, line) in enumerate(zip(self.rows, self.lines)):
-            s = row[k].strip()
-            try:
-                v = float(s)
-            except ValueError:
-                raise DataError(
-                    f"{self.path}: line {line}, column '{name}': expected a number; got {s!r}."
-                ) from None
-            if not math.isfinite(v):
-                raise DataError(
-                    f"{self.path}: line {line}, column '{name}': expected a finite number; "
-                    f"got {s!r}."
-                )
-            out[i] = v
-        return out
-
-
-def read_table(path: str | Path) -> Table:
-    """Read a CSV file with a header; lines starting with '#' are comments."""
-    p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise DataError(f"{p}: file not found.") from None
-    except OSError as exc:
-        raise DataError(f"{p}: cannot read ({exc.strerror}).") from None
-    except UnicodeDecodeError:
-        raise DataError(f"{p}: not a text (UTF-8) CSV file.") from None
-    header: list[str] | None = None
-    rows: list[list[str]] = []
-    lines: list[int] = []
-    for lineno, row in enumerate(csv.reader(text.splitlines()), start=1):
-        if (
-            not row
-            or all(not c.strip() for c in row)
-            or row[0].lstrip().startswith("#")
-        ):
-            continue
-        if header is None:
-            header = [c.strip() for c in row]
-            dup = {c for c in header if header.count(c) > 1}
-            if dup:
-                raise DataError(
-                    f"{p}: line {lineno}: duplicate column {sorted(dup)[0]!r}."
-                )
-            continue
-        if len(row) != len(header):
-            raise DataError(
-                f"{p}: line {lineno}: {len(row)} values for {len(header)} columns."
-            )
-        rows.append(row)
-        lines.append(lineno)
-    if header is None:
-        raise DataError(f"{p}: the file is empty (a header line is required).")
-    if not rows:
-        raise DataError(f"{p}: no data rows after the header.")
-    return Table(str(p), header, rows, lines)
+# Joint values this far beyond a limit are refused (file units: deg or mm).
+LIMIT_MARGIN_DEG, LIMIT_MARGIN_MM = 1.0, 1.0
+_TO_FILE = {"deg": 180.0 / np.pi, "rad": 1.0, "mm": 1e3, "m": 1.0}
 
 
 @dataclass(frozen=True)
@@ -145,7 +74,14 @@ class Targets:
 
 
 def read_targets(path: str | Path) -> Targets:
-    """Read a targets file ``target, x_mm, y_mm, z_mm[, r_mm]``."""
+    """Read a targets file ``target, x_mm, y_mm, z_mm[, r_mm]``.
+
+    Raises
+    ------
+    DataError
+        Missing column, bad value, a label twice, or coordinates (radii) that look like
+        metres: targets a few millimetres apart, or spheres under 0.25 mm in radius.
+    """
     t = read_table(path)
     for c in ("target", "x_mm", "y_mm", "z_mm"):
         if c not in t.header:
@@ -153,31 +89,93 @@ def read_targets(path: str | Path) -> Targets:
                 f"{t.path}: missing column '{c}' (need target, x_mm, y_mm, z_mm)."
             )
     labels = [s.strip() for s in t.column("target")]
+    seen: dict[str, int] = {}
     for lab, line in zip(labels, t.lines):
         if not lab:
             raise DataError(f"{t.path}: line {line}, column 'target': empty label.")
-        if labels.count(lab) > 1:
+        if lab in seen:
             raise DataError(
                 f"{t.path}: line {line}, column 'target': {lab!r} appears twice."
             )
-    xyz = np.column_stack([t.numbers(c) for c in ("x_mm", "y_mm", "z_mm")])
-    r = mm_to_m(t.numbers("r_mm")) if "r_mm" in t.header else None
-    return Targets(tuple(labels), mm_to_m(xyz), r)
+        seen[lab] = int(line)
+    xyz = np.column_stack([t.numbers(c) for c in _POINT])
+    r = t.numbers("r_mm") if "r_mm" in t.header else None
+    if len(t) >= 2 and np.abs(xyz).max() < 5.0 and np.ptp(xyz, axis=0).max() > 0:
+        raise DataError(
+            f"{t.path}: columns x_mm, y_mm, z_mm: every target is within 5 of the origin "
+            "(targets millimetres apart?), which looks like metres; convert to "
+            "millimetres."
+        )
+    if r is not None and np.all(r < 0.25):
+        raise DataError(
+            f"{t.path}: column 'r_mm': every radius is below 0.25, which looks like "
+            "metres; convert to millimetres."
+        )
+    return Targets(tuple(labels), mm_to_m(xyz), None if r is None else mm_to_m(r))
 
 
 def _labels(t: Table, name: str) -> tuple[np.ndarray, tuple[str, ...]]:
     if name not in t.header:
-        return np.zeros(len(t.rows), np.intp), ("",)
+        return np.zeros(len(t), np.intp), ("",)
     vals = [s.strip() for s in t.column(name)]
-    for v, line in zip(vals, t.lines):
-        if not v:
-            raise DataError(f"{t.path}: line {line}, column '{name}': empty label.")
     labels = tuple(dict.fromkeys(vals))
+    if "" in labels:
+        line = t.lines[vals.index("")]
+        raise DataError(f"{t.path}: line {line}, column '{name}': empty label.")
     index = {lab: i for i, lab in enumerate(labels)}
-    return np.array([index[v] for v in vals], np.intp), labels
+    return np.fromiter((index[v] for v in vals), np.intp, len(vals)), labels
 
 
-def _joint_columns(t: Table, robot: RobotDescription) -> tuple[list[str], np.ndarray]:
+def _limits(
+    t: Table,
+    robot: RobotDescription,
+    cols: list[str],
+    q: np.ndarray,
+    allow: bool,
+) -> Diagnostic | None:
+    """Refuse joint values beyond the limits (by more than the margin) unless allowed."""
+    lim = robot.limits
+    margin = np.where(
+        robot.prismatic, LIMIT_MARGIN_MM * 1e-3, np.radians(LIMIT_MARGIN_DEG)
+    )
+    out = (q < lim[:, 0] - margin) | (q > lim[:, 1] + margin)
+    if not out.any():
+        return None
+    i, k = (
+        int(x) for x in np.argwhere(out)[0]
+    )  # the first line, then the first column
+    unit = cols[k].rsplit("_", 1)[1]
+    f = _TO_FILE[unit]
+    where = (
+        f"line {t.lines[i]}, column '{cols[k]}': {t.numbers(cols[k])[i]:.6g} is outside "
+        f"the limits [{lim[k, 0] * f:.6g}, {lim[k, 1] * f:.6g}] of {robot.name} J{k + 1}"
+    )
+    slack = (
+        f"{LIMIT_MARGIN_MM:g} mm" if robot.prismatic[k] else f"{LIMIT_MARGIN_DEG:g} deg"
+    )
+    if not allow:
+        raise DataError(
+            f"{t.path}: {where} (by more than {slack}): wrong robot, joint zero or units? "
+            "Use --allow-out-of-limits (allow_out_of_limits=True) to accept such rows."
+        )
+    rows = np.flatnonzero(out.any(axis=1))
+    per_joint = ", ".join(
+        f"J{j + 1} ({int(out[:, j].sum())})"
+        for j in range(q.shape[1])
+        if out[:, j].any()
+    )
+    return Diagnostic(
+        "out_of_limits",
+        f"{t.path}: {rows.size} rows beyond the joint limits of {robot.name} (rows per "
+        f"joint: {per_joint}; first: {where}), accepted as asked.",
+        rows=tuple(int(t.lines[r]) for r in rows),
+        stage="data",
+    )
+
+
+def _joint_columns(
+    t: Table, robot: RobotDescription, allow_out_of_limits: bool = False
+) -> tuple[list[str], np.ndarray, Diagnostic | None]:
     found: dict[int, str] = {}
     for c in t.header:
         m = _JOINT_RE.match(c)
@@ -200,7 +198,7 @@ def _joint_columns(t: Table, robot: RobotDescription) -> tuple[list[str], np.nda
             f"joints (expected j1_deg .. j{n}_deg)."
         )
     cols = [found[k] for k in range(1, n + 1)]
-    q = np.empty((len(t.rows), n))
+    q = np.empty((len(t), n))
     for k, c in enumerate(cols):
         unit = c.rsplit("_", 1)[1]
         prismatic = robot.joints[k].kind == "prismatic"
@@ -212,15 +210,9 @@ def _joint_columns(t: Table, robot: RobotDescription) -> tuple[list[str], np.nda
             raise DataError(
                 f"{t.path}: column '{c}': joint {k + 1} is revolute; use j{k + 1}_deg."
             )
-        v = t.numbers(c)
-        q[:, k] = {
-            "deg": deg_to_rad,
-            "rad": lambda x: x,
-            "mm": mm_to_m,
-            "m": lambda x: x,
-        }[unit](v)
+        q[:, k] = t.numbers(c) / _TO_FILE[unit]
     deg_cols = [k for k, c in enumerate(cols) if c.endswith("_deg")]
-    if deg_cols and len(t.rows) >= 5:
+    if deg_cols and len(t) >= 5:
         vals = np.degrees(q[:, deg_cols])
         spread = vals.max(axis=0) - vals.min(axis=0)
         if np.abs(vals).max() <= 2 * np.pi + 1e-9 and spread.max() > 0.05:
@@ -229,61 +221,82 @@ def _joint_columns(t: Table, robot: RobotDescription) -> tuple[list[str], np.nda
                 f"within ±{2 * np.pi:.2f}, which looks like radians; convert to degrees or "
                 "name the columns jK_rad."
             )
-    return cols, q
+    return cols, q, _limits(t, robot, cols, q, allow_out_of_limits)
 
 
-def read_measurements(
-    path: str | Path,
-    robot: RobotDescription,
-    targets: str | Path | Targets | None = None,
-) -> Measurements:
-    """Read and validate a measurement CSV for ``robot`` (see the module docstring).
-
-    Raises
-    ------
-    DataError
-        Missing column, unparsable or non-finite value, units that look wrong, joint count
-        that does not match the robot, unknown target, empty file.
-    """
-    t = read_table(path)
-    joint_cols, q = _joint_columns(t, robot)
-    known = (
-        set(joint_cols)
-        | _OPTIONAL
-        | set(_POINT)
-        | set(_QUAT)
-        | set(_WPR)
-        | set(_SENSOR)
-    )
+def _check_columns(t: Table, joint_cols: list[str], n_joints: int) -> None:
+    """Refuse a column name that is near a known one (a typo, a plural, another case) or
+    lacks its unit; other extra columns are allowed (and ignored)."""
     for c in t.header:
-        if c not in known:
-            base = c.lower().split("_")[0]
-            if (
-                base in _UNITLESS
-                or c.lower() in _UNITLESS
-                or _JOINT_RE.match(c.lower())
-            ):
-                raise DataError(
-                    f"{t.path}: column {c!r} is not understood; column names carry their "
-                    "unit (x_mm, sigma_mm, payload_kg, j1_deg, ...)."
-                )
+        if c in _KNOWN or c in joint_cols:
+            continue
+        low = c.strip().lower()
+        m = _JOINT_RE.match(low)
+        if m and int(m.group(1)) <= n_joints:
+            guess: str | None = low
+        else:
+            guess = near_miss(c, _KNOWN)
+        if guess is not None:
+            raise DataError(
+                f"{t.path}: column {c!r} is not understood; did you mean {guess!r}? "
+                "(Rename it; an extra column must not look like a known one.)"
+            )
+        base = low.split("_")[0]
+        if base in _UNITLESS or low in _UNITLESS or m:
+            raise DataError(
+                f"{t.path}: column {c!r} is not understood; column names carry their "
+                "unit (x_mm, sigma_mm, payload_kg, j1_deg, ...)."
+            )
+
+
+def _kind(t: Table) -> tuple[str, Sequence[str]]:
     if "target" in t.header or "xc_mm" in t.header:
-        kind = "sensor"
-        need: Sequence[str] = _SENSOR
-    elif any(c in t.header for c in _QUAT):
-        kind = "pose"
-        need = (*_POINT, *_QUAT)
+        return "sensor", _SENSOR
+    if any(c in t.header for c in _QUAT):
         if any(c in t.header for c in _WPR):
             raise DataError(
                 f"{t.path}: give the orientation either as qw..qz or as w_deg, p_deg, "
                 "r_deg, not both."
             )
-    elif any(c in t.header for c in _WPR):
-        kind = "pose"
-        need = (*_POINT, *_WPR)
-    else:
-        kind = "point"
-        need = _POINT
+        return "pose", (*_POINT, *_QUAT)
+    if any(c in t.header for c in _WPR):
+        return "pose", (*_POINT, *_WPR)
+    return "point", _POINT
+
+
+def _looks_like_metres(t: Table, xyz: np.ndarray, cols: Sequence[str]) -> None:
+    if len(t) >= 5 and np.abs(xyz).max() < 5.0 and np.ptp(xyz, axis=0).max() > 1e-3:
+        raise DataError(
+            f"{t.path}: columns {', '.join(cols)}: every value is below 5, which looks "
+            "like metres; convert to millimetres."
+        )
+
+
+def _unit_quaternions(t: Table) -> np.ndarray:
+    quat = np.column_stack([t.numbers(c) for c in _QUAT])
+    nrm = np.linalg.norm(quat, axis=1)
+    bad = np.flatnonzero(np.abs(nrm - 1.0) > 0.01)
+    if bad.size:
+        i = int(bad[0])
+        raise DataError(
+            f"{t.path}: line {t.lines[i]}, columns qw..qz: quaternion norm {nrm[i]:.4f}; "
+            "expected a unit quaternion (w first)."
+        )
+    return quat
+
+
+def _read(
+    path: str | Path,
+    robot: RobotDescription,
+    targets: str | Path | Targets | None,
+    allow_out_of_limits: bool,
+) -> tuple[Measurements, list[Diagnostic], bool]:
+    """The measurements, the out-of-limits finding, and whether the orientations came
+    from quaternion columns."""
+    t = read_table(path)
+    _check_columns(t, [c for c in t.header if _JOINT_RE.match(c)], robot.n_joints)
+    _, q, limits = _joint_columns(t, robot, allow_out_of_limits)
+    kind, need = _kind(t)
     for c in need:
         if c not in t.header:
             raise DataError(
@@ -291,32 +304,29 @@ def read_measurements(
             )
     set_index, set_labels = _labels(t, "set")
     marker_index, marker_labels = _labels(t, "marker")
-    rows = np.array(t.lines, np.intp)
-    common = {
+    optional = {
+        "sigma": ("sigma_mm", 1e-3),
+        "sigma_rot": ("sigma_deg", np.pi / 180.0),
+        "payload_kg": ("payload_kg", 1.0),
+    }
+    common: dict[str, object] = {
         "set_index": set_index,
         "set_labels": set_labels,
         "marker_index": marker_index,
         "marker_labels": marker_labels,
-        "rows": rows,
+        "rows": t.lines.copy(),
         "source": t.path,
-        "sigma": mm_to_m(t.numbers("sigma_mm")) if "sigma_mm" in t.header else None,
-        "sigma_rot": deg_to_rad(t.numbers("sigma_deg"))
-        if "sigma_deg" in t.header
-        else None,
-        "payload_kg": t.numbers("payload_kg") if "payload_kg" in t.header else None,
     }
-    for name in ("sigma", "sigma_rot", "payload_kg"):
-        v = common[name]
-        if v is not None and np.any(v <= 0):  # type: ignore[operator]
-            i = int(np.flatnonzero(v <= 0)[0])  # type: ignore[operator]
-            col = {
-                "sigma": "sigma_mm",
-                "sigma_rot": "sigma_deg",
-                "payload_kg": "payload_kg",
-            }[name]
-            raise DataError(
-                f"{t.path}: line {t.lines[i]}, column '{col}': must be positive."
-            )
+    for name, (col, scale) in optional.items():
+        if col not in t.header:
+            common[name] = None
+            continue
+        v = t.numbers(col)
+        if np.any(v <= 0):
+            line = t.lines[int(np.flatnonzero(v <= 0)[0])]
+            raise DataError(f"{t.path}: line {line}, column '{col}': must be positive.")
+        common[name] = v * scale
+    found = [] if limits is None else [limits]
     if kind == "sensor":
         if targets is None:
             raise DataError(
@@ -325,49 +335,86 @@ def read_measurements(
         tg = targets if isinstance(targets, Targets) else read_targets(targets)
         tnames = [s.strip() for s in t.column("target")]
         index = {lab: i for i, lab in enumerate(tg.labels)}
-        for lab, line in zip(tnames, t.lines):
-            if lab not in index:
-                raise DataError(
-                    f"{t.path}: line {line}, column 'target': {lab!r} is not in the targets file "
-                    f"({', '.join(tg.labels)})."
-                )
-        pc = mm_to_m(
-            np.column_stack([t.numbers(c) for c in ("xc_mm", "yc_mm", "zc_mm")])
-        )
-        return Measurements(
+        missing = [i for i, lab in enumerate(tnames) if lab not in index]
+        if missing:
+            raise DataError(
+                f"{t.path}: line {t.lines[missing[0]]}, column 'target': "
+                f"{tnames[missing[0]]!r} is not in the targets file ({', '.join(tg.labels)})."
+            )
+        pc = np.column_stack([t.numbers(c) for c in _SENSOR[1:]])
+        _looks_like_metres(t, pc, _SENSOR[1:])
+        meas = Measurements(
             "sensor",
             q,
-            pc,
-            target_index=np.array([index[s] for s in tnames], np.intp),
+            mm_to_m(pc),
+            target_index=np.fromiter((index[s] for s in tnames), np.intp, len(t)),
             targets=tg.p,
             target_labels=tg.labels,
             **common,  # type: ignore[arg-type]
         )
+        return meas, found, False
     xyz = np.column_stack([t.numbers(c) for c in _POINT])
-    if (
-        len(t.rows) >= 5
-        and np.abs(xyz).max() < 5.0
-        and np.ptp(xyz, axis=0).max() > 1e-3
-    ):
-        raise DataError(
-            f"{t.path}: columns x_mm, y_mm, z_mm: every value is below 5, which looks like "
-            "metres; convert to millimetres."
-        )
+    _looks_like_metres(t, xyz, _POINT)
     R = None
     if kind == "pose" and "w_deg" in t.header:
         R = wpr_to_matrix(deg_to_rad(np.column_stack([t.numbers(c) for c in _WPR])))
     elif kind == "pose":
-        quat = np.column_stack([t.numbers(c) for c in _QUAT])
-        nrm = np.linalg.norm(quat, axis=1)
-        bad = np.flatnonzero(np.abs(nrm - 1.0) > 0.01)
-        if bad.size:
-            i = int(bad[0])
-            raise DataError(
-                f"{t.path}: line {t.lines[i]}, columns qw..qz: quaternion norm {nrm[i]:.4f}; "
-                "expected a unit quaternion (w first)."
-            )
-        R = quat_wxyz_to_matrix(quat)
-    return Measurements(kind, q, mm_to_m(xyz), R_user_cam=R, **common)  # type: ignore[arg-type]
+        R = quat_wxyz_to_matrix(_unit_quaternions(t))
+    meas = Measurements(kind, q, mm_to_m(xyz), R_user_cam=R, **common)  # type: ignore[arg-type]
+    return meas, found, R is not None and "qw" in t.header
+
+
+def read_data(
+    path: str | Path,
+    robot: RobotDescription,
+    targets: str | Path | Targets | None = None,
+    *,
+    allow_out_of_limits: bool = False,
+) -> tuple[Measurements, list[Diagnostic]]:
+    """Read a measurement CSV and check it: the measurements and the findings that do
+    not stop the run (:class:`~kinecal.identification.Diagnostic`, stage ``'data'``:
+    accepted out-of-limit rows, duplicated rows, payload beyond the rating, quaternion
+    order, poor excitation; see :mod:`kinecal.io._checks`).
+
+    Raises
+    ------
+    DataError
+        As :func:`read_measurements`.
+    """
+    meas, found, quaternions = _read(path, robot, targets, allow_out_of_limits)
+    return meas, found + data_diagnostics(meas, robot, quaternions=quaternions)
+
+
+def read_measurements(
+    path: str | Path,
+    robot: RobotDescription,
+    targets: str | Path | Targets | None = None,
+    *,
+    allow_out_of_limits: bool = False,
+    check: bool = True,
+) -> Measurements:
+    """Read and validate a measurement CSV for ``robot`` (see the module docstring).
+
+    Findings that do not stop the run are issued as :class:`DataWarning` (``check=False``
+    skips the checks of :func:`~kinecal.io.data_diagnostics`).
+
+    Raises
+    ------
+    DataError
+        Missing column, unparsable or non-finite value, units that look wrong, joint count
+        that does not match the robot, a joint value beyond the limits (unless
+        ``allow_out_of_limits``), a column name near a known one, unknown target, empty
+        file.
+    """
+    if check:
+        meas, found = read_data(
+            path, robot, targets, allow_out_of_limits=allow_out_of_limits
+        )
+    else:
+        meas, found, _ = _read(path, robot, targets, allow_out_of_limits)
+    for d in found:
+        warnings.warn(DataWarning(d.message, d), stacklevel=2)
+    return meas
 
 
 @dataclass(frozen=True)
@@ -383,16 +430,18 @@ class CompensationTargets:
     set_labels: tuple[str, ...]
     marker_index: np.ndarray
     marker_labels: tuple[str, ...]
+    diagnostics: list[Diagnostic] = field(default_factory=list)
 
 
 def read_compensation_targets(
-    path: str | Path, robot: RobotDescription
+    path: str | Path, robot: RobotDescription, *, allow_out_of_limits: bool = False
 ) -> CompensationTargets:
     """Read a TARGETS.csv for ``kinecal compensate``: ``x_mm, y_mm, z_mm`` (user frame),
     optional ``qw, qx, qy, qz``, the seed joints ``j1_deg .. jN_deg``, optional ``set`` and
-    ``marker``."""
+    ``marker``. Seeds beyond the joint limits are refused unless ``allow_out_of_limits``
+    (then ``diagnostics`` says so)."""
     t = read_table(path)
-    cols, q = _joint_columns(t, robot)
+    cols, q, limits = _joint_columns(t, robot, allow_out_of_limits)
     for c in _POINT:
         if c not in t.header:
             raise DataError(
@@ -406,15 +455,8 @@ def read_compensation_targets(
                 raise DataError(
                     f"{t.path}: missing column '{c}' (orientation needs qw, qx, qy, qz)."
                 )
-        quat = np.column_stack([t.numbers(c) for c in _QUAT])
-        nrm = np.linalg.norm(quat, axis=1)
-        bad = np.flatnonzero(np.abs(nrm - 1.0) > 0.01)
-        if bad.size:
-            raise DataError(
-                f"{t.path}: line {t.lines[int(bad[0])]}, columns qw..qz: quaternion norm "
-                f"{nrm[bad[0]]:.4f}; expected a unit quaternion (w first)."
-            )
-        R = quat_wxyz_to_matrix(quat)
+        R = quat_wxyz_to_matrix(_unit_quaternions(t))
     si, sl = _labels(t, "set")
     mi, ml = _labels(t, "marker")
-    return CompensationTargets(t, cols, p, q, R, si, sl, mi, ml)
+    found = [] if limits is None else [limits]
+    return CompensationTargets(t, cols, p, q, R, si, sl, mi, ml, found)

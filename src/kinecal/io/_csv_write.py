@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 
 import numpy as np
 
 from kinecal.geometry import matrix_to_quat_wxyz
 from kinecal.identification import Measurements
+from kinecal.io._csv_format import Column, csv_text
 from kinecal.io._files import atomic_write_text
 from kinecal.robot import RobotDescription
+
+_POINT = ("x_mm", "y_mm", "z_mm")
+_QUAT = ("qw", "qx", "qy", "qz")
 
 __all__ = [
     "joint_column_names",
@@ -36,44 +39,34 @@ def _joint_values(robot: RobotDescription, q: np.ndarray) -> np.ndarray:
 
 
 def measurements_to_csv(meas: Measurements, robot: RobotDescription) -> str:
-    """The CSV text of ``meas`` (mm, deg; 6 decimals in mm, 8 in deg)."""
-    cols = joint_column_names(robot)
-    data: list[np.ndarray] = [_joint_values(robot, meas.q_ctrl)]
-    fmt = ["%.8f"] * len(cols)
-    labels: list[tuple[str, list[str]]] = []
+    """The CSV text of ``meas`` (mm, deg; 6 decimals in mm, 8 in deg), written column by
+    column (:func:`kinecal.io.csv_text`)."""
+    q = _joint_values(robot, meas.q_ctrl)
+    cols: list[tuple[str, Column]] = []
     if meas.kind == "sensor":
         assert meas.target_index is not None
-        labels.append(("target", [meas.target_labels[i] for i in meas.target_index]))
-        cols += ["xc_mm", "yc_mm", "zc_mm"]
-    else:
-        cols += ["x_mm", "y_mm", "z_mm"]
-    data.append(meas.p * 1e3)
-    fmt += ["%.6f"] * 3
+        cols.append(("target", Column.labels(meas.target_labels, meas.target_index)))
+    if len(meas.set_labels) > 1 or meas.set_labels[0]:
+        cols.append(("set", Column.labels(meas.set_labels, meas.set_index)))
+    if len(meas.marker_labels) > 1 or meas.marker_labels[0]:
+        cols.append(("marker", Column.labels(meas.marker_labels, meas.marker_index)))
+    for k, name in enumerate(joint_column_names(robot)):
+        cols.append((name, Column.numbers(q[:, k], "%.8f")))
+    p_mm = meas.p * 1e3
+    names = ("xc_mm", "yc_mm", "zc_mm") if meas.kind == "sensor" else _POINT
+    cols += [(c, Column.numbers(p_mm[:, a], "%.6f")) for a, c in enumerate(names)]
     if meas.kind == "pose":
         assert meas.R_user_cam is not None
-        cols += ["qw", "qx", "qy", "qz"]
-        data.append(matrix_to_quat_wxyz(meas.R_user_cam))
-        fmt += ["%.12f"] * 4
-    if len(meas.set_labels) > 1 or meas.set_labels[0]:
-        labels.append(("set", [meas.set_labels[i] for i in meas.set_index]))
-    if len(meas.marker_labels) > 1 or meas.marker_labels[0]:
-        labels.append(("marker", [meas.marker_labels[i] for i in meas.marker_index]))
-    for name, arr, scale, f in (
-        ("payload_kg", meas.payload_kg, 1.0, "%.10g"),
-        ("sigma_mm", meas.sigma, 1e3, "%.10g"),
-        ("sigma_deg", meas.sigma_rot, 180.0 / np.pi, "%.10g"),
+        quat = matrix_to_quat_wxyz(meas.R_user_cam)
+        cols += [(c, Column.numbers(quat[:, a], "%.12f")) for a, c in enumerate(_QUAT)]
+    for name, arr, scale in (
+        ("payload_kg", meas.payload_kg, 1.0),
+        ("sigma_mm", meas.sigma, 1e3),
+        ("sigma_deg", meas.sigma_rot, 180.0 / np.pi),
     ):
         if arr is not None:
-            cols.append(name)
-            data.append(np.asarray(arr)[:, None] * scale)
-            fmt.append(f)
-    num = np.column_stack(data)
-    buf = io.StringIO()
-    buf.write(",".join([lab for lab, _ in labels] + cols) + "\n")
-    for i in range(meas.n):
-        lead = [vals[i] for _, vals in labels]
-        buf.write(",".join(lead + [f % v for f, v in zip(fmt, num[i])]) + "\n")
-    return buf.getvalue()
+            cols.append((name, Column.numbers(np.asarray(arr) * scale, "%.10g")))
+    return csv_text(cols)
 
 
 def write_measurements(
@@ -96,11 +89,9 @@ def write_targets(
     force: bool = False,
 ) -> Path:
     """Write a targets CSV ``target, x_mm, y_mm, z_mm[, r_mm]``."""
-    head = "target,x_mm,y_mm,z_mm" + (",r_mm" if radius is not None else "")
-    lines = [head]
-    for k, lab in enumerate(labels):
-        row = [lab, *(f"{v * 1e3:.6f}" for v in p[k])]
-        if radius is not None:
-            row.append(f"{radius[k] * 1e3:.6f}")
-        lines.append(",".join(row))
-    return atomic_write_text(path, "\n".join(lines) + "\n", force=force)
+    p_mm = np.asarray(p, dtype=np.float64).reshape(-1, 3) * 1e3
+    cols = [("target", Column.text(labels))]
+    cols += [(c, Column.numbers(p_mm[:, a], "%.6f")) for a, c in enumerate(_POINT)]
+    if radius is not None:
+        cols.append(("r_mm", Column.numbers(np.asarray(radius) * 1e3, "%.6f")))
+    return atomic_write_text(path, csv_text(cols), force=force)

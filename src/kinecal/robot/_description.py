@@ -137,6 +137,8 @@ class RobotDescription:
         Gravity acceleration in the base frame [m/s^2].
     payload_kg : float or None
         Mass of the payload at the tool, if known (converts compliance to rad/(N·m)).
+    rated_payload_kg : float or None
+        The maker's rated payload, if known (a heavier payload in the data is reported).
     self_weight : SelfWeightSpec or None
         Joints of the paper's link self-weight model; ``None`` if it does not apply.
     prior_sigma : dict
@@ -158,6 +160,7 @@ class RobotDescription:
     self_weight: SelfWeightSpec | None = None
     source: str = ""
     prior_sigma: dict[tuple[str, str], float] = field(default_factory=dict)
+    rated_payload_kg: float | None = None
 
     def __post_init__(self) -> None:
         n = len(self.joints)

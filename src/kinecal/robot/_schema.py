@@ -13,6 +13,7 @@ Schema (DESIGN §11, with the optional extensions marked *)::
     tool: {x, y, z, r, w, p}                        nominal tool in the flange frame
     gravity: [gx, gy, gz]                           base frame; only the direction is used
     payload_kg: 1.5                                * payload at the tool, if known
+    rated_payload_kg: 12.5                         * the maker's rated payload
     self_weight: {shoulder: 2, elbow: 3, wrist_frame: 4} | null   * (Eq. 25-26)
     priors: {joint_length: 1, joint_angle: 0.1, ntm: 0.03,        * prior std of the
              load_compliance: 1e-3, link_moment: 2000, link_ratio: 10}  identification
@@ -48,6 +49,7 @@ _TOP_KEYS = {
     "tool",
     "gravity",
     "payload_kg",
+    "rated_payload_kg",
     "self_weight",
     "priors",
 }
@@ -111,6 +113,16 @@ def _check_keys(
     for k in required:
         if k not in d:
             raise _err(where, f"missing key {k!r}.")
+
+
+def _mass(data: Mapping[str, Any], key: str, source: str) -> float | None:
+    """An optional positive mass [kg] (``payload_kg``, ``rated_payload_kg``)."""
+    if data.get(key) is None:
+        return None
+    m = _number(data[key], f"{source}: {key}")
+    if m <= 0:
+        raise _err(f"{source}: {key}", f"expected a positive mass; got {m}.")
+    return m
 
 
 def _frame(d: Any, where: str, lu: float, au: float) -> np.ndarray:
@@ -250,13 +262,9 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
             raise _err(f"{source}: gravity", "must not be the zero vector.")
         gravity = gravity / np.linalg.norm(gravity) * 9.80665
 
-    payload = None
-    if data.get("payload_kg") is not None:
-        payload = _number(data["payload_kg"], f"{source}: payload_kg")
-        if payload <= 0:
-            raise _err(
-                f"{source}: payload_kg", f"expected a positive mass; got {payload}."
-            )
+    payload, rated = (
+        _mass(data, key, source) for key in ("payload_kg", "rated_payload_kg")
+    )
 
     sw: SelfWeightSpec | None = None
     if "self_weight" not in data and n >= 5:
@@ -294,6 +302,7 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
         gravity=gravity,
         payload_kg=payload,
         self_weight=sw,
+        rated_payload_kg=rated,
         source=source if not desc else f"{source} ({desc})",
         prior_sigma=priors,
     )
@@ -365,6 +374,8 @@ def dump_robot(robot: RobotDescription) -> dict[str, Any]:
     }
     if robot.payload_kg is not None:
         out["payload_kg"] = robot.payload_kg
+    if robot.rated_payload_kg is not None:
+        out["rated_payload_kg"] = robot.rated_payload_kg
     if robot.prior_sigma:
         to_file = {"length": 1e3, "angle": 180.0 / np.pi, "si": 1.0}
         out["priors"] = {

@@ -23,7 +23,7 @@ HERE = Path(__file__).resolve().parent
 
 
 def main() -> None:
-    ur10, fr3 = load_robot("ur10"), load_robot("franka-fr3")
+    ur10, fr3 = load_robot("ur10e"), load_robot("franka-fr3")
     (HERE / "ur10_mocap.csv").write_text(measurements_to_csv(load_ur10(), ur10))
     m = load_fr3()
     a, b = m.subset(np.arange(60)), moved_board(m.subset(np.arange(60, m.n)))

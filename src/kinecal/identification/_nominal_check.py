@@ -1,0 +1,161 @@
+"""Is the nominal robot right, and do the priors hold the fit back? (issue 20, point 4)
+
+A calibration starts from the nominal table and its priors pull every joint-geometry term
+towards it (MAP, Eq. (T-5)). Two findings, both from a second fit without priors (plain
+least squares, ``--priors none``) run on the fly:
+
+* ``priors_held``: the fit with priors leaves residuals clearly larger, relative to the
+  noise, than the fit without, ``s0_MAP / s0_LS > 1.5`` (``s0``: a-posteriori standard
+  deviation of unit weight, each on its own noise estimate; with a right nominal and
+  right priors the two agree within a few percent). The parameters named are those the
+  priors hold far from where the data put them: at least two prior standard deviations
+  from nominal with priors, and further still without;
+* ``nominal_mismatch``: on top of that, or when the joint-geometry priors had to be
+  widened beyond 5 mm or 5 deg to let the data through, the nominal robot with fitted frames
+  leaves errors far above the calibrated noise: a nominal table of another robot (a UR10
+  table for a UR10e), or a robot file in the wrong units.
+
+The cost is one more calibration of the same model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from kinecal.identification._calibrate import CalibrationResult, build_prior, calibrate
+from kinecal.identification._diagnostics import Diagnostic
+from kinecal.identification._measurements import Measurements
+from kinecal.identification._options import CalibrationOptions
+from kinecal.models import KINDS
+from kinecal.robot import RobotDescription
+
+__all__ = ["nominal_check"]
+
+# The priors fight the data when the residuals with them exceed, relative to the noise,
+# those without by this factor.
+HELD_RATIO = 1.5
+# A prior sits at this many of its standard deviations: the data pull hard against it.
+HELD_PULL = 2.0
+# Joint-geometry priors widened (adapt_priors) beyond these: far from nominal. Lengths
+# beyond 5x their default (5 mm); angles beyond 5 deg (joint zero offsets of a degree or
+# two are common, an axis turned the wrong way is not).
+WIDE_FACTOR = 5.0
+WIDE_ANGLE_DEG = 5.0
+# The nominal robot with fitted frames leaves errors this many times the calibrated ones.
+FAR_FACTOR = 2.0
+_STAGE = "nominal check"
+
+
+def nominal_check(
+    result: CalibrationResult,
+    robot: RobotDescription,
+    meas: Measurements,
+    *,
+    options: CalibrationOptions | None = None,
+    unconstrained: CalibrationResult | None = None,
+) -> list[Diagnostic]:
+    """Compare a calibration with its nominal robot and with a fit without priors.
+
+    Parameters
+    ----------
+    result : the calibration to check (``calibrate(robot, meas, spec, options)``).
+    robot, meas : what it was calibrated from.
+    options : the options it was calibrated with (default :class:`CalibrationOptions`).
+    unconstrained : the same calibration with ``priors='none'``, if already done;
+        otherwise it is run here.
+
+    Returns
+    -------
+    list of Diagnostic
+        ``priors_held`` (parameters: those held) and ``nominal_mismatch``; empty when the
+        nominal robot and the priors agree with the data.
+    """
+    opts = options or CalibrationOptions()
+    if result.prior is None or not np.isfinite(result.prior.sigma).any():
+        return []  # no priors: nothing held; the fit itself is the unconstrained one
+    free = replace(opts, priors="none")
+    ls = unconstrained or calibrate(robot, meas, result.model.spec, free)
+    names = result.model.layout.names
+    x0 = result.registered
+    sigma = result.prior.sigma
+    default = build_prior(result.model, x0, opts).sigma
+    est = np.array(
+        [
+            a == "estimated" == b
+            for a, b in zip(result.calibrated.status, ls.calibrated.status)
+        ]
+    )
+    out: list[Diagnostic] = []
+    ratio = result.sigma0 / max(ls.sigma0, 1e-12)
+    held: list[str] = []
+    if ratio > HELD_RATIO:
+        pull = np.where(
+            np.isfinite(sigma) & est, np.abs(result.params - x0) / sigma, 0.0
+        )
+        # ... and the data, without priors, put it further still the same way.
+        d_map, d_ls = result.params - x0, ls.params - x0
+        further = (np.sign(d_ls) == np.sign(d_map)) & (np.abs(d_ls) > np.abs(d_map))
+        order = np.argsort(-pull)
+        held = [names[i] for i in order if pull[i] >= HELD_PULL and further[i]]
+        parts = []
+        for i in (names.index(n) for n in held[:4]):
+            kind = KINDS[result.model.layout.specs[i].kind]
+            f, unit = kind.to_file, kind.file_unit
+            parts.append(
+                f"{names[i]} {(result.params[i] - x0[i]) * f:+.3g} {unit} from nominal "
+                f"(prior {sigma[i] * f:.3g} {unit}; {(ls.params[i] - x0[i]) * f:+.3g} ± "
+                f"{ls.std[i] * f:.2g} {unit} without priors)"
+            )
+        out.append(
+            Diagnostic(
+                "priors_held",
+                f"the priors hold the fit back: it leaves {ratio:.2f}x the residuals "
+                "(relative to the noise) of plain least squares (--priors none: RMS "
+                f"{ls.metrics_after.rms_mm:.4g} mm against {result.metrics_after.rms_mm:.4g} "
+                "mm)"
+                + (f"; held: {'; '.join(parts)}" if parts else "")
+                + ". The nominal values are likely wrong: check the robot model "
+                "(version, e-Series or CB) and the robot file, or calibrate with "
+                "--priors none.",
+                parameters=tuple(held),
+                stage=_STAGE,
+            )
+        )
+    specs = result.model.layout.specs
+    limit = np.array(
+        [
+            WIDE_FACTOR * default[i]
+            if sp.kind == "length"
+            else np.radians(WIDE_ANGLE_DEG)
+            if sp.kind == "angle"
+            else np.inf
+            for i, sp in enumerate(specs)
+        ]
+    )
+    joint = np.array([sp.group == "joint" for sp in specs])
+    widened = joint & est & np.isfinite(sigma) & np.isfinite(default) & (sigma > limit)
+    before, after = result.metrics_before.rms_mm, result.metrics_after.rms_mm
+    if (held or widened.any()) and before > FAR_FACTOR * after:
+        wide = [names[i] for i in np.flatnonzero(widened)]
+        because = (
+            "the data put the joint geometry far from nominal (priors widened beyond "
+            f"{WIDE_FACTOR:g} mm or {WIDE_ANGLE_DEG:g} deg) for "
+            + ", ".join(wide[:4])
+            + (" ..." if len(wide) > 4 else "")
+            if wide and not held
+            else "the priors hold parameters far from where the data put them"
+        )
+        out.append(
+            Diagnostic(
+                "nominal_mismatch",
+                f"the nominal {robot.name} with fitted frames leaves {before:.4g} mm RMS, "
+                f"{before / max(after, 1e-12):.1f}x the calibrated {after:.4g} mm, and "
+                f"{because}: a nominal table of another robot (or version), or a robot "
+                "file in the wrong units?",
+                parameters=tuple(held or wide),
+                stage=_STAGE,
+            )
+        )
+    return out

@@ -1,0 +1,364 @@
+"""Checks of measurement data before any fit: mistakes a metrology engineer meets weekly.
+
+Each finding is a :class:`~kinecal.identification.Diagnostic` (stage ``'data'``) with a
+stable code, the file lines concerned and a message, so the command line prints it and the
+calibration report keeps it:
+
+* ``duplicate_rows``: rows that repeat an earlier row exactly (they count twice and shrink
+  the reported standard deviations);
+* ``payload_over_rating``: a payload above the robot's rated payload;
+* ``quaternion_order``: orientations that agree with the robot only when the quaternion is
+  read in x, y, z, w order (or conjugated). The angle of the rotation between two poses
+  does not depend on the unknown user and tool frames, so it is compared with the nominal
+  robot's without any fit: ``angle(R_i^T R_j) = angle(F_i^T F_j)``, ``F`` the flange
+  orientation of the nominal kinematics;
+* ``poor_excitation``: a joint that hardly moves, or a tool orientation that hardly
+  changes, so some parameters cannot be separated from others;
+* ``positions_only`` and refusals when data and model are of different kinds
+  (:func:`check_data_for_model`).
+
+See docs/real-data-checklist.md.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import replace
+
+import numpy as np
+
+from kinecal.errors import DataError
+from kinecal.geometry import matrix_to_quat_wxyz, quat_wxyz_to_matrix, so3_log
+from kinecal.identification import CalibratedModel, Diagnostic, Measurements
+from kinecal.robot import RobotDescription
+
+__all__ = [
+    "DataWarning",
+    "check_data_for_model",
+    "data_diagnostics",
+    "near_miss",
+]
+
+# A joint that moves less than this over the data hardly excites its parameters.
+STILL_DEG, STILL_MM = 5.0, 5.0
+# Tool orientations all within this angle of the first: the tool offset is not separable.
+SAME_ORIENTATION_DEG = 5.0
+# Quaternion order: the order as read is suspect when the median mismatch of pose-to-pose
+# rotation angles exceeds this, and another reading fits at least 4x better.
+ORDER_MISMATCH_DEG = 3.0
+ORDER_FACTOR = 4.0
+# Pose pairs of the quaternion check and poses of the orientation spread: a sample is
+# enough for a median and a spread, and keeps a million-row file fast.
+_MAX_PAIRS = 2_000
+_STAGE = "data"
+
+
+class DataWarning(UserWarning):
+    """A finding about the data; ``.diagnostic`` holds the structured record (the
+    warning's only argument is the message, so it pickles and re-creates as usual)."""
+
+    def __init__(self, message: str, diagnostic: Diagnostic | None = None) -> None:
+        super().__init__(message)
+        self.diagnostic = diagnostic
+
+
+def _lines(meas: Measurements, idx: Iterable[int], limit: int = 8) -> str:
+    rows = [int(meas.rows[i]) for i in idx]
+    text = ", ".join(str(r) for r in rows[:limit])
+    return text + (f" and {len(rows) - limit} more" if len(rows) > limit else "")
+
+
+def duplicate_rows(meas: Measurements) -> Diagnostic | None:
+    """Rows whose joints, measurement, set, marker (and target) equal an earlier row's."""
+    parts = [meas.q_ctrl, meas.p, meas.set_index[:, None], meas.marker_index[:, None]]
+    if meas.R_user_cam is not None:
+        parts.append(meas.R_user_cam.reshape(meas.n, 9))
+    if meas.target_index is not None:
+        parts.append(meas.target_index[:, None])
+    key = np.column_stack([np.asarray(p, dtype=np.float64) for p in parts])
+    # Equal rows have equal fingerprints (the same arithmetic on the same numbers); a
+    # stable sort puts them next to each other, earliest first, and the rows themselves
+    # are compared. (np.unique on rows is ten times slower.)
+    weights = np.asarray(np.random.default_rng(0).uniform(1.0, 2.0, (key.shape[1],)))
+    fingerprint = np.zeros(meas.n)
+    for j in range(key.shape[1]):  # element-wise: BLAS rounding may depend on the row
+        fingerprint += key[:, j] * weights[j]
+    order = np.argsort(fingerprint, kind="stable")
+    k = key[order]
+    same = (fingerprint[order][1:] == fingerprint[order][:-1]) & np.all(
+        k[1:] == k[:-1], axis=1
+    )
+    dup = np.sort(order[1:][same])
+    if not dup.size:
+        return None
+    return Diagnostic(
+        "duplicate_rows",
+        f"{meas.source}: {dup.size} rows repeat an earlier row exactly (lines "
+        f"{_lines(meas, dup)}): each copy counts as a new measurement and makes the "
+        "reported standard deviations too small; remove the copies.",
+        rows=tuple(int(meas.rows[i]) for i in dup),
+        stage=_STAGE,
+    )
+
+
+def payload_over_rating(
+    meas: Measurements, robot: RobotDescription
+) -> Diagnostic | None:
+    """A payload (per row, or the robot file's) above the robot's rated payload."""
+    rated = robot.rated_payload_kg
+    if rated is None:
+        return None
+    if meas.payload_kg is not None:
+        over = np.flatnonzero(meas.payload_kg > rated * (1 + 1e-9))
+        if over.size:
+            return Diagnostic(
+                "payload_over_rating",
+                f"{meas.source}: payload_kg up to {float(meas.payload_kg.max()):g} kg "
+                f"(lines {_lines(meas, over)}), above the {rated:g} kg rated payload of "
+                f"{robot.name}: a unit mistake (g, lb)? Beyond its rating the arm bends "
+                "more than the linear compliance model describes.",
+                rows=tuple(int(meas.rows[i]) for i in over),
+                stage=_STAGE,
+            )
+    if robot.payload_kg is not None and robot.payload_kg > rated * (1 + 1e-9):
+        return Diagnostic(
+            "payload_over_rating",
+            f"{robot.source}: payload_kg {robot.payload_kg:g} kg is above the "
+            f"{rated:g} kg rated payload of {robot.name}.",
+            stage=_STAGE,
+        )
+    return None
+
+
+def _pairs(meas: Measurements) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs of rows with the same set and marker: neighbours and half a group apart."""
+    group = meas.set_index * len(meas.marker_labels) + meas.marker_index
+    a_all, b_all = [], []
+    for g in np.unique(group):
+        idx = np.flatnonzero(group == g)
+        for step in {1, max(len(idx) // 2, 1)}:
+            a_all.append(idx[:-step])
+            b_all.append(idx[step:])
+    a, b = np.concatenate(a_all), np.concatenate(b_all)
+    if a.size > _MAX_PAIRS:
+        keep = np.random.default_rng(0).choice(a.size, _MAX_PAIRS, replace=False)
+        a, b = a[keep], b[keep]
+    return a, b
+
+
+def _relative_angle(R: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle of ``R_a^T R_b`` [rad]: trace through the element-wise product."""
+    c = (np.einsum("nij,nij->n", R[a], R[b]) - 1.0) / 2.0
+    return np.arccos(np.clip(c, -1.0, 1.0))
+
+
+def _mismatch_deg(R: np.ndarray, F: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """Median misfit [deg] of the pose-to-pose rotations ``R_a^T R_b`` (rotation vectors,
+    tool frame) to the nominal ones ``F_a^T F_b`` turned by the best single rotation."""
+    w_meas = so3_log(np.einsum("nji,njk->nik", R[a], R[b]))
+    w_nom = so3_log(np.einsum("nji,njk->nik", F[a], F[b]))
+    U, _, Vt = np.linalg.svd(w_nom.T @ w_meas)  # Kabsch without translation
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0])
+    Q = Vt.T @ D @ U.T  # w_meas ~ Q w_nom
+    return float(np.degrees(np.median(np.linalg.norm(w_meas - w_nom @ Q.T, axis=1))))
+
+
+def quaternion_order(meas: Measurements, robot: RobotDescription) -> Diagnostic | None:
+    """Orientations that agree with the robot only in x, y, z, w order (or inverted).
+
+    In the tool frame, the rotation from pose a to pose b is the nominal robot's
+    ``F_a^T F_b`` seen through the unknown but fixed tool orientation:
+    ``R_a^T R_b = Q F_a^T F_b Q^T`` whatever the user frame. Its rotation vectors are
+    those of the robot turned by ``Q``, found in closed form (Kabsch); the median misfit
+    is small for the right reading and tens of degrees for a wrong one. (The angle alone
+    would not tell: it is the same for any order of the quaternion's components.) Read in
+    x, y, z, w order, a quaternion gives ``A R^T B`` for fixed ``A``, ``B`` (an odd
+    permutation of the components is a reflection of the quaternion), so the two mistakes
+    are one for a calibration that fits the frames.
+    """
+    if meas.R_user_cam is None or meas.n < 4:
+        return None
+    a, b = _pairs(meas)
+    if a.size < 3:
+        return None
+    used, inv = np.unique(np.concatenate([a, b]), return_inverse=True)
+    a, b = inv[: a.size], inv[a.size :]  # into the rows used
+    F = robot.fk_flange(meas.q_ctrl[used])[:, :3, :3]
+    R = meas.R_user_cam[used]
+    read = _mismatch_deg(R, F, a, b)
+    quat = matrix_to_quat_wxyz(R)
+    other = _mismatch_deg(quat_wxyz_to_matrix(quat[:, [3, 0, 1, 2]]), F, a, b)
+    if read < ORDER_MISMATCH_DEG or other * ORDER_FACTOR > read:
+        return None
+    return Diagnostic(
+        "quaternion_order",
+        f"{meas.source}: the rotations between poses differ from the robot's by "
+        f"{read:.1f} deg (median) as written, by {other:.2f} deg with the quaternions "
+        "read in x, y, z, w order (or as the inverse rotations: the same up to the "
+        "frames): put w first in qw..qz, and give the tool's orientation in the user "
+        "frame, not the inverse.",
+        stage=_STAGE,
+    )
+
+
+def _orientation_spread_deg(meas: Measurements, robot: RobotDescription) -> float:
+    """Largest angle of a nominal flange orientation from the first row's [deg]; on a
+    sample of the rows first (the forward kinematics of a million rows takes a lot of
+    memory), all rows only when the sample stays within the limit."""
+    n = meas.n
+    rows = np.unique(np.linspace(0, n - 1, min(n, _MAX_PAIRS)).astype(np.intp))
+    for idx in (rows, None) if rows.size < n else (rows,):
+        sel = np.arange(n) if idx is None else idx
+        spread = 0.0
+        for a in range(0, sel.size, _MAX_PAIRS):
+            part = np.concatenate([[0], sel[a : a + _MAX_PAIRS]])
+            F = robot.fk_flange(meas.q_ctrl[part])[:, :3, :3]
+            zero = np.zeros(part.size, np.intp)
+            ang = _relative_angle(F, zero, np.arange(part.size))
+            spread = max(spread, float(np.degrees(ang.max())))
+        if spread >= SAME_ORIENTATION_DEG:
+            break
+    return spread
+
+
+def excitation(meas: Measurements, robot: RobotDescription) -> list[Diagnostic]:
+    """Joints that hardly move and a tool orientation that hardly changes."""
+    out = []
+    span = np.ptp(meas.q_ctrl, axis=0)
+    still = []
+    for k, j in enumerate(robot.joints):
+        prismatic = j.kind == "prismatic"
+        size = span[k] * (1e3 if prismatic else 180.0 / np.pi)
+        if meas.n >= 2 and size < (STILL_MM if prismatic else STILL_DEG):
+            still.append(f"J{k + 1} {size:.3g} {'mm' if prismatic else 'deg'}")
+    if still:
+        names = ", ".join(s.split()[0] for s in still)
+        out.append(
+            Diagnostic(
+                "poor_excitation",
+                f"{meas.source}: {names} hardly "
+                f"{'moves' if len(still) == 1 else 'move'} (range {', '.join(still)} "
+                f"over {meas.n} rows): the parameters of "
+                f"{'that joint' if len(still) == 1 else 'those joints'} (offset, link "
+                "lengths, transmission terms) cannot be separated from the frames and "
+                "from each other; spread each joint over its range (at least 30 deg, "
+                "better 90 deg or more).",
+                stage=_STAGE,
+            )
+        )
+    if meas.n >= 2:
+        spread = _orientation_spread_deg(meas, robot)
+        if spread < SAME_ORIENTATION_DEG:
+            out.append(
+                Diagnostic(
+                    "poor_excitation",
+                    f"{meas.source}: the tool orientation hardly changes (all poses "
+                    f"within {spread:.3g} deg of the first): the tool offset cannot be "
+                    "separated from the user frame; measure at several tool "
+                    "orientations (30 deg apart or more).",
+                    stage=_STAGE,
+                )
+            )
+    return out
+
+
+def data_diagnostics(
+    meas: Measurements, robot: RobotDescription, *, quaternions: bool = True
+) -> list[Diagnostic]:
+    """Every data check of this module on ``meas`` (warnings, never errors).
+
+    Parameters
+    ----------
+    meas : Measurements
+    robot : RobotDescription, the nominal robot the data are for.
+    quaternions : bool
+        The orientations were read from quaternion columns (the order check applies).
+    """
+    out: list[Diagnostic] = []
+    for d in (
+        duplicate_rows(meas),
+        payload_over_rating(meas, robot),
+        quaternion_order(meas, robot) if quaternions else None,
+    ):
+        if d is not None:
+            out.append(d)
+    return out + excitation(meas, robot)
+
+
+def check_data_for_model(
+    meas: Measurements, cal: CalibratedModel
+) -> tuple[Measurements, list[Diagnostic]]:
+    """The data as the calibrated model can evaluate them, and what is left out.
+
+    Pose data for a model without tool orientation (calibrated on tracker points) keep
+    their positions only (``positions_only``); the other kinds must match.
+
+    Raises
+    ------
+    DataError
+        Sensor data (a target seen in the cam frame) for a model calibrated on tracker
+        points or poses, or tracker data for a sensor model: the two map different
+        quantities, the errors would be meaningless (metres).
+    """
+    kind = cal.info.get("kind")
+    if kind not in ("point", "pose", "sensor"):
+        kind = "pose" if cal.model.spec.cam_rotation else "point"
+    what = {
+        "point": "tracker points (x_mm, y_mm, z_mm)",
+        "pose": "poses (x_mm .. qz)",
+        "sensor": "sensor data (target, xc_mm, yc_mm, zc_mm)",
+    }
+    if meas.kind == kind or {meas.kind, kind} == {"point", "pose"}:
+        if meas.kind == "pose" and not cal.model.spec.cam_rotation:
+            note = Diagnostic(
+                "positions_only",
+                f"{meas.source}: pose data, but the model was calibrated on "
+                f"{what[str(kind)]} and has no tool orientation: only the positions "
+                "are compared.",
+                stage=_STAGE,
+            )
+            return replace(meas, kind="point", R_user_cam=None, sigma_rot=None), [note]
+        return meas, []
+    if meas.kind == "sensor" and not cal.model.spec.cam_rotation:
+        why = "the model has no sensor orientation to map the measured points"
+    elif meas.kind == "sensor":
+        why = "its cam frame is the tracked tool, not a sensor"
+    else:
+        why = "a sensor model maps points measured in the sensor frame"
+    raise DataError(
+        f"{meas.source}: {what[meas.kind]}, but the model was calibrated on "
+        f"{what[str(kind)]}: {why}; evaluate it on data of the same kind."
+    )
+
+
+def _distance(a: str, b: str) -> int:
+    """Optimal string alignment distance (edits, adjacent swaps count one)."""
+    d = [
+        [i + j if i * j == 0 else 0 for j in range(len(b) + 1)]
+        for i in range(len(a) + 1)
+    ]
+    for i in range(1, len(a) + 1):
+        for j in range(1, len(b) + 1):
+            cost = a[i - 1] != b[j - 1]
+            d[i][j] = min(d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + cost)
+            if i > 1 and j > 1 and a[i - 1] == b[j - 2] and a[i - 2] == b[j - 1]:
+                d[i][j] = min(d[i][j], d[i - 2][j - 2] + 1)
+    return d[len(a)][len(b)]
+
+
+def near_miss(name: str, known: Iterable[str]) -> str | None:
+    """The known column ``name`` was probably meant to be, or None.
+
+    Near: the same up to case, spaces and dashes, or a plural or singular ``s``; or one
+    edit away from a name of 5 or more letters, two from one of 8 or more.
+    """
+    norm = name.strip().lower().replace("-", "_").replace(" ", "_")
+    best: tuple[int, str] | None = None
+    for k in sorted(known):
+        if norm in (k, k + "s", k + "es"):
+            return k
+        limit = 2 if len(k) >= 8 else 1 if len(k) >= 5 else 0
+        dist = _distance(norm, k) if limit else limit + 1
+        if dist <= limit and (best is None or dist < best[0]):
+            best = (dist, k)
+    return None if best is None else best[1]
