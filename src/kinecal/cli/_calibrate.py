@@ -1,4 +1,4 @@
-"""``kinecal calibrate`` and ``kinecal evaluate`` (DESIGN §11)."""
+"""``kinecal calibrate`` and ``kinecal evaluate`` (file formats: docs/formats.md)."""
 
 from __future__ import annotations
 
@@ -6,12 +6,15 @@ import json
 import os
 import sys
 from dataclasses import replace
+from pathlib import Path
 
 import click
 
 from kinecal.cli._common import (
     MODEL_CHOICES,
     Progress,
+    check_distinct_poses,
+    check_folds,
     common_options,
     jobs_option,
     manifest,
@@ -135,6 +138,7 @@ def calibrate(
     """
     from kinecal._parallel import available_cpus
     from kinecal.cli import EXIT_NOT_CONVERGED
+    from kinecal.errors import CalibError
     from kinecal.identification import calibrate as run_calibration
     from kinecal.identification import spec_for
     from kinecal.io import (
@@ -147,16 +151,24 @@ def calibrate(
     from kinecal.models import kernel_name, parallel_pairs
     from kinecal.report import RESIDUALS_CSV, calibration_summary, pose_errors
 
+    result_files = (
+        "model.yaml",
+        "report.json",
+        "report.html",
+        RESIDUALS_CSV,
+        "manifest.json",
+    )
+
     say = Progress(quiet)
     jobs = jobs or available_cpus()
     robot = _load_robot(robot_name)
+    # The result folder first: a clash or an unwritable --out stops the run at once.
+    out = prepare_output_dir(out_dir, list(result_files), force=force)
+    say.begin("data", f"reading {data}")
     meas = read_measurements(data, robot, targets)
-    out = prepare_output_dir(
-        out_dir,
-        ["model.yaml", "report.json", "report.html", RESIDUALS_CSV],
-        force=force,
-    )
     say("data", f"{meas.n} {meas.kind} rows from {data}")
+    if cv_folds is not None:
+        check_folds(meas, cv_folds, data)
     opts = _options_from(loss, priors, stage2)
     extra: dict[str, object] = {}
     hay = parallel_pairs(robot) if hayati else ()
@@ -164,6 +176,7 @@ def calibrate(
     if model_name == "auto":
         from kinecal.identification import select_model
 
+        check_distinct_poses(meas, robot, spec_for(robot, meas, "kinematic"), data)
         say("auto", "cross-validating candidate models")
         sel = select_model(
             robot,
@@ -183,6 +196,7 @@ def calibrate(
         spec = spec_for(
             robot, meas, model_name, hayati=hay, ntm_joints=nj, ntm_order=ntm_order
         )
+    check_distinct_poses(meas, robot, spec, data)
     result = run_calibration(robot, meas, spec, opts, progress=say)
     if cv_folds:
         from kinecal.identification import cross_validate_many
@@ -197,6 +211,8 @@ def calibrate(
         )
         cv_rows = {}
         for label, cv in zip(("nominal", "model"), cvs):
+            if isinstance(cv, CalibError):
+                raise type(cv)(f"--cv {cv_folds}: a fold's calibration failed: {cv}")
             if isinstance(cv, ValueError):
                 raise cv
             cv_rows[label] = {
@@ -207,12 +223,15 @@ def calibrate(
                 "train_rms_mm": [f.rms_mm for f in cv.train],
             }
         extra["cross_validation"] = {"folds": cv_folds, **cv_rows}
+    say("write", "model.yaml, report.json, residuals.csv, manifest.json")
     summary = calibration_summary(result, extra=extra)
     save_model(out / "model.yaml", result.calibrated, force=True)
     write_json(out / "report.json", summary, force=True)
     atomic_write_text(
         out / RESIDUALS_CSV, pose_errors(result, meas).to_csv(), force=True
     )
+    written = ["model.yaml", "report.json", RESIDUALS_CSV, "manifest.json"]
+    written += ["report.html"] if report else []
     write_json(
         out / "manifest.json",
         manifest(
@@ -228,17 +247,16 @@ def calibrate(
                 "cv": cv_folds,
                 "model_code": kernel_name(result.calibrated.model),
             },
+            files=written,
         ),
         force=True,
     )
-    written = ["model.yaml", "report.json", RESIDUALS_CSV, "manifest.json"]
     if report:  # drawn from the files just written, as `kinecal report DIR` does
         from kinecal.report import write_report
 
         say("report", "drawing report.html")
         write_report(out, force=True)
-        written.append("report.html")
-        say("report", f"wrote {out / 'report.html'}")
+        say("report", "report.html drawn")
     b, a = result.metrics_before, result.metrics_after
     click.echo(
         f"model     {spec.name}: {result.identifiability.rank} of "
@@ -261,7 +279,7 @@ def calibrate(
         click.echo(f"note      {line}")
     for w in result.warnings:
         click.echo(f"warning   {w}", err=True)
-    click.echo(f"wrote     {out}{os.sep}: {', '.join(written)}")
+    click.echo(f"wrote     {Path(out_dir)}{os.sep}: {', '.join(written)}")
     if not result.success:
         sys.exit(EXIT_NOT_CONVERGED)
 

@@ -1,5 +1,14 @@
 """Files at the edges: measurement CSVs, targets, model.yaml, JSON; units via kinecal.units."""
 
+from kinecal._outputs import (
+    OutputTransaction,
+    begin_transaction,
+    current_transaction,
+    end_transaction,
+    new_dir_mode,
+    new_file_mode,
+    output_transaction,
+)
 from kinecal.io._csv import (
     CompensationTargets,
     Table,
@@ -50,13 +59,17 @@ __all__ = [
     "FORMAT_VERSION",
     "PROGRAM_FORMATS",
     "CompensationTargets",
+    "OutputTransaction",
     "Program",
     "ProgramPoint",
     "Table",
     "Targets",
     "atomic_write_bytes",
     "atomic_write_text",
+    "begin_transaction",
+    "current_transaction",
     "detect_program_format",
+    "end_transaction",
     "file_sha256",
     "image_files",
     "joint_column_names",
@@ -64,6 +77,9 @@ __all__ = [
     "load_sensor",
     "measurements_to_csv",
     "model_to_dict",
+    "new_dir_mode",
+    "new_file_mode",
+    "output_transaction",
     "prepare_output_dir",
     "program_bytes",
     "program_joints",

@@ -1,4 +1,11 @@
-"""Safe output files: atomic writes, no overwrite without ``force``, input hashes."""
+"""Safe output files: atomic writes, no overwrite without ``force``, input hashes.
+
+Every file is written to a temporary file beside its target, flushed to disk and renamed
+over the target, so a reader sees the old file or the new one, never half of one. Files
+get the mode a new file normally gets (``0666`` less the user's umask: readable by the
+group and others under the usual umask 022), not the ``0600`` of a temporary file.
+Folders of several result files are staged as a whole (:mod:`kinecal._outputs`).
+"""
 
 from __future__ import annotations
 
@@ -9,6 +16,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from kinecal._outputs import new_file_mode
 from kinecal.errors import DataError
 
 __all__ = [
@@ -41,14 +49,32 @@ def atomic_write_text(path: str | Path, text: str, *, force: bool = False) -> Pa
 
 
 def atomic_write_bytes(path: str | Path, data: bytes, *, force: bool = False) -> Path:
-    """Write ``data`` to ``path`` through a temporary file and an atomic rename."""
+    """Write ``data`` to ``path`` through a temporary file and an atomic rename.
+
+    The file gets the mode of a new file (:func:`new_file_mode`). A failure (full disk,
+    no permission) leaves ``path`` as it was and removes the temporary file.
+
+    Raises
+    ------
+    FileExistsError
+        ``path`` exists and ``force`` is False.
+    IsADirectoryError
+        ``path`` is a folder.
+    OSError
+        The file cannot be written (permissions, read-only or full file system).
+    """
     p = Path(path)
+    if p.is_dir():
+        raise IsADirectoryError(
+            f"{p}: is a folder; expected the name of a file to write."
+        )
     if p.exists() and not force:
-        raise FileExistsError(f"{p} exists; use --force to overwrite it.")
+        raise FileExistsError(f"{p}: exists; use --force to overwrite it.")
     p.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
     try:
         with os.fdopen(fd, "wb") as f:
+            os.fchmod(f.fileno(), new_file_mode())
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
@@ -91,15 +117,37 @@ def _clean(x: Any) -> Any:
 def prepare_output_dir(
     path: str | Path, names: list[str], *, force: bool = False
 ) -> Path:
-    """Create an output folder; refuse if any of ``names`` already exists there."""
+    """The folder to write a result into; refuse if any of ``names`` exists there.
+
+    ``names`` are the entries the result consists of (file or folder names, or glob
+    patterns such as ``model-*.yaml``). Inside an :func:`output_transaction` (every
+    ``kinecal`` command runs in one) the returned folder is a temporary one beside or
+    inside ``path``, moved into place when the command succeeds (see
+    :mod:`kinecal._outputs`); outside one it is ``path`` itself.
+
+    Raises
+    ------
+    DataError
+        ``path`` exists and is not a folder.
+    FileExistsError
+        One of ``names`` exists in ``path`` and ``force`` is False.
+    """
+    from kinecal._outputs import clashes, current_transaction
+
     d = Path(path)
     if d.exists() and not d.is_dir():
-        raise DataError(f"{d} exists and is not a folder.")
+        raise DataError(
+            f"{d}: exists and is not a folder; expected a folder for the results "
+            "(or a new name)."
+        )
     if not force:
-        clash = [n for n in names if (d / n).exists()]
+        clash = clashes(d, names)
         if clash:
             raise FileExistsError(
-                f"{d / clash[0]} exists; use --force to overwrite the results in {d}."
+                f"{d / clash[0]}: exists; use --force to replace the results in {d}."
             )
-    d.mkdir(parents=True, exist_ok=True)
-    return d
+    tx = current_transaction()
+    if tx is None:
+        d.mkdir(parents=True, exist_ok=True)
+        return d
+    return tx.stage(d, names, force=force)

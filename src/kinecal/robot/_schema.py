@@ -213,7 +213,13 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
         raise _err(f"{source}: joints", f"joint names must be unique; got {names}.")
 
     C = np.eye(n)
-    for k_c, c in enumerate(data.get("coupling") or []):
+    coupling = data.get("coupling") or []
+    if not isinstance(coupling, list):
+        raise _err(
+            f"{source}: coupling",
+            f"expected a list of {{joint, from, factor}}; got {coupling!r}.",
+        )
+    for k_c, c in enumerate(coupling):
         where = f"{source}: coupling[{k_c}]"
         _check_keys(c, _COUPLING_KEYS, where, ("joint", "from", "factor"))
         j = c["joint"]
@@ -226,6 +232,13 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
         if j == f:
             raise _err(where, "a joint cannot be coupled to itself.")
         C[j - 1, f - 1] += _number(c["factor"], f"{where}.factor")
+    if coupling and not np.linalg.cond(C) < 1e8:
+        raise _err(
+            f"{source}: coupling",
+            "the couplings make the kinematic angles depend on each other so that the "
+            "controller angles cannot be recovered (singular theta = C q); expected "
+            "each joint's angle from its own motor plus others.",
+        )
 
     T_n_flange = (
         _frame(data["flange"], f"{source}: flange", lu, au)
