@@ -239,3 +239,26 @@ def check_distinct_poses(meas: Any, robot: Any, spec: Any, path: str) -> None:
             f"'{spec.name}' model has {size} parameters: expected at least "
             f"{size // c + 1} different poses (several times more for a reliable result)"
         )
+
+
+# Positions beyond 1 km from the instrument's origin are typing errors, not data (and
+# their squares overflow in the solvers).
+MAX_POSITION_MM = 1e6
+
+
+def check_positions(p_m: Any, lines: Any, path: str, columns: str) -> None:
+    """Refuse positions (N, 3) [m] farther than :data:`MAX_POSITION_MM` from the
+    origin, naming the file line."""
+    import numpy as np
+
+    from kinecal.errors import DataError
+
+    far = np.flatnonzero(np.abs(np.asarray(p_m)).max(axis=1) * 1e3 > MAX_POSITION_MM)
+    if far.size:
+        i = int(far[0])
+        v = np.asarray(p_m)[i] * 1e3
+        raise DataError(
+            f"{path}: line {lines[i]}, columns {columns}: ({v[0]:.6g}, {v[1]:.6g}, "
+            f"{v[2]:.6g}) mm; expected positions within {MAX_POSITION_MM:.0e} mm of the "
+            "origin (a typing error?)."
+        )

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import json
-import sys
 
 import click
 
-from kinecal.cli._common import model_file_option
+from kinecal.cli._common import FiniteFloat, check_positions, model_file_option
 
 _FORMATS = ("csv", "fanuc-ls", "urscript", "rapid", "krl")
 
@@ -33,14 +32,14 @@ _FORMATS = ("csv", "fanuc-ls", "urscript", "rapid", "krl")
 )
 @click.option(
     "--tol-mm",
-    type=float,
+    type=FiniteFloat(0.0, low_open=True),
     default=0.001,
     show_default=True,
     help="A row is reachable when the model's predicted error is below this [mm].",
 )
 @click.option(
     "--payload-kg",
-    type=float,
+    type=FiniteFloat(0.0),
     help="Payload at the tool [kg] (default: the calibration's reference payload).",
 )
 @click.option(
@@ -123,16 +122,16 @@ def compensate(
         "out": out_path,
     }
     if bad and not allow_unreachable:
-        from kinecal.cli import EXIT_UNREACHABLE
+        from kinecal.cli._errors import CommandFailed, ExitCode
 
         summary["out"] = None
-        click.echo(
-            json.dumps(summary)
-            if as_json
-            else f"{len(bad)} of {summary['n']} targets cannot be reached; nothing "
-            "written (use --allow-unreachable to write them flagged)."
+        if as_json:
+            click.echo(json.dumps(summary))
+        raise CommandFailed(
+            ExitCode.UNREACHABLE,
+            f"{targets}: {len(bad)} of {summary['n']} targets cannot be reached; "
+            "nothing written (--allow-unreachable writes them flagged).",
         )
-        sys.exit(EXIT_UNREACHABLE)
     rows.write(out_path, report_path, force)
     if as_json:
         click.echo(json.dumps(summary))
@@ -200,6 +199,7 @@ def _csv(cal, targets: str, tol_mm: float, scale):
     from kinecal.io import atomic_write_text, read_compensation_targets
 
     tg = read_compensation_targets(targets, cal.model.robot)
+    check_positions(tg.p, tg.table.lines, targets, "x_mm, y_mm, z_mm")
     spec = cal.model.spec
     set_index = _map_labels(tg.set_labels, tg.set_index, spec.sets, targets, "set")
     marker_index = _map_labels(

@@ -22,7 +22,13 @@ from typing import Any
 
 import click
 
-__all__ = ["ExitCode", "classify", "handled_signals", "one_line_warnings"]
+__all__ = [
+    "CommandFailed",
+    "ExitCode",
+    "classify",
+    "handled_signals",
+    "one_line_warnings",
+]
 
 
 class ExitCode(IntEnum):
@@ -78,6 +84,14 @@ _OS_TEXT = {
 }
 
 
+class CommandFailed(Exception):
+    """A command's own failure with its exit code (compensate's unreachable targets)."""
+
+    def __init__(self, code: ExitCode, message: str) -> None:
+        super().__init__(message)
+        self.code = code
+
+
 class Terminated(BaseException):
     """SIGTERM, turned into an exception so that staged results are removed."""
 
@@ -121,6 +135,8 @@ def classify(exc: BaseException) -> tuple[ExitCode, str]:
     command."""
     from kinecal.errors import CalibError
 
+    if isinstance(exc, CommandFailed):
+        return exc.code, one_line(str(exc))
     if isinstance(exc, CalibError):
         return ExitCode.BAD_INPUT, one_line(str(exc))
     if isinstance(exc, click.UsageError):

@@ -95,13 +95,16 @@ class PoseErrors:
 def pose_errors(result, meas) -> PoseErrors:
     """The per-pose errors of a :class:`~kinecal.identification.CalibrationResult` on
     its calibration data ``meas`` (Measurements)."""
-    from kinecal.identification import residuals
+    from kinecal.identification import Weights, residuals
 
     cal = result.calibrated
     m = cal.model
     inputs = meas.model_inputs(cal.reference_payload_kg)
-    before = residuals(m, result.registered, meas, result.weights, inputs=inputs)
-    after = residuals(m, cal.params, meas, result.weights, inputs=inputs)
+    # Raw errors only (no whitening): the fit's weights may cover fewer rows (those
+    # left after rejecting gross errors), these are every row of meas.
+    w = Weights.default(meas)
+    before = residuals(m, result.registered, meas, w, inputs=inputs)
+    after = residuals(m, cal.params, meas, w, inputs=inputs)
     prismatic = np.array([j.kind == "prismatic" for j in m.robot.joints])
     rows = meas.rows if meas.rows.size == meas.n else np.arange(meas.n)
     return PoseErrors(
