@@ -151,18 +151,28 @@ def _old_result(final: Path, names: list[str]) -> set[str]:
     return out
 
 
+_HELD = (signal.SIGINT, signal.SIGTERM)
+
+
 @contextmanager
-def _signals_deferred() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM (delivered after the block) in the main thread."""
-    held = {signal.SIGINT, signal.SIGTERM}
+def _signals_held(late: list[int]) -> Iterator[None]:
+    """Hold SIGINT and SIGTERM in the main thread during the block; one that arrived
+    meanwhile is taken (not delivered) and appended to ``late``."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        try:
+            pending = signal.sigpending()
+            for sig in _HELD:
+                if sig in pending and sig not in old:
+                    signal.sigwait({sig})  # pending: returns at once, consumes it
+                    late.append(int(sig))
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 @dataclass
@@ -180,6 +190,9 @@ class OutputTransaction:
     whole."""
 
     staged: list[_Staged] = field(default_factory=list)
+    # Ctrl-C or SIGTERM that came while the results were being moved into place: the
+    # move completed, and the signal is reported here instead of raised.
+    late_signals: list[int] = field(default_factory=list)
 
     def stage(self, final: Path, names: list[str], *, force: bool) -> Path:
         """A new temporary folder for the result ``final`` (created here)."""
@@ -209,13 +222,13 @@ class OutputTransaction:
     def commit(self) -> list[Path]:
         """Move every staged result into place; return the result folders."""
         done = []
-        try:
-            with _signals_deferred():
+        with _signals_held(self.late_signals):
+            try:
                 for s in self.staged:
                     _commit(s)
                     done.append(s.final)
-        finally:
-            self.rollback()  # whatever was not moved (after a failure)
+            finally:
+                self.rollback()  # what was not moved (after a failure), the trash
         return done
 
 

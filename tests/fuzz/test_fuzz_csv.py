@@ -9,14 +9,8 @@ from pathlib import Path
 
 from hypothesis import given
 
-from tests.fuzz.conftest import (
-    FUZZ,
-    check_contract,
-    leftovers,
-    run_kinecal,
-    snapshot,
-)
-from tests.fuzz.mutate import mutated_csv
+from tests.cli_contract import check_contract, leftovers, run_kinecal, snapshot
+from tests.fuzz.strategies import FUZZ, mutated_csv
 
 RESULT = {"model.yaml", "report.json", "residuals.csv", "manifest.json"}
 ROBOT = "fanuc-lrmate200id"
@@ -45,9 +39,18 @@ def test_issue_21_fuzz_calibrate_and_evaluate(point_data, capsys, tmp_path):
         f.write_bytes(data)
         new = d / "new"
         res = run_kinecal(
-            capsys, "calibrate", f, "--robot", ROBOT, "--model", "kinematic",
-            "--out", new, "--no-report", "-q",
-        )  # fmt: skip
+            capsys,
+            "calibrate",
+            f,
+            "--robot",
+            ROBOT,
+            "--model",
+            "kinematic",
+            "--out",
+            new,
+            "--no-report",
+            "-q",
+        )
         check_contract(res)
         if res.code in (0, 3):
             assert RESULT <= {p.name for p in new.iterdir()}, str(res)
@@ -58,9 +61,19 @@ def test_issue_21_fuzz_calibrate_and_evaluate(point_data, capsys, tmp_path):
         shutil.copytree(earlier, old)
         before = snapshot(old)
         res2 = run_kinecal(
-            capsys, "calibrate", f, "--robot", ROBOT, "--model", "kinematic",
-            "--out", old, "--no-report", "--force", "-q",
-        )  # fmt: skip
+            capsys,
+            "calibrate",
+            f,
+            "--robot",
+            ROBOT,
+            "--model",
+            "kinematic",
+            "--out",
+            old,
+            "--no-report",
+            "--force",
+            "-q",
+        )
         check_contract(res2)
         if res2.code in (0, 3):
             names = {p.name for p in old.iterdir()}
@@ -68,9 +81,15 @@ def test_issue_21_fuzz_calibrate_and_evaluate(point_data, capsys, tmp_path):
         else:
             assert snapshot(old) == before, str(res2)
         res3 = run_kinecal(
-            capsys, "evaluate", f, "--model", point_data["model"], "--json",
-            "--errors-out", d / "errors.csv",
-        )  # fmt: skip
+            capsys,
+            "evaluate",
+            f,
+            "--model",
+            point_data["model"],
+            "--json",
+            "--errors-out",
+            d / "errors.csv",
+        )
         check_contract(res3)
         assert (d / "errors.csv").exists() == (res3.code == 0), str(res3)
         assert not leftovers(d), leftovers(d)
@@ -88,9 +107,14 @@ def test_issue_21_fuzz_compensation_targets(point_data, capsys, tmp_path):
         f = d / "targets.csv"
         f.write_bytes(data)
         res = run_kinecal(
-            capsys, "compensate", f, "--model", point_data["model"],
-            "--out", d / "corrected.csv",
-        )  # fmt: skip
+            capsys,
+            "compensate",
+            f,
+            "--model",
+            point_data["model"],
+            "--out",
+            d / "corrected.csv",
+        )
         check_contract(res)
         assert (d / "corrected.csv").exists() == (res.code == 0), str(res)
         assert not leftovers(d)
@@ -108,10 +132,24 @@ def test_issue_21_fuzz_plan_candidates(point_data, capsys, tmp_path):
         f = d / "cand.csv"
         f.write_bytes(data)
         res = run_kinecal(
-            capsys, "plan", "--robot", ROBOT, "--candidates", f, "--poses", "12",
-            "--model", "kinematic", "--out", d / "plan.csv", "--random-draws", "2",
-            "--exchange", "none", "-q",
-        )  # fmt: skip
+            capsys,
+            "plan",
+            "--robot",
+            ROBOT,
+            "--candidates",
+            f,
+            "--poses",
+            "12",
+            "--model",
+            "kinematic",
+            "--out",
+            d / "plan.csv",
+            "--random-draws",
+            "2",
+            "--exchange",
+            "none",
+            "-q",
+        )
         check_contract(res)
         written = (d / "plan.csv").exists(), (d / "plan.report.json").exists()
         assert written == ((res.code == 0),) * 2, str(res)

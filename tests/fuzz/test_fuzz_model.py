@@ -10,8 +10,8 @@ from pathlib import Path
 from hypothesis import given
 from hypothesis import strategies as st
 
-from tests.fuzz.conftest import FUZZ, check_contract, leftovers, run_kinecal
-from tests.fuzz.mutate import mutated_csv, mutated_doc, mutated_text
+from tests.cli_contract import check_contract, leftovers, run_kinecal
+from tests.fuzz.strategies import FUZZ, mutated_csv, mutated_doc, mutated_text
 
 PROGRAMS = Path(__file__).resolve().parents[1] / "data" / "programs"
 ZEROS = ["0"] * 6
@@ -52,9 +52,18 @@ def test_issue_21_fuzz_report_folder(point_data, capsys, tmp_path):
 
     src = tmp_path / "src"
     res = run_kinecal(
-        capsys, "calibrate", point_data["train"], "--robot", "fanuc-lrmate200id",
-        "--model", "kinematic", "--out", src, "--no-report", "-q",
-    )  # fmt: skip
+        capsys,
+        "calibrate",
+        point_data["train"],
+        "--robot",
+        "fanuc-lrmate200id",
+        "--model",
+        "kinematic",
+        "--out",
+        src,
+        "--no-report",
+        "-q",
+    )
     assert res.code == 0, str(res)
     import json
 
@@ -64,9 +73,8 @@ def test_issue_21_fuzz_report_folder(point_data, capsys, tmp_path):
     @FUZZ
     @given(
         which=st.sampled_from(["report", "residuals"]),
-        report_text=mutated_doc(report).map(json.dumps) | mutated_text(
-            json.dumps(report, indent=1)
-        ),
+        report_text=mutated_doc(report).map(json.dumps)
+        | mutated_text(json.dumps(report, indent=1)),
         residuals_bytes=mutated_csv(residuals),
     )
     def check(which: str, report_text: str, residuals_bytes: bytes) -> None:
@@ -101,9 +109,15 @@ def test_issue_21_fuzz_programs(point_data, capsys, tmp_path):
         f.write_text(text)
         out = d / f"out{suffix}"
         res = run_kinecal(
-            capsys, "compensate", f, "--model", point_data["model"], "--out", out,
+            capsys,
+            "compensate",
+            f,
+            "--model",
+            point_data["model"],
+            "--out",
+            out,
             "--allow-unreachable",
-        )  # fmt: skip
+        )
         check_contract(res)
         assert out.exists() == (res.code == 0), str(res)
         assert not leftovers(d)

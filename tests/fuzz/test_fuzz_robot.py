@@ -9,8 +9,8 @@ from pathlib import Path
 from hypothesis import given
 from hypothesis import strategies as st
 
-from tests.fuzz.conftest import FUZZ, check_contract, leftovers, run_kinecal
-from tests.fuzz.mutate import mutated_doc, mutated_text
+from tests.cli_contract import check_contract, leftovers, run_kinecal
+from tests.fuzz.strategies import FUZZ, mutated_doc, mutated_text
 
 ZEROS = ["0"] * 6
 
@@ -40,9 +40,18 @@ def test_issue_21_fuzz_robot_yaml(point_data, capsys, tmp_path):
         f.write_text(robot)
         check_contract(run_kinecal(capsys, "fk", "--robot", f, "--json", "--", *ZEROS))
         res = run_kinecal(
-            capsys, "calibrate", point_data["train"], "--robot", f, "--model",
-            "kinematic", "--out", d / "cal", "--no-report", "-q",
-        )  # fmt: skip
+            capsys,
+            "calibrate",
+            point_data["train"],
+            "--robot",
+            f,
+            "--model",
+            "kinematic",
+            "--out",
+            d / "cal",
+            "--no-report",
+            "-q",
+        )
         check_contract(res)
         assert (d / "cal").exists() == (res.code in (0, 3)), str(res)
         assert not leftovers(d)
@@ -72,7 +81,9 @@ def urdf_graph(draw: st.DrawFn) -> str:
     joints to undefined links, odd axes, origins and limits."""
     n_links = draw(st.integers(1, 8))
     links = [f"l{i}" for i in range(n_links)]
-    shape = draw(st.sampled_from(["chain", "chain", "random", "loop", "cycle", "split"]))
+    shape = draw(
+        st.sampled_from(["chain", "chain", "random", "loop", "cycle", "split"])
+    )
     edges = []
     if shape in ("chain", "loop", "cycle", "split"):
         edges = [(f"l{i}", f"l{i + 1}") for i in range(n_links - 1)]
@@ -123,9 +134,15 @@ def test_issue_21_fuzz_urdf(capsys, tmp_path):
         for n in (2, 6):
             check_contract(
                 run_kinecal(
-                    capsys, "fk", "--robot", f, "--json", "--ignore-limits", "--",
+                    capsys,
+                    "fk",
+                    "--robot",
+                    f,
+                    "--json",
+                    "--ignore-limits",
+                    "--",
                     *["0.1"] * n,
-                )  # fmt: skip
+                )
             )
         assert not leftovers(d)
 

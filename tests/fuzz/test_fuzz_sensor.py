@@ -15,7 +15,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from tests.fuzz.conftest import FUZZ, check_contract, leftovers, run_kinecal
+from tests.cli_contract import check_contract, leftovers, run_kinecal
+from tests.fuzz.strategies import FUZZ
 
 
 @st.composite

@@ -33,7 +33,7 @@ def cli() -> None:
 
     Unified kinematic model plus joint compliance (Ye et al., Sensors 2024). Files use mm
     and degrees; each command's --help gives the formats of its files (in the project:
-    docs/formats.md; exit codes and messages: docs/errors.md).
+    docs/files.md; exit codes and messages: docs/errors.md).
     """
     from kinecal import keep_freed_memory
     from kinecal._parallel import single_thread_blas
@@ -104,6 +104,13 @@ def main(argv: list[str] | None = None) -> int:
                 code = _exit_code(exc)
             if code in RESULT_CODES:
                 tx.commit()
+                if tx.late_signals:  # Ctrl-C while the results were moved into place
+                    click.echo(
+                        "Error: interrupted after the results were written (they are "
+                        "complete)",
+                        err=True,
+                    )
+                    code = 128 + tx.late_signals[0]
     except BaseException as exc:
         failure = exc
     finally:

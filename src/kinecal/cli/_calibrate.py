@@ -1,4 +1,4 @@
-"""``kinecal calibrate`` and ``kinecal evaluate`` (file formats: docs/formats.md)."""
+"""``kinecal calibrate`` and ``kinecal evaluate`` (file formats: docs/files.md)."""
 
 from __future__ import annotations
 

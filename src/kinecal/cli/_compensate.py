@@ -1,4 +1,4 @@
-"""``kinecal compensate`` (DESIGN §11; program files: issue 23)."""
+"""``kinecal compensate`` (files: docs/files.md; program files: issue 23)."""
 
 from __future__ import annotations
 

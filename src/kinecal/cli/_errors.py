@@ -123,11 +123,12 @@ def one_line(text: str) -> str:
 def _os_error(exc: OSError) -> tuple[ExitCode, str]:
     mistake = isinstance(exc, _PATH_MISTAKE_TYPES) or exc.errno in _PATH_MISTAKE_ERRNOS
     code = ExitCode.BAD_INPUT if mistake else ExitCode.IO
-    if exc.filename is None or exc.errno is None:  # a message of kinecal's own
+    if exc.errno is None:  # a message of kinecal's own
         return code, one_line(str(exc) or type(exc).__name__)
-    name = user_path(os.fsdecode(exc.filename))
     what = _OS_TEXT.get(exc.errno) or f"{exc.strerror or 'system error'}"
-    return code, f"{name}: {what}"
+    if exc.filename is None:
+        return code, what
+    return code, f"{user_path(os.fsdecode(exc.filename))}: {what}"
 
 
 def classify(exc: BaseException) -> tuple[ExitCode, str]:
@@ -143,7 +144,7 @@ def classify(exc: BaseException) -> tuple[ExitCode, str]:
         hint = ""
         if exc.ctx is not None:
             hint = f" (see '{exc.ctx.command_path} --help')"
-        return ExitCode.BAD_INPUT, one_line(exc.format_message()) + hint
+        return ExitCode.BAD_INPUT, one_line(exc.format_message()).rstrip(".") + hint
     if isinstance(exc, click.ClickException):
         return ExitCode.BAD_INPUT, one_line(exc.format_message())
     if isinstance(exc, (KeyboardInterrupt, click.exceptions.Abort)):

@@ -1,14 +1,15 @@
-"""``kinecal plan``: choose the poses to measure (DESIGN §11, issue 22)."""
+"""``kinecal plan``: choose the poses to measure (issue 22)."""
 
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
 import click
 
-from kinecal.cli._common import Progress, common_options
+from kinecal.cli._common import SEED, FiniteFloat, Progress, common_options
 from kinecal.cli._plan_report import echo_summary, plan_report
 
 _PRESETS = ("kinematic", "ntm", "rfcm", "full")
@@ -21,7 +22,7 @@ def _floats(text: str | None, n: int, name: str) -> list[float] | None:
         vals = [float(t) for t in text.split(",")]
     except ValueError:
         vals = []
-    if len(vals) != n:
+    if len(vals) != n or not all(math.isfinite(v) for v in vals):
         raise click.BadParameter(
             f"expected {n} comma-separated numbers; got {text!r}", param_hint=name
         )
@@ -42,7 +43,7 @@ def _joint_ranges(text: str | None, robot: Any) -> Any:
                 raise ValueError
             j = int(parts[0][1:])
             lo, hi = float(parts[1]), float(parts[2])
-            if not 1 <= j <= robot.n_joints or lo > hi:
+            if not 1 <= j <= robot.n_joints or not lo <= hi:
                 raise ValueError
         except ValueError:
             raise click.BadParameter(
@@ -117,7 +118,7 @@ def _report_path(out: str, report: str | None) -> Path:
 
 
 _FILE = click.Path(dir_okay=False)
-_POS = click.FloatRange(min=0, min_open=True)
+_POS = FiniteFloat(0.0, low_open=True)
 _INT = click.IntRange(min=1)
 _ON = {"show_default": True}
 # (option declarations, settings) of `kinecal plan`, in the order --help lists them.
@@ -160,16 +161,16 @@ _OPTIONS: list[tuple[tuple[str, ...], dict[str, Any]]] = [
         "joint ranges [deg] (default the limits)."}),
     (("--n-candidates",), {"type": click.IntRange(min=10), "default": 5000, **_ON,
         "help": "Candidates to generate."}),
-    (("--min-j5-deg",), {"type": click.FloatRange(min=0), "default": 10.0, **_ON,
+    (("--min-j5-deg",), {"type": FiniteFloat(0.0), "default": 10.0, **_ON,
         "help": "Generated: smallest |J5| (wrist singularity)."}),
-    (("--min-conditioning",), {"type": click.FloatRange(0, 1), "default": 0.05, **_ON,
+    (("--min-conditioning",), {"type": FiniteFloat(0.0, 1.0), "default": 0.05, **_ON,
         "help": "Generated: smallest inverse condition number of the geometric "
         "Jacobian."}),
-    (("--floor-mm",), {"type": float, "help": "Generated: lowest tool point (z in the "
+    (("--floor-mm",), {"type": FiniteFloat(), "help": "Generated: lowest tool point (z in the "
         "robot base frame) [mm]."}),
     (("--station",), {"metavar": "X,Y,Z", "help": "Generated (tracker): tracker "
         "position in the user frame [mm]; the reflector must face it."}),
-    (("--cone-deg",), {"type": click.FloatRange(0, 90), "default": 30.0, **_ON,
+    (("--cone-deg",), {"type": FiniteFloat(0.0, 90.0), "default": 30.0, **_ON,
         "help": "Reflector acceptance half-angle about the tool z axis."}),
     (("--standoff-mm",), {"default": "115:135", **_ON, "metavar": "LO:HI",
         "help": "Generated (sensor): sensor-to-target distance."}),
@@ -178,7 +179,7 @@ _OPTIONS: list[tuple[tuple[str, ...], dict[str, Any]]] = [
         "data (the information of its poses is the start)."}),
     (("--random-draws",), {"type": _INT, "default": 20, **_ON, "help": "Random plans "
         "in the comparison."}),
-    (("--seed",), {"type": int, "default": 0, **_ON, "help": "Seed of generated "
+    (("--seed",), {"type": SEED, "default": 0, **_ON, "help": "Seed of generated "
         "candidates and random plans."}),
     (("--json", "as_json"), {"is_flag": True, "help": "Print the summary as JSON."}),
     (("--force",), {"is_flag": True, "help": "Overwrite --out and the report."}),
@@ -328,6 +329,11 @@ def _candidates(
     if inst.name == "sensor":
         so = _floats(kw["standoff_mm"].replace(":", ","), 2, "--standoff-mm")
         assert so is not None
+        if not 0 < so[0] <= so[1]:
+            raise click.BadParameter(
+                f"expected 0 < LO <= HI [mm]; got {kw['standoff_mm']!r}",
+                param_hint="--standoff-mm",
+            )
         c = sensor_candidates(
             env["model"],
             env["params"],

@@ -79,9 +79,12 @@ def atomic_write_bytes(path: str | Path, data: bytes, *, force: bool = False) ->
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, p)
-    except BaseException:
+    except BaseException as exc:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        if isinstance(exc, OSError) and exc.errno is not None and not exc.filename:
+            # A failed write or fsync names no file: name the one being written.
+            raise type(exc)(exc.errno, exc.strerror, str(p)) from exc
         raise
     return p
 

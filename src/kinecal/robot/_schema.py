@@ -138,12 +138,12 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
         raise _err(f"{source}: convention", f"expected 'dh' or 'mdh'; got {conv!r}.")
     units = data["units"]
     _check_keys(units, {"length", "angle"}, f"{source}: units", ("length", "angle"))
-    if units["length"] not in LENGTH_UNITS:
+    if not isinstance(units["length"], str) or units["length"] not in LENGTH_UNITS:
         raise _err(
             f"{source}: units.length",
             f"expected one of {', '.join(LENGTH_UNITS)}; got {units['length']!r}.",
         )
-    if units["angle"] not in ANGLE_UNITS:
+    if not isinstance(units["angle"], str) or units["angle"] not in ANGLE_UNITS:
         raise _err(
             f"{source}: units.angle",
             f"expected one of {', '.join(ANGLE_UNITS)}; got {units['angle']!r}.",

@@ -1,11 +1,33 @@
-"""Mutations of valid inputs for the fuzz suite: CSV text, YAML documents, bytes."""
+"""The fuzz suite's Hypothesis settings and its mutations of valid inputs: CSV text,
+YAML documents, lines.
+
+Hypothesis runs derandomized (the same examples on every run, no example database), so
+``make test`` stays deterministic and bounded (25 examples per test by default).
+"""
 
 from __future__ import annotations
 
 import copy
+import os
 from typing import Any
 
+from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
+
+# KINECAL_FUZZ_EXAMPLES=500 KINECAL_FUZZ_RANDOM=1 searches wider (not in make test).
+FUZZ = settings(
+    max_examples=int(os.environ.get("KINECAL_FUZZ_EXAMPLES", "25")),
+    derandomize=os.environ.get("KINECAL_FUZZ_RANDOM", "") in ("", "0"),
+    database=None,
+    deadline=None,
+    print_blob=False,
+    suppress_health_check=[
+        HealthCheck.too_slow,
+        HealthCheck.function_scoped_fixture,
+        HealthCheck.data_too_large,
+        HealthCheck.filter_too_much,
+    ],
+)
 
 # Cell values a hand-edited or broken file holds.
 ODD_CELLS = [
@@ -102,11 +124,11 @@ def mutated_csv(draw: st.DrawFn, text: str) -> bytes:
                 )
             )
         elif kind == "dup_col":
-            rows = [row + [row[c]] if c < len(row) else row for row in rows]
+            rows = [[*row, row[c]] if c < len(row) else row for row in rows]
         elif kind == "extra_col":
             name = draw(st.sampled_from(["payload_kg", "sigma_mm", "note", "marker"]))
             val = draw(st.sampled_from(["1", "-1", "0", "x", "", "nan"]))
-            rows = [rows[0] + [name]] + [row + [val] for row in rows[1:]]
+            rows = [rows[0] + [name]] + [[*row, val] for row in rows[1:]]
         elif kind == "short_row" and len(rows[r]) > 1:
             rows[r] = rows[r][:-1]
         elif kind == "long_row":
@@ -140,7 +162,9 @@ ODD_VALUES = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True),
     st.sampled_from(["", "x", "deg", "mm", "full", "nan", "J1", "auto:full"]),
     st.lists(st.integers(-3, 9), max_size=4),
-    st.dictionaries(st.sampled_from(["x", "r", "a", "joint"]), st.integers(), max_size=2),
+    st.dictionaries(
+        st.sampled_from(["x", "r", "a", "joint"]), st.integers(), max_size=2
+    ),
 )
 
 
