@@ -132,7 +132,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="fewer repeats")
     ap.add_argument("--planning", action="store_true", help="the pose planning study")
     ap.add_argument("--figures", help="with --planning: write its figures here")
+    ap.add_argument(
+        "--robust", action="store_true", help="the breakdown study of the rejection"
+    )
     args = ap.parse_args(argv)
+    if args.robust:
+        from benchmarks._robust import main as robust
+
+        if args.out == ap.get_default("out"):
+            args.out = "benchmarks/robust.json"
+        return robust(args)
     if args.planning:
         from benchmarks._planning import main as planning
 

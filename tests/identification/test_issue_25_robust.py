@@ -186,3 +186,49 @@ def test_issue_25_pose_noise_from_the_residuals():
     assert np.median(noise.sigma) == pytest.approx(30e-6, rel=0.15)
     assert noise.sigma_rot is not None
     assert np.median(noise.sigma_rot) == pytest.approx(3e-4, rel=0.15)
+
+
+def test_issue_25_rejected_rows_by_file_line_on_the_command_line(run_cli, tmp_path):
+    import json
+
+    d = tmp_path / "exp2"
+    assert (
+        run_cli("simulate", "--experiment", "2", "--out", str(d), "-q").returncode == 0
+    )
+    lines = (d / "train.csv").read_text().splitlines()
+    col = lines[0].split(",").index("x_mm")
+    moved = [7, 33, 64]  # file lines (the header is line 1)
+    for ln in moved:
+        cells = lines[ln - 1].split(",")
+        cells[col] = f"{float(cells[col]) + 6.0:.4f}"
+        lines[ln - 1] = ",".join(cells)
+    data = tmp_path / "bumped.csv"
+    data.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "cal"
+    res = run_cli(
+        "calibrate", str(data), "--robot", "fanuc-lrmate200id", "--out", str(out)
+    )
+    assert res.returncode == 0, res.stderr
+    assert "3 rows rejected" in res.stderr and "file lines" in res.stderr
+    report = json.loads((out / "report.json").read_text())
+    assert sorted(r["row"] for r in report["rejected_rows"]) == moved
+    assert all(r["error_mm"] > 5.0 for r in report["rejected_rows"])
+    (rej,) = [x for x in report["diagnostics"] if x["code"] == "rows_rejected"]
+    assert sorted(rej["rows"]) == moved
+    html = (out / "report.html").read_text()
+    assert "Rejected rows" in html and all(f">{ln}<" in html for ln in moved)
+    off = tmp_path / "off"
+    res = run_cli(
+        "calibrate",
+        str(data),
+        "--robot",
+        "fanuc-lrmate200id",
+        "--out",
+        str(off),
+        "--reject",
+        "off",
+        "--no-report",
+    )
+    report = json.loads((off / "report.json").read_text())
+    assert report["rejected_rows"] == []
+    assert sorted(r["row"] for r in report["outliers"]) == moved

@@ -176,9 +176,20 @@ def test_issue_26_every_warning_has_its_full_list(result):
     summary["outliers"] = [
         {"row": 100 + k, "error_mm": 0.5, "z": 6.0} for k in range(14)
     ]
-    summary["warnings"] = [
-        "14 rows look like outliers; kept (use --loss huber): rows 100, 101, 102, 103, "
-        "104, 105, 106, 107, 108, 109 ..."
+    message = (
+        "14 rows have errors improbable under the noise of the others: rows 100, 101, "
+        "102, 103, 104, 105, 106, 107, 108, 109 and 4 more; kept."
+    )
+    summary["warnings"] = [message]
+    summary["diagnostics"] = [
+        {
+            "code": "outliers",
+            "severity": "warning",
+            "stage": "diagnose",
+            "message": message,
+            "rows": [100 + k for k in range(14)],
+            "parameters": [],
+        }
     ]
     html = render_calibration_report(summary, result.calibrated, None)
     box = html[: html.index("</div>")]

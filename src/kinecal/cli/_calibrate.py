@@ -7,6 +7,7 @@ import os
 import sys
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -108,6 +109,31 @@ def _options_from(loss: str, priors: str, stage2: str):
     help="Also report K-fold cross-validated held-out errors of the chosen model "
     "(whole sessions per fold when DATA has several sets) and of the nominal one.",
 )
+@click.option(
+    "--cv-groups",
+    "cv_groups",
+    metavar="COLUMN",
+    help="A column of DATA whose equal values must stay in one fold of --cv and "
+    "--model auto (default: rows measured at the same joints stay together; several "
+    "sets are folded whole).",
+)
+@click.option(
+    "--reject",
+    type=click.Choice(("auto", "off")),
+    default="auto",
+    show_default=True,
+    help="Leave out gross errors (rows far beyond the noise of the others, standing "
+    "apart, not explained by the pose) and fit again without them; 'off' only reports "
+    "improbable rows.",
+)
+@click.option(
+    "--reject-z",
+    type=click.FloatRange(min=0.0, min_open=True),
+    default=None,
+    metavar="Z",
+    help="Reject every row beyond Z robust sigmas (whitened error over the robust noise) "
+    "instead of the automatic test.",
+)
 @jobs_option("Worker processes for the cross-validation of --model auto and --cv")
 @click.option("--force", is_flag=True, help="Overwrite results already in --out.")
 @common_options
@@ -125,6 +151,9 @@ def calibrate(
     ntm_order: int,
     report: bool,
     cv_folds: int | None,
+    cv_groups: str | None,
+    reject: str,
+    reject_z: float | None,
     jobs: int,
     force: bool,
     quiet: bool,
@@ -167,9 +196,12 @@ def calibrate(
     say.begin("data", f"reading {data}")
     meas = read_measurements(data, robot, targets)
     say("data", f"{meas.n} {meas.kind} rows from {data}")
-    if cv_folds is not None:
-        check_folds(meas, cv_folds, data)
-    opts = _options_from(loss, priors, stage2)
+    opts = replace(
+        _options_from(loss, priors, stage2), reject=reject, reject_z=reject_z
+    )
+    groups = _group_labels(data, cv_groups, meas.rows) if cv_groups else None
+    if cv_folds is not None:  # the folds' own check, before the calibration runs
+        check_folds(meas, cv_folds, groups, cv_groups)
     extra: dict[str, object] = {}
     hay = parallel_pairs(robot) if hayati else ()
     nj = parse_int_list(ntm_joints, "--ntm-joints") or (1, 2, 3)
@@ -186,6 +218,8 @@ def calibrate(
             ntm_joints=nj,
             progress=say,
             jobs=jobs,
+            groups=groups,
+            group_name=cv_groups or "group",
         )
         spec = sel.spec
         opts = replace(opts, prior_scale=sel.prior_scale)
@@ -208,6 +242,8 @@ def calibrate(
             [("nominal", opts), (spec, opts)],
             k=cv_folds,
             jobs=jobs,
+            groups=groups,
+            group_name=cv_groups or "group",
         )
         cv_rows = {}
         for label, cv in zip(("nominal", "model"), cvs):
@@ -222,7 +258,15 @@ def calibrate(
                 "fold_rms_mm": [f.rms_mm for f in cv.folds],
                 "train_rms_mm": [f.rms_mm for f in cv.train],
             }
-        extra["cross_validation"] = {"folds": cv_folds, **cv_rows}
+        first = next(cv for cv in cvs if not isinstance(cv, ValueError))
+        extra["cross_validation"] = {
+            "folds": cv_folds,
+            "unit": first.unit,
+            "notes": list(first.notes),
+            **cv_rows,
+        }
+        for note in first.notes:
+            click.echo(f"warning   {note}", err=True)
     say("write", "model.yaml, report.json, residuals.csv, manifest.json")
     summary = calibration_summary(result, extra=extra)
     save_model(out / "model.yaml", result.calibrated, force=True)
@@ -245,6 +289,9 @@ def calibrate(
                 "ntm_joints": list(nj),
                 "ntm_order": ntm_order,
                 "cv": cv_folds,
+                "cv_groups": cv_groups,
+                "reject": reject,
+                "reject_z": reject_z,
                 "model_code": kernel_name(result.calibrated.model),
             },
             files=written,
@@ -293,6 +340,38 @@ def _pooled_xyz(folds) -> list[float]:
     ]
 
 
+def _group_labels(data: str, column: str, rows: Any) -> Any:
+    """The values of ``column`` of the measurement file, one per row of the data."""
+    import numpy as np
+
+    from kinecal.errors import DataError
+    from kinecal.io import read_table
+
+    table = read_table(data)
+    if column not in table.header:
+        raise DataError(
+            f"{data}: --cv-groups names column {column!r}, which the file does not "
+            f"have (columns: {', '.join(table.header)})."
+        )
+    k = table.header.index(column)
+    by_line = {line: row[k].strip() for line, row in zip(table.lines, table.rows)}
+    return np.array([by_line[int(r)] for r in rows])
+
+
+def _refit_groups(text: str | None) -> tuple[str, ...]:
+    """``--refit user,tool`` as a tuple; a bad word is a usage error."""
+    if not text:
+        return ()
+    words = tuple(w.strip() for w in text.split(",") if w.strip())
+    bad = [w for w in words if w not in ("user", "tool", "marker")]
+    if bad or not words:
+        raise click.BadParameter(
+            f"takes 'user', 'tool' and 'marker', comma-separated; got {text!r}.",
+            param_hint="--refit",
+        )
+    return tuple(dict.fromkeys(words))
+
+
 def _load_robot(name: str):
     from kinecal.robot import load_robot
 
@@ -305,8 +384,10 @@ def _load_robot(name: str):
 @targets_option
 @click.option(
     "--refit",
-    type=click.Choice(("user",)),
-    help="'user': re-estimate only the user frame(s) on DATA first (new set-up).",
+    metavar="WHAT[,WHAT]",
+    help="Re-estimate on DATA first: 'user' (the user frames: a new instrument "
+    "set-up), 'tool' (the tool frame: a re-mounted probe or reflector nest), 'marker' "
+    "(each marker's offset); e.g. --refit user,tool.",
 )
 @click.option(
     "--json",
@@ -335,7 +416,8 @@ def evaluate(
 
     cal = load_model(model_path)
     meas = read_measurements(data, cal.model.robot, targets)
-    ev = run_evaluate(cal, meas, refit_user=refit == "user")
+    what = _refit_groups(refit)
+    ev = run_evaluate(cal, meas, refit=what)
     for d in ev.diagnostics:
         if d.severity == "warning":
             click.echo(f"warning   {d.message}", err=True)
@@ -348,7 +430,7 @@ def evaluate(
     if as_json:
         click.echo(json.dumps(m.contract()))
         return
-    click.echo(f"poses  {m.n}" + ("  (user frame refitted)" if refit else ""))
+    click.echo(f"poses  {m.n}" + (f"  (refitted: {', '.join(what)})" if what else ""))
     click.echo(
         f"RMS    {m.rms_mm:.4f} mm   Std {m.std_mm:.4f}   Avg {m.mean_mm:.4f}   "
         f"Max {m.max_mm:.4f} mm"

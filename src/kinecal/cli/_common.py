@@ -197,23 +197,12 @@ def common_options(f: Callable[..., Any]) -> Callable[..., Any]:
     return f
 
 
-def check_folds(meas: Any, k: int, path: str) -> None:
-    """``--cv K``: K folds need K rows (or, with several sets, whole sets per fold)."""
-    n_sets = len(meas.set_labels)
-    if n_sets > 1:
-        if k > n_sets:
-            raise click.BadParameter(
-                f"{k} folds asked, but {path} has {n_sets} sets and a fold holds whole "
-                f"sets; expected at most {n_sets}",
-                param_hint="--cv",
-            )
-        return
-    if k > meas.n:
-        raise click.BadParameter(
-            f"{k} folds asked, but {path} has {meas.n} rows; expected at most "
-            f"{meas.n} (5 or 10 is usual)",
-            param_hint="--cv",
-        )
+def check_folds(meas: Any, k: int, groups: Any, group_name: str | None) -> None:
+    """``--cv K``: the folds' own check (too few poses, sets or groups to hold out),
+    run before the calibration rather than after it."""
+    from kinecal.identification import make_folds
+
+    make_folds(meas, k, groups=groups, group_name=group_name or "group")
 
 
 def check_distinct_poses(meas: Any, robot: Any, spec: Any, path: str) -> None:

@@ -6,21 +6,25 @@ from kinecal.identification._calibrate import (
     default_stages,
 )
 from kinecal.identification._calibrated import STATUSES, CalibratedModel
-from kinecal.identification._diagnose import Diagnose
-from kinecal.identification._diagnostics import CODES, Diagnostic, Outlier, StageLog
-from kinecal.identification._evaluate import (
+from kinecal.identification._crossval import (
     ComparisonRow,
     CrossValidation,
-    Evaluation,
+    Folds,
     compare_models,
     cross_validate,
     cross_validate_many,
-    evaluate,
     kfold_indices,
+    make_folds,
+    train_test_split,
+)
+from kinecal.identification._diagnose import Diagnose
+from kinecal.identification._diagnostics import CODES, Diagnostic, Outlier, StageLog
+from kinecal.identification._evaluate import (
+    Evaluation,
+    evaluate,
     refit,
     refit_diagnosed,
     registered_model,
-    train_test_split,
 )
 from kinecal.identification._identifiability import (
     DroppedParameter,
@@ -89,6 +93,7 @@ __all__ = [
     "Evaluation",
     "EvaluationCache",
     "EvidencePriors",
+    "Folds",
     "FullStage",
     "Identifiability",
     "Identify",
@@ -125,6 +130,7 @@ __all__ = [
     "initial_frames",
     "initial_registration",
     "kfold_indices",
+    "make_folds",
     "metrics_from_errors",
     "normal_equations",
     "priority_order",

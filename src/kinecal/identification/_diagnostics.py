@@ -25,6 +25,8 @@ CODES: dict[str, str] = {
     "loose_parameters": "parameters without a prior that the poses hardly determine",
     "overfit_risk": "many parameters for the number of residuals",
     "rotation_undetermined": "a registration could not fix a frame's rotation fully",
+    "orientation_offset": "a session's orientations differ from the model's by a common "
+    "rotation (a turned or re-mounted tool)",
     "rows_rejected": "rows rejected as gross errors and left out of the fit (rows: file "
     "lines)",
     "rejection_refused": "more than half the rows stand apart: none rejected",

@@ -40,14 +40,18 @@ class Metrics:
         return asdict(self)
 
     def contract(self) -> dict[str, float | int]:
-        """The object ``kinecal evaluate --json`` prints (DESIGN §11)."""
-        return {
+        """The object ``kinecal evaluate --json`` prints: ``n, rms_mm, std_mm, mean_mm,
+        max_mm``, and ``rot_rms_deg`` for pose data."""
+        out: dict[str, float | int] = {
             "n": self.n,
             "rms_mm": self.rms_mm,
             "std_mm": self.std_mm,
             "mean_mm": self.mean_mm,
             "max_mm": self.max_mm,
         }
+        if self.rot_rms_deg is not None:
+            out["rot_rms_deg"] = self.rot_rms_deg
+        return out
 
 
 def metrics_from_errors(e_pos_m: Float, e_rot_rad: Float | None = None) -> Metrics:

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from kinecal.identification._calibrate import CalibrationOptions, spec_for
-from kinecal.identification._evaluate import cross_validate_many
+from kinecal.identification._crossval import cross_validate_many
 from kinecal.identification._measurements import Measurements
 from kinecal.models import ModelSpec
 from kinecal.robot import RobotDescription
@@ -155,12 +155,15 @@ def select_model(
     ntm_joints: tuple[int, ...] = (1, 2, 3),
     progress: object | None = None,
     jobs: int = 1,
+    groups: np.ndarray | None = None,
+    group_name: str = "group",
 ) -> Selection:
     """Choose a model by k-fold cross-validation and the one-standard-error rule.
 
     Each layout is cross-validated with priors at strength 1; the best layout is then
     tried with its priors scaled by ``prior_scales`` (sigma times the scale). ``jobs`` > 1
-    runs the fold calibrations in that many worker processes (the same result).
+    runs the fold calibrations in that many worker processes (the same result). The folds
+    are those of :func:`~kinecal.identification.make_folds` (sets, poses or ``groups``).
     """
     opts = options or CalibrationOptions()
     say = progress if callable(progress) else (lambda stage, detail: None)
@@ -180,6 +183,8 @@ def select_model(
             k=k,
             seed=seed,
             jobs=jobs,
+            groups=groups,
+            group_name=group_name,
         )
         for (label, spec, scale), cv in zip(runs, cvs):
             if isinstance(cv, ValueError):  # too few poses for this candidate in a fold

@@ -20,7 +20,6 @@ from kinecal.report import _figures as F
 from kinecal.report._format import details, e, figure, num, page, ratio, table
 from kinecal.report._poses import RESIDUALS_CSV, PoseErrors, read_pose_errors
 from kinecal.report._tables import (
-    PRIOR_DOMINATED,
     SIGNIFICANT,
     compliance_table,
     dh_table,
@@ -160,37 +159,42 @@ def _heldout_section(summary: Mapping[str, Any]) -> list[str]:
 
 
 def _warnings(summary: Mapping[str, Any]) -> str:
-    """Every warning, with the full list behind those that name only the first few."""
+    """Every warning, with the full list of the rows or parameters it concerns (the
+    message names only the first few)."""
+    diagnostics = summary.get("diagnostics")
+    if diagnostics is None:  # a report.json of an earlier version
+        diagnostics = [
+            {"message": w, "severity": "warning", "rows": [], "parameters": []}
+            for w in summary.get("warnings", [])
+        ]
+    by_row = {
+        o["row"]: o
+        for o in [*summary.get("outliers", []), *summary.get("rejected_rows", [])]
+    }
     items = []
-    params = summary.get("parameters", [])
-    outliers = summary.get("outliers", [])
-    for w in summary.get("warnings", []):
+    for d in diagnostics:
+        if d.get("severity") != "warning":
+            continue
         extra = ""
-        if "outlier" in w and outliers:
+        rows, names = d.get("rows", []), d.get("parameters", [])
+        if rows and all(r in by_row for r in rows):
             extra = details(
-                f"all {len(outliers)} rows",
+                f"all {len(rows)} rows",
                 table(
-                    ["row", "error [mm]", "z [-]"],
+                    ["row (file line)", "error [mm]", "z [-]"],
                     [
-                        [str(o["row"]), num(o["error_mm"]), ratio(o["z"])]
-                        for o in outliers
+                        [str(r), num(by_row[r]["error_mm"]), ratio(by_row[r]["z"])]
+                        for r in rows
                     ],
                 ),
             )
-        elif "mostly by their prior" in w:
-            names = [
-                f"{p['name']} ({ratio(p['std'] / p['prior_std'])})"
-                for p in params
-                if p.get("std")
-                and p.get("prior_std")
-                and p["std"] > PRIOR_DOMINATED * p["prior_std"]
-            ]
-            if names:
-                extra = details(
-                    f"all {len(names)} (std / prior std)",
-                    f"<p>{e(', '.join(names))}</p>",
-                )
-        items.append(f"<li class=warn>{e(w)}{extra}</li>")
+        elif rows:
+            extra = details(
+                f"all {len(rows)} rows", f"<p>{e(', '.join(map(str, rows)))}</p>"
+            )
+        elif len(names) > 3:
+            extra = details(f"all {len(names)}", f"<p>{e(', '.join(names))}</p>")
+        items.append(f"<li class=warn>{e(d['message'])}{extra}</li>")
     return f"<ul>{''.join(items)}</ul>" if items else ""
 
 
@@ -313,6 +317,22 @@ def render_calibration_report(
         ),
     ]
     body += _identifiability(ident)
+    rejected = summary.get("rejected_rows", [])
+    if rejected:
+        body.append("<h2>Rejected rows (gross errors, left out of the fit)</h2>")
+        body.append(
+            details(
+                f"all {len(rejected)} rows",
+                table(
+                    ["row (file line)", "error [mm]", "z [-]"],
+                    [
+                        [str(o["row"]), num(o["error_mm"]), ratio(o["z"])]
+                        for o in rejected
+                    ],
+                ),
+                open_=len(rejected) <= 20,
+            )
+        )
     outliers = summary.get("outliers", [])
     if outliers:
         body.append("<h2>Outliers (kept in the data, reported here)</h2>")

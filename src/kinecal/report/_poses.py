@@ -100,8 +100,7 @@ def pose_errors(result, meas) -> PoseErrors:
     cal = result.calibrated
     m = cal.model
     inputs = meas.model_inputs(cal.reference_payload_kg)
-    # Raw errors only (no whitening): the fit's weights may cover fewer rows (those
-    # left after rejecting gross errors), these are every row of meas.
+    # Every row of the data, the rejected ones too (raw errors need no weights).
     w = Weights.default(meas)
     before = residuals(m, result.registered, meas, w, inputs=inputs)
     after = residuals(m, cal.params, meas, w, inputs=inputs)

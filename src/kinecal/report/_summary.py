@@ -43,6 +43,20 @@ def _metrics(m: Metrics) -> dict[str, Any]:
     return m.as_dict()
 
 
+def _noise(result: CalibrationResult) -> dict[str, Any]:
+    """The noise the calibration weighed the data with (sigmas per component kind; the
+    median over the rows where they differ per set or marker) and, for pose data whose
+    orientations were weighed otherwise, their estimated noise."""
+    w = result.weights
+    out: dict[str, Any] = {"sigma_mm": float(np.median(w.sigma)) * 1e3}
+    if w.sigma_rot is not None:
+        out["sigma_deg"] = float(np.degrees(np.median(w.sigma_rot)))
+    est = next((d for d in result.diagnostics if d.code == "noise_model"), None)
+    if est is not None:
+        out["estimate"] = est.message
+    return out
+
+
 def calibration_summary(
     result: CalibrationResult, *, extra: dict[str, Any] | None = None
 ) -> dict[str, Any]:
@@ -113,7 +127,12 @@ def calibration_summary(
         "outliers": [
             {"row": o.row, "error_mm": o.error_mm, "z": o.z} for o in result.outliers
         ],
+        "rejected_rows": [
+            {"row": o.row, "error_mm": o.error_mm, "z": o.z} for o in result.rejected
+        ],
+        "noise": _noise(result),
         "warnings": list(result.warnings),
+        "diagnostics": [d.as_dict() for d in result.diagnostics],
         "parameters": parameter_table(result),
         "correlation": {
             "names": [names[i] for i in free],

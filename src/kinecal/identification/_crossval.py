@@ -1,0 +1,381 @@
+"""Train/test splits and k-fold cross-validation: folds by session, by pose, or by a
+column of the user's, and the model comparison of the paper's Tables 5 and 8."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from kinecal._parallel import parallel_map
+from kinecal.errors import DataError
+from kinecal.identification._calibrate import CalibrationOptions, calibrate
+from kinecal.identification._calibrated import CalibratedModel
+from kinecal.identification._evaluate import evaluate, registered_model
+from kinecal.identification._measurements import Measurements
+from kinecal.identification._metrics import Metrics
+from kinecal.models import ModelSpec
+from kinecal.robot import RobotDescription
+
+__all__ = [
+    "ComparisonRow",
+    "CrossValidation",
+    "Folds",
+    "compare_models",
+    "cross_validate",
+    "cross_validate_many",
+    "kfold_indices",
+    "make_folds",
+    "train_test_split",
+]
+
+
+def train_test_split(
+    meas: Measurements, n_train: int | float, seed: int = 0
+) -> tuple[Measurements, Measurements]:
+    """Random split into ``n_train`` rows (or that fraction) and the rest."""
+    n = meas.n
+    k = (
+        round(n_train * n)
+        if isinstance(n_train, float) and n_train < 1
+        else int(n_train)
+    )
+    if not 0 < k < n:
+        raise ValueError(
+            f"n_train must leave rows on both sides; got {n_train} of {n}."
+        )
+    perm = np.random.default_rng(seed).permutation(n)
+    return meas.subset(np.sort(perm[:k])), meas.subset(np.sort(perm[k:]))
+
+
+@dataclass(frozen=True)
+class Folds:
+    """The folds of a cross-validation.
+
+    Attributes
+    ----------
+    test : test-row indices of every fold.
+    unit : what a fold holds whole: 'set' (sessions), 'pose' (rows measured at the same
+        joints), 'row' or the name of the user's grouping column.
+    always_train : (N,) bool, rows in the training data of every fold (markers with
+        fewer rows than folds: a held-out row of theirs would have no tool offset).
+    notes : what a user should know about the folds, in words.
+    """
+
+    test: list[np.ndarray]
+    unit: str
+    always_train: np.ndarray
+    notes: tuple[str, ...] = ()
+
+    @property
+    def by_set(self) -> bool:
+        return self.unit == "set"
+
+
+def _pose_groups(meas: Measurements) -> np.ndarray:
+    """Group of every row: rows of one set measured at the same joint values (several
+    markers seen at one pose) share one; numbered by first appearance."""
+    key = np.column_stack([meas.set_index, np.round(meas.q_ctrl, 9)])
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    rank = np.empty(first.size, np.intp)
+    rank[np.argsort(first)] = np.arange(first.size)
+    return rank[inverse.reshape(-1)]
+
+
+def make_folds(
+    meas: Measurements,
+    k: int,
+    seed: int = 0,
+    *,
+    groups: np.ndarray | None = None,
+    group_name: str = "group",
+) -> Folds:
+    """k folds that never split what belongs together.
+
+    Several sets: the folds are whole sets (their user frames are refitted when held
+    out). Otherwise whole groups: the user's ``groups`` (one label per row) or, by
+    default, poses (rows measured at the same joint values, as several reflectors of one
+    pose). Rows of a marker with fewer rows than folds stay in every training set.
+
+    Raises
+    ------
+    DataError
+        Fewer groups than folds.
+    """
+    if k < 2:
+        raise DataError(f"{meas.source}: cross-validation needs k >= 2 folds; got {k}.")
+    n = meas.n
+    always = np.zeros(n, bool)
+    notes: list[str] = []
+    if len(meas.set_labels) > 1 and groups is None:
+        sets = np.unique(meas.set_index)
+        if sets.size < 2:
+            raise DataError(f"{meas.source}: one set only; cannot fold by set.")
+        k = min(k, sets.size)
+        order = np.random.default_rng(seed).permutation(sets)
+        test = [
+            np.flatnonzero(np.isin(meas.set_index, chunk))
+            for chunk in np.array_split(order, k)
+        ]
+        return Folds(test, "set", always)
+    counts = np.bincount(meas.marker_index, minlength=len(meas.marker_labels))
+    for m in np.flatnonzero((counts > 0) & (counts < k)):
+        always |= meas.marker_index == m
+        label = meas.marker_labels[m] or "(default)"
+        notes.append(
+            f"marker {label} has {counts[m]} rows, fewer than the {k} folds: they stay "
+            "in the training data of every fold (a held-out row of theirs would have no "
+            "tool offset to predict with)."
+        )
+    if groups is None:
+        unit, g = "pose", _pose_groups(meas)
+    else:
+        unit = group_name
+        _, g = np.unique(np.asarray(groups).astype(str), return_inverse=True)
+        g = g.reshape(-1)
+    units = np.unique(g[~always])
+    if units.size < k:
+        raise DataError(
+            f"{meas.source}: {k}-fold cross-validation needs at least {k} "
+            f"{unit}s to hold out; the data have {units.size}."
+        )
+    # Units in the order they first appear, so data whose rows are all different poses
+    # fold exactly as rows do.
+    first = np.array([np.flatnonzero(g == u)[0] for u in units])
+    units = units[np.argsort(first)]
+    perm = np.random.default_rng(seed).permutation(units.size)
+    test = [
+        np.sort(np.flatnonzero(np.isin(g, units[chunk]) & ~always))
+        for chunk in np.array_split(perm, k)
+    ]
+    if unit == "pose" and units.size < n - int(always.sum()):
+        notes.append(
+            f"{n} rows at {units.size} poses: rows of one pose fall in the same fold."
+        )
+    return Folds(test, unit, always, tuple(notes))
+
+
+def kfold_indices(
+    meas: Measurements, k: int, seed: int = 0, *, groups: np.ndarray | None = None
+) -> list[np.ndarray]:
+    """Test-row indices of k folds (:func:`make_folds`)."""
+    return make_folds(meas, k, seed, groups=groups).test
+
+
+@dataclass
+class CrossValidation:
+    """Per-fold held-out metrics and their mean."""
+
+    model: str
+    folds: list[Metrics] = field(default_factory=list)
+    train: list[Metrics] = field(default_factory=list)
+    unit: str = "row"  # what the folds hold whole (see Folds)
+    notes: tuple[str, ...] = ()
+
+    @property
+    def rms_mm(self) -> float:
+        """Pooled held-out RMS over all folds."""
+        num = sum(f.rms_mm**2 * f.n for f in self.folds)
+        return float(np.sqrt(num / max(sum(f.n for f in self.folds), 1)))
+
+    @property
+    def rms_se_mm(self) -> float:
+        """Standard error of the fold RMS values."""
+        v = np.array([f.rms_mm for f in self.folds])
+        return float(v.std(ddof=1) / np.sqrt(v.size)) if v.size > 1 else float("nan")
+
+
+def cross_validate(
+    robot: RobotDescription,
+    meas: Measurements,
+    model: str | ModelSpec = "full",
+    *,
+    k: int = 5,
+    seed: int = 0,
+    options: CalibrationOptions | None = None,
+    jobs: int = 1,
+    groups: np.ndarray | None = None,
+    group_name: str = "group",
+) -> CrossValidation:
+    """k-fold cross-validation (folds of :func:`make_folds`): with several sets the folds
+    are whole sets and the user frame of a held-out set is refitted (a new set-up), as
+    ``evaluate --refit user``; otherwise whole poses, or whole ``groups``.
+
+    ``model='nominal'`` scores the nominal kinematics with fitted frames (the baseline).
+    ``jobs`` > 1 calibrates the folds in that many worker processes
+    (:func:`kinecal._parallel.parallel_map`); the result is the same.
+    """
+    (out,) = cross_validate_many(
+        robot,
+        meas,
+        [(model, options)],
+        k=k,
+        seed=seed,
+        jobs=jobs,
+        groups=groups,
+        group_name=group_name,
+    )
+    if isinstance(out, ValueError):
+        raise out
+    return out
+
+
+def cross_validate_many(
+    robot: RobotDescription,
+    meas: Measurements,
+    runs: list[tuple[str | ModelSpec, CalibrationOptions | None]],
+    *,
+    k: int = 5,
+    seed: int = 0,
+    jobs: int = 1,
+    groups: np.ndarray | None = None,
+    group_name: str = "group",
+) -> list[CrossValidation | ValueError]:
+    """:func:`cross_validate` of several (model, options) runs on the same folds.
+
+    All folds of all runs go to the workers at once, so ``jobs`` cores stay busy. A run
+    whose calibration fails on some fold (too few poses for the model, say) gives the
+    error of its first failing fold instead of a result.
+    """
+    folds = make_folds(meas, k, seed, groups=groups, group_name=group_name)
+    tasks = [
+        _Fold(robot, meas, model, options, test_idx, folds.by_set)
+        for model, options in runs
+        for test_idx in folds.test
+    ]
+    done = iter(parallel_map(_run_fold, tasks, jobs))
+    out: list[CrossValidation | ValueError] = []
+    for model, _ in runs:
+        cv = CrossValidation(
+            model if isinstance(model, str) else model.name,
+            unit=folds.unit,
+            notes=folds.notes,
+        )
+        failed = None
+        for _ in folds.test:
+            res = next(done)
+            if isinstance(res, ValueError):
+                failed = failed or res
+                continue
+            cv.train.append(res[0])
+            cv.folds.append(res[1])
+        out.append(failed if failed is not None else cv)
+    return out
+
+
+@dataclass(frozen=True)
+class _Fold:
+    """One fold of one cross-validation run (sent to a worker process)."""
+
+    robot: RobotDescription
+    meas: Measurements
+    model: str | ModelSpec
+    options: CalibrationOptions | None
+    test_idx: np.ndarray
+    by_set: bool
+
+
+def _run_fold(f: _Fold) -> tuple[Metrics, Metrics] | ValueError:
+    """Training and held-out metrics of one fold (or the error that stopped it)."""
+    mask = np.zeros(f.meas.n, bool)
+    mask[f.test_idx] = True
+    train, test = f.meas.subset(~mask), f.meas.subset(mask)
+    if f.by_set:
+        train = _relabel_sets(train)
+        test = _relabel_sets(test)
+    nominal = isinstance(f.model, str) and f.model == "nominal"
+    try:
+        res = calibrate(f.robot, train, "kinematic" if nominal else f.model, f.options)
+    except ValueError as exc:
+        return exc
+    if nominal:
+        return res.metrics_before, evaluate(
+            registered_model(res), test, refit_user=f.by_set
+        ).metrics
+    return res.metrics_after, evaluate(
+        res.calibrated, test, refit_user=f.by_set
+    ).metrics
+
+
+def _relabel_sets(meas: Measurements) -> Measurements:
+    """Keep only the set labels that occur (after a split)."""
+    used = np.unique(meas.set_index)
+    remap = -np.ones(len(meas.set_labels), np.intp)
+    remap[used] = np.arange(used.size)
+    return replace(
+        meas,
+        set_index=remap[meas.set_index],
+        set_labels=tuple(meas.set_labels[i] for i in used),
+    )
+
+
+@dataclass
+class ComparisonRow:
+    """One row of a Table 5/8-style comparison (test metrics on held-out data)."""
+
+    model: str
+    size: int
+    n_free: int
+    train: Metrics
+    test: Metrics
+    seconds: float
+    calibrated: CalibratedModel | None = None
+    result: object | None = None  # the CalibrationResult (None for the nominal row)
+
+
+def compare_models(
+    robot: RobotDescription,
+    train: Measurements,
+    test: Measurements,
+    models: tuple[str | ModelSpec, ...] = ("kinematic", "ntm", "rfcm", "full"),
+    *,
+    options: CalibrationOptions | None = None,
+    refit_user: bool = False,
+    nominal: bool = True,
+    progress: object | None = None,
+) -> list[ComparisonRow]:
+    """Calibrate each model on ``train`` and score it on ``test`` (Tables 5 and 8).
+
+    With ``nominal`` a first row scores the nominal kinematics with fitted user and cam
+    frames (the state before calibration).
+    """
+    rows: list[ComparisonRow] = []
+    say = progress if callable(progress) else (lambda stage, detail: None)
+    for spec in models:
+        name = spec if isinstance(spec, str) else spec.name
+        say("compare", name)
+        res = calibrate(robot, train, spec, options)
+        cal = res.calibrated
+        if nominal and not rows:
+            before = registered_model(res)
+            rows.append(
+                ComparisonRow(
+                    "nominal",
+                    int(
+                        len(before.model.base_index.ravel())
+                        + before.model.cam_index.size
+                    ),
+                    int(
+                        len(before.model.base_index.ravel())
+                        + before.model.cam_index.size
+                    ),
+                    res.metrics_before,
+                    evaluate(before, test, refit_user=refit_user).metrics,
+                    0.0,
+                    before,
+                    None,
+                )
+            )
+        rows.append(
+            ComparisonRow(
+                name,
+                cal.model.size,
+                res.identifiability.rank,
+                res.metrics_after,
+                evaluate(cal, test, refit_user=refit_user).metrics,
+                res.seconds,
+                cal,
+                res,
+            )
+        )
+    return rows
