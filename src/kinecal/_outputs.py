@@ -45,6 +45,7 @@ __all__ = [
     "new_dir_mode",
     "new_file_mode",
     "output_transaction",
+    "signals_held",
 ]
 
 _TAG = ".kinecal-tmp-"
@@ -155,7 +156,7 @@ _HELD = (signal.SIGINT, signal.SIGTERM)
 
 
 @contextmanager
-def _signals_held(late: list[int]) -> Iterator[None]:
+def signals_held(late: list[int]) -> Iterator[None]:
     """Hold SIGINT and SIGTERM in the main thread during the block; one that arrived
     meanwhile is taken (not delivered) and appended to ``late``."""
     if threading.current_thread() is not threading.main_thread():
@@ -222,7 +223,7 @@ class OutputTransaction:
     def commit(self) -> list[Path]:
         """Move every staged result into place; return the result folders."""
         done = []
-        with _signals_held(self.late_signals):
+        with signals_held(self.late_signals):
             try:
                 for s in self.staged:
                     _commit(s)

@@ -50,7 +50,7 @@ def test_issue_21_cv_beyond_the_rows_is_refused(data, capsys, tmp_path):
         capsys, "calibrate", data["train"], "--robot", ROBOT, "--model", "kinematic",
         "--cv", "41", "--out", tmp_path / "o", "-q",
     )  # fmt: skip
-    _bad(res, "train.csv", "41-fold", "the data have 40")
+    _bad(res, "train.csv", "--cv 41", "40 rows", "at most 40")
     assert not (tmp_path / "o").exists()
 
 

@@ -77,12 +77,16 @@ _XYZ = st.one_of(
 
 @st.composite
 def urdf_graph(draw: st.DrawFn) -> str:
-    """A URDF of random links and joints: a chain, a tree, a forest, loops, cycles,
-    joints to undefined links, odd axes, origins and limits."""
-    n_links = draw(st.integers(1, 8))
+    """A URDF of random links and joints. Half are clean serial chains (which import);
+    the rest trees, forests, loops, cycles, joints to undefined links, odd joint types,
+    axes, origins and limits."""
+    clean = draw(st.booleans())
+    n_links = draw(st.integers(3 if clean else 1, 8))
     links = [f"l{i}" for i in range(n_links)]
-    shape = draw(
-        st.sampled_from(["chain", "chain", "random", "loop", "cycle", "split"])
+    shape = (
+        "chain"
+        if clean
+        else draw(st.sampled_from(["chain", "random", "loop", "cycle", "split"]))
     )
     edges = []
     if shape in ("chain", "loop", "cycle", "split"):
@@ -100,15 +104,24 @@ def urdf_graph(draw: st.DrawFn) -> str:
             edges.append((a, b))
     parts = [f'<robot name="{draw(st.sampled_from(["r", "", "x y"]))}">']
     parts += [f'<link name="{lk}"/>' for lk in links]
+    good_axes = st.sampled_from(["0 0 1", "0 1 0", "1 0 0", "0 0 -1", "0.6 0 0.8"])
+    good_xyz = st.tuples(*[st.floats(-0.5, 0.5, allow_nan=False)] * 3).map(
+        lambda v: " ".join(f"{x:.4f}" for x in v)
+    )
     for k, (a, b) in enumerate(edges):
-        kind = draw(st.sampled_from(_TYPES[:4]) if k else st.sampled_from(_TYPES))
-        lo, hi = draw(
-            st.sampled_from([("-2", "2"), ("2", "-2"), ("a", "1"), ("-1", "nan")])
-            | st.just(("-3.1", "3.1"))
-        )
-        axis = draw(_VEC)
-        xyz = draw(_XYZ) if k else "0 0 0"
-        axis = axis if k else draw(st.sampled_from(["0 0 1", axis]))
+        if clean:
+            kind = "revolute" if k == 0 else draw(st.sampled_from(_TYPES[:4]))
+            lo, hi = ("-3.1", "3.1")
+            axis = "0 0 1" if k == 0 else draw(good_axes)
+            xyz = "0 0 0" if k == 0 else draw(good_xyz)
+        else:
+            kind = draw(st.sampled_from(_TYPES[:4]) if k else st.sampled_from(_TYPES))
+            lo, hi = draw(
+                st.sampled_from([("-2", "2"), ("2", "-2"), ("a", "1"), ("-1", "nan")])
+                | st.just(("-3.1", "3.1"))
+            )
+            axis = draw(_VEC) if k else draw(st.sampled_from(["0 0 1", "0 0 0"]))
+            xyz = draw(_XYZ) if k else "0 0 0"
         parts.append(
             f'<joint name="j{k}" type="{kind}"><parent link="{a}"/><child link="{b}"/>'
             f'<origin xyz="{xyz}" rpy="0 0 0"/><axis xyz="{axis}"/>'
@@ -116,7 +129,7 @@ def urdf_graph(draw: st.DrawFn) -> str:
         )
     parts.append("</robot>")
     text = "".join(parts)
-    if draw(st.integers(0, 9)) == 0:
+    if not clean and draw(st.integers(0, 9)) == 0:
         text = text[: draw(st.integers(0, len(text)))]  # cut short
     return text
 
@@ -131,7 +144,9 @@ def test_issue_21_fuzz_urdf(capsys, tmp_path):
         res = run_kinecal(capsys, "import-urdf", f, "--out", d / "robot.yaml")
         check_contract(res)
         assert (d / "robot.yaml").exists() == (res.code == 0), str(res)
-        for n in (2, 6):
+        n_movable = urdf.count('type="revolute"') + urdf.count('type="prismatic"')
+        n_movable += urdf.count('type="continuous"')
+        for n in {2, 6, n_movable}:
             check_contract(
                 run_kinecal(
                     capsys,

@@ -303,7 +303,7 @@ def calibrate(
 
         say("report", "drawing report.html")
         write_report(out, force=True)
-        say("report", "report.html drawn")
+        say("report", f"wrote {Path(out_dir) / 'report.html'}")
     b, a = result.metrics_before, result.metrics_after
     click.echo(
         f"model     {spec.name}: {result.identifiability.rank} of "

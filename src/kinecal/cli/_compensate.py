@@ -94,6 +94,9 @@ def compensate(
     fmt = fmt or detect_program_format(targets) or "csv"
     if not Path(targets).is_file():
         raise FileNotFoundError(f"{targets}: file not found.")
+    for p in (out_path, report_path):  # refuse before the work, not after it
+        if p and Path(p).exists() and not force:
+            raise FileExistsError(f"{p}: exists; use --force to overwrite it.")
     cal = load_model(model_path)
     scale = _load_scale(cal, payload_kg)
     if fmt == "csv":
@@ -139,6 +142,7 @@ def compensate(
         click.echo(
             f"{summary['ok']} of {summary['n']} targets compensated; largest predicted "
             f"error {summary['max_err_mm'] or 0:.6f} mm; wrote {out_path}"
+            + (f" and {report_path}" if report_path and fmt != "csv" else "")
         )
 
 
@@ -252,8 +256,7 @@ def _program(cal, path: str, fmt: str, tol_mm: float, scale, decimals):
     from kinecal.compensation import compensate as run_compensation
     from kinecal.compensation import program_targets
     from kinecal.io import (
-        atomic_write_bytes,
-        atomic_write_text,
+        atomic_write_files,
         program_bytes,
         program_joints,
         read_program,
@@ -285,6 +288,7 @@ def _program(cal, path: str, fmt: str, tol_mm: float, scale, decimals):
     err_w = np.linalg.norm(out - p_t, axis=1)
 
     def write(out_path, report_path, force):
+        files: dict[str, bytes | str] = {out_path: program_bytes(text)}
         if report_path:
             head = [
                 "point",
@@ -299,8 +303,8 @@ def _program(cal, path: str, fmt: str, tol_mm: float, scale, decimals):
                 name = pt.name.replace(",", ";").replace('"', "'")
                 row = [name, str(pt.line), *vals, f"{err_w[i] * 1e3:.6f}"]
                 lines.append(",".join([*row, *_diagnostics(res, i)]))
-            atomic_write_text(report_path, "\n".join(lines) + "\n", force=force)
-        atomic_write_bytes(out_path, program_bytes(text), force=force)
+            files[report_path] = "\n".join(lines) + "\n"
+        atomic_write_files(files, force=force)  # the program and its report, or neither
         click.echo(
             f"{path}: {int((~keep).sum())} joint targets corrected; largest error as "
             f"written {err_w[~keep].max() * 1e3 if (~keep).any() else 0:.4f} mm "

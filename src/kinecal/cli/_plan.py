@@ -384,7 +384,7 @@ def _pose_lines(robot: Any, q: Any, ti: Any, labels: Any) -> list[str]:
 
 
 def _run(kw: dict[str, Any], say: Progress) -> None:
-    from kinecal.io import atomic_write_text, write_json
+    from kinecal.io import atomic_write_files, json_text
     from kinecal.planning import plan_poses
 
     out = Path(kw["out_path"])
@@ -396,11 +396,10 @@ def _run(kw: dict[str, Any], say: Progress) -> None:
     cand = _candidates(kw, env, say)
     robot, cal, inst = env["robot"], env["cal"], env["inst"]
     labels = None if env["targets"] is None else env["targets"].labels
+    files: dict[str, bytes | str] = {}
     if kw["save_candidates"]:
         lines = _pose_lines(robot, cand["q"], cand["ti"], labels)
-        atomic_write_text(
-            kw["save_candidates"], "\n".join(lines) + "\n", force=kw["force"]
-        )
+        files[kw["save_candidates"]] = "\n".join(lines) + "\n"
     measured = measured_ti = None
     if cal is not None and kw["data_path"]:
         _, _, measured, measured_ti = _read_poses(kw["data_path"], robot, labels)
@@ -436,6 +435,7 @@ def _run(kw: dict[str, Any], say: Progress) -> None:
         lines = _pose_lines(robot, pl.q_ctrl, pl.target_index, labels)
         rows = [int(i) + 1 for i in pl.index]
     doc = plan_report(pl, kw, env, cand, rows)
-    atomic_write_text(out, "\n".join(lines) + "\n", force=kw["force"])
-    write_json(rep, doc, force=kw["force"])
+    files[str(out)] = "\n".join(lines) + "\n"
+    files[str(rep)] = json_text(doc)
+    atomic_write_files(files, force=kw["force"])  # all of them or none
     echo_summary(doc, out, rep, kw["as_json"])

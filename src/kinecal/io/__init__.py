@@ -26,8 +26,10 @@ from kinecal.io._csv_write import (
 )
 from kinecal.io._files import (
     atomic_write_bytes,
+    atomic_write_files,
     atomic_write_text,
     file_sha256,
+    json_text,
     prepare_output_dir,
     write_json,
 )
@@ -65,6 +67,7 @@ __all__ = [
     "Table",
     "Targets",
     "atomic_write_bytes",
+    "atomic_write_files",
     "atomic_write_text",
     "begin_transaction",
     "current_transaction",
@@ -73,6 +76,7 @@ __all__ = [
     "file_sha256",
     "image_files",
     "joint_column_names",
+    "json_text",
     "load_model",
     "load_sensor",
     "measurements_to_csv",

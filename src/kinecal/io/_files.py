@@ -13,6 +13,7 @@ import hashlib
 import json
 import os
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -21,8 +22,10 @@ from kinecal.errors import DataError
 
 __all__ = [
     "atomic_write_bytes",
+    "atomic_write_files",
     "atomic_write_text",
     "file_sha256",
+    "json_text",
     "prepare_output_dir",
     "write_json",
 ]
@@ -89,11 +92,69 @@ def atomic_write_bytes(path: str | Path, data: bytes, *, force: bool = False) ->
     return p
 
 
+def atomic_write_files(
+    files: Mapping[str, bytes | str] | Mapping[Path, bytes | str],
+    *,
+    force: bool = False,
+) -> list[Path]:
+    """Write several files as one: each to a temporary file beside it first, then all
+    renamed into place (Ctrl-C held meanwhile). A failure before the renames leaves
+    every target as it was (a command's output and its report: both or neither).
+
+    Raises
+    ------
+    FileExistsError
+        A target exists and ``force`` is False (checked before anything is written).
+    """
+    from kinecal._outputs import signals_held
+
+    paths = [Path(p) for p in files]
+    for p in paths:
+        if p.is_dir():
+            raise IsADirectoryError(
+                f"{p}: is a folder; expected the name of a file to write."
+            )
+        if p.exists() and not force:
+            raise FileExistsError(f"{p}: exists; use --force to overwrite it.")
+    temps: list[str] = []
+    try:
+        for p, data in zip(paths, files.values()):
+            raw = data.encode("utf-8") if isinstance(data, str) else data
+            p.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(
+                prefix=f".{p.name}.", suffix=".tmp", dir=p.parent
+            )
+            temps.append(tmp)
+            try:
+                with os.fdopen(fd, "wb") as f:
+                    os.fchmod(f.fileno(), new_file_mode())
+                    f.write(raw)
+                    f.flush()
+                    os.fsync(f.fileno())
+            except OSError as exc:
+                if exc.errno is not None and not exc.filename:
+                    raise type(exc)(exc.errno, exc.strerror, str(p)) from exc
+                raise
+        # Ctrl-C during the renames is taken, not raised: every file is then in place
+        # and the command ends normally (a moment later it would have anyway).
+        with signals_held([]):
+            for tmp, p in zip(temps, paths):
+                os.replace(tmp, p)
+    finally:
+        for tmp in temps:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+    return paths
+
+
+def json_text(data: Any) -> str:
+    """``data`` as indented JSON text (NaN and inf written as null)."""
+    return json.dumps(_clean(data), indent=2) + "\n"
+
+
 def write_json(path: str | Path, data: Any, *, force: bool = False) -> Path:
     """Atomically write ``data`` as indented JSON (NaN written as null)."""
-    return atomic_write_text(
-        path, json.dumps(_clean(data), indent=2) + "\n", force=force
-    )
+    return atomic_write_text(path, json_text(data), force=force)
 
 
 def _clean(x: Any) -> Any:
