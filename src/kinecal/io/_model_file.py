@@ -111,6 +111,7 @@ def _plain(x: Any) -> Any:
 
 # Model names kinecal writes: the presets, the candidates of --model auto (also as
 # "auto:<candidate>"), a simulated truth and a hand-built spec.
+_MAX_MM = 1e6  # lengths beyond 1 km are typing errors (and break the numerics)
 _CANDIDATES = ("kinematic", "ntm", "rfcm", "full", "load", "load+link")
 _NAMES = (*_CANDIDATES, "custom", "truth")
 _SPEC_KEYS = {
@@ -353,7 +354,13 @@ def _parameters(
             raise ConfigError(
                 f"{where}.unit: expected {ps.unit.file_unit!r}; got {unit!r}."
             )
-        values[i] = _finite(entry["value"], f"{where}.value") / to_file[i]
+        v = _finite(entry["value"], f"{where}.value")
+        if ps.unit.file_unit == "mm" and abs(v) > _MAX_MM:
+            raise ConfigError(
+                f"{where}.value: {v:g} mm; expected a length within {_MAX_MM:g} mm "
+                "(a typing error?)."
+            )
+        values[i] = v / to_file[i]
         if entry.get("std") is not None:
             sd = _finite(entry["std"], f"{where}.std")
             if sd < 0:
