@@ -401,6 +401,7 @@ def _load_robot(name: str):
     help="Write per-row errors (row, ex_mm, ey_mm, ez_mm, err_mm) to this CSV.",
 )
 @click.option("--force", is_flag=True, help="Overwrite --errors-out.")
+@common_options
 def evaluate(
     data: str,
     model_path: str,
@@ -409,14 +410,20 @@ def evaluate(
     as_json: bool,
     errors_out: str | None,
     force: bool,
+    quiet: bool,
 ) -> None:
     """Accuracy of a calibrated model on measurements DATA.csv (held-out poses)."""
     from kinecal.identification import evaluate as run_evaluate
     from kinecal.io import atomic_write_text, load_model, read_measurements
 
+    if errors_out and Path(errors_out).exists() and not force:  # before the work
+        raise FileExistsError(f"{errors_out}: exists; use --force to overwrite it.")
+    say = Progress(quiet)  # lines only for stages that last (a large file)
     cal = load_model(model_path)
+    say.begin("data", f"reading {data}")
     meas = read_measurements(data, cal.model.robot, targets)
     what = _refit_groups(refit)
+    say.begin("evaluate", f"{meas.n} rows")
     ev = run_evaluate(cal, meas, refit=what)
     for d in ev.diagnostics:
         if d.severity == "warning":

@@ -6,7 +6,13 @@ import json
 
 import click
 
-from kinecal.cli._common import FiniteFloat, check_positions, model_file_option
+from kinecal.cli._common import (
+    FiniteFloat,
+    Progress,
+    check_positions,
+    common_options,
+    model_file_option,
+)
 
 _FORMATS = ("csv", "fanuc-ls", "urscript", "rapid", "krl")
 
@@ -63,6 +69,7 @@ _FORMATS = ("csv", "fanuc-ls", "urscript", "rapid", "krl")
 )
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary.")
 @click.option("--force", is_flag=True, help="Overwrite --out.")
+@common_options
 def compensate(
     targets: str,
     model_path: str,
@@ -75,6 +82,7 @@ def compensate(
     allow_unreachable: bool,
     as_json: bool,
     force: bool,
+    quiet: bool,
 ) -> None:
     """Corrected controller angles so the robot reaches TARGETS.
 
@@ -97,8 +105,10 @@ def compensate(
     for p in (out_path, report_path):  # refuse before the work, not after it
         if p and Path(p).exists() and not force:
             raise FileExistsError(f"{p}: exists; use --force to overwrite it.")
+    say = Progress(quiet)  # lines only for stages that last (many targets)
     cal = load_model(model_path)
     scale = _load_scale(cal, payload_kg)
+    say.begin("compensate", f"reading {targets} and solving")
     if fmt == "csv":
         res, rows = _csv(cal, targets, tol_mm, scale)
     else:
