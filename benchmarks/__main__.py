@@ -466,6 +466,11 @@ def main(argv: list[str] | None = None) -> int:
     t, _ = _median_time(lambda: fit_sphere(P), rep_fast)
     record("fit_sphere_50k", t, "<= 20 ms")
 
+    # 7b. the sensor: simulated session, calibrations, spheres, std (issue 24)
+    from benchmarks._sensor_calib import run as run_sensor
+
+    run_sensor(record, results, rep, args.quick)
+
     # 8. CLI start-up
     def start() -> None:
         _run([sys.executable, "-m", "kinecal", "--help"])
