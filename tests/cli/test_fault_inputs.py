@@ -368,7 +368,6 @@ _CLOUDS = {
 }
 
 
-@pytest.mark.xfail(reason="fit-sphere degeneracy: sensor-calib branch", strict=True)
 @pytest.mark.parametrize("shape", sorted(_CLOUDS))
 def test_issue_21_fit_sphere_refuses_degenerate_clouds(capsys, tmp_path, shape):
     res = run_kinecal(

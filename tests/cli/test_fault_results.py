@@ -86,6 +86,24 @@ def test_issue_21_files_get_the_normal_mode(data, capsys, tmp_path):
     assert stat.S_IMODE(out.stat().st_mode) == 0o755
 
 
+def test_issue_21_images_and_file_groups_get_the_normal_mode(tmp_path):
+    from kinecal import _outputs
+    from kinecal.io import atomic_write_files, write_image
+
+    old = os.umask(0o027)  # group may read, others nothing
+    _outputs._UMASK = None
+    try:
+        img = np.zeros((4, 5), np.uint8)
+        paths = [write_image(tmp_path / "a.png", img, sync=s) for s in (True,)]
+        paths.append(write_image(tmp_path / "b.png", img, sync=False))
+        paths += atomic_write_files({tmp_path / "c.csv": "x\n", tmp_path / "d": b"y"})
+    finally:
+        os.umask(old)
+        _outputs._UMASK = None
+    for p in paths:
+        assert stat.S_IMODE(p.stat().st_mode) == 0o640, p
+
+
 def test_issue_21_failure_during_the_run_keeps_the_earlier_result(
     data, capsys, tmp_path, monkeypatch
 ):

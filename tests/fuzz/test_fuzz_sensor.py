@@ -11,7 +11,6 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -122,7 +121,6 @@ def test_issue_21_fuzz_point_clouds(capsys, tmp_path):
     _fit_clouds(capsys, tmp_path, cloud_text(("cap", "noise"), 10))
 
 
-@pytest.mark.xfail(reason="fit-sphere degeneracy: sensor-calib branch", strict=True)
 def test_issue_21_fuzz_degenerate_point_clouds(capsys, tmp_path):
     shapes = ("cap", "line", "plane", "circle", "point", "noise")
     _fit_clouds(capsys, tmp_path, cloud_text(shapes, 0))

@@ -132,7 +132,7 @@ def simulate_scan(
         {"center_mm": c * 1e3, "radius_mm": radius_mm, "seed": seed},
         force=True,
     )
-    click.echo(f"{idx.size} stripe images -> {d}", err=True)
+    click.echo(f"{idx.size} stripe images -> {out}", err=True)  # d: staged (issue 21)
 
 
 @click.command("simulate-calibration")
@@ -239,7 +239,7 @@ def simulate_calibration_cmd(
         },
         force=True,
     )
-    click.echo(f"calibration images -> {d}", err=True)
+    click.echo(f"calibration images -> {out}", err=True)  # d: staged (issue 21)
 
 
 def _poses_mm(T: np.ndarray) -> list[list[list[float]]]:
