@@ -177,7 +177,7 @@ def _edited_model(data, tmp_path, edit) -> Path:
         (lambda d: d.update(info=[1, 2]), ["info", "mapping"]),
         (  # found by the fuzz suite: the URDF export's own check failed on it
             lambda d: d["robot"]["joints"][5].update(d=4268010133.0),
-            ["robot: joints[5].d", "not a plausible link length"],
+            ["robot: joints[5].d", "not a plausible length"],
         ),
         (
             lambda d: d["parameters"]["base.x"].update(value=-1.1e9),

@@ -52,8 +52,9 @@ _TOP_KEYS = {
     "priors",
 }
 _REQUIRED_TOP = ("name", "convention", "units", "joints")
-# Longer links and tool offsets are unit or typing errors (and break the numerics).
-_MAX_LINK_M = 20.0
+# Longer DH lengths and offsets are typing errors (and break the numerics). Far below,
+# a DH d of tens of metres is real: the common normal of nearly parallel axes.
+_MAX_LENGTH_M = 1e4
 _JOINT_KEYS = {"name", "theta_offset", "d", "a", "alpha", "limits", "type"}
 _JOINT_REQUIRED = ("theta_offset", "d", "a", "alpha")
 _FRAME_KEYS = ("x", "y", "z", "r", "w", "p")
@@ -118,12 +119,12 @@ def _check_keys(
 def _frame(d: Any, where: str, lu: float, au: float) -> np.ndarray:
     _check_keys(d, set(_FRAME_KEYS), where)
     v = np.array([_number(d.get(k, 0.0), f"{where}.{k}") for k in _FRAME_KEYS])
-    far = np.flatnonzero(np.abs(v[:3] * lu) > _MAX_LINK_M)
+    far = np.flatnonzero(np.abs(v[:3] * lu) > _MAX_LENGTH_M)
     if far.size:
         k = _FRAME_KEYS[int(far[0])]
         raise _err(
             f"{where}.{k}",
-            f"{v[far[0]]:g} is not a plausible offset (over {_MAX_LINK_M:g} m).",
+            f"{v[far[0]]:g} is not a plausible offset (over {_MAX_LENGTH_M:g} m).",
         )
     v[:3] *= lu
     v[3:] *= au
@@ -182,13 +183,17 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
                         "did you mean 'deg'?",
                     )
         for k in ("d", "a"):
-            if abs(vals[k] * lu) > _MAX_LINK_M:
-                hint = " did you mean 'mm'?" if units["length"] == "m" else ""
+            if units["length"] == "m" and abs(vals[k]) > 20.0:
                 raise _err(
                     f"{where}.{k}",
-                    f"{vals[k]} {units['length']} is not a plausible link length "
-                    f"(over {_MAX_LINK_M:g} m; units.length is '{units['length']}');"
-                    f"{hint or ' expected the length of a robot link.'}",
+                    f"{vals[k]} m is not a plausible link length (units.length is "
+                    "'m'); did you mean 'mm'?",
+                )
+            if abs(vals[k] * lu) > _MAX_LENGTH_M:
+                raise _err(
+                    f"{where}.{k}",
+                    f"{vals[k]:g} {units['length']} is not a plausible length (over "
+                    f"{_MAX_LENGTH_M:g} m); expected a robot's dimension.",
                 )
         lim_scale = lu if kind == "prismatic" else au
         limits: tuple[float, float] = (-np.inf, np.inf)
