@@ -410,6 +410,12 @@ def test_issue_21_every_exit_code_is_documented():
     assert "docs/errors.md" in readme
 
 
+def test_issue_21_no_command_shows_the_help(capsys):
+    for args in ([], ["sensor"]):
+        res = run_kinecal(capsys, *args)
+        assert res.code == 0 and res.out.startswith("Usage: kinecal") and not res.err
+
+
 def test_issue_21_usage_errors_are_one_line(capsys):
     for args in (["frob"], ["calibrate"], ["fk", "--robot", ROBOT, "--frob"]):
         res = run_kinecal(capsys, *args)

@@ -121,6 +121,10 @@ def main(argv: list[str] | None = None) -> int:
         failure = failure.__cause__  # Ctrl-C (KeyboardInterrupt) seen by click
     if isinstance(failure, click.exceptions.Exit):
         return int(failure.exit_code)
+    no_args = getattr(click.exceptions, "NoArgsIsHelpError", ())
+    if isinstance(failure, no_args) and failure.ctx is not None:
+        click.echo(failure.ctx.get_help())  # `kinecal` alone: the help, no error
+        return 0
     ec, message = classify(failure)
     if ec == ExitCode.BROKEN_PIPE:
         quiet_broken_pipe()

@@ -438,4 +438,5 @@ def _run(kw: dict[str, Any], say: Progress) -> None:
     files[str(out)] = "\n".join(lines) + "\n"
     files[str(rep)] = json_text(doc)
     atomic_write_files(files, force=kw["force"])  # all of them or none
-    echo_summary(doc, out, rep, kw["as_json"])
+    saved = [kw["save_candidates"]] if kw["save_candidates"] else []
+    echo_summary(doc, out, rep, kw["as_json"], saved)
