@@ -156,6 +156,14 @@ def read_pose_errors(path: str | Path) -> PoseErrors:
         raise DataError(f"{p}: line {r + 2}, column '{head[c]}': not a finite number.")
     col = {c: i for i, c in enumerate(head)}
     joints.sort()
+    huge = np.abs(a) > 1e6  # beyond 1 km or 1e6 deg: not data (and not drawable)
+    huge[:, col["row"]] = False
+    if huge.any():
+        r, c = np.argwhere(huge)[0]
+        raise DataError(
+            f"{p}: line {r + 2}, column '{head[c]}': {a[r, c]:g}; expected a value "
+            "within 1e6 (mm or deg)."
+        )
     rows = a[:, col["row"]]
     bad = np.flatnonzero((rows != np.round(rows)) | (np.abs(rows) > 2**31))
     if bad.size:
