@@ -75,6 +75,15 @@ def test_issue_21_simulate_options(capsys, tmp_path, args, needles):
     assert not (tmp_path / "s").exists()
 
 
+@pytest.mark.parametrize("command", ["simulate-scan", "simulate-calibration"])
+def test_issue_21_sensor_simulators_refuse_a_negative_seed(capsys, tmp_path, command):
+    res = run_kinecal(
+        capsys, "sensor", command, "--out", tmp_path / "s", "--seed", "-1"
+    )
+    _bad(res, "--seed")
+    assert not (tmp_path / "s").exists()
+
+
 # --- fk --------------------------------------------------------------------------
 
 
