@@ -2,6 +2,10 @@
 
 libyaml's parser and emitter give the same documents and the same text 4-6x faster than
 the pure-Python ones (a model file: 24 -> 6 ms to write, 38 -> 6 ms to read).
+
+A key given twice in one mapping is an error (:class:`DuplicateKeyError`): YAML forbids
+it, and PyYAML would silently keep the second value (``a: 330`` then ``a: 3300`` in a
+hand-edited robot file gives a = 3300 without a word).
 """
 
 from __future__ import annotations
@@ -10,16 +14,43 @@ from typing import Any
 
 import yaml
 
-__all__ = ["YAMLError", "dump", "load"]
+__all__ = ["DuplicateKeyError", "YAMLError", "dump", "load"]
 
 YAMLError = yaml.YAMLError
-_LOADER: Any = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+_BASE_LOADER: Any = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 _DUMPER: Any = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
 
 
+class DuplicateKeyError(yaml.YAMLError):
+    """A mapping of the document has the same key twice (one-line message with lines)."""
+
+
+class _Loader(_BASE_LOADER):
+    """The safe loader, refusing duplicate keys."""
+
+    def construct_mapping(self, node: Any, deep: bool = False) -> Any:
+        if isinstance(node, yaml.MappingNode):
+            first: dict[Any, Any] = {}
+            for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue
+                key = self.construct_object(key_node, deep=True)
+                try:
+                    seen = first.setdefault(key, key_node)
+                except TypeError:  # an unhashable key: the base class says so
+                    continue
+                if seen is not key_node:
+                    raise DuplicateKeyError(
+                        f"line {key_node.start_mark.line + 1}: duplicate key {key!r} "
+                        f"(first on line {seen.start_mark.line + 1}); expected each key "
+                        "once"
+                    )
+        return super().construct_mapping(node, deep=deep)
+
+
 def load(text: str) -> Any:
-    """``yaml.safe_load``."""
-    return yaml.load(text, Loader=_LOADER)
+    """``yaml.safe_load``, refusing duplicate keys (:class:`DuplicateKeyError`)."""
+    return yaml.load(text, Loader=_Loader)
 
 
 def dump(doc: Any, **options: Any) -> str:

@@ -18,6 +18,7 @@ import numpy as np
 
 from kinecal.identification import compare_models
 from kinecal.io import (
+    atomic_write_text,
     prepare_output_dir,
     save_model,
     write_json,
@@ -33,9 +34,11 @@ from kinecal.simulation import (
     parameter_recovery,
 )
 
-__all__ = ["DEMO_EXTRAS", "run_demo"]
+__all__ = ["DEMO_EXTRAS", "DEMO_FILES", "run_demo", "truth_model"]
 
 DEMO_EXTRAS = ("harmonics", "wrist", "masses")
+# What a demo folder holds (what --force replaces).
+DEMO_FILES = ("experiment1", "experiment2", "summary.json", "summary.txt")
 _KEY_PARAMETERS = (
     "joint2.theta_offset",
     "joint3.a",
@@ -75,6 +78,26 @@ def _recovery_html(rec: Any, to_file: dict[str, float], units: dict[str, str]) -
     )
 
 
+def truth_model(exp: Any) -> Any:
+    """The true robot of a simulated experiment as a model file's contents (a
+    :class:`CalibratedModel` with no standard deviations, every parameter 'fixed')."""
+    from kinecal.identification import CalibratedModel
+
+    tm = exp.truth.model
+    return CalibratedModel(
+        tm,
+        exp.truth.params,
+        np.full(tm.size, np.nan),
+        ["fixed"] * tm.size,
+        info={
+            "truth": exp.truth.description,
+            "extras": list(exp.truth.extras),
+            "thermal_ppm_per_pose": exp.truth.thermal_ppm_per_pose,
+            "outlier_poses": int(exp.outlier_rows.size),
+        },
+    )
+
+
 def run_demo(
     out: Path,
     *,
@@ -82,9 +105,15 @@ def run_demo(
     force: bool = False,
     progress: Callable[[str, str], None] | None = None,
 ) -> str:
-    """Run the demo, write everything to ``out`` and return the printed summary."""
+    """Run the demo, write everything to ``out`` and return the printed summary.
+
+    Per experiment, ``out/experiment{1,2}/`` gets train.csv, test.csv (and targets.csv),
+    truth.yaml (the hidden true robot), model-{kinematic,ntm,rfcm,full}.yaml,
+    comparison.json, report.html and figures/; ``out`` gets summary.txt and summary.json.
+    """
     say: Callable[[str, str], None] = progress or (lambda stage, detail: None)
-    out = prepare_output_dir(out, ["summary.txt"], force=force)
+    shown = Path(out)  # where the results end up (``out`` may be staged elsewhere)
+    out = prepare_output_dir(out, list(DEMO_FILES), force=force)
     t0 = time.perf_counter()
     text: list[str] = [
         "kinecal demo: the paper's two experiments on the digital twin (LR Mate 200iD)",
@@ -111,6 +140,7 @@ def run_demo(
         write_measurements(d / "test.csv", exp.test, robot, force=True)
         if exp.targets is not None:
             write_targets(d / "targets.csv", *exp.targets, force=True)
+        save_model(d / "truth.yaml", truth_model(exp), force=True)
         say(f"experiment {number}", "calibrating kinematic, ntm, rfcm, full")
         rows = compare_models(robot, exp.train, exp.test, progress=say)
         table = comparison_table(rows)
@@ -154,7 +184,7 @@ def run_demo(
             f"parameter recovery (full): {rec.fraction_within(3.0):.0%} of {len(rec.names)} "
             f"estimated parameters within 3 std of the truth (max |z| {rec.max_abs_z:.2f})"
         )
-        text.append(f"report: {d / 'report.html'}")
+        text.append(f"report: {shown / d.name / 'report.html'}")
         text.append("")
         summary["experiments"][str(number)] = {
             "table": table,
@@ -167,8 +197,12 @@ def run_demo(
             },
         }
     seconds = time.perf_counter() - t0
-    text.append(f"done in {seconds:.1f} s; results in {out}")
+    text.append(
+        f"done in {seconds:.1f} s; results in {shown}: summary.txt, summary.json and "
+        "per experiment train.csv, test.csv, truth.yaml, model-*.yaml, comparison.json, "
+        "report.html, figures/ (experiment1 also targets.csv)"
+    )
     summary["seconds"] = seconds
     write_json(out / "summary.json", summary, force=True)
-    (out / "summary.txt").write_text("\n".join(text) + "\n", encoding="utf-8")
+    atomic_write_text(out / "summary.txt", "\n".join(text) + "\n", force=True)
     return "\n".join(text)

@@ -122,7 +122,7 @@ def test_full_model_urdf_states_what_it_leaves_out(run_cli, models, tmp_path, ca
         "export-urdf",
         str(models / "full.yaml"),
         "--out",
-        str(urdf),
+        str(urdf.with_name("other.urdf")),  # a new file: the set is what is wrong
         "--set",
         "x",
     )

@@ -321,6 +321,14 @@ def test_demo_runs_both_experiments(run_cli, tmp_path):
         assert summary["experiments"][exp]["recovery"]["within_3_std"] >= 0.95
     assert min(summary["experiments"]["2"]["joint_ranges_deg"]) >= 50
     assert Path(tmp_path / "demo" / "experiment2" / "report.html").is_file()
+    # Issue 21: the files the README promises (the truth among them).
+    for exp in ("experiment1", "experiment2"):
+        d = tmp_path / "demo" / exp
+        names = {p.name for p in d.iterdir()}
+        want = {"train.csv", "test.csv", "truth.yaml", "comparison.json", "report.html"}
+        want |= {f"model-{m}.yaml" for m in ("kinematic", "ntm", "rfcm", "full")}
+        assert want | {"figures"} <= names, (exp, names)
+    assert (tmp_path / "demo" / "experiment1" / "targets.csv").is_file()
     assert summary["seconds"] < 60
     again = run_cli("demo", "--out", str(tmp_path / "demo"), "-q")
     assert again.returncode == 2 and "use --force" in again.stderr

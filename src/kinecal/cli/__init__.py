@@ -1,8 +1,12 @@
 """The ``kinecal`` command. Parsing only: every command loads files and calls the API.
 
 Heavy modules (numpy, scipy, matplotlib, OpenCV) are imported inside the commands so
-``kinecal --help`` starts fast. Exit codes: 0 success, 1 internal error, 2 bad input or
-usage, 3 calibration failed (no convergence), 4 some targets unreachable.
+``kinecal --help`` starts fast. Every failure goes through :func:`main`: one line
+``Error: ...`` on stderr and an exit code of :class:`~kinecal.cli._errors.ExitCode`
+(0 success, 1 internal error, 2 bad input or usage, 3 calibration not converged, 4 some
+targets unreachable, 5 the system refused a read or write, 130 Ctrl-C); docs/errors.md
+lists them with what to do. Result folders are staged and moved into place only when the
+command succeeds (:mod:`kinecal._outputs`).
 """
 
 from __future__ import annotations
@@ -12,10 +16,14 @@ import sys
 import click
 
 from kinecal._version import __version__
+from kinecal.cli._errors import ExitCode
 
-EXIT_BAD_INPUT = 2
-EXIT_NOT_CONVERGED = 3
-EXIT_UNREACHABLE = 4
+EXIT_INTERNAL = int(ExitCode.INTERNAL)
+EXIT_BAD_INPUT = int(ExitCode.BAD_INPUT)
+EXIT_NOT_CONVERGED = int(ExitCode.NOT_CONVERGED)
+EXIT_UNREACHABLE = int(ExitCode.UNREACHABLE)
+EXIT_IO = int(ExitCode.IO)
+EXIT_INTERRUPTED = int(ExitCode.INTERRUPTED)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -24,7 +32,8 @@ def cli() -> None:
     """kinecal: calibrate robots and robotic vision systems.
 
     Unified kinematic model plus joint compliance (Ye et al., Sensors 2024). Files use mm
-    and degrees; see DESIGN §11 or each command's --help for the formats.
+    and degrees; each command's --help gives the formats of its files (in the project:
+    docs/files.md; exit codes and messages: docs/errors.md).
     """
     from kinecal import keep_freed_memory
     from kinecal._parallel import single_thread_blas
@@ -67,31 +76,77 @@ _register()
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``kinecal`` console script; returns the exit code."""
-    from kinecal.errors import CalibError
+    """Entry point of the ``kinecal`` console script; returns the exit code.
 
+    Runs the command inside an output transaction (result folders are moved into place
+    only if it succeeds), turns every exception into one ``Error:`` line and an exit
+    code, and shows Python warnings as one ``warning:`` line each.
+    """
+    from kinecal._outputs import begin_transaction, end_transaction
+    from kinecal.cli._errors import (
+        RESULT_CODES,
+        classify,
+        debug,
+        handled_signals,
+        one_line_warnings,
+        quiet_broken_pipe,
+    )
+
+    tx = begin_transaction()
+    failure: BaseException | None = None
+    code = 0
     try:
-        rv = cli.main(args=argv, prog_name="kinecal", standalone_mode=False)
-    except click.exceptions.Exit as exc:
-        return int(exc.exit_code)
-    except click.ClickException as exc:
-        exc.show()
-        return int(exc.exit_code)
-    except click.exceptions.Abort:
-        click.echo("Aborted.", err=True)
-        return 1
-    except CalibError as exc:
-        click.echo(f"kinecal: error: {exc}", err=True)
-        return EXIT_BAD_INPUT
-    except (
-        FileExistsError,
-        FileNotFoundError,
-        IsADirectoryError,
-        PermissionError,
-    ) as exc:
-        click.echo(f"kinecal: error: {exc}", err=True)
-        return EXIT_BAD_INPUT
-    return rv if isinstance(rv, int) else 0
+        with one_line_warnings(), handled_signals():
+            try:
+                rv = cli.main(args=argv, prog_name="kinecal", standalone_mode=False)
+                code = rv if isinstance(rv, int) else 0
+            except SystemExit as exc:  # sys.exit(EXIT_...) in a command
+                code = _exit_code(exc)
+            if code in RESULT_CODES:
+                tx.commit()
+                if tx.late_signals:  # Ctrl-C while the results were moved into place
+                    click.echo(
+                        "Error: interrupted after the results were written (they are "
+                        "complete)",
+                        err=True,
+                    )
+                    code = 128 + tx.late_signals[0]
+    except BaseException as exc:
+        failure = exc
+    finally:
+        end_transaction(tx)  # removes whatever was not committed
+    if failure is None:
+        return code
+    if isinstance(failure, click.exceptions.Abort) and failure.__cause__ is not None:
+        failure = failure.__cause__  # Ctrl-C (KeyboardInterrupt) seen by click
+    if isinstance(failure, click.exceptions.Exit):
+        return int(failure.exit_code)
+    no_args = getattr(click.exceptions, "NoArgsIsHelpError", ())
+    if isinstance(failure, no_args) and failure.ctx is not None:
+        click.echo(failure.ctx.get_help())  # `kinecal` alone: the help, no error
+        return 0
+    ec, message = classify(failure)
+    if ec == ExitCode.BROKEN_PIPE:
+        quiet_broken_pipe()
+        return int(ec)
+    if debug() and ec == ExitCode.INTERNAL:
+        import traceback
+
+        traceback.print_exception(failure)
+    try:
+        click.echo(f"Error: {message}", err=True)
+    except OSError:  # stderr itself is gone
+        pass
+    return int(ec)
+
+
+def _exit_code(exc: SystemExit) -> int:
+    if exc.code is None:
+        return 0
+    if isinstance(exc.code, int):
+        return exc.code
+    click.echo(f"Error: {exc.code}", err=True)
+    return EXIT_INTERNAL
 
 
 if __name__ == "__main__":  # pragma: no cover

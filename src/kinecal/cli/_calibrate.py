@@ -1,4 +1,4 @@
-"""``kinecal calibrate`` and ``kinecal evaluate`` (DESIGN §11)."""
+"""``kinecal calibrate`` and ``kinecal evaluate`` (file formats: docs/files.md)."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import json
 import os
 import sys
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import click
@@ -14,6 +15,8 @@ from kinecal.cli._common import (
     MODEL_CHOICES,
     Progress,
     allow_out_of_limits_option,
+    check_distinct_poses,
+    check_folds,
     common_options,
     echo_diagnostics,
     jobs_option,
@@ -169,6 +172,7 @@ def calibrate(
     """
     from kinecal._parallel import available_cpus
     from kinecal.cli import EXIT_NOT_CONVERGED
+    from kinecal.errors import CalibError
     from kinecal.identification import calibrate as run_calibration
     from kinecal.identification import spec_for
     from kinecal.io import (
@@ -180,26 +184,35 @@ def calibrate(
     from kinecal.models import kernel_name, parallel_pairs
     from kinecal.report import RESIDUALS_CSV, calibration_summary, pose_errors
 
+    result_files = (
+        "model.yaml",
+        "report.json",
+        "report.html",
+        RESIDUALS_CSV,
+        "manifest.json",
+    )
+
     say = Progress(quiet)
     jobs = jobs or available_cpus()
     robot = _load_robot(robot_name)
+    # The result folder first: a clash or an unwritable --out stops the run at once.
+    out = prepare_output_dir(out_dir, list(result_files), force=force)
+    say.begin("data", f"reading {data}")
     meas, data_checks = read_data_checked(data, robot, targets, allow_out_of_limits)
-    out = prepare_output_dir(
-        out_dir,
-        ["model.yaml", "report.json", "report.html", RESIDUALS_CSV],
-        force=force,
-    )
     say("data", f"{meas.n} {meas.kind} rows from {data}")
     opts = replace(
         _options_from(loss, priors, stage2), reject=reject, reject_z=reject_z
     )
     groups = _group_labels(data, cv_groups, meas.rows) if cv_groups else None
+    if cv_folds is not None:  # the folds' own check, before the calibration runs
+        check_folds(meas, cv_folds, groups, cv_groups)
     extra: dict[str, object] = {"data_checks": [d.as_dict() for d in data_checks]}
     hay = parallel_pairs(robot) if hayati else ()
     nj = parse_int_list(ntm_joints, "--ntm-joints") or (1, 2, 3)
     if model_name == "auto":
         from kinecal.identification import select_model
 
+        check_distinct_poses(meas, robot, spec_for(robot, meas, "kinematic"), data)
         say("auto", "cross-validating candidate models")
         sel = select_model(
             robot,
@@ -221,6 +234,7 @@ def calibrate(
         spec = spec_for(
             robot, meas, model_name, hayati=hay, ntm_joints=nj, ntm_order=ntm_order
         )
+    check_distinct_poses(meas, robot, spec, data)
     result = run_calibration(robot, meas, spec, opts, progress=say)
     if cv_folds:
         from kinecal.identification import cross_validate_many
@@ -237,6 +251,8 @@ def calibrate(
         )
         cv_rows = {}
         for label, cv in zip(("nominal", "model"), cvs):
+            if isinstance(cv, CalibError):
+                raise type(cv)(f"--cv {cv_folds}: a fold's calibration failed: {cv}")
             if isinstance(cv, ValueError):
                 raise cv
             cv_rows[label] = {
@@ -255,12 +271,15 @@ def calibrate(
         }
         for note in first.notes:
             click.echo(f"warning   {note}", err=True)
+    say("write", "model.yaml, report.json, residuals.csv, manifest.json")
     summary = calibration_summary(result, extra=extra)
     save_model(out / "model.yaml", result.calibrated, force=True)
     write_json(out / "report.json", summary, force=True)
     atomic_write_text(
         out / RESIDUALS_CSV, pose_errors(result, meas).to_csv(), force=True
     )
+    written = ["model.yaml", "report.json", RESIDUALS_CSV, "manifest.json"]
+    written += ["report.html"] if report else []
     write_json(
         out / "manifest.json",
         manifest(
@@ -279,17 +298,16 @@ def calibrate(
                 "reject_z": reject_z,
                 "model_code": kernel_name(result.calibrated.model),
             },
+            files=written,
         ),
         force=True,
     )
-    written = ["model.yaml", "report.json", RESIDUALS_CSV, "manifest.json"]
     if report:  # drawn from the files just written, as `kinecal report DIR` does
         from kinecal.report import write_report
 
         say("report", "drawing report.html")
         write_report(out, force=True)
-        written.append("report.html")
-        say("report", f"wrote {out / 'report.html'}")
+        say("report", f"wrote {Path(out_dir) / 'report.html'}")
     b, a = result.metrics_before, result.metrics_after
     click.echo(
         f"model     {spec.name}: {result.identifiability.rank} of "
@@ -312,7 +330,7 @@ def calibrate(
         click.echo(f"note      {line}")
     for w in result.warnings:
         click.echo(f"warning   {w}", err=True)
-    click.echo(f"wrote     {out}{os.sep}: {', '.join(written)}")
+    click.echo(f"wrote     {Path(out_dir)}{os.sep}: {', '.join(written)}")
     if not result.success:
         sys.exit(EXIT_NOT_CONVERGED)
 
@@ -388,6 +406,7 @@ def _load_robot(name: str):
 )
 @allow_out_of_limits_option
 @click.option("--force", is_flag=True, help="Overwrite --errors-out.")
+@common_options
 def evaluate(
     data: str,
     model_path: str,
@@ -397,16 +416,22 @@ def evaluate(
     errors_out: str | None,
     allow_out_of_limits: bool,
     force: bool,
+    quiet: bool,
 ) -> None:
     """Accuracy of a calibrated model on measurements DATA.csv (held-out poses)."""
     from kinecal.identification import evaluate as run_evaluate
     from kinecal.io import atomic_write_text, check_data_for_model, load_model
 
+    if errors_out and Path(errors_out).exists() and not force:  # before the work
+        raise FileExistsError(f"{errors_out}: exists; use --force to overwrite it.")
+    say = Progress(quiet)  # lines only for stages that last (a large file)
     cal = load_model(model_path)
+    say.begin("data", f"reading {data}")
     meas, _ = read_data_checked(data, cal.model.robot, targets, allow_out_of_limits)
     meas, found = check_data_for_model(meas, cal)
     echo_diagnostics(found)
     what = _refit_groups(refit)
+    say.begin("evaluate", f"{meas.n} rows")
     ev = run_evaluate(cal, meas, refit=what)
     for d in ev.diagnostics:
         if d.severity == "warning":

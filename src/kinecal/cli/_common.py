@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -65,20 +66,119 @@ def jobs_option(what: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]
     )
 
 
-class Progress:
-    """Stage-by-stage progress on stderr, silenced by ``--quiet``."""
+class FiniteFloat(click.ParamType):
+    """A finite float (no nan, no inf) within optional bounds."""
 
-    def __init__(self, quiet: bool) -> None:
+    name = "float"
+
+    def __init__(
+        self,
+        low: float | None = None,
+        high: float | None = None,
+        *,
+        low_open: bool = False,
+        high_open: bool = False,
+    ) -> None:
+        self.low, self.high = low, high
+        self.low_open, self.high_open = low_open, high_open
+
+    def convert(self, value: Any, param: Any, ctx: Any) -> float:
+        import math
+
+        try:
+            x = float(value)
+        except (TypeError, ValueError):
+            self.fail(f"expected a number; got {value!r}", param, ctx)
+        if not math.isfinite(x):
+            self.fail(f"expected a finite number; got {value!r}", param, ctx)
+        lo, hi = self.low, self.high
+        if lo is not None and (x < lo or (self.low_open and x == lo)):
+            self.fail(
+                f"expected {'>' if self.low_open else '>='} {lo:g}; got {x:g}",
+                param,
+                ctx,
+            )
+        if hi is not None and (x > hi or (self.high_open and x == hi)):
+            self.fail(
+                f"expected {'<' if self.high_open else '<='} {hi:g}; got {x:g}",
+                param,
+                ctx,
+            )
+        return x
+
+
+SEED = click.IntRange(min=0)
+
+
+class Progress:
+    """Stage-by-stage progress on stderr, silenced by ``--quiet``.
+
+    Every call prints ``[  12.34s] stage: detail``. A stage that runs long without a new
+    line (a large file read, a fold of the cross-validation, the report's figures) gets a
+    ``still working`` line every ``heartbeat`` seconds from a background thread, so a
+    long run is never silent for longer. The thread stops with the command (or
+    :meth:`close`).
+    """
+
+    HEARTBEAT_S = 5.0
+
+    def __init__(self, quiet: bool, heartbeat: float = HEARTBEAT_S) -> None:
         self.quiet = quiet
         self.t0 = time.perf_counter()
+        self.heartbeat = heartbeat
+        self._stage = ""
+        self._stage_t0 = self._last = self.t0
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        if quiet or heartbeat <= 0:
+            return
+        threading.Thread(
+            target=self._beat, name="kinecal-progress", daemon=True
+        ).start()
+        ctx = click.get_current_context(silent=True)
+        if ctx is not None:
+            ctx.call_on_close(self.close)
 
     def __call__(self, stage: str, detail: str = "") -> None:
         if self.quiet:
             return
-        dt = time.perf_counter() - self.t0
-        click.echo(
-            f"[{dt:6.2f}s] {stage}" + (f": {detail}" if detail else ""), err=True
-        )
+        with self._lock:
+            now = time.perf_counter()
+            if stage != self._stage:
+                self._stage, self._stage_t0 = stage, now
+            self._last = now
+            self._echo(now, f"{stage}" + (f": {detail}" if detail else ""))
+
+    def begin(self, stage: str, detail: str = "") -> None:
+        """Enter ``stage`` without a line: one appears only if it lasts longer than the
+        heartbeat (a large file being read, say)."""
+        with self._lock:
+            now = time.perf_counter()
+            self._stage = stage + (f": {detail}" if detail else "")
+            self._stage_t0 = self._last = now
+
+    def _echo(self, now: float, text: str) -> None:
+        try:
+            click.echo(f"[{now - self.t0:6.2f}s] {text}", err=True)
+        except (OSError, ValueError):  # stderr closed: stay silent
+            self._stop.set()
+
+    def _beat(self) -> None:
+        tick = min(0.5, self.heartbeat / 4)
+        while not self._stop.wait(tick):
+            with self._lock:
+                now = time.perf_counter()
+                if self._stage and now - self._last >= self.heartbeat:
+                    self._last = now
+                    self._echo(
+                        now,
+                        f"{self._stage}: still working "
+                        f"({now - self._stage_t0:.0f} s in this stage)",
+                    )
+
+    def close(self) -> None:
+        """Stop the ``still working`` lines."""
+        self._stop.set()
 
 
 def parse_int_list(text: str | None, name: str) -> tuple[int, ...] | None:
@@ -93,21 +193,27 @@ def parse_int_list(text: str | None, name: str) -> tuple[int, ...] | None:
         ) from None
 
 
-def manifest(inputs: dict[str, str | None], config: dict[str, Any]) -> dict[str, Any]:
-    """Run manifest: version, command line, resolved config, input file hashes."""
+def manifest(
+    inputs: dict[str, str | None],
+    config: dict[str, Any],
+    files: list[str] | None = None,
+) -> dict[str, Any]:
+    """Run manifest: version, command line, resolved config, input file hashes and the
+    result's files (``files``: what ``--force`` replaces as a whole next time)."""
     from kinecal._version import __version__
     from kinecal.io import file_sha256
 
-    files = {}
+    hashes = {}
     for key, path in inputs.items():
         if path and Path(path).is_file():
-            files[key] = {"path": str(path), "sha256": file_sha256(path)}
+            hashes[key] = {"path": str(path), "sha256": file_sha256(path)}
     return {
         "kinecal_version": __version__,
         "command": " ".join(["kinecal", *sys.argv[1:]]),
         "python": sys.version.split()[0],
         "config": config,
-        "inputs": files,
+        "inputs": hashes,
+        "files": [*(files or []), *([] if files is None else ["manifest.json"])],
         "created_unix": time.time(),
     }
 
@@ -115,3 +221,67 @@ def manifest(inputs: dict[str, str | None], config: dict[str, Any]) -> dict[str,
 def common_options(f: Callable[..., Any]) -> Callable[..., Any]:
     f = click.option("--quiet", "-q", is_flag=True, help="No progress display.")(f)
     return f
+
+
+def check_folds(meas: Any, k: int, groups: Any, group_name: str | None) -> None:
+    """``--cv K``: the folds' own check (too few poses, sets or groups to hold out),
+    run before the calibration rather than after it."""
+    from kinecal.errors import DataError
+    from kinecal.identification import make_folds
+
+    if (
+        k > meas.n
+    ):  # said plainly (the folds' rule would count what is left to hold out)
+        raise DataError(
+            f"{meas.source}: --cv {k}: {k} folds asked, but the data have {meas.n} rows; "
+            f"expected at most {meas.n} (5 or 10 is usual)."
+        )
+    make_folds(meas, k, groups=groups, group_name=group_name or "group")
+
+
+def check_distinct_poses(meas: Any, robot: Any, spec: Any, path: str) -> None:
+    """Refuse data whose distinct poses cannot determine the model (100 copies of one
+    pose are one pose): the same rule as for too few rows, on distinct rows."""
+    import numpy as np
+
+    from kinecal.errors import IdentifiabilityError
+    from kinecal.models import CalibrationModel
+
+    cols = [meas.q_ctrl, meas.set_index[:, None], meas.marker_index[:, None]]
+    if meas.target_index is not None:
+        cols.append(meas.target_index[:, None])
+    distinct = int(np.unique(np.hstack(cols), axis=0).shape[0])
+    if distinct == meas.n:
+        return
+    size = CalibrationModel(robot, spec).size
+    c = meas.components
+    if distinct * c <= size:
+        raise IdentifiabilityError(
+            f"{path}: the {meas.n} rows hold only {distinct} distinct pose"
+            f"{'s' if distinct != 1 else ''} (joint angles, set, marker, target); the "
+            f"'{spec.name}' model has {size} parameters: expected at least "
+            f"{size // c + 1} different poses (several times more for a reliable result)"
+        )
+
+
+# Positions beyond 1 km from the instrument's origin are typing errors, not data (and
+# their squares overflow in the solvers).
+MAX_POSITION_MM = 1e6
+
+
+def check_positions(p_m: Any, lines: Any, path: str, columns: str) -> None:
+    """Refuse positions (N, 3) [m] farther than :data:`MAX_POSITION_MM` from the
+    origin, naming the file line."""
+    import numpy as np
+
+    from kinecal.errors import DataError
+
+    far = np.flatnonzero(np.abs(np.asarray(p_m)).max(axis=1) * 1e3 > MAX_POSITION_MM)
+    if far.size:
+        i = int(far[0])
+        v = np.asarray(p_m)[i] * 1e3
+        raise DataError(
+            f"{path}: line {lines[i]}, columns {columns}: ({v[0]:.6g}, {v[1]:.6g}, "
+            f"{v[2]:.6g}) mm; expected positions within {MAX_POSITION_MM:.0e} mm of the "
+            "origin (a typing error?)."
+        )

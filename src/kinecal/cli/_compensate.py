@@ -1,14 +1,17 @@
-"""``kinecal compensate`` (DESIGN §11; program files: issue 23)."""
+"""``kinecal compensate`` (files: docs/files.md; program files: issue 23)."""
 
 from __future__ import annotations
 
 import json
-import sys
 
 import click
 
 from kinecal.cli._common import (
+    FiniteFloat,
+    Progress,
     allow_out_of_limits_option,
+    check_positions,
+    common_options,
     echo_diagnostics,
     model_file_option,
 )
@@ -37,14 +40,14 @@ _FORMATS = ("csv", "fanuc-ls", "urscript", "rapid", "krl")
 )
 @click.option(
     "--tol-mm",
-    type=float,
+    type=FiniteFloat(0.0, low_open=True),
     default=0.001,
     show_default=True,
     help="A row is reachable when the model's predicted error is below this [mm].",
 )
 @click.option(
     "--payload-kg",
-    type=float,
+    type=FiniteFloat(0.0),
     help="Payload at the tool [kg] (default: the calibration's reference payload).",
 )
 @click.option(
@@ -69,6 +72,7 @@ _FORMATS = ("csv", "fanuc-ls", "urscript", "rapid", "krl")
 @allow_out_of_limits_option
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary.")
 @click.option("--force", is_flag=True, help="Overwrite --out.")
+@common_options
 def compensate(
     targets: str,
     model_path: str,
@@ -82,6 +86,7 @@ def compensate(
     allow_out_of_limits: bool,
     as_json: bool,
     force: bool,
+    quiet: bool,
 ) -> None:
     """Corrected controller angles so the robot reaches TARGETS.
 
@@ -101,8 +106,13 @@ def compensate(
     fmt = fmt or detect_program_format(targets) or "csv"
     if not Path(targets).is_file():
         raise FileNotFoundError(f"{targets}: file not found.")
+    for p in (out_path, report_path):  # refuse before the work, not after it
+        if p and Path(p).exists() and not force:
+            raise FileExistsError(f"{p}: exists; use --force to overwrite it.")
+    say = Progress(quiet)  # lines only for stages that last (many targets)
     cal = load_model(model_path)
     scale = _load_scale(cal, payload_kg)
+    say.begin("compensate", f"reading {targets} and solving")
     if fmt == "csv":
         res, rows = _csv(cal, targets, tol_mm, scale, allow_out_of_limits)
     else:
@@ -129,16 +139,16 @@ def compensate(
         "out": out_path,
     }
     if bad and not allow_unreachable:
-        from kinecal.cli import EXIT_UNREACHABLE
+        from kinecal.cli._errors import CommandFailed, ExitCode
 
         summary["out"] = None
-        click.echo(
-            json.dumps(summary)
-            if as_json
-            else f"{len(bad)} of {summary['n']} targets cannot be reached; nothing "
-            "written (use --allow-unreachable to write them flagged)."
+        if as_json:
+            click.echo(json.dumps(summary))
+        raise CommandFailed(
+            ExitCode.UNREACHABLE,
+            f"{targets}: {len(bad)} of {summary['n']} targets cannot be reached; "
+            "nothing written (--allow-unreachable writes them flagged).",
         )
-        sys.exit(EXIT_UNREACHABLE)
     rows.write(out_path, report_path, force)
     if as_json:
         click.echo(json.dumps(summary))
@@ -146,6 +156,7 @@ def compensate(
         click.echo(
             f"{summary['ok']} of {summary['n']} targets compensated; largest predicted "
             f"error {summary['max_err_mm'] or 0:.6f} mm; wrote {out_path}"
+            + (f" and {report_path}" if report_path and fmt != "csv" else "")
         )
 
 
@@ -226,6 +237,7 @@ def _csv(cal, targets: str, tol_mm: float, scale, allow_out_of_limits: bool):
         targets, cal.model.robot, allow_out_of_limits=allow_out_of_limits
     )
     echo_diagnostics(tg.diagnostics)
+    check_positions(tg.p, tg.table.lines, targets, "x_mm, y_mm, z_mm")
     spec = cal.model.spec
     set_index = _map_labels(tg.set_labels, tg.set_index, spec.sets, targets, "set")
     marker_index = _map_labels(
@@ -266,8 +278,7 @@ def _program(cal, path: str, fmt: str, tol_mm: float, scale, decimals):
     from kinecal.compensation import compensate as run_compensation
     from kinecal.compensation import program_targets
     from kinecal.io import (
-        atomic_write_bytes,
-        atomic_write_text,
+        atomic_write_files,
         program_bytes,
         program_joints,
         read_program,
@@ -299,6 +310,7 @@ def _program(cal, path: str, fmt: str, tol_mm: float, scale, decimals):
     err_w = np.linalg.norm(out - p_t, axis=1)
 
     def write(out_path, report_path, force):
+        files: dict[str, bytes | str] = {out_path: program_bytes(text)}
         if report_path:
             head = [
                 "point",
@@ -313,8 +325,8 @@ def _program(cal, path: str, fmt: str, tol_mm: float, scale, decimals):
                 name = pt.name.replace(",", ";").replace('"', "'")
                 row = [name, str(pt.line), *vals, f"{err_w[i] * 1e3:.6f}"]
                 lines.append(",".join([*row, *_diagnostics(res, i)]))
-            atomic_write_text(report_path, "\n".join(lines) + "\n", force=force)
-        atomic_write_bytes(out_path, program_bytes(text), force=force)
+            files[report_path] = "\n".join(lines) + "\n"
+        atomic_write_files(files, force=force)  # the program and its report, or neither
         click.echo(
             f"{path}: {int((~keep).sum())} joint targets corrected; largest error as "
             f"written {err_w[~keep].max() * 1e3 if (~keep).any() else 0:.4f} mm "

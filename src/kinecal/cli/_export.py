@@ -79,6 +79,8 @@ def export_urdf(
     )
     from kinecal.io import atomic_write_text, load_model, robot_yaml_text, urdf_text
 
+    if Path(out_path).exists() and not force:  # refuse before the work, not after it
+        raise FileExistsError(f"{out_path}: exists; use --force to overwrite it.")
     cal = load_model(model_path)
     robot = cal.model.robot
     inputs, where, data_lines = _loss_poses(cal, data, targets)

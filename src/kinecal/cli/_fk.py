@@ -30,6 +30,12 @@ import click
 )
 @click.option("--marker", help="With --model: the tool marker (default: first).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+@click.option(
+    "--ignore-limits",
+    is_flag=True,
+    help="Compute poses beyond the joint limits too (refused otherwise: the robot "
+    "cannot take them).",
+)
 @click.argument("joints", nargs=-1, type=float, required=True)
 def fk(
     robot_name: str | None,
@@ -38,6 +44,7 @@ def fk(
     set_label: str | None,
     marker: str | None,
     as_json: bool,
+    ignore_limits: bool,
     joints: tuple[float, ...],
 ) -> None:
     """Flange pose from controller joint angles J1 ... JN [deg; mm if prismatic].
@@ -78,6 +85,7 @@ def fk(
             for v, j in zip(joints, robot.joints)
         ]
     )
+    _check_joints(robot, joints, q, ignore_limits)
     if model_path is not None:
         out = _model_fk(cal, q, payload_kg, set_label, marker)
         if as_json:
@@ -97,6 +105,27 @@ def fk(
     click.echo(f"robot   {robot.name}")
     click.echo("flange  x {:.4f}  y {:.4f}  z {:.4f}  mm".format(*xyz))
     click.echo("        w {:.4f}  p {:.4f}  r {:.4f}  deg".format(*wpr))
+
+
+def _check_joints(robot, joints, q, ignore_limits: bool) -> None:
+    """Finite joint values, inside the joint limits unless ``ignore_limits``."""
+    import numpy as np
+
+    from kinecal.errors import DataError
+
+    for k, (v, j) in enumerate(zip(joints, robot.joints)):
+        unit = "mm" if j.kind == "prismatic" else "deg"
+        if not np.isfinite(v):
+            raise DataError(f"J{k + 1}: expected a finite value in {unit}; got {v}.")
+        lo, hi = j.limits
+        if ignore_limits or lo - 1e-12 <= q[k] <= hi + 1e-12:
+            continue
+        f = 1e3 if j.kind == "prismatic" else 180.0 / np.pi
+        raise DataError(
+            f"J{k + 1}: {v:g} {unit} is beyond the joint limits [{lo * f:g}, "
+            f"{hi * f:g}] {unit} of {robot.name}; expected a value inside them "
+            "(--ignore-limits computes the pose anyway)."
+        )
 
 
 def _echo_pose(what: str, frame: str, xyz: list[float], wpr: list[float]) -> None:

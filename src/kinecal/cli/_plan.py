@@ -1,14 +1,21 @@
-"""``kinecal plan``: choose the poses to measure (DESIGN §11, issue 22)."""
+"""``kinecal plan``: choose the poses to measure (issue 22)."""
 
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
 import click
 
-from kinecal.cli._common import Progress, allow_out_of_limits_option, common_options
+from kinecal.cli._common import (
+    SEED,
+    FiniteFloat,
+    Progress,
+    allow_out_of_limits_option,
+    common_options,
+)
 from kinecal.cli._plan_report import echo_summary, plan_report
 
 _PRESETS = ("kinematic", "ntm", "rfcm", "full")
@@ -21,7 +28,7 @@ def _floats(text: str | None, n: int, name: str) -> list[float] | None:
         vals = [float(t) for t in text.split(",")]
     except ValueError:
         vals = []
-    if len(vals) != n:
+    if len(vals) != n or not all(math.isfinite(v) for v in vals):
         raise click.BadParameter(
             f"expected {n} comma-separated numbers; got {text!r}", param_hint=name
         )
@@ -42,7 +49,7 @@ def _joint_ranges(text: str | None, robot: Any) -> Any:
                 raise ValueError
             j = int(parts[0][1:])
             lo, hi = float(parts[1]), float(parts[2])
-            if not 1 <= j <= robot.n_joints or lo > hi:
+            if not 1 <= j <= robot.n_joints or not lo <= hi:
                 raise ValueError
         except ValueError:
             raise click.BadParameter(
@@ -130,7 +137,7 @@ def _report_path(out: str, report: str | None) -> Path:
 
 
 _FILE = click.Path(dir_okay=False)
-_POS = click.FloatRange(min=0, min_open=True)
+_POS = FiniteFloat(0.0, low_open=True)
 _INT = click.IntRange(min=1)
 _ON = {"show_default": True}
 # (option declarations, settings) of `kinecal plan`, in the order --help lists them.
@@ -173,16 +180,16 @@ _OPTIONS: list[tuple[tuple[str, ...], dict[str, Any]]] = [
         "joint ranges [deg] (default the limits)."}),
     (("--n-candidates",), {"type": click.IntRange(min=10), "default": 5000, **_ON,
         "help": "Candidates to generate."}),
-    (("--min-j5-deg",), {"type": click.FloatRange(min=0), "default": 10.0, **_ON,
+    (("--min-j5-deg",), {"type": FiniteFloat(0.0), "default": 10.0, **_ON,
         "help": "Generated: smallest |J5| (wrist singularity)."}),
-    (("--min-conditioning",), {"type": click.FloatRange(0, 1), "default": 0.05, **_ON,
+    (("--min-conditioning",), {"type": FiniteFloat(0.0, 1.0), "default": 0.05, **_ON,
         "help": "Generated: smallest inverse condition number of the geometric "
         "Jacobian."}),
-    (("--floor-mm",), {"type": float, "help": "Generated: lowest tool point (z in the "
+    (("--floor-mm",), {"type": FiniteFloat(), "help": "Generated: lowest tool point (z in the "
         "robot base frame) [mm]."}),
     (("--station",), {"metavar": "X,Y,Z", "help": "Generated (tracker): tracker "
         "position in the user frame [mm]; the reflector must face it."}),
-    (("--cone-deg",), {"type": click.FloatRange(0, 90), "default": 30.0, **_ON,
+    (("--cone-deg",), {"type": FiniteFloat(0.0, 90.0), "default": 30.0, **_ON,
         "help": "Reflector acceptance half-angle about the tool z axis."}),
     (("--standoff-mm",), {"default": "115:135", **_ON, "metavar": "LO:HI",
         "help": "Generated (sensor): sensor-to-target distance."}),
@@ -191,7 +198,7 @@ _OPTIONS: list[tuple[tuple[str, ...], dict[str, Any]]] = [
         "data (the information of its poses is the start)."}),
     (("--random-draws",), {"type": _INT, "default": 20, **_ON, "help": "Random plans "
         "in the comparison."}),
-    (("--seed",), {"type": int, "default": 0, **_ON, "help": "Seed of generated "
+    (("--seed",), {"type": SEED, "default": 0, **_ON, "help": "Seed of generated "
         "candidates and random plans."}),
     (("--json", "as_json"), {"is_flag": True, "help": "Print the summary as JSON."}),
     (("--force",), {"is_flag": True, "help": "Overwrite --out and the report."}),
@@ -347,6 +354,11 @@ def _candidates(
     if inst.name == "sensor":
         so = _floats(kw["standoff_mm"].replace(":", ","), 2, "--standoff-mm")
         assert so is not None
+        if not 0 < so[0] <= so[1]:
+            raise click.BadParameter(
+                f"expected 0 < LO <= HI [mm]; got {kw['standoff_mm']!r}",
+                param_hint="--standoff-mm",
+            )
         c = sensor_candidates(
             env["model"],
             env["params"],
@@ -397,7 +409,7 @@ def _pose_lines(robot: Any, q: Any, ti: Any, labels: Any) -> list[str]:
 
 
 def _run(kw: dict[str, Any], say: Progress) -> None:
-    from kinecal.io import atomic_write_text, write_json
+    from kinecal.io import atomic_write_files, json_text
     from kinecal.planning import plan_poses
 
     out = Path(kw["out_path"])
@@ -409,11 +421,10 @@ def _run(kw: dict[str, Any], say: Progress) -> None:
     cand = _candidates(kw, env, say)
     robot, cal, inst = env["robot"], env["cal"], env["inst"]
     labels = None if env["targets"] is None else env["targets"].labels
+    files: dict[str, bytes | str] = {}
     if kw["save_candidates"]:
         lines = _pose_lines(robot, cand["q"], cand["ti"], labels)
-        atomic_write_text(
-            kw["save_candidates"], "\n".join(lines) + "\n", force=kw["force"]
-        )
+        files[kw["save_candidates"]] = "\n".join(lines) + "\n"
     measured = measured_ti = None
     if cal is not None and kw["data_path"]:
         _, _, measured, measured_ti = _read_poses(
@@ -451,6 +462,8 @@ def _run(kw: dict[str, Any], say: Progress) -> None:
         lines = _pose_lines(robot, pl.q_ctrl, pl.target_index, labels)
         rows = [int(i) + 1 for i in pl.index]
     doc = plan_report(pl, kw, env, cand, rows)
-    atomic_write_text(out, "\n".join(lines) + "\n", force=kw["force"])
-    write_json(rep, doc, force=kw["force"])
-    echo_summary(doc, out, rep, kw["as_json"])
+    files[str(out)] = "\n".join(lines) + "\n"
+    files[str(rep)] = json_text(doc)
+    atomic_write_files(files, force=kw["force"])  # all of them or none
+    saved = [kw["save_candidates"]] if kw["save_candidates"] else []
+    echo_summary(doc, out, rep, kw["as_json"], saved)

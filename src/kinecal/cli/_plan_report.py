@@ -13,8 +13,14 @@ from kinecal.cli._common import manifest
 __all__ = ["echo_summary", "plan_report"]
 
 
-def echo_summary(doc: dict[str, Any], out: Path, rep: Path, as_json: bool) -> None:
-    """Print the plan's summary (text or JSON)."""
+def echo_summary(
+    doc: dict[str, Any],
+    out: Path,
+    rep: Path,
+    as_json: bool,
+    extra: list[str] | None = None,
+) -> None:
+    """Print the plan's summary (text or JSON); ``extra``: further files written."""
     if as_json:
         click.echo(
             json.dumps(
@@ -83,7 +89,7 @@ def echo_summary(doc: dict[str, Any], out: Path, rep: Path, as_json: bool) -> No
     )
     for w in doc["warnings"]:
         click.echo(f"warning    {w}", err=True)
-    click.echo(f"wrote      {out}, {rep}")
+    click.echo(f"wrote      {', '.join(map(str, [out, rep, *(extra or [])]))}")
 
 
 def plan_report(

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from kinecal.cli._common import Progress, common_options, jobs_option
+from kinecal.cli._common import SEED, Progress, common_options, jobs_option
 
 if TYPE_CHECKING:
     import numpy as np
@@ -66,7 +66,7 @@ class _Writer:
     show_default=True,
     help="Render every K-th plane.",
 )
-@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--seed", type=SEED, default=0, show_default=True)
 @jobs_option("Threads rendering and writing the images")
 @click.option("--force", is_flag=True)
 @common_options
@@ -132,7 +132,7 @@ def simulate_scan(
         {"center_mm": c * 1e3, "radius_mm": radius_mm, "seed": seed},
         force=True,
     )
-    click.echo(f"{idx.size} stripe images -> {d}", err=True)
+    click.echo(f"{idx.size} stripe images -> {out}", err=True)  # d: staged (issue 21)
 
 
 @click.command("simulate-calibration")
@@ -158,7 +158,7 @@ def simulate_scan(
     show_default=True,
     help="Render every K-th plane.",
 )
-@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--seed", type=SEED, default=0, show_default=True)
 @jobs_option("Threads rendering and writing the images")
 @click.option("--force", is_flag=True)
 @common_options
@@ -239,7 +239,7 @@ def simulate_calibration_cmd(
         },
         force=True,
     )
-    click.echo(f"calibration images -> {d}", err=True)
+    click.echo(f"calibration images -> {out}", err=True)  # d: staged (issue 21)
 
 
 def _poses_mm(T: np.ndarray) -> list[list[list[float]]]:

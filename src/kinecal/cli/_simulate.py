@@ -3,13 +3,24 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import click
 
-from kinecal.cli._common import Progress, common_options, manifest, targets_option
+from kinecal.cli._common import (
+    SEED,
+    FiniteFloat,
+    Progress,
+    common_options,
+    manifest,
+    targets_option,
+)
 
 EXTRA_CHOICES = ("harmonics", "wrist", "masses", "thermal")
+_SIM_FILES = ("train.csv", "test.csv", "targets.csv", "truth.yaml", "manifest.json")
+_MODELS = ("kinematic", "ntm", "rfcm", "full")
+COMPARE_FILES = ("comparison.json", "model-*.yaml", "report.html", "manifest.json")
 
 
 def _parse_extras(text: str | None) -> tuple[str, ...]:
@@ -33,6 +44,21 @@ def _run_experiment(
     noise_um: float | None,
     outliers: float,
 ):
+
+    try:
+        return _experiment(number, seed, n_train, extras, noise_um, outliers)
+    except ValueError as exc:  # the pose count is known once the poses are planned
+        if str(exc).startswith("n_train must be"):
+            n_max = str(exc).split(" and ", 1)[1].split(";", 1)[0]
+            raise click.BadParameter(
+                f"experiment {number} plans {int(n_max) + 1} poses and keeps at least "
+                f"one to test; expected 1 to {n_max}; got {n_train}",
+                param_hint="--n-train",
+            ) from None
+        raise
+
+
+def _experiment(number, seed, n_train, extras, noise_um, outliers):
     from kinecal.simulation import LaserTracker, SphereSensor, experiment1, experiment2
 
     if number == 2:
@@ -56,39 +82,23 @@ def _run_experiment(
     return experiment1(seed, n_train=n_train, extras=extras, sensor=sensor)
 
 
-def _write_experiment(exp, out: Path, force: bool) -> dict[str, str]:
-    from kinecal.identification import CalibratedModel
+def _write_experiment(exp, out: Path, final: Path) -> dict[str, str]:
+    """Write the experiment's files into ``out`` (the staged folder); return them by
+    role, named as they will be in ``final`` (the --out folder)."""
+    from kinecal.demo import truth_model
     from kinecal.io import save_model, write_measurements, write_targets
 
     robot = exp.truth.robot
-    files = {
-        "train": str(out / "train.csv"),
-        "test": str(out / "test.csv"),
-        "truth": str(out / "truth.yaml"),
-    }
-    write_measurements(out / "train.csv", exp.train, robot, force=force)
-    write_measurements(out / "test.csv", exp.test, robot, force=force)
+    names = {"train": "train.csv", "test": "test.csv", "truth": "truth.yaml"}
+    # force: prepare_output_dir has checked the folder (the --force of the command)
+    write_measurements(out / "train.csv", exp.train, robot, force=True)
+    write_measurements(out / "test.csv", exp.test, robot, force=True)
     if exp.targets is not None:
         labels, p, r = exp.targets
-        write_targets(out / "targets.csv", labels, p, r, force=force)
-        files["targets"] = str(out / "targets.csv")
-    import numpy as np
-
-    tm = exp.truth.model
-    truth = CalibratedModel(
-        tm,
-        exp.truth.params,
-        np.full(tm.size, np.nan),
-        ["fixed"] * tm.size,
-        info={
-            "truth": exp.truth.description,
-            "extras": list(exp.truth.extras),
-            "thermal_ppm_per_pose": exp.truth.thermal_ppm_per_pose,
-            "outlier_poses": int(exp.outlier_rows.size),
-        },
-    )
-    save_model(out / "truth.yaml", truth, force=force)
-    return files
+        write_targets(out / "targets.csv", labels, p, r, force=True)
+        names["targets"] = "targets.csv"
+    save_model(out / "truth.yaml", truth_model(exp), force=True)
+    return {k: str(final / v) for k, v in names.items()}
 
 
 @click.command()
@@ -106,9 +116,13 @@ def _write_experiment(exp, out: Path, force: bool) -> dict[str, str]:
     type=click.Path(file_okay=False),
     help="Folder for train.csv, test.csv, targets.csv, truth.yaml, manifest.json.",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
+@click.option("--seed", type=SEED, default=0, show_default=True, help="Random seed.")
 @click.option(
-    "--n-train", type=int, default=100, show_default=True, help="Poses to calibrate."
+    "--n-train",
+    type=click.IntRange(min=1),
+    default=100,
+    show_default=True,
+    help="Poses to calibrate (the rest are the test set).",
 )
 @click.option(
     "--extras",
@@ -117,15 +131,16 @@ def _write_experiment(exp, out: Path, force: bool) -> dict[str, str]:
 )
 @click.option(
     "--noise-um",
-    type=float,
+    type=FiniteFloat(0.0),
     help="Per-axis noise [um] (default: tracker 5 um + 2 um/m; sensor 4/8 um).",
 )
 @click.option(
     "--outliers",
-    type=float,
+    type=FiniteFloat(0.0, 1.0),
     default=0.0,
     show_default=True,
-    help="Fraction of tracker rows with gross errors (experiment 2).",
+    help="Fraction (0 to 1) of tracker rows with gross errors of 1-3 mm "
+    "(experiment 2 only).",
 )
 @click.option("--force", is_flag=True, help="Overwrite files in --out.")
 @common_options
@@ -140,17 +155,26 @@ def simulate(
     force: bool,
     quiet: bool,
 ) -> None:
-    """Simulate one of the paper's experiments on the digital twin (LR Mate 200iD)."""
+    """Simulate one of the paper's experiments on the digital twin (LR Mate 200iD).
+
+    Writes train.csv and test.csv (measurements), targets.csv (experiment 1), truth.yaml
+    (the true robot as a model file, for `kinecal evaluate` or a parameter comparison)
+    and manifest.json; all of them or none (the folder is written at the end).
+    """
     from kinecal.io import prepare_output_dir, write_json
 
+    if experiment == "1" and outliers > 0:
+        raise click.BadParameter(
+            "experiment 1 (sensor) has no gross-error model; expected 0 with "
+            f"--experiment 1; got {outliers:g}",
+            param_hint="--outliers",
+        )
     say = Progress(quiet)
-    out = prepare_output_dir(
-        out_dir, ["train.csv", "test.csv", "truth.yaml"], force=force
-    )
     ex = _parse_extras(extras)
+    out = prepare_output_dir(out_dir, list(_SIM_FILES), force=force)
     say("simulate", f"experiment {experiment}, seed {seed}")
     exp = _run_experiment(int(experiment), seed, n_train, ex, noise_um, outliers)
-    files = _write_experiment(exp, out, force)
+    files = _write_experiment(exp, out, Path(out_dir))
     write_json(
         out / "manifest.json",
         manifest(
@@ -165,12 +189,13 @@ def simulate(
                 "files": files,
                 **exp.info,
             },
+            files=[Path(f).name for f in files.values()],
         ),
         force=True,
     )
     click.echo(f"{exp.name}: {exp.train.n} poses to calibrate, {exp.test.n} to test")
-    for k, v in files.items():
-        click.echo(f"  {k:7s} {v}")
+    for k, v in {**files, "manifest": str(Path(out_dir) / "manifest.json")}.items():
+        click.echo(f"  {k:8s} {v}")
     robot_arg = "fanuc-lrmate200id"
     tgt = f" --targets {files['targets']}" if "targets" in files else ""
     click.echo(
@@ -229,16 +254,30 @@ def compare(
 ) -> None:
     """Fit several models on TRAIN and score each on TEST (Tables 5 and 8)."""
     from kinecal.identification import CalibrationOptions, compare_models
-    from kinecal.io import read_measurements
+    from kinecal.io import prepare_output_dir, read_measurements
     from kinecal.report import comparison_table, format_table
     from kinecal.robot import load_robot
 
     say = Progress(quiet)
-    robot = load_robot(robot_name)
     names = tuple(m.strip() for m in models.split(",") if m.strip())
     for n in names:
-        if n not in ("kinematic", "ntm", "rfcm", "full"):
-            raise click.BadParameter(f"unknown model {n!r}", param_hint="--models")
+        if n not in _MODELS:
+            raise click.BadParameter(
+                f"unknown model {n!r}; expected some of {', '.join(_MODELS)}",
+                param_hint="--models",
+            )
+    if not names:
+        raise click.BadParameter(
+            f"expected some of {', '.join(_MODELS)}; got {models!r}",
+            param_hint="--models",
+        )
+    robot = load_robot(robot_name)
+    # The result folder first: a clash or an unwritable --out stops the run at once.
+    out = (
+        prepare_output_dir(out_dir, list(COMPARE_FILES), force=force)
+        if out_dir
+        else None
+    )
     tr = read_measurements(train, robot, targets)
     te = read_measurements(test, robot, targets)
     rows = compare_models(
@@ -251,49 +290,55 @@ def compare(
         progress=say,
     )
     table = comparison_table(rows)
-    if out_dir:
-        _write_comparison(
-            Path(out_dir),
+    written = []
+    if out is not None:
+        say("report", "writing comparison.json, the models and report.html")
+        written = write_comparison(
+            out,
             rows,
             te,
             table,
             f"model comparison: {Path(test).name}",
-            force,
             {"train": train, "test": test, "targets": targets},
         )
     if as_json:
         click.echo(json.dumps(table))
     else:
         click.echo(format_table(table))
+    if written:
+        click.echo(
+            f"wrote     {Path(out_dir or '')}{os.sep}: {', '.join(written)}",
+            err=as_json,
+        )
 
 
-def _write_comparison(
+def write_comparison(
     out: Path,
     rows,
     test,
     table,
     title: str,
-    force: bool,
     inputs: dict[str, str | None],
-    notes: list[str] | None = None,
-    extra_html: str = "",
-) -> None:
-    from kinecal.io import prepare_output_dir, save_model, write_json
+) -> list[str]:
+    """Write a comparison's files into the prepared folder ``out``; return their names
+    (``force``: the folder's --force was checked when it was prepared)."""
+    from kinecal.io import save_model, write_json
     from kinecal.report import write_comparison_report
 
-    out = prepare_output_dir(out, ["comparison.json", "report.html"], force=force)
+    written = ["comparison.json"]
     write_json(out / "comparison.json", table, force=True)
     for r in rows:
         if r.calibrated is not None and r.model != "nominal":
             save_model(out / f"model-{r.model}.yaml", r.calibrated, force=True)
+            written.append(f"model-{r.model}.yaml")
+    write_comparison_report(out / "report.html", rows, test, title=title)
+    written += ["report.html", "manifest.json"]
     write_json(
         out / "manifest.json",
-        manifest(inputs, {"models": [r.model for r in rows]}),
+        manifest(inputs, {"models": [r.model for r in rows]}, files=written[:-1]),
         force=True,
     )
-    write_comparison_report(
-        out / "report.html", rows, test, title=title, notes=notes, extra_html=extra_html
-    )
+    return written
 
 
 @click.command()
@@ -305,8 +350,8 @@ def _write_comparison(
     type=click.Path(file_okay=False),
     help="Results folder.",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
-@click.option("--force", is_flag=True, help="Overwrite an earlier demo in --out.")
+@click.option("--seed", type=SEED, default=0, show_default=True, help="Random seed.")
+@click.option("--force", is_flag=True, help="Replace an earlier demo in --out.")
 @common_options
 def demo(out_dir: str, seed: int, force: bool, quiet: bool) -> None:
     """Run both of the paper's experiments on the built-in digital twin.

@@ -1,5 +1,14 @@
 """Files at the edges: measurement CSVs, targets, model.yaml, JSON; units via kinecal.units."""
 
+from kinecal._outputs import (
+    OutputTransaction,
+    begin_transaction,
+    current_transaction,
+    end_transaction,
+    new_dir_mode,
+    new_file_mode,
+    output_transaction,
+)
 from kinecal.io._checks import DataWarning, check_data_for_model, data_diagnostics
 from kinecal.io._csv import (
     CompensationTargets,
@@ -20,8 +29,10 @@ from kinecal.io._csv_write import (
 )
 from kinecal.io._files import (
     atomic_write_bytes,
+    atomic_write_files,
     atomic_write_text,
     file_sha256,
+    json_text,
     prepare_output_dir,
     write_json,
 )
@@ -55,23 +66,32 @@ __all__ = [
     "Column",
     "CompensationTargets",
     "DataWarning",
+    "OutputTransaction",
     "Program",
     "ProgramPoint",
     "Table",
     "Targets",
     "atomic_write_bytes",
+    "atomic_write_files",
     "atomic_write_text",
+    "begin_transaction",
     "check_data_for_model",
     "csv_text",
+    "current_transaction",
     "data_diagnostics",
     "detect_program_format",
+    "end_transaction",
     "file_sha256",
     "image_files",
     "joint_column_names",
+    "json_text",
     "load_model",
     "load_sensor",
     "measurements_to_csv",
     "model_to_dict",
+    "new_dir_mode",
+    "new_file_mode",
+    "output_transaction",
     "prepare_output_dir",
     "program_bytes",
     "program_joints",

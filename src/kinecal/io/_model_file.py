@@ -18,6 +18,7 @@ from kinecal._version import __version__
 from kinecal.errors import ConfigError
 from kinecal.geometry import euler_zyx_to_matrix, matrix_to_euler_zyx
 from kinecal.identification import CalibratedModel
+from kinecal.identification._calibrated import STATUSES
 from kinecal.io._files import atomic_write_text
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import dump_robot, robot_from_dict
@@ -108,69 +109,220 @@ def _plain(x: Any) -> Any:
     return x
 
 
-def load_model(path: str | Path) -> CalibratedModel:
-    """Read a ``model.yaml`` written by :func:`save_model`.
+# Model names kinecal writes: the presets, the candidates of --model auto (also as
+# "auto:<candidate>"), a simulated truth and a hand-built spec.
+_MAX_MM = 1e6  # lengths beyond 1 km are typing errors (and break the numerics)
+_CANDIDATES = ("kinematic", "ntm", "rfcm", "full", "load", "load+link")
+_NAMES = (*_CANDIDATES, "custom", "truth")
+_SPEC_KEYS = {
+    "name",
+    "cam_rotation",
+    "hayati",
+    "ntm_joints",
+    "ntm_order",
+    "ntm_offset",
+    "load",
+    "link",
+    "link_bodies",
+    "sets",
+    "markers",
+    "reference_payload_kg",
+    "reference_rotations_deg",
+}
+_TOP_KEYS = {
+    "kinecal_model",
+    "kinecal_version",
+    "robot",
+    "model",
+    "parameters",
+    "frames_mm_deg",
+    "info",
+}
 
-    Raises
-    ------
-    ConfigError
-        Not a kinecal model file, unknown format version, parameters that do not match the
-        model the file describes, or wrong units.
-    """
-    p = Path(path)
+
+def _bool(s: dict[str, Any], key: str, default: bool | None, where: str) -> bool:
+    v = s.get(key, default)
+    if not isinstance(v, bool):
+        raise ConfigError(f"{where}.{key}: expected true or false; got {v!r}.")
+    return v
+
+
+def _joints(s: dict[str, Any], key: str, n: int, where: str) -> tuple[int, ...]:
+    v = s.get(key, [])
+    if v is None:
+        v = []
+    if not isinstance(v, list) or not all(
+        isinstance(j, int) and not isinstance(j, bool) and 1 <= j <= n for j in v
+    ):
+        raise ConfigError(
+            f"{where}.{key}: expected a list of joint numbers 1..{n}; got {v!r}."
+        )
+    return tuple(v)
+
+
+def _labels(s: dict[str, Any], key: str, where: str) -> tuple[str, ...]:
+    v = s.get(key, [""])
+    if not isinstance(v, list) or not v or not all(isinstance(x, str) for x in v):
+        raise ConfigError(f"{where}.{key}: expected a list of labels; got {v!r}.")
+    if len(set(v)) != len(v):
+        raise ConfigError(f"{where}.{key}: expected unique labels; got {v!r}.")
+    return tuple(v)
+
+
+def _spec(s: Any, n_joints: int, where: str) -> ModelSpec:
+    """The model section of a model file, validated."""
+    if not isinstance(s, dict):
+        raise ConfigError(f"{where}: expected a mapping; got {type(s).__name__}.")
+    unknown = sorted(set(map(str, s)) - _SPEC_KEYS)
+    if unknown:
+        raise ConfigError(
+            f"{where}: unknown key {unknown[0]!r} (allowed: {', '.join(sorted(_SPEC_KEYS))})."
+        )
+    name = s.get("name", "custom")
+    base = name[5:] if isinstance(name, str) and name.startswith("auto:") else name
+    if not isinstance(name, str) or base not in (
+        _CANDIDATES if base != name else _NAMES
+    ):
+        raise ConfigError(
+            f"{where}.name: unknown model {name!r}; expected one of {', '.join(_NAMES)} "
+            "(or auto:<candidate>)."
+        )
+    order = s.get("ntm_order", 2)
+    if not isinstance(order, int) or isinstance(order, bool) or not 1 <= order <= 8:
+        raise ConfigError(f"{where}.ntm_order: expected 1..8; got {order!r}.")
+    link = s.get("link", "none")
+    if not isinstance(link, str):
+        raise ConfigError(f"{where}.link: expected a name; got {link!r}.")
     try:
-        doc = yaml.load(p.read_text(encoding="utf-8"))
+        return ModelSpec(
+            cam_rotation=_bool(s, "cam_rotation", None, where),
+            hayati=_joints(s, "hayati", n_joints, where),
+            ntm_joints=_joints(s, "ntm_joints", n_joints, where),
+            ntm_order=order,
+            ntm_offset=_bool(s, "ntm_offset", True, where),
+            load=_bool(s, "load", False, where),
+            link=link,
+            link_bodies=_joints(s, "link_bodies", n_joints, where),
+            sets=_labels(s, "sets", where),
+            markers=_labels(s, "markers", where),
+            name=name,
+        )
+    except ValueError as exc:  # ModelError: an inconsistent combination
+        raise ConfigError(f"{where}: {exc}") from None
+
+
+def _rotations(refs: Any, key: str, count: int, where: str) -> np.ndarray | None:
+    if key not in refs:
+        return None
+    rows = refs[key]
+    w = f"{where}.{key}"
+    if not isinstance(rows, list) or len(rows) != count:
+        raise ConfigError(f"{w}: expected a list of {count} {{r, w, p}} rotations.")
+    out = []
+    for i, d in enumerate(rows):
+        if not isinstance(d, dict) or set(d) != {"r", "w", "p"}:
+            raise ConfigError(f"{w}[{i}]: expected {{r, w, p}} in deg; got {d!r}.")
+        v = [_finite(d[k], f"{w}[{i}].{k}") for k in "rwp"]
+        out.append(euler_zyx_to_matrix(np.radians(v)))
+    return np.stack(out)
+
+
+def _finite(v: Any, where: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise ConfigError(f"{where}: expected a finite number; got {v!r}.")
+    return float(v)
+
+
+def _read_doc(p: Path) -> dict[str, Any]:
+    try:
+        text = p.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise ConfigError(f"{p}: model file not found.") from None
+    except IsADirectoryError:
+        raise ConfigError(
+            f"{p}: is a folder; expected a model.yaml (e.g. {p / 'model.yaml'})."
+        ) from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{p}: not a text file; expected a model.yaml.") from None
+    try:
+        doc = yaml.load(text)
     except yaml.YAMLError as exc:
         raise ConfigError(f"{p}: not valid YAML ({exc}).".replace("\n", " ")) from None
     if not isinstance(doc, dict) or "kinecal_model" not in doc:
         raise ConfigError(f"{p}: not a kinecal model file (no 'kinecal_model' key).")
     if doc["kinecal_model"] != FORMAT_VERSION:
         raise ConfigError(
-            f"{p}: model format {doc['kinecal_model']!r} is not supported."
+            f"{p}: model format {doc['kinecal_model']!r} is not supported; expected "
+            f"{FORMAT_VERSION}."
+        )
+    unknown = sorted(set(map(str, doc)) - _TOP_KEYS)
+    if unknown:
+        raise ConfigError(
+            f"{p}: unknown key {unknown[0]!r} (allowed: {', '.join(sorted(_TOP_KEYS))})."
         )
     for key in ("robot", "model", "parameters"):
         if key not in doc:
             raise ConfigError(f"{p}: missing key {key!r}.")
+    if not isinstance(doc.get("info") or {}, dict):
+        raise ConfigError(f"{p}: info: expected a mapping; got {doc['info']!r}.")
+    return doc
+
+
+def load_model(path: str | Path) -> CalibratedModel:
+    """Read a ``model.yaml`` written by :func:`save_model` (or edited by hand).
+
+    Everything is validated: unknown keys, the model's options and name, every
+    parameter's value (finite), unit (the one of its kind), std (null or >= 0) and
+    status, the reference payload (> 0).
+
+    Raises
+    ------
+    ConfigError
+        With a one-line message naming the file and the key.
+    """
+    p = Path(path)
+    doc = _read_doc(p)
     robot = robot_from_dict(doc["robot"], source=f"{p}: robot")
     s = doc["model"]
-    try:
-        spec = ModelSpec(
-            cam_rotation=bool(s["cam_rotation"]),
-            hayati=tuple(s.get("hayati", [])),
-            ntm_joints=tuple(s.get("ntm_joints", [])),
-            ntm_order=int(s.get("ntm_order", 2)),
-            ntm_offset=bool(s.get("ntm_offset", True)),
-            load=bool(s.get("load", False)),
-            link=str(s.get("link", "none")),
-            link_bodies=tuple(s.get("link_bodies", [])),
-            sets=tuple(str(x) for x in s.get("sets", [""])),
-            markers=tuple(str(x) for x in s.get("markers", [""])),
-            name=str(s.get("name", "custom")),
+    spec = _spec(s, robot.n_joints, f"{p}: model")
+    payload = s.get("reference_payload_kg")
+    if (
+        payload is not None
+        and not _finite(payload, f"{p}: model.reference_payload_kg") > 0
+    ):
+        raise ConfigError(
+            f"{p}: model.reference_payload_kg: expected a positive mass or null; "
+            f"got {payload!r}."
         )
-    except (KeyError, TypeError, ValueError) as exc:
+    try:
+        model = CalibrationModel(robot, spec)
+    except ValueError as exc:
         raise ConfigError(f"{p}: model: {exc}") from None
-    model = CalibrationModel(robot, spec)
     refs = s.get("reference_rotations_deg") or {}
+    if not isinstance(refs, dict) or not set(refs) <= {"base", "cam"}:
+        raise ConfigError(
+            f"{p}: model.reference_rotations_deg: expected {{base: [...], cam: [...]}}."
+        )
     if refs:
-        Rb = Rc = None
-        if "base" in refs:
-            Rb = np.stack(
-                [
-                    euler_zyx_to_matrix(np.radians([d["r"], d["w"], d["p"]]))
-                    for d in refs["base"]
-                ]
-            )
-        if "cam" in refs:
-            Rc = np.stack(
-                [
-                    euler_zyx_to_matrix(np.radians([d["r"], d["w"], d["p"]]))
-                    for d in refs["cam"]
-                ]
-            )
+        where = f"{p}: model.reference_rotations_deg"
+        Rb = _rotations(refs, "base", len(spec.sets), where)
+        Rc = _rotations(refs, "cam", len(spec.markers), where)
         model = model.with_references(Rb, Rc)
-    params_doc = doc["parameters"]
+    values, std, status = _parameters(doc["parameters"], model, p)
+    return CalibratedModel(
+        model,
+        values,
+        std,
+        status,
+        None if payload is None else float(payload),
+        info=dict(doc.get("info") or {}),
+    )
+
+
+def _parameters(
+    params_doc: Any, model: CalibrationModel, p: Path
+) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Values, std (SI) and status of every parameter, validated."""
     if not isinstance(params_doc, dict):
         raise ConfigError(f"{p}: parameters must be a mapping of name to value.")
     names = model.layout.names
@@ -188,33 +340,39 @@ def load_model(path: str | Path) -> CalibratedModel:
     status = []
     to_file = model.layout.to_file
     for i, ps in enumerate(model.layout.specs):
+        where = f"{p}: parameters.{ps.name}"
         entry = params_doc[ps.name]
         if not isinstance(entry, dict) or "value" not in entry:
+            raise ConfigError(f"{where}: expected {{value, unit, std, status}}.")
+        bad = sorted(set(map(str, entry)) - {"value", "unit", "std", "status"})
+        if bad:
             raise ConfigError(
-                f"{p}: parameters.{ps.name}: expected {{value, unit, std, status}}."
+                f"{where}: unknown key {bad[0]!r} (allowed: std, status, unit, value)."
             )
         unit = entry.get("unit", ps.unit.file_unit)
         if unit != ps.unit.file_unit:
             raise ConfigError(
-                f"{p}: parameters.{ps.name}.unit: expected {ps.unit.file_unit!r}; got {unit!r}."
+                f"{where}.unit: expected {ps.unit.file_unit!r}; got {unit!r}."
             )
-        try:
-            values[i] = float(entry["value"]) / to_file[i]
-            if entry.get("std") is not None:
-                std[i] = float(entry["std"]) / to_file[i]
-        except (TypeError, ValueError):
+        v = _finite(entry["value"], f"{where}.value")
+        if ps.unit.file_unit == "mm" and abs(v) > _MAX_MM:
             raise ConfigError(
-                f"{p}: parameters.{ps.name}: value must be a number."
-            ) from None
-        status.append(str(entry.get("status", "estimated")))
-    try:
-        return CalibratedModel(
-            model,
-            values,
-            std,
-            status,
-            s.get("reference_payload_kg"),
-            info=dict(doc.get("info") or {}),
-        )
-    except ValueError as exc:
-        raise ConfigError(f"{p}: {exc}") from None
+                f"{where}.value: {v:g} mm; expected a length within {_MAX_MM:g} mm "
+                "(a typing error?)."
+            )
+        values[i] = v / to_file[i]
+        if entry.get("std") is not None:
+            sd = _finite(entry["std"], f"{where}.std")
+            if sd < 0:
+                raise ConfigError(
+                    f"{where}.std: expected a standard deviation >= 0 (or null); "
+                    f"got {sd!r}."
+                )
+            std[i] = sd / abs(to_file[i])
+        st = entry.get("status", "estimated")
+        if st not in STATUSES:
+            raise ConfigError(
+                f"{where}.status: expected one of {', '.join(STATUSES)}; got {st!r}."
+            )
+        status.append(st)
+    return values, std, status

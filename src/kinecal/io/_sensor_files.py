@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -78,22 +76,7 @@ def write_image(
     ok, buf = cv2.imencode(".png", img)
     if not ok:  # pragma: no cover
         raise DataError(f"{path}: could not encode the image")
-    if sync:
-        return atomic_write_bytes(path, buf.tobytes(), force=force)
-    p = Path(path)
-    if p.exists() and not force:
-        raise FileExistsError(f"{p} exists; use --force to overwrite it.")
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(buf.tobytes())
-        os.replace(tmp, p)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return p
+    return atomic_write_bytes(path, buf.tobytes(), force=force, sync=sync)
 
 
 def image_files(folder: str | Path, pattern: str = "*.png") -> list[Path]:

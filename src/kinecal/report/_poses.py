@@ -156,12 +156,27 @@ def read_pose_errors(path: str | Path) -> PoseErrors:
         raise DataError(f"{p}: line {r + 2}, column '{head[c]}': not a finite number.")
     col = {c: i for i, c in enumerate(head)}
     joints.sort()
+    huge = np.abs(a) > 1e6  # beyond 1 km or 1e6 deg: not data (and not drawable)
+    huge[:, col["row"]] = False
+    if huge.any():
+        r, c = np.argwhere(huge)[0]
+        raise DataError(
+            f"{p}: line {r + 2}, column '{head[c]}': {a[r, c]:g}; expected a value "
+            "within 1e6 (mm or deg)."
+        )
+    rows = a[:, col["row"]]
+    bad = np.flatnonzero((rows != np.round(rows)) | (np.abs(rows) > 2**31))
+    if bad.size:
+        raise DataError(
+            f"{p}: line {int(bad[0]) + 2}, column 'row': expected a row number; got "
+            f"{rows[bad[0]]:g}."
+        )
 
     def take(*names: str) -> Float:
         return a[:, [col[n] for n in names]]
 
     return PoseErrors(
-        row=a[:, col["row"]].astype(np.intp),
+        row=rows.astype(np.intp),
         q=a[:, [i for _, _, i in joints]],
         joint_units=tuple(u for _, u, _ in joints),
         p_mm=take("x_mm", "y_mm", "z_mm"),

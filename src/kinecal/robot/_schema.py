@@ -54,6 +54,9 @@ _TOP_KEYS = {
     "priors",
 }
 _REQUIRED_TOP = ("name", "convention", "units", "joints")
+# Longer DH lengths and offsets are typing errors (and break the numerics). Far below,
+# a DH d of tens of metres is real: the common normal of nearly parallel axes.
+_MAX_LENGTH_M = 1e4
 _JOINT_KEYS = {"name", "theta_offset", "d", "a", "alpha", "limits", "type"}
 _JOINT_REQUIRED = ("theta_offset", "d", "a", "alpha")
 _FRAME_KEYS = ("x", "y", "z", "r", "w", "p")
@@ -128,6 +131,13 @@ def _mass(data: Mapping[str, Any], key: str, source: str) -> float | None:
 def _frame(d: Any, where: str, lu: float, au: float) -> np.ndarray:
     _check_keys(d, set(_FRAME_KEYS), where)
     v = np.array([_number(d.get(k, 0.0), f"{where}.{k}") for k in _FRAME_KEYS])
+    far = np.flatnonzero(np.abs(v[:3] * lu) > _MAX_LENGTH_M)
+    if far.size:
+        k = _FRAME_KEYS[int(far[0])]
+        raise _err(
+            f"{where}.{k}",
+            f"{v[far[0]]:g} is not a plausible offset (over {_MAX_LENGTH_M:g} m).",
+        )
     v[:3] *= lu
     v[3:] *= au
     return euler_transform(v)
@@ -150,12 +160,12 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
         raise _err(f"{source}: convention", f"expected 'dh' or 'mdh'; got {conv!r}.")
     units = data["units"]
     _check_keys(units, {"length", "angle"}, f"{source}: units", ("length", "angle"))
-    if units["length"] not in LENGTH_UNITS:
+    if not isinstance(units["length"], str) or units["length"] not in LENGTH_UNITS:
         raise _err(
             f"{source}: units.length",
             f"expected one of {', '.join(LENGTH_UNITS)}; got {units['length']!r}.",
         )
-    if units["angle"] not in ANGLE_UNITS:
+    if not isinstance(units["angle"], str) or units["angle"] not in ANGLE_UNITS:
         raise _err(
             f"{source}: units.angle",
             f"expected one of {', '.join(ANGLE_UNITS)}; got {units['angle']!r}.",
@@ -184,14 +194,19 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
                         f"{vals[k]} is not an angle in rad (units.angle is 'rad'); "
                         "did you mean 'deg'?",
                     )
-        if units["length"] == "m":
-            for k in ("d", "a"):
-                if abs(vals[k]) > 20.0:
-                    raise _err(
-                        f"{where}.{k}",
-                        f"{vals[k]} m is not a plausible link length (units.length is 'm'); "
-                        "did you mean 'mm'?",
-                    )
+        for k in ("d", "a"):
+            if units["length"] == "m" and abs(vals[k]) > 20.0:
+                raise _err(
+                    f"{where}.{k}",
+                    f"{vals[k]} m is not a plausible link length (units.length is "
+                    "'m'); did you mean 'mm'?",
+                )
+            if abs(vals[k] * lu) > _MAX_LENGTH_M:
+                raise _err(
+                    f"{where}.{k}",
+                    f"{vals[k]:g} {units['length']} is not a plausible length (over "
+                    f"{_MAX_LENGTH_M:g} m); expected a robot's dimension.",
+                )
         lim_scale = lu if kind == "prismatic" else au
         limits: tuple[float, float] = (-np.inf, np.inf)
         if "limits" in jr:
@@ -225,7 +240,13 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
         raise _err(f"{source}: joints", f"joint names must be unique; got {names}.")
 
     C = np.eye(n)
-    for k_c, c in enumerate(data.get("coupling") or []):
+    coupling = data.get("coupling") or []
+    if not isinstance(coupling, list):
+        raise _err(
+            f"{source}: coupling",
+            f"expected a list of {{joint, from, factor}}; got {coupling!r}.",
+        )
+    for k_c, c in enumerate(coupling):
         where = f"{source}: coupling[{k_c}]"
         _check_keys(c, _COUPLING_KEYS, where, ("joint", "from", "factor"))
         j = c["joint"]
@@ -238,6 +259,13 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
         if j == f:
             raise _err(where, "a joint cannot be coupled to itself.")
         C[j - 1, f - 1] += _number(c["factor"], f"{where}.factor")
+    if coupling and not np.linalg.cond(C) < 1e8:
+        raise _err(
+            f"{source}: coupling",
+            "the couplings make the kinematic angles depend on each other so that the "
+            "controller angles cannot be recovered (singular theta = C q); expected "
+            "each joint's angle from its own motor plus others.",
+        )
 
     T_n_flange = (
         _frame(data["flange"], f"{source}: flange", lu, au)

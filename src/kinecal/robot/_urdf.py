@@ -14,6 +14,7 @@ are the controller values (no couplings).
 
 from __future__ import annotations
 
+import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -35,8 +36,8 @@ def _floats(text: str | None, n: int, where: str) -> np.ndarray:
         v = np.array([float(t) for t in (text or "").split()])
     except ValueError:
         raise ConfigError(f"{where}: expected {n} numbers; got {text!r}.") from None
-    if v.shape != (n,):
-        raise ConfigError(f"{where}: expected {n} numbers; got {text!r}.")
+    if v.shape != (n,) or not np.all(np.isfinite(v)):
+        raise ConfigError(f"{where}: expected {n} finite numbers; got {text!r}.")
     return v
 
 
@@ -49,24 +50,102 @@ def _origin(joint: ET.Element, where: str) -> np.ndarray:
     return T
 
 
+def _tree(
+    root: ET.Element, src: str
+) -> tuple[set[str], dict[str, ET.Element], dict[str, list[str]]]:
+    """Links, the joint above each link and the children of each link, checked to form
+    trees: every joint's links defined, no link below two joints (a closed loop), no
+    cycle."""
+    links: set[str] = set()
+    for el in root.findall("link"):
+        name = el.get("name", "")
+        if name in links:
+            raise ConfigError(
+                f"{src}: link {name!r} is defined twice; expected unique names."
+            )
+        links.add(name)
+    by_child: dict[str, ET.Element] = {}
+    children: dict[str, list[str]] = {}
+    joint_names: set[str] = set()
+    for j in root.findall("joint"):
+        jn = j.get("name", "?")
+        if jn in joint_names:
+            raise ConfigError(
+                f"{src}: joint {jn!r} is defined twice; expected unique names."
+            )
+        joint_names.add(jn)
+        parent, child = j.find("parent"), j.find("child")
+        if parent is None or child is None:
+            raise ConfigError(f"{src}: joint {jn!r} lacks parent or child.")
+        p, c = parent.get("link", ""), child.get("link", "")
+        for role, name in (("parent", p), ("child", c)):
+            if name not in links:
+                raise ConfigError(
+                    f"{src}: joint {jn!r}: {role} link {name!r} is not defined; expected "
+                    "the name of one of the file's <link> elements (misspelt?)."
+                )
+        if p == c:
+            raise ConfigError(
+                f"{src}: joint {jn!r} connects link {p!r} to itself; expected a joint "
+                "between two links."
+            )
+        if c in by_child:
+            raise ConfigError(
+                f"{src}: link {c!r} is the child of joints {by_child[c].get('name')!r} and "
+                f"{jn!r}: a closed kinematic loop; expected a tree (kinecal calibrates "
+                "serial chains: remove the joint that closes the loop)."
+            )
+        by_child[c] = j
+        children.setdefault(p, []).append(c)
+    # Each link has at most one parent now; links no root reaches lie on a cycle.
+    seen: set[str] = set()
+    todo = [name for name in links if name not in by_child]
+    while todo:
+        name = todo.pop()
+        seen.add(name)
+        todo.extend(children.get(name, []))
+    if len(seen) < len(links):
+        cyc = sorted(links - seen)
+        raise ConfigError(
+            f"{src}: the joints form a cycle through links {', '.join(map(repr, cyc[:6]))}"
+            f"{' ...' if len(cyc) > 6 else ''}; expected a tree (each link reached from "
+            "a root link by one path)."
+        )
+    return links, by_child, children
+
+
+def _movable_below(link: str, children: dict[str, list[str]], by_child) -> list[str]:
+    """Names of the movable joints in the tree below ``link``."""
+    out, todo = [], [link]
+    while todo:
+        lk = todo.pop()
+        for c in children.get(lk, []):
+            if by_child[c].get("type", "") in _MOVABLE:
+                out.append(by_child[c].get("name", "?"))
+            todo.append(c)
+    return out
+
+
 def _chain(
     root: ET.Element, base: str | None, tip: str | None, src: str
 ) -> tuple[str, str, list[ET.Element]]:
-    joints = root.findall("joint")
-    by_child: dict[str, ET.Element] = {}
-    children: dict[str, list[str]] = {}
-    for j in joints:
-        parent, child = j.find("parent"), j.find("child")
-        if parent is None or child is None:
-            raise ConfigError(f"{src}: joint {j.get('name')!r} lacks parent or child.")
-        by_child[child.get("link", "")] = j
-        children.setdefault(parent.get("link", ""), []).append(child.get("link", ""))
-    links = {lk.get("name", "") for lk in root.findall("link")}
+    links, by_child, children = _tree(root, src)
     if base is None:
         roots = sorted(lk for lk in links if lk not in by_child)
-        if len(roots) != 1:
-            raise ConfigError(f"{src}: {len(roots)} root links ({roots}); name --base.")
-        base = roots[0]
+        trees = [lk for lk in roots if children.get(lk)]  # a lone link is no tree
+        if not trees:
+            raise ConfigError(f"{src}: no joints; expected a serial chain.")
+        if len(trees) > 1:
+            desc = ", ".join(
+                f"{lk!r} ({len(_movable_below(lk, children, by_child))} movable joints)"
+                for lk in trees
+            )
+            raise ConfigError(
+                f"{src}: the joints form {len(trees)} separate trees, rooted at {desc}; "
+                "expected one chain (a joint whose parent should be the end of the other "
+                "tree names another link?), or name --base to use one tree."
+            )
+        base = trees[0]
     if tip is None:
         link = base
         while children.get(link):
@@ -90,7 +169,37 @@ def _chain(
         chain.append(j)
         link = j.find("parent").get("link", "")  # type: ignore[union-attr]
     chain.reverse()
+    used = {j.get("name", "?") for j in chain if j.get("type", "") in _MOVABLE}
+    others = [
+        j.get("name", "?")
+        for j in root.findall("joint")
+        if j.get("type", "") in _MOVABLE and j.get("name", "?") not in used
+    ]
+    if others and used:
+        warnings.warn(
+            f"{src}: the chain {base} -> {tip} has {len(used)} of the file's "
+            f"{len(used) + len(others)} movable joints; not in the robot: "
+            f"{', '.join(others[:6])}{' ...' if len(others) > 6 else ''} (check --base "
+            "and --tip).",
+            stacklevel=3,
+        )
     return base, tip, chain
+
+
+def _limits(lim: ET.Element, where: str) -> tuple[float, float]:
+    try:
+        lo = float(lim.get("lower", "-inf"))
+        hi = float(lim.get("upper", "inf"))
+    except ValueError:
+        raise ConfigError(
+            f"{where}: expected numbers lower < upper; got lower={lim.get('lower')!r}, "
+            f"upper={lim.get('upper')!r}."
+        ) from None
+    if np.isnan(lo) or np.isnan(hi) or not lo < hi:
+        raise ConfigError(
+            f"{where}: expected lower < upper; got lower={lo:g}, upper={hi:g}."
+        )
+    return lo, hi
 
 
 def _angle(a: np.ndarray, b: np.ndarray, axis: np.ndarray) -> float:
@@ -116,8 +225,15 @@ def robot_from_urdf(
     Raises
     ------
     ConfigError
-        Unreadable file, branching chain without ``tip``, no movable joints, or a first
-        joint axis that is not the base z axis (DH frame 0 must sit on it).
+        Unreadable file, undefined links, a closed loop or a cycle, several separate
+        trees without ``base``, branching chain without ``tip``, no movable joints, or
+        a first joint axis that is not the base z axis (DH frame 0 must sit on it).
+
+    Warns
+    -----
+    UserWarning
+        The chain leaves some of the file's movable joints out (a gripper's fingers, or
+        half of a chain broken in two).
     """
     p = Path(path)
     try:
@@ -139,13 +255,21 @@ def robot_from_urdf(
                 raise ConfigError(f"{src}: joint {jn!r} has unsupported type {kind!r}.")
             continue
         ax_el = j.find("axis")
-        axis = _floats(ax_el.get("xyz") if ax_el is not None else "1 0 0", 3, jn)
+        axis = _floats(
+            ax_el.get("xyz") if ax_el is not None else "1 0 0",
+            3,
+            f"{src}: joint {jn!r} axis",
+        )
+        if not np.linalg.norm(axis) > 1e-9:
+            raise ConfigError(
+                f"{src}: joint {jn!r} axis: expected a non-zero direction; got "
+                f"{axis.tolist()}."
+            )
         axis = axis / np.linalg.norm(axis)
         lim = j.find("limit")
         lo, hi = -np.inf, np.inf
         if kind != "continuous" and lim is not None:
-            lo = float(lim.get("lower", "-inf"))
-            hi = float(lim.get("upper", "inf"))
+            lo, hi = _limits(lim, f"{src}: joint {jn!r} limit")
         lines.append((T[:3, 3].copy(), T[:3, :3] @ axis))
         specs.append((jn, "prismatic" if kind == "prismatic" else "revolute", (lo, hi)))
     if not lines:
