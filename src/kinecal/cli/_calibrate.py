@@ -27,6 +27,8 @@ from kinecal.cli._common import (
     targets_option,
 )
 
+_NOMINAL_CHECK_ROWS = 20000
+
 
 def _options_from(loss: str, priors: str, stage2: str):
     from kinecal.identification import CalibrationOptions
@@ -236,6 +238,15 @@ def calibrate(
         )
     check_distinct_poses(meas, robot, spec, data)
     result = run_calibration(robot, meas, spec, opts, progress=say)
+    if opts.priors != "none" and meas.n <= _NOMINAL_CHECK_ROWS:
+        # A wrong nominal robot (or units): the residual of the nominal robot far above
+        # the calibrated noise, and priors holding parameters the data reject (one more
+        # fit, without priors; on large data the priors hardly matter and it is left
+        # out).
+        from kinecal.identification import nominal_check
+
+        say("check", "the nominal robot and the priors against the data")
+        result.diagnostics.extend(nominal_check(result, robot, meas, options=opts))
     if cv_folds:
         from kinecal.identification import cross_validate_many
 

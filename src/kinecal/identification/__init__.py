@@ -44,6 +44,7 @@ from kinecal.identification._lm import (
 from kinecal.identification._measurements import KINDS, Measurements
 from kinecal.identification._metrics import Metrics, metrics_from_errors
 from kinecal.identification._noise import NoiseModel
+from kinecal.identification._nominal_check import nominal_check
 from kinecal.identification._options import PRIOR_SIGMA, CalibrationOptions
 from kinecal.identification._priors import EvidencePriors, Priors, build_prior
 from kinecal.identification._problem import (
@@ -132,6 +133,7 @@ __all__ = [
     "kfold_indices",
     "make_folds",
     "metrics_from_errors",
+    "nominal_check",
     "normal_equations",
     "priority_order",
     "refit",
