@@ -120,7 +120,7 @@ def test_calibration_report_content(reports):
         "RMS before [mm]",
         "x [mm]",
         "r [deg]",
-        "10⁻³ rad",
+        "rad/m (per unit weight)",  # the compliance table, in model.yaml's units
         # issue 26: per-axis RMS, change from nominal with its significance
         "RMS x [mm]",
         "RMS z [mm]",

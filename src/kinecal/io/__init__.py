@@ -37,6 +37,7 @@ from kinecal.io._files import (
     write_json,
 )
 from kinecal.io._model_file import FORMAT_VERSION, load_model, model_to_dict, save_model
+from kinecal.io._parameters import parameter_records
 from kinecal.io._programs import (
     PROGRAM_FORMATS,
     Program,
@@ -92,6 +93,7 @@ __all__ = [
     "new_dir_mode",
     "new_file_mode",
     "output_transaction",
+    "parameter_records",
     "prepare_output_dir",
     "program_bytes",
     "program_joints",

@@ -20,16 +20,13 @@ from kinecal.geometry import euler_zyx_to_matrix, matrix_to_euler_zyx
 from kinecal.identification import CalibratedModel
 from kinecal.identification._calibrated import STATUSES
 from kinecal.io._files import atomic_write_text
+from kinecal.io._parameters import parameter_records
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import dump_robot, robot_from_dict
 
 __all__ = ["FORMAT_VERSION", "load_model", "model_to_dict", "save_model"]
 
 FORMAT_VERSION = 1
-
-
-def _num(x: float) -> float | None:
-    return None if not math.isfinite(float(x)) else float(x)
 
 
 def _rwp_deg(R: np.ndarray) -> dict[str, float]:
@@ -62,15 +59,10 @@ def model_to_dict(cal: CalibratedModel) -> dict[str, Any]:
         refs["cam"] = [_rwp_deg(R) for R in m.R_ref_cam]
     if refs:
         spec["reference_rotations_deg"] = refs
-    params = {}
-    to_file = m.layout.to_file
-    for i, ps in enumerate(m.layout.specs):
-        params[ps.name] = {
-            "value": float(cal.params[i] * to_file[i]),
-            "std": _num(cal.std[i] * to_file[i]),
-            "unit": ps.unit.file_unit,
-            "status": cal.status[i],
-        }
+    params = {
+        r["name"]: {k: r[k] for k in ("value", "std", "unit", "status")}
+        for r in parameter_records(cal)
+    }
     frames: dict[str, Any] = {}
     for which, labels in (("base", s.sets), ("cam", s.markers)):
         E = m.frame_euler(cal.params, which)

@@ -14,29 +14,16 @@ __all__ = ["calibration_summary", "comparison_table", "format_table", "parameter
 
 
 def parameter_table(result: CalibrationResult) -> list[dict[str, Any]]:
-    """Every parameter: name, group, unit, value, std, start value, status and the std
-    of its prior (None without one) (file units)."""
-    cal = result.calibrated
-    L = cal.model.layout
-    to_file = L.to_file
+    """Every parameter: name, group, joint, field, label, unit, value, std, start value,
+    status and the std of its prior (None without one), in file units: the records of
+    :func:`kinecal.io.parameter_records` (the same as model.yaml's)."""
+    from kinecal.io import parameter_records
+
+    L = result.calibrated.model.layout
     prior = result.prior.sigma if result.prior is not None else np.full(L.size, np.inf)
-    out = []
-    for i, ps in enumerate(L.specs):
-        std = cal.std[i] * to_file[i]
-        p_std = prior[i] * to_file[i]
-        out.append(
-            {
-                "name": ps.name,
-                "group": ps.group,
-                "unit": ps.unit.file_unit,
-                "value": float(cal.params[i] * to_file[i]),
-                "std": None if not np.isfinite(std) else float(std),
-                "start": float(result.registered[i] * to_file[i]),
-                "status": cal.status[i],
-                "prior_std": float(p_std) if np.isfinite(p_std) else None,
-            }
-        )
-    return out
+    return parameter_records(
+        result.calibrated, start=result.registered, prior_sigma=prior
+    )
 
 
 def _metrics(m: Metrics) -> dict[str, Any]:

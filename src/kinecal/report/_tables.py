@@ -24,23 +24,39 @@ PRIOR_DOMINATED = 0.7
 SIGNIFICANT = 3.0  # |change| / std from which a change from nominal is significant
 
 
+def _records(cal: Any) -> dict[str, dict[str, Any]]:
+    """The model's parameters as model.yaml and report.json write them, by name."""
+    from kinecal.io import parameter_records
+
+    return {r["name"]: r for r in parameter_records(cal)}
+
+
+def _pm(rec: Mapping[str, Any]) -> str:
+    return pm(rec["value"], np.nan if rec["std"] is None else rec["std"])
+
+
 def frames_table(cal: Any) -> str:
+    """The user and tool frames (with any reference rotation composed in); their std
+    from the parameter records."""
     m = cal.model
-    L = m.layout
+    recs = list(_records(cal).values())
     rows = []
     for which, labels in (("base", m.spec.sets), ("cam", m.spec.markers)):
         E = m.frame_euler(cal.params, which)
-        idx = m.base_index if which == "base" else m.cam_index
         for k, lab in enumerate(labels):
             name = ("T_user_base" if which == "base" else "T_flange_cam") + (
                 f" [{lab}]" if lab else ""
             )
+            std = {
+                r["field"]: r["std"]
+                for r in recs
+                if r["group"] == which and r["label"] == lab
+            }
             cells = [e(name)]
-            for c in range(6):
+            for c, key in enumerate("xyzrwp"):
                 v = E[k, c] * (1e3 if c < 3 else 180 / np.pi)
-                i = idx[k, c] if c < idx.shape[1] else None
-                sd = cal.std[i] * L.to_file[i] if i is not None else np.nan
-                cells.append(pm(v, sd))
+                sd = std.get(key)
+                cells.append(pm(v, np.nan if sd is None else sd))
             rows.append(cells)
     return table(
         ["frame", "x [mm]", "y [mm]", "z [mm]", "r [deg]", "w [deg]", "p [deg]"], rows
@@ -48,60 +64,44 @@ def frames_table(cal: Any) -> str:
 
 
 def dh_table(cal: Any) -> str:
-    L = cal.model.layout
+    recs = [r for r in _records(cal).values() if r["group"] == "joint"]
     n = cal.model.n_joints
     fields = [("theta_offset", "θ [deg]"), ("d", "d [mm]"), ("a", "a [mm]")]
     fields += [("alpha", "α [deg]"), ("beta", "β [deg]")]
-    if not any(f"joint{j}.beta" in L for j in range(1, n + 1)):
+    if not any(r["field"] == "beta" for r in recs):
         fields = fields[:4]
+    by_key = {(r["joint"], r["field"]): r for r in recs}
     rows = []
     for j in range(1, n + 1):
         cells = [f"J{j}"]
         for key, _ in fields:
-            name = f"joint{j}.{key}"
-            if name not in L:
+            rec = by_key.get((j, key))
+            if rec is None:
                 cells.append("—")
                 continue
-            i = L.index(name)
             tag = (
                 ""
-                if cal.status[i] == "estimated"
-                else f" <span class=warn>({e(cal.status[i])})</span>"
+                if rec["status"] == "estimated"
+                else f" <span class=warn>({e(rec['status'])})</span>"
             )
-            cells.append(
-                pm(cal.params[i] * L.to_file[i], cal.std[i] * L.to_file[i]) + tag
-            )
+            cells.append(_pm(rec) + tag)
         rows.append(cells)
     return table(["joint"] + [h for _, h in fields], rows)
 
 
 def compliance_table(cal: Any) -> str:
-    L = cal.model.layout
     rows = []
     payload = cal.reference_payload_kg
-    for i, s in enumerate(L.specs):
-        if s.group not in ("ntm", "load", "link"):
+    for rec in _records(cal).values():
+        if rec["group"] not in ("ntm", "load", "link"):
             continue
-        if s.kind == "ntm":
-            scale, unit = 1e3, "10⁻³ rad"
-        elif s.kind == "compliance":
-            scale, unit = 1e3, "10⁻³ rad/m (per unit weight)"
-        else:
-            scale, unit = L.to_file[i], s.unit.file_unit
         phys = ""
-        if s.kind == "compliance" and payload:
-            phys = pm(
-                cal.params[i] / (payload * 9.80665), cal.std[i] / (payload * 9.80665)
-            )
-        rows.append(
-            [
-                e(s.name),
-                pm(cal.params[i] * scale, cal.std[i] * scale),
-                e(unit),
-                phys,
-                e(cal.status[i]),
-            ]
-        )
+        if rec["group"] == "load" and payload:
+            w = payload * 9.80665  # the unit weight of lambda*: rad/m -> rad/(N m)
+            sd = rec["std"]
+            phys = pm(rec["value"] / w, np.nan if sd is None else sd / w)
+        unit = rec["unit"] + (" (per unit weight)" if rec["group"] == "load" else "")
+        rows.append([e(rec["name"]), _pm(rec), e(unit), phys, e(rec["status"])])
     if not rows:
         return "<p class=muted>This model has no compliance terms.</p>"
     return table(["parameter", "value ± std", "unit", "rad/(N·m)", "status"], rows)
