@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kinecal.identification._blocks import reporting
 from kinecal.identification._calibrated import CalibratedModel
 from kinecal.identification._diagnose import Diagnose
 from kinecal.identification._diagnostics import Diagnostic, Outlier, StageLog
@@ -120,7 +121,8 @@ def calibrate(
     t_start = time.perf_counter()
     problem = Problem.make(robot, meas, model, options, progress)
     recipe = default_stages(problem.options) if stages is None else stages
-    state = run_stages(problem, problem.start(), recipe)
+    with reporting(problem.progress.rows):  # passes over large data report too
+        state = run_stages(problem, problem.start(), recipe)
     return CalibrationResult.from_state(problem, state, time.perf_counter() - t_start)
 
 

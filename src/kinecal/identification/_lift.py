@@ -21,8 +21,9 @@ import numpy as np
 
 from kinecal.identification._lm import (
     LMOptions,
+    NormalSource,
     Prior,
-    normal_equations,
+    normal_of,
     solve_lm,
     spd_solve,
 )
@@ -36,7 +37,7 @@ def lifted_start(
     model: CalibrationModel,
     x: Float,
     r: Float,
-    J: Float,
+    J: Float | NormalSource,
     free: np.ndarray,
     prior: Prior | None,
     row_weights: Float | None = None,
@@ -49,7 +50,8 @@ def lifted_start(
     x : (P,) the point of linearisation (any point; the stage-2 result or a previous fit).
     r : (N, c) whitened residuals at ``x``.
     J : (N, c, P + K) their Jacobian with the product columns of
-        :attr:`CalibrationModel.link_products` (``evaluate(..., products=True)``).
+        :attr:`CalibrationModel.link_products` (``evaluate(..., products=True)``), or a
+        block-wise one (:class:`~kinecal.identification._lm.NormalSource`).
     free : (P,) bool, the estimated parameters.
     prior : Prior or None
     row_weights : (N,) square roots of robust row weights, or None.
@@ -74,7 +76,7 @@ def lifted_start(
     cols = np.concatenate([native, [c for c, _, _ in pairs]])
     sc_mu = np.array([scales[lam] * scales[s] for _, lam, s in pairs])
     sc_l = np.concatenate([scales[native], sc_mu])
-    A, g = normal_equations(r, J, cols, sc_l, row_weights)
+    A, g = normal_of(r, J, cols, sc_l, row_weights)
 
     # At a point of the manifold the lifted column of lambda*_j is the model's column
     # minus sum_k s_k (column of mu_jk): change of variables T, A -> T' A T.
