@@ -132,7 +132,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="fewer repeats")
     ap.add_argument("--planning", action="store_true", help="the pose planning study")
     ap.add_argument("--figures", help="with --planning: write its figures here")
+    ap.add_argument(
+        "--robust", action="store_true", help="the breakdown study of the rejection"
+    )
     args = ap.parse_args(argv)
+    if args.robust:
+        from benchmarks._robust import main as robust
+
+        if args.out == ap.get_default("out"):
+            args.out = "benchmarks/robust.json"
+        return robust(args)
     if args.planning:
         from benchmarks._planning import main as planning
 
@@ -456,6 +465,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     t, _ = _median_time(lambda: fit_sphere(P), rep_fast)
     record("fit_sphere_50k", t, "<= 20 ms")
+
+    # 7b. the sensor: simulated session, calibrations, spheres, std (issue 24)
+    from benchmarks._sensor_calib import run as run_sensor
+
+    run_sensor(record, results, rep, args.quick)
 
     # 8. CLI start-up
     def start() -> None:

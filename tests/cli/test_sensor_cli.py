@@ -6,6 +6,7 @@ import json
 
 import cv2
 import numpy as np
+import pytest
 import yaml
 
 
@@ -21,10 +22,13 @@ def test_fit_sphere_json_contract(tmp_path, run_cli):
     r = run_cli("sensor", "fit-sphere", str(f), "--json")
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
-    assert set(out) == {"center_mm", "radius_mm", "rms_mm", "n"}
+    assert set(out) >= {"center_mm", "radius_mm", "rms_mm", "n"}  # DESIGN §11
     assert np.allclose(out["center_mm"], c, atol=1e-3)
     assert abs(out["radius_mm"] - 15.001) < 1e-3
     assert 0.002 < out["rms_mm"] < 0.004 and out["n"] > 2900
+    # issue 24: the centre's std and the cap's half-angle (a hemisphere here)
+    assert len(out["center_std_mm"]) == 3 and max(out["center_std_mm"]) < 1e-3
+    assert 85 < out["cap_half_angle_deg"] < 91 and out["n_points"] == 3000
 
 
 def test_fit_sphere_bad_file_names_line_and_column(tmp_path, run_cli):
@@ -36,6 +40,64 @@ def test_fit_sphere_bad_file_names_line_and_column(tmp_path, run_cli):
     f.write_text("x,y,z\n1,2,3\n")
     r = run_cli("sensor", "fit-sphere", str(f))
     assert r.returncode == 2 and "x_mm" in r.stderr
+
+
+def _cloud_file(path, P_mm):
+    np.savetxt(
+        path, P_mm, delimiter=",", header="x_mm,y_mm,z_mm", comments="", fmt="%.6f"
+    )
+    return path
+
+
+def test_issue_21_fit_sphere_refuses_degenerate_clouds(tmp_path, run_cli):
+    """Collinear points (radius 3.5e7 mm, exit 0 before), one circle (4e15 mm) and a
+    plane (a traceback): one line naming the file and the reason, exit 2."""
+    t = np.linspace(0, 2 * np.pi, 300, endpoint=False)
+    rng = np.random.default_rng(1)
+    clouds = {
+        "line.csv": np.outer(np.linspace(0, 10, 300), [1.0, 2.0, 3.0]),
+        "circle.csv": np.column_stack(
+            [12 * np.cos(t), 12 * np.sin(t), 0.5 * np.cos(t) + 130]
+        ),
+        "plane.csv": np.column_stack(
+            [rng.uniform(-10, 10, (400, 2)), 0.1 * rng.uniform(-10, 10, 400) + 120]
+        ),
+    }
+    for name, P in clouds.items():
+        r = run_cli(
+            "sensor", "fit-sphere", str(_cloud_file(tmp_path / name, P)), "--json"
+        )
+        assert r.returncode == 2, (name, r.stdout)
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and name in lines[0], r.stderr
+        assert ("line" if name == "line.csv" else "plane") in lines[0]
+        assert "sphere is not determined" in lines[0] and "expected" in lines[0]
+        assert "Traceback" not in r.stderr and r.stdout == ""
+    r = run_cli("sensor", "fit-sphere", str(tmp_path / "line.csv"), "--radius-mm", "-3")
+    assert r.returncode == 2 and "--radius-mm" in r.stderr
+
+
+def test_issue_24_fit_sphere_segments_the_support_plate(tmp_path, run_cli):
+    """A cap of 30 deg with 10 % of its points from the plate around it: the centre
+    within a few um (1-6.6 mm before), the plate left out."""
+    rng = np.random.default_rng(2)
+    n = 9000
+    ct = rng.uniform(np.cos(np.radians(30)), 1.0, n)
+    phi = rng.uniform(0, 2 * np.pi, n)
+    d = np.column_stack(
+        [np.sqrt(1 - ct**2) * np.cos(phi), np.sqrt(1 - ct**2) * np.sin(phi), -ct]
+    )
+    c = np.array([2.0, -1.0, 140.0])
+    cap = c + d * (15.0 + rng.normal(0, 0.01, n))[:, None]
+    rr, ph = rng.uniform(14.5, 35, 1000), rng.uniform(0, 2 * np.pi, 1000)
+    plate = np.column_stack(
+        [c[0] + rr * np.cos(ph), c[1] + rr * np.sin(ph), np.full(1000, 128.0)]
+    )
+    f = _cloud_file(tmp_path / "ball.csv", np.vstack([cap, plate]))
+    out = json.loads(run_cli("sensor", "fit-sphere", str(f), "--json").stdout)
+    assert np.linalg.norm(np.array(out["center_mm"]) - c) < 0.006
+    assert out["n"] <= n and out["n_points"] == n + 1000
+    assert out["cap_half_angle_deg"] == pytest.approx(30, abs=1)
 
 
 def test_stripes_contract_and_no_overwrite(tmp_path, run_cli):
@@ -142,6 +204,7 @@ def test_calibration_commands(tmp_path, run_cli):
     )
     assert r.returncode == 0, r.stderr
     assert "re-projection RMS" in r.stdout
+    cam_stdout = r.stdout
     cam = yaml.safe_load((tmp_path / "camera.yaml").read_text())
     assert abs(cam["camera"]["fx"] / 3423.018 - 1) < 2e-3
     assert cam["calibration"]["rms_reprojection_px"] < 0.2
@@ -163,3 +226,36 @@ def test_calibration_commands(tmp_path, run_cli):
     sen = yaml.safe_load((tmp_path / "sensor.yaml").read_text())
     assert len(sen["light_planes"]["planes"]) == 120
     assert sen["calibration"]["plane_fit_rms_mm"]["mean"] < 0.02
+    # issue 24: k3 held (not determined by the chessboard views), and said so
+    assert "k3" in cam["calibration"]["fixed"] and "not determined" in cam_stdout
+    assert cam["calibration"]["std"]["fx"] > 0.1  # px: from the residuals, not 1e-3
+    # camera, target poses and planes in one adjustment, from the same images
+    r = run_cli(
+        "sensor",
+        "calibrate-planes",
+        str(cal / "planes"),
+        "--chessboard",
+        str(cal / "chessboard"),
+        "--n-planes",
+        "120",
+        "--out",
+        str(tmp_path / "joint.yaml"),
+        "-q",
+    )
+    assert r.returncode == 0, r.stderr
+    assert "re-projection RMS" in r.stdout and "light planes" in r.stdout
+    joint = yaml.safe_load((tmp_path / "joint.yaml").read_text())
+    info = joint["calibration"]
+    assert info["plane_fit_rms_mm"]["mean"] < 0.01 and info["sigma_stripe_px"] < 0.2
+    assert abs(joint["camera"]["fx"] / 3423.018 - 1) < 1e-3
+    assert info["camera"]["std"]["fx"] > 0.1
+    r = run_cli(
+        "sensor",
+        "calibrate-planes",
+        str(cal / "planes"),
+        "--out",
+        str(tmp_path / "x.yaml"),
+    )
+    assert r.returncode == 2 and "--chessboard" in r.stderr
+    truth = json.loads((cal / "truth.json").read_text())
+    assert np.array(truth["planes_T_cam_board_mm"]).shape == (3, 4, 4)

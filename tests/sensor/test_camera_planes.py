@@ -135,3 +135,56 @@ def test_sensor_dict_round_trip():
     assert back.camera == sen.camera
     np.testing.assert_allclose(back.planes.n, sen.planes.n, atol=1e-15)
     np.testing.assert_allclose(back.planes.b, sen.planes.b, atol=1e-15)
+
+
+# -- issue 24: analytic Jacobians of the camera model (the bundle adjustment's) ---------
+
+
+def _camera_scales(cam):
+    """A step scale per intrinsic (fx.. in px, distortion dimensionless)."""
+    return np.array([100.0, 100.0, 10.0, 10.0, 0.1, 0.1, 0.1, 1e-3, 1e-3])
+
+
+def test_projection_jacobians_match_finite_differences():
+    from kinecal.sensor import INTRINSICS
+    from tests.helpers import assert_jacobian_matches_fd
+
+    cam = paper_camera().with_(p1=0.002, p2=-0.003)
+    P = _points(np.random.default_rng(5), 12)
+    uv, J_P, J_c = cam.project_jacobian(P)
+    np.testing.assert_allclose(uv, cam.project(P), atol=1e-12)
+    for k in range(P.shape[0]):
+        assert_jacobian_matches_fd(
+            J_P[k], lambda p, k=k: cam.project(p), P[k], rtol=1e-6
+        )
+    sc = _camera_scales(cam)
+    c0 = cam.intrinsics()
+    np.testing.assert_allclose(cam.with_intrinsics(c0).intrinsics(), c0, atol=0)
+    assert_jacobian_matches_fd(
+        J_c * sc,
+        lambda x: cam.with_intrinsics(c0 + x * sc).project(P),
+        np.zeros(9),
+        names=list(INTRINSICS),
+    )
+
+
+def test_undistortion_jacobians_match_finite_differences():
+    """Implicit differentiation through the Newton undistortion (Eq. 2 inverted)."""
+    from kinecal.sensor import INTRINSICS
+    from tests.helpers import assert_jacobian_matches_fd
+
+    cam = paper_camera().with_(p1=0.002, p2=-0.003)
+    rng = np.random.default_rng(6)
+    uv = np.column_stack([rng.uniform(0, 1279, 15), rng.uniform(0, 1023, 15)])
+    xy, J_c, J_uv = cam.normalised_jacobian(uv)
+    np.testing.assert_allclose(xy, cam.normalised(uv), atol=0)
+    sc = _camera_scales(cam)
+    c0 = cam.intrinsics()
+    assert_jacobian_matches_fd(
+        J_c * sc,
+        lambda x: cam.with_intrinsics(c0 + x * sc).normalised(uv),
+        np.zeros(9),
+        names=list(INTRINSICS),
+    )
+    for k in range(3):
+        assert_jacobian_matches_fd(J_uv[k], lambda p: cam.normalised(p), uv[k])

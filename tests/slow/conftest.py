@@ -10,9 +10,8 @@ import pytest
 from kinecal.sensor import (
     ChessboardTarget,
     Sensor,
-    board_pose,
-    calibrate_camera,
-    calibrate_planes,
+    SensorCalibration,
+    calibrate_sensor,
     paper_sensor,
     simulate_calibration,
 )
@@ -21,18 +20,20 @@ from kinecal.sensor import (
 @dataclass(frozen=True)
 class CalibratedSensor:
     true: Sensor  # what renders the images
-    calibrated: Sensor  # what Zhang's method and the plane fit made of them
+    calibrated: Sensor  # what the joint adjustment made of them
+    result: SensorCalibration
 
 
 @pytest.fixture(scope="session")
 def calibrated_sensor() -> CalibratedSensor:
-    """Camera by Zhang's method from 15 chessboard views, light planes from stripes on
-    the board at 5 poses, all rendered at full resolution from the paper's sensor."""
+    """Camera, target poses and the 120 light planes in one bundle adjustment, from 25
+    chessboard views and the target at 5 poses, all rendered at full resolution from
+    the paper's sensor (images rendered when read, pose by pose)."""
     true = paper_sensor()
     rng = np.random.default_rng(2024)
     tgt = ChessboardTarget()
-    ses = simulate_calibration(true, rng, n_views=15, n_plane_poses=5)
-    cc = calibrate_camera(ses.chessboard_images, tgt)
-    poses = [board_pose(im, cc.camera, tgt) for im in ses.plane_board_images]
-    pc = calibrate_planes(cc.camera, poses, ses.plane_stripe_images)
-    return CalibratedSensor(true, Sensor(cc.camera, pc.planes))
+    ses = simulate_calibration(true, rng, n_views=25, n_plane_poses=5)
+    res = calibrate_sensor(
+        ses.chessboard_images, tgt, ses.plane_board_images, ses.plane_stripe_images
+    )
+    return CalibratedSensor(true, res.sensor, res)

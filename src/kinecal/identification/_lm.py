@@ -243,7 +243,7 @@ class Prior:
 
     def cost(self, x: Float) -> float:
         d = (x - self.mean) / self.sigma
-        # Eq. (T-5): the prior term of the MAP objective
+        # Eq. (T-6): the prior term of the MAP objective
         return 0.5 * float(np.sum(np.where(np.isfinite(self.sigma), d * d, 0.0)))
 
     @property
@@ -301,7 +301,7 @@ def solve_lm(
     ) -> tuple[Float, Float]:
         sw_ = None if opts.loss == "linear" else np.sqrt(ww)
         A_, g_ = normal_of(rr, JJ, fidx, s, sw_)
-        A_ += np.diag(prec)  # the prior of Eq. (T-5), in scaled variables
+        A_ += np.diag(prec)  # the prior of Eq. (T-6), in scaled variables
         if prior is not None:
             g_ = g_ + prec * (xx[fidx] - pmean) / s
         return A_, g_

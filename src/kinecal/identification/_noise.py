@@ -1,7 +1,7 @@
 """The noise model from the data: variance components, and how to weigh orientations.
 
 Without sigmas in the data, kinecal estimates the noise from the residuals of each fit by
-Helmert's variance component estimation (Eq. (T-6)): for each group ``g`` of residual
+Helmert's variance component estimation (Eq. (T-7)): for each group ``g`` of residual
 components (positions; orientations; per set or marker where those differ) with its part
 ``N_g = J_gᵀ J_g`` of the normal matrix ``N = Σ N_g + P`` (whitened, with the priors),
 
@@ -86,7 +86,7 @@ def _components(grouped: Grouped, P: Float) -> tuple[Float, Float]:
         )
         new = np.sqrt(
             np.maximum(sq / factor**2, 0.0) / np.maximum(red, 1e-9)
-        )  # Eq. (T-6)
+        )  # Eq. (T-7)
         new = np.where(counts > 0, new, 1.0)
         factor = factor * new
         if np.all(np.abs(new - 1.0) < 1e-4):

@@ -2,7 +2,7 @@
 
 The priors are Gaussian, centred on the start value (nominal geometry, zero for the
 transmission and compliance terms), with the standard deviations of :data:`PRIOR_SIGMA`
-(theory.md, Eq. (T-5)).
+(theory.md, Eq. (T-6)).
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 At the solution the model is linear to first order: with the whitened, scaled Jacobian
 ``J`` of the free parameters and the prior precision ``P``, the hat matrix is
 ``H = J (JᵀJ + P)⁻¹ Jᵀ`` and the residual row ``i`` would have had, had the fit left it
-out, ``r_(i) = (I − H_ii)⁻¹ r_i`` (``H_ii`` its c×c block; Eq. (T-9)). Their root mean
+out, ``r_(i) = (I − H_ii)⁻¹ r_i`` (``H_ii`` its c×c block; Eq. (T-5)). Their root mean
 square over the position components predicts the cross-validated error; kinecal uses it to
 weigh orientations against positions (:class:`~kinecal.identification.NoiseModel`) and to
 check that a rejection helps the prediction of the other rows
@@ -60,7 +60,7 @@ def loo_position_errors(
         J = Jb[:, :, fidx] * sc
         r = blk.r[rows] + J @ dz
         H = np.einsum("nip,pq,njq->nij", J, Ai, J)
-        r_loo = np.linalg.solve(eye - H, r[:, :, None])[:, :, 0]  # Eq. (T-9)
+        r_loo = np.linalg.solve(eye - H, r[:, :, None])[:, :, 0]  # Eq. (T-5)
         out[rows] = r_loo[:, :3] * w.sigma[rows, None]
     return out
 

@@ -1,9 +1,9 @@
 """Priors: physical scales, adapted to the data by empirical Bayes (theory.md §4).
 
-:class:`Priors` sets Gaussian priors (:data:`PRIOR_SIGMA`, Eq. (T-5)) and widens the
+:class:`Priors` sets Gaussian priors (:data:`PRIOR_SIGMA`, Eq. (T-6)) and widens the
 joint-geometry ones where an unconstrained stage-1 fit shows larger deviations from nominal
-(method of moments, Eq. (T-7)). :class:`EvidencePriors` scales the transmission and
-compliance priors by maximum evidence (Eq. (T-8)) and repeats stage 3 with them.
+(method of moments, Eq. (T-8)). :class:`EvidencePriors` scales the transmission and
+compliance priors by maximum evidence (Eq. (T-9)) and repeats stage 3 with them.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ def build_prior(
 ) -> Prior:
     """Priors of :data:`PRIOR_SIGMA` (or the robot file's ``priors``) for the groups
     chosen in ``options.priors``, centred on ``start``; ``options.prior_sigma``
-    overrides single parameters (Eq. (T-5))."""
+    overrides single parameters (Eq. (T-6))."""
     sigma = np.full(model.size, np.inf)
     groups = PRIOR_GROUPS[options.priors]
     table = {**PRIOR_SIGMA, **model.robot.prior_sigma}  # the robot file may override
@@ -119,7 +119,7 @@ def adapt_prior(
     For each kind (lengths, angles) the prior variance is estimated by the method of
     moments, ``tau^2 = mean(dx^2 - var(dx))`` over the free parameters of that kind with a
     finite prior, ``dx`` the deviation from nominal and ``var`` its variance from the
-    unconstrained fit (Eq. (T-7)). The prior sigma becomes ``max(sigma, tau)``: a robot
+    unconstrained fit (Eq. (T-8)). The prior sigma becomes ``max(sigma, tau)``: a robot
     whose geometry departs from its nominal table by more than the default prior allows is
     not pulled back, while a poorly determined parameter (large ``var``) does not widen it.
     """
@@ -142,7 +142,7 @@ def adapt_prior(
             continue
         idx = fidx[sel]
         dx = x[idx] - x_nominal[idx]
-        tau2 = float(np.mean(dx**2 - var[sel]))  # Eq. (T-7)
+        tau2 = float(np.mean(dx**2 - var[sel]))  # Eq. (T-8)
         current = median(sigma[idx])
         if tau2 > current**2:
             tau = float(np.sqrt(tau2))
@@ -191,7 +191,7 @@ def evidence_prior(
 
     With the model linearised at the state's parameters (whitened residuals ``r``,
     Jacobian ``J``) and the prior ``N(m, S)``, the data are Gaussian with covariance
-    ``I + J S Jᵀ`` about the prediction at ``m``; its log density (the evidence, Eq. (T-8))
+    ``I + J S Jᵀ`` about the prediction at ``m``; its log density (the evidence, Eq. (T-9))
     is evaluated through Woodbury's identity for each candidate scale of a group's sigmas,
     by coordinate ascent over the groups. A group the data do not support gets a smaller
     prior (it is shrunk towards zero), one they do support keeps or widens it (at most
@@ -222,7 +222,7 @@ def evidence_prior(
     )
 
     def log_evidence(var: Float) -> float:
-        # Eq. (T-8): -1/2 (b^T (I + J S J^T)^-1 b + log det(I + J S J^T)), by Woodbury
+        # Eq. (T-9): -1/2 (b^T (I + J S J^T)^-1 b + log det(I + J S J^T)), by Woodbury
         M = JtJ + np.diag(1.0 / var)
         try:
             L = np.linalg.cholesky(M)

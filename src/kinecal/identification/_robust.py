@@ -20,7 +20,7 @@ second:
    priors and their widening are computed on the cleaned data); the test is made at a
    fit with a Huber loss on all rows the first time.
 5. The new fit is kept only if it predicts the rows both fits use better (leave-one-out
-   position errors, Eq. (T-9)): a gross error pulls the fit and spoils the prediction of
+   position errors, Eq. (T-5)): a gross error pulls the fit and spoils the prediction of
    the others; a row that is far out but informative (a pose at the edge of the data on
    a robot the model fits imperfectly) does not. Then the test is repeated on all rows
    (a row may come back) until the rejected set no longer changes.
@@ -453,7 +453,7 @@ def _refused(meas: Measurements, rows: np.ndarray, stage: str) -> Diagnostic:
 
 def _predicts_better(root: Problem, trial: State, current: State) -> bool:
     """Whether the fit without the rejected rows predicts the rows both fits use better
-    (leave-one-out position errors, Eq. (T-9)) than the fit with them: true for gross
+    (leave-one-out position errors, Eq. (T-5)) than the fit with them: true for gross
     errors, which pull the fit; not for rows that are merely far out but informative."""
     n = root.meas.n
     a = trial.active if trial.active is not None else np.ones(n, bool)

@@ -345,7 +345,7 @@ class FullStage:
         )
         state = state.but(x=res.x)
         for _ in range(_NOISE_ROUNDS if problem.estimate_noise else 0):
-            # Variance components iterated with the fit (Eq. (T-6)): the priors were
+            # Variance components iterated with the fit (Eq. (T-7)): the priors were
             # weighed against the noise of the earlier, smaller models.
             new = estimate_noise(problem, state, state.x, state.free, prior)
             if _noise_moved(state.weights, new.weights) <= np.log(_NOISE_TOL):

@@ -2,13 +2,17 @@
 
 from kinecal.sensor._calibrate import (
     CameraCalibration,
-    PlaneCalibration,
     board_pose,
     calibrate_camera,
-    calibrate_planes,
     find_corners,
 )
-from kinecal.sensor._camera import Camera, paper_camera
+from kinecal.sensor._camera import INTRINSICS, Camera, paper_camera
+from kinecal.sensor._joint import (
+    PlaneCalibration,
+    SensorCalibration,
+    calibrate_planes,
+    calibrate_sensor,
+)
 from kinecal.sensor._planes import (
     LightPlanes,
     fit_plane,
@@ -26,6 +30,7 @@ from kinecal.sensor._render import (
 from kinecal.sensor._sensor import ScanCloud, Sensor, paper_sensor
 from kinecal.sensor._simulate import (
     CalibrationSession,
+    RenderedImages,
     board_views,
     simulate_calibration,
     sphere_scene,
@@ -34,6 +39,7 @@ from kinecal.sensor._sphere import SphereFit, fit_sphere
 from kinecal.sensor._stripes import extract_stripes, extract_stripes_all
 
 __all__ = [
+    "INTRINSICS",
     "CalibrationSession",
     "Camera",
     "CameraCalibration",
@@ -41,9 +47,11 @@ __all__ = [
     "LightPlanes",
     "PlaneCalibration",
     "PlaneSurface",
+    "RenderedImages",
     "ScanCloud",
     "Scene",
     "Sensor",
+    "SensorCalibration",
     "SphereFit",
     "SphereSurface",
     "StripeRenderer",
@@ -51,6 +59,7 @@ __all__ = [
     "board_views",
     "calibrate_camera",
     "calibrate_planes",
+    "calibrate_sensor",
     "extract_stripes",
     "extract_stripes_all",
     "find_corners",

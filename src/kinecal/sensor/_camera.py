@@ -23,7 +23,10 @@ import numpy as np
 from kinecal.errors import ConfigError
 from kinecal.typing import Float
 
-__all__ = ["Camera", "paper_camera"]
+__all__ = ["INTRINSICS", "Camera", "paper_camera"]
+
+# Order of the intrinsic parameters in vectors and Jacobians.
+INTRINSICS = ("fx", "fy", "u0", "v0", "k1", "k2", "k3", "p1", "p2")
 
 
 @dataclass(frozen=True)
@@ -149,6 +152,85 @@ class Camera:
             if np.max(np.abs(dx) + np.abs(dy), initial=0.0) < tol:
                 break
         return xy
+
+    # -- parameter vector and Jacobians -------------------------------------------------
+    def intrinsics(self) -> Float:
+        """The parameters (9,) in the order of :data:`INTRINSICS`."""
+        return np.array([getattr(self, k) for k in INTRINSICS])
+
+    def with_intrinsics(self, values: Float) -> Camera:
+        """The same camera with the parameters (9,) of :data:`INTRINSICS` replaced."""
+        changes = {k: float(v) for k, v in zip(INTRINSICS, values)}
+        return replace(self, **changes)  # type: ignore[arg-type]
+
+    def _distort_jacobian(self, xy: Float) -> tuple[Float, Float, Float]:
+        """Distorted coordinates (..., 2), their Jacobian (..., 2, 2) w.r.t. ``xy`` and
+        (..., 2, 5) w.r.t. ``(k1, k2, k3, p1, p2)``."""
+        x, y = xy[..., 0], xy[..., 1]
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
+        drad = self.k1 + r2 * (2.0 * self.k2 + 3.0 * self.k3 * r2)  # d radial / d r2
+        p1, p2 = self.p1, self.p2
+        xd = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)  # Eq. (2)
+        yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y  # Eq. (2)
+        J_xy = np.empty((*x.shape, 2, 2))
+        J_xy[..., 0, 0] = radial + 2.0 * x * x * drad + 2.0 * p1 * y + 6.0 * p2 * x
+        J_xy[..., 0, 1] = J_xy[..., 1, 0] = (
+            2.0 * x * y * drad + 2.0 * p1 * x + 2.0 * p2 * y
+        )
+        J_xy[..., 1, 1] = radial + 2.0 * y * y * drad + 6.0 * p1 * y + 2.0 * p2 * x
+        J_k = np.empty((*x.shape, 2, 5))
+        r4 = r2 * r2
+        J_k[..., 0, :] = np.stack(
+            [x * r2, x * r4, x * r4 * r2, 2.0 * x * y, r2 + 2.0 * x * x], -1
+        )
+        J_k[..., 1, :] = np.stack(
+            [y * r2, y * r4, y * r4 * r2, r2 + 2.0 * y * y, 2.0 * x * y], -1
+        )
+        return np.stack([xd, yd], -1), J_xy, J_k
+
+    def project_jacobian(self, P_cam: Float) -> tuple[Float, Float, Float]:
+        """Pixels (..., 2) of points ``P_cam`` (..., 3) [m, camera frame] with their
+        Jacobians (..., 2, 3) w.r.t. the point [px/m] and (..., 2, 9) w.r.t. the
+        intrinsics in the order of :data:`INTRINSICS` (Eq. 1-2)."""
+        P = np.asarray(P_cam, float)
+        iz = 1.0 / P[..., 2]
+        xy = P[..., :2] * iz[..., None]
+        xd, J_xd_xy, J_xd_k = self._distort_jacobian(xy)
+        f = np.array([self.fx, self.fy])
+        uv = xd * f + np.array([self.u0, self.v0])  # Eq. (1)
+        J_xy_P = np.zeros((*P.shape[:-1], 2, 3))
+        J_xy_P[..., 0, 0] = J_xy_P[..., 1, 1] = iz
+        J_xy_P[..., :, 2] = -xy * iz[..., None]
+        J_uv_P = f[:, None] * (J_xd_xy @ J_xy_P)
+        J_uv_c = np.zeros((*P.shape[:-1], 2, 9))
+        J_uv_c[..., 0, 0] = xd[..., 0]
+        J_uv_c[..., 1, 1] = xd[..., 1]
+        J_uv_c[..., 0, 2] = 1.0
+        J_uv_c[..., 1, 3] = 1.0
+        J_uv_c[..., 4:] = f[:, None] * J_xd_k
+        return uv, J_uv_P, J_uv_c
+
+    def normalised_jacobian(self, uv: Float) -> tuple[Float, Float, Float]:
+        """Undistorted normalised coordinates (..., 2) of pixels ``uv`` (..., 2) with
+        their Jacobians (..., 2, 9) w.r.t. the intrinsics (:data:`INTRINSICS`) and
+        (..., 2, 2) w.r.t. the pixel: implicit differentiation of ``distort(xy) = ((u -
+        u0) / fx, (v - v0) / fy)``."""
+        uv = np.asarray(uv, float)
+        xy = self.normalised(uv)
+        xd, J_xd_xy, J_xd_k = self._distort_jacobian(xy)
+        a, b, d = J_xd_xy[..., 0, 0], J_xd_xy[..., 0, 1], J_xd_xy[..., 1, 1]
+        det = a * d - b * b  # the Jacobian is symmetric
+        inv = np.stack([np.stack([d, -b], -1), np.stack([-b, a], -1)], -2)
+        inv /= det[..., None, None]
+        rhs = np.zeros((*uv.shape[:-1], 2, 9))
+        rhs[..., 0, 0] = -xd[..., 0] / self.fx
+        rhs[..., 1, 1] = -xd[..., 1] / self.fy
+        rhs[..., 0, 2] = -1.0 / self.fx
+        rhs[..., 1, 3] = -1.0 / self.fy
+        rhs[..., 4:] = -J_xd_k
+        J_xy_uv = inv * np.array([1.0 / self.fx, 1.0 / self.fy])
+        return xy, inv @ rhs, J_xy_uv
 
     # -- projection --------------------------------------------------------------------
     def project(self, P_cam: Float) -> Float:

@@ -16,7 +16,13 @@ import numpy as np
 from kinecal.errors import ConfigError, DataError
 from kinecal.typing import Float
 
-__all__ = ["LightPlanes", "fit_plane", "intersect_planes", "rotary_planes"]
+__all__ = [
+    "LightPlanes",
+    "axis_fit",
+    "fit_plane",
+    "intersect_planes",
+    "rotary_planes",
+]
 
 
 @dataclass(frozen=True)
@@ -163,3 +169,55 @@ def fit_plane(points: Float) -> tuple[Float, float, float]:
         n, b = -n, -b
     rms = float(np.sqrt(np.mean(((P - c) @ n) ** 2)))
     return n, b, rms
+
+
+def axis_fit(
+    normals: Float, b: Float, clouds: list[Float], free: np.ndarray, all_planes: bool
+) -> tuple[Float, Float, np.ndarray]:
+    """Planes turning about one mirror axis, as the mechanism makes them.
+
+    ``normals`` (M, 3), ``b`` (M,) [m]: the planes fitted on their own where ``free``;
+    ``clouds[i]`` (K_i, 3) [m]: the points of plane ``i``. The axis is the line common to
+    the free planes (direction: the null vector of their normals; point: least squares).
+    A plane not free, or every plane when ``all_planes``, is then fitted with its normal
+    perpendicular to the axis and the plane through it: one angle, in closed form.
+    Planes without points get the angle of a linear fit of angle against plane index
+    (the mirror steps evenly). Returns the normals, offsets and a status per plane
+    ("free", "axis" or "unseen").
+    """
+    N = normals[free]
+    _, _, Vt = np.linalg.svd(N)
+    a = Vt[2]
+    S = np.linalg.lstsq(N, -b[free], rcond=None)[0]
+    S = S - a * (a @ S)
+    e1 = np.cross(a, [0.0, 0.0, 1.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(a, e1)
+    psi = np.full(len(clouds), np.nan)
+    status = np.where(free, "free", "unseen").astype(object)
+    for i, c in enumerate(clouds):
+        if c.shape[0] >= 2 and (all_planes or not free[i]):
+            q = np.column_stack([(c - S) @ e1, (c - S) @ e2])
+            _, V = np.linalg.eigh(q.T @ q)
+            v = V[:, 0]
+            psi[i] = np.arctan2(v[1], v[0])
+            status[i] = "axis"
+        elif free[i]:
+            psi[i] = np.arctan2(normals[i] @ e2, normals[i] @ e1)
+    # One branch for the angles (normals' sign is arbitrary).
+    ref = psi[np.isfinite(psi)][0]
+    psi = ref + (psi - ref + np.pi / 2) % np.pi - np.pi / 2
+    seen = np.isfinite(psi)
+    if not seen.all():
+        idx = np.arange(len(clouds))
+        coef = np.polyfit(idx[seen], psi[seen], 1)
+        psi[~seen] = np.polyval(coef, idx[~seen])
+    new_n = np.cos(psi)[:, None] * e1 + np.sin(psi)[:, None] * e2
+    new_b = -(new_n @ S)
+    flip = new_n[:, 0] < 0
+    new_n[flip] *= -1
+    new_b[flip] *= -1
+    keep = free & ~np.asarray(all_planes, bool)
+    new_n[keep] = normals[keep]
+    new_b[keep] = b[keep]
+    return new_n, new_b, status.astype(str)
