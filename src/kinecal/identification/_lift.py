@@ -41,6 +41,9 @@ def lifted_start(
     free: np.ndarray,
     prior: Prior | None,
     row_weights: Float | None = None,
+    *,
+    stol: float = 0.0,
+    s0sq: float | None = None,
 ) -> Float:
     """Parameters from one Gauss-Newton step in product coordinates, mapped back.
 
@@ -55,6 +58,10 @@ def lifted_start(
     free : (P,) bool, the estimated parameters.
     prior : Prior or None
     row_weights : (N,) square roots of robust row weights, or None.
+    stol, s0sq : the statistical stop of the small bilinear fit at the end
+        (:class:`LMOptions`) and the data's variance of unit weight it compares with:
+        the start need not be closer to that fit's optimum than the stage's own LM
+        would resolve. 0 (default): to convergence.
 
     Returns
     -------
@@ -133,7 +140,14 @@ def lifted_start(
         return res, (U @ D)[:, None, :]
 
     fit = solve_lm(
-        quadratic, x1, free, scales, LMOptions(max_iter=200), prior=prior, label="lift"
+        quadratic,
+        x1,
+        free,
+        scales,
+        LMOptions(max_iter=200, stol=stol),
+        prior=prior,
+        label="lift",
+        s0sq=s0sq,
     )
     return fit.x
 

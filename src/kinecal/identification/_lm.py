@@ -261,6 +261,7 @@ def solve_lm(
     prior: Prior | None = None,
     label: str = "lm",
     on_iteration: Callable[[int, float, float], None] | None = None,
+    s0sq: float | None = None,
 ) -> LMResult:
     """Levenberg-Marquardt on ``fun`` over the parameters flagged in ``free``.
 
@@ -276,6 +277,10 @@ def solve_lm(
     label : str, name used in the log
     on_iteration : callable ``on_iteration(it, cost, relative change)``, optional
         Called after each iteration (for progress displays).
+    s0sq : float, optional
+        The variance of unit weight the statistical stop (``stol``) compares with;
+        default ``2 cost / (m - k)`` of the residuals at hand (a sub-problem such as the
+        lifted start passes its parent's).
 
     Returns
     -------
@@ -291,6 +296,9 @@ def solve_lm(
     pr = prior or Prior.none(x.size)
     prec = pr.precision[fidx] * s * s  # prior precision in scaled variables
     pmean = pr.mean[fidx]
+
+    def unit(c: float) -> float:  # variance of unit weight
+        return s0sq if s0sq is not None else 2.0 * c / max(r.size - fidx.size, 1)
 
     def total_cost(xx: Float, rr: Float) -> tuple[float, Float]:
         c, ww = objective(rr, opts)
@@ -327,7 +335,7 @@ def solve_lm(
         if gnorm <= opts.gtol * max(cost, 1e-300) or fidx.size == 0:
             status, message, success = "gtol", f"{label}: gradient vanished", True
             break
-        if opts.stol > 0 and _near_optimum(A, g, cost, r.size - fidx.size, opts.stol):
+        if opts.stol > 0 and _near_optimum(A, g, unit(cost), opts.stol):
             it -= 1  # no step taken in this iteration
             status, success = "stol", True
             message = f"{label}: converged (stol) after {it} iterations"
@@ -389,14 +397,13 @@ def solve_lm(
             np.linalg.norm(x[fidx] / s) + opts.xtol
         )
         x, r, cost, w = x_new, r_new, cost_new, w_new
-        s0sq = 2.0 * cost / max(r.size - fidx.size, 1)  # variance of unit weight
         converged = (
             "ftol"
             if dcost <= opts.ftol * cost
             else "xtol"
             if step_small
             else "stol"
-            if dcost <= opts.stol * s0sq
+            if dcost <= opts.stol * unit(cost)
             else None
         )
         if converged is not None:
@@ -432,15 +439,14 @@ def solve_lm(
     )
 
 
-def _near_optimum(A: Float, g: Float, cost: float, dof: int, stol: float) -> bool:
+def _near_optimum(A: Float, g: Float, s0sq: float, stol: float) -> bool:
     """Whether the undamped Gauss-Newton step from here would lower the cost by at most
-    ``stol`` times the variance of unit weight: the estimate is then within about
-    ``sqrt(2 stol)`` of its standard deviations of the optimum of the local quadratic
-    model, whatever the number of residuals (the decrease a step of a given fraction of
-    the standard deviations brings does not grow with it)."""
+    ``stol`` times the variance of unit weight ``s0sq``: the estimate is then within
+    about ``sqrt(2 stol)`` of its standard deviations of the optimum of the local
+    quadratic model, whatever the number of residuals (the decrease a step of a given
+    fraction of the standard deviations brings does not grow with it)."""
     dz = -spd_solve(A, g)
     pred = -float(g @ dz + 0.5 * dz @ (A @ dz))
-    s0sq = 2.0 * cost / max(dof, 1)  # variance of unit weight
     return bool(np.isfinite(pred)) and pred <= stol * s0sq
 
 

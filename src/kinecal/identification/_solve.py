@@ -139,7 +139,8 @@ def _lift(
     assert J is not None
     cost0, drho = objective(blk.r, lm)
     sw = None if lm.loss == "linear" else np.sqrt(drho)
-    x1 = lifted_start(cm, x0, blk.r, J, free, prior, sw)
+    s0sq = 2.0 * cost0 / max(blk.r.size - int(free.sum()), 1)
+    x1 = lifted_start(cm, x0, blk.r, J, free, prior, sw, stol=lm.stol, s0sq=s0sq)
     # With the Jacobian the stage's LM starts with (served from the cache then).
     cost1 = objective(ev(cm, x1, w, jacobian=True, products=True).r, lm)[0]
     if prior is not None:
