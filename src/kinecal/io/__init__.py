@@ -1,50 +1,63 @@
-"""Files at the edges: measurement CSVs, targets, model.yaml, JSON; units via kinecal.units."""
+"""Files at the edges: measurement CSVs, targets, model.yaml, JSON; units via kinecal.units.
 
-from kinecal.io._csv import (
-    CompensationTargets,
-    Table,
-    Targets,
-    read_compensation_targets,
-    read_measurements,
-    read_table,
-    read_targets,
-)
-from kinecal.io._csv_write import (
-    joint_column_names,
-    measurements_to_csv,
-    write_measurements,
-    write_targets,
-)
-from kinecal.io._files import (
-    atomic_write_bytes,
-    atomic_write_text,
-    file_sha256,
-    prepare_output_dir,
-    write_json,
-)
-from kinecal.io._model_file import FORMAT_VERSION, load_model, model_to_dict, save_model
-from kinecal.io._programs import (
-    PROGRAM_FORMATS,
-    Program,
-    ProgramPoint,
-    detect_program_format,
-    program_bytes,
-    program_joints,
-    read_program,
-    write_program,
-    written_joints,
-)
-from kinecal.io._sensor_files import (
-    image_files,
-    load_sensor,
-    read_cloud,
-    read_image,
-    save_sensor,
-    write_cloud,
-    write_image,
-    write_stripes,
-)
-from kinecal.io._urdf_export import robot_yaml_text, urdf_text
+Each name loads its module on first use (:mod:`kinecal._lazy`).
+"""
+
+from typing import TYPE_CHECKING
+
+from kinecal import _lazy
+
+if TYPE_CHECKING:
+    from kinecal.io._csv import (
+        CompensationTargets,
+        Table,
+        Targets,
+        read_compensation_targets,
+        read_measurements,
+        read_table,
+        read_targets,
+    )
+    from kinecal.io._csv_write import (
+        joint_column_names,
+        measurements_to_csv,
+        write_measurements,
+        write_targets,
+    )
+    from kinecal.io._files import (
+        atomic_write_bytes,
+        atomic_write_text,
+        file_sha256,
+        prepare_output_dir,
+        write_json,
+    )
+    from kinecal.io._model_file import (
+        FORMAT_VERSION,
+        load_model,
+        model_to_dict,
+        save_model,
+    )
+    from kinecal.io._programs import (
+        PROGRAM_FORMATS,
+        Program,
+        ProgramPoint,
+        detect_program_format,
+        program_bytes,
+        program_joints,
+        read_program,
+        write_program,
+        written_joints,
+    )
+    from kinecal.io._sensor_files import (
+        image_files,
+        load_sensor,
+        read_cloud,
+        read_image,
+        save_sensor,
+        write_cloud,
+        write_image,
+        write_stripes,
+    )
+    from kinecal.io._urdf_export import robot_yaml_text, urdf_text
 
 __all__ = [
     "FORMAT_VERSION",
@@ -87,3 +100,62 @@ __all__ = [
     "write_targets",
     "written_joints",
 ]
+
+__getattr__, __dir__ = _lazy.exports(
+    __name__,
+    {
+        "_csv": (
+            "CompensationTargets",
+            "Table",
+            "Targets",
+            "read_compensation_targets",
+            "read_measurements",
+            "read_table",
+            "read_targets",
+        ),
+        "_csv_write": (
+            "joint_column_names",
+            "measurements_to_csv",
+            "write_measurements",
+            "write_targets",
+        ),
+        "_files": (
+            "atomic_write_bytes",
+            "atomic_write_text",
+            "file_sha256",
+            "prepare_output_dir",
+            "write_json",
+        ),
+        "_model_file": (
+            "FORMAT_VERSION",
+            "load_model",
+            "model_to_dict",
+            "save_model",
+        ),
+        "_programs": (
+            "PROGRAM_FORMATS",
+            "Program",
+            "ProgramPoint",
+            "detect_program_format",
+            "program_bytes",
+            "program_joints",
+            "read_program",
+            "write_program",
+            "written_joints",
+        ),
+        "_sensor_files": (
+            "image_files",
+            "load_sensor",
+            "read_cloud",
+            "read_image",
+            "save_sensor",
+            "write_cloud",
+            "write_image",
+            "write_stripes",
+        ),
+        "_urdf_export": (
+            "robot_yaml_text",
+            "urdf_text",
+        ),
+    },
+)
