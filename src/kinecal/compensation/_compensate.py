@@ -148,10 +148,10 @@ def compensate(
                     max_iter=max_iter,
                 )
             )
-        return CompensationResult(
-            *(np.concatenate([getattr(r, f) for r in parts]) for f in _ROW_FIELDS),
-            max(r.iterations for r in parts),
-        )
+        joined = {
+            f: np.concatenate([getattr(r, f) for r in parts]) for f in _ROW_FIELDS
+        }
+        return CompensationResult(**joined, iterations=max(r.iterations for r in parts))
     res = solve_ik_lm(
         model,
         calibrated.params,
