@@ -170,3 +170,22 @@ def test_issue_26_a_large_calibration_reports_its_progress(
     )
     assert any(d.startswith("iteration 2, cost") for _, d in lines), lines
     assert any("of 100 poses" in d and "s left in this pass" in d for _, d in lines)
+
+
+def test_issue_26_flange_frames_of_large_data_from_the_tool_pose(
+    exp1_exact, small_blocks
+):
+    """The closed-form start takes the flange frames of large data by blocks, from the
+    model's tool pose (compiled kernel) with the user frame at the identity: equal to the
+    model's own flange frames to rounding, compliance and cam frames included."""
+    from kinecal.identification._init import _flange
+    from kinecal.identification._problem import Problem
+
+    meas = exp1_exact.train  # sensor data: a point in the cam frame on every row
+    problem = Problem.make(exp1_exact.truth.robot, meas, "full")
+    cm = problem.model
+    x = cm.nominal + 1e-3 * cm.layout.scales  # compliance on, frames off the identity
+    R, o = _flange(cm, x, meas)
+    R0, o0 = cm.flange_frames(x, meas.model_inputs())
+    np.testing.assert_allclose(R, R0, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(o, o0, rtol=0, atol=1e-14)

@@ -42,23 +42,30 @@ __all__ = [
 BLOCK_ROWS = 60_000
 
 Blocks = Iterator[tuple[slice, Float]]
-# evaluate(rows, inputs of the rows, jacobian, products) -> (r, J or None, e_p, e_r)
+# evaluate(rows, inputs of the rows, jacobian, products, raw) -> (r, J or None, e_p, e_r);
+# with raw, J is not whitened (its rows are to be scaled by row_scale)
 RowsFn = Callable[
-    [slice, ModelInputs, bool, bool], tuple[Float, Float | None, Float, Float | None]
+    [slice, ModelInputs, bool, bool, bool],
+    tuple[Float, Float | None, Float, Float | None],
 ]
 Progress = Callable[[int, int], None]
 
-# Where passes over blocks report ``(rows done, rows)``: set by a calibration for its
-# duration (:func:`reporting`).
-_REPORT: contextvars.ContextVar[Progress | None] = contextvars.ContextVar(
-    "kinecal_block_progress", default=None
+# Where passes over blocks report ``(rows done, rows)`` and other long loops a word:
+# set by a calibration for its duration (:func:`reporting`).
+_REPORT: contextvars.ContextVar[tuple[Progress, Callable[[str], None]] | None] = (
+    contextvars.ContextVar("kinecal_block_progress", default=None)
 )
 
 
 @contextlib.contextmanager
-def reporting(progress: Progress | None) -> Iterator[None]:
-    """Passes over blocks of poses inside report to ``progress(rows_done, rows)``."""
-    token = _REPORT.set(progress)
+def reporting(
+    progress: Progress | None, beat: Callable[[str], None] | None = None
+) -> Iterator[None]:
+    """Passes over blocks of poses inside report to ``progress(rows_done, rows)``, other
+    long loops to ``beat(what)``."""
+    token = _REPORT.set(
+        None if progress is None else (progress, beat or (lambda what: None))
+    )
     try:
         yield
     finally:
@@ -69,7 +76,14 @@ def tick(done: int, total: int) -> None:
     """Report ``done`` of ``total`` rows of a pass (where :func:`reporting` is on)."""
     report = _REPORT.get()
     if report is not None:
-        report(done, total)
+        report[0](done, total)
+
+
+def beat(what: str) -> None:
+    """Report progress of a long loop in words (where :func:`reporting` is on)."""
+    report = _REPORT.get()
+    if report is not None:
+        report[1](what)
 
 
 def block_inputs(inputs: ModelInputs, rows: int) -> list[tuple[slice, ModelInputs]]:
@@ -87,17 +101,27 @@ def block_inputs(inputs: ModelInputs, rows: int) -> list[tuple[slice, ModelInput
 
 
 def span_product(
-    J: Float, r: Float, lo: int, hi: int, row_weights: Float | None
+    J: Float,
+    r: Float,
+    cols: slice | np.ndarray,
+    row_weights: Float | None,
+    row_scale: Float | None = None,
 ) -> tuple[Float, Float]:
-    """``(Xᵀ X, Xᵀ r)`` of the columns ``lo:hi`` of ``J`` (n, c, P'), rows weighted.
+    """``(Xᵀ X, Xᵀ r)`` of the columns ``cols`` of ``J`` (n, c, P'), rows weighted.
 
-    ``J`` in the model's parameter-major layout gives one product of contiguous rows."""
-    X = J.transpose(2, 1, 0)[lo:hi]  # (span, c, n), rows in (component, sample) order
+    ``J`` in the model's parameter-major layout gives one product of contiguous rows (a
+    slice of columns is a view; an index array, a copy of those columns only).
+    ``row_scale`` (n,) whitens the rows of a raw ``J`` on the way (not ``r``)."""
+    X = J.transpose(2, 1, 0)[cols]  # (k, c, n), rows in (component, sample) order
     rt = r.T
+    w = row_weights
+    if row_scale is not None:
+        w = row_scale if w is None else row_scale * w
+    if w is not None:
+        X = X * w
     if row_weights is not None:
-        X = X * row_weights
         rt = rt * row_weights
-    Xm = X.reshape(hi - lo, -1)
+    Xm = X.reshape(X.shape[0], -1)
     return Xm @ Xm.T, Xm @ rt.reshape(-1)
 
 
@@ -111,6 +135,9 @@ class BlockJacobian:
     N, c, n_cols, n_all : poses, components per pose, the model's parameters and its
         parameters with the link products.
     r : (N, c) whitened residuals (filled by :meth:`residual_blocks`).
+    row_scale : (N,) whitening of each row, when it is one factor per pose (point and
+        sensor data): the normal equations then take the model's raw Jacobian and whiten
+        only the columns they use, on the way.
 
     Each block reports ``(rows done, rows)`` where :func:`reporting` is on.
     """
@@ -122,6 +149,7 @@ class BlockJacobian:
         c: int,
         n_cols: int,
         n_all: int,
+        row_scale: Float | None = None,
     ) -> None:
         self._rows_fn = rows_fn
         self.n = inputs.n
@@ -129,6 +157,7 @@ class BlockJacobian:
         self.n_cols = n_cols
         self.n_all = n_all
         self._blocks = block_inputs(inputs, max(1, BLOCK_ROWS // c))
+        self.row_scale = row_scale
         self._memo: dict[tuple[object, ...], tuple[Float, Float]] = {}
         self.r: Float | None = None
         self.passes = 0  # Jacobian passes over the data so far
@@ -138,16 +167,17 @@ class BlockJacobian:
     ) -> Iterator[tuple[slice, Float, Float, Float | None]]:
         """``(rows, r, e_p, e_r)`` of every block (the forward kinematics only)."""
         for sl, inp in self._blocks:
-            r, _, e_p, e_r = self._rows_fn(sl, inp, False, False)
+            r, _, e_p, e_r = self._rows_fn(sl, inp, False, False, False)
             yield sl, r, e_p, e_r
             self._tick(sl)
 
-    def blocks(self, products: bool = False) -> Blocks:
+    def blocks(self, products: bool = False, raw: bool = False) -> Blocks:
         """``(rows, J (n, c, P'))`` of every block, evaluated one after the other (the
-        link product columns with ``products``)."""
+        link product columns with ``products``; not whitened with ``raw``, which needs
+        :attr:`row_scale`)."""
         self.passes += 1
         for sl, inp in self._blocks:
-            _, J, _, _ = self._rows_fn(sl, inp, True, products)
+            _, J, _, _ = self._rows_fn(sl, inp, True, products, raw)
             assert J is not None
             yield sl, J
             self._tick(sl)
@@ -176,20 +206,25 @@ class BlockJacobian:
         if hit is not None:
             return hit[0].copy(), hit[1].copy()
         lo, hi = int(cols.min()), int(cols.max()) + 1
-        A = np.zeros((hi - lo, hi - lo))
-        g = np.zeros(hi - lo)
+        # The span of the columns (a view), or the columns alone where they are few
+        # (the registration's frames among the joint rows): a copy, but a smaller product.
+        take: slice | np.ndarray = slice(lo, hi) if 2 * cols.size > hi - lo else cols
+        k = hi - lo if isinstance(take, slice) else cols.size
+        A = np.zeros((k, k))
+        g = np.zeros(k)
         assert self.r is not None
-        for sl, J in self.blocks(products=hi > self.n_cols):
+        raw = self.row_scale is not None
+        for sl, J in self.blocks(products=hi > self.n_cols, raw=raw):
             Ab, gb = span_product(
                 J,
                 self.r[sl],
-                lo,
-                hi,
+                take,
                 None if row_weights is None else row_weights[sl],
+                None if self.row_scale is None else self.row_scale[sl],
             )
             A += Ab
             g += gb
-        sel = cols - lo
+        sel = cols - lo if isinstance(take, slice) else np.arange(cols.size)
         out = A[np.ix_(sel, sel)] * np.outer(scales, scales), g[sel] * scales
         if len(self._memo) >= 4:
             self._memo.pop(next(iter(self._memo)))

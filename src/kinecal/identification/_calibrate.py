@@ -121,9 +121,13 @@ def calibrate(
     t_start = time.perf_counter()
     problem = Problem.make(robot, meas, model, options, progress)
     recipe = default_stages(problem.options) if stages is None else stages
-    with reporting(problem.progress.rows):  # passes over large data report too
+    # Passes over large data and other long loops report too.
+    with reporting(problem.progress.rows, problem.progress.beat):
         state = run_stages(problem, problem.start(), recipe)
-    return CalibrationResult.from_state(problem, state, time.perf_counter() - t_start)
+        problem.progress("result", "errors before and after")
+        return CalibrationResult.from_state(
+            problem, state, time.perf_counter() - t_start
+        )
 
 
 @dataclass

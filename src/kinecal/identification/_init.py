@@ -38,15 +38,30 @@ _GIMBAL_MARGIN = np.radians(15.0)
 def _flange(
     model: CalibrationModel, params: Float, meas: Measurements
 ) -> tuple[Float, Float]:
-    """Flange frames ``(R (N, 3, 3), o (N, 3))``, by blocks of poses for large data (the
-    same numbers: each pose's are computed alike)."""
+    """Flange frames ``(R (N, 3, 3), o (N, 3))``.
+
+    Large data by blocks of poses, from the model's own evaluation of the tool pose with
+    the user frame at the identity (the compiled kernel where it is built; the same
+    numbers to rounding): ``R_fl = R_user_cam R_fc^T``, ``o_fl = p - R_fl (t_fc + R_fc
+    p_cam)``."""
     inputs = meas.model_inputs()
     if 3 * meas.n <= _blocks.BLOCK_ROWS:
         return model.flange_frames(params, inputs)
+    bare = model.with_references(np.broadcast_to(np.eye(3), model.R_ref_base.shape))
+    x = params.copy()
+    x[bare.base_index] = 0.0
+    R_fc, t_fc = bare.cam_frames(x)
     R = np.empty((meas.n, 3, 3))
     o = np.empty((meas.n, 3))
     for rows, inp in _blocks.block_inputs(inputs, _blocks.BLOCK_ROWS // 3):
-        R[rows], o[rows] = model.flange_frames(params, inp)
+        out = bare.evaluate(x, inp, orientation=True)
+        assert out.R_user_cam is not None
+        mi = inp.marker_index
+        R_fl = out.R_user_cam @ np.swapaxes(R_fc, 1, 2)[mi]
+        fl_p = t_fc[mi] + np.einsum("nij,nj->ni", R_fc[mi], inp.p_cam)
+        R[rows] = R_fl
+        o[rows] = out.p_user - np.einsum("nij,nj->ni", R_fl, fl_p)
+        _blocks.tick(rows.stop, meas.n)
     return R, o
 
 
@@ -160,7 +175,7 @@ def _init_point_large(
     prev = np.inf
     loose: set[int] = set()
     b = np.empty((meas.n, 3))
-    for _ in range(n_iter):
+    for k in range(n_iter):
         p_base = o_fl + turned(tool)
         for s, rows in enumerate(sets):
             R_b[s], t_b[s], determined = rigid_fit_nearest(
@@ -175,6 +190,7 @@ def _init_point_large(
             h[3 * m : 3 * m + 3] += reg**2 * tool_nominal[m]
         for s, rows in enumerate(sets):
             h[3 * M + 3 * s : 3 * M + 3 * s + 3] = b[rows].sum(axis=0)
+        _blocks.beat(f"closed form, round {k + 1}")
         sol = np.asarray(np.linalg.solve(K, h), np.float64)
         tool = sol[: 3 * M].reshape(M, 3)
         t_rot = sol[3 * M :].reshape(S, 3)

@@ -71,6 +71,11 @@ class Ticker:
             self.stage = label
             self._emit(f"iteration {it}, cost {cost:.6g} ({change:+.2%})")
 
+    def beat(self, what: str) -> None:
+        """A long loop's progress, in words."""
+        if self._due():
+            self._emit(what)
+
     def rows(self, done: int, total: int) -> None:
         """``done`` of ``total`` poses evaluated in the current pass over large data."""
         now = time.perf_counter()

@@ -189,16 +189,19 @@ def whiten(
     sigma: Float,
     sigma_rot: Float | None,
     jacobian: bool,
+    *,
+    whiten_jacobian: bool = True,
 ) -> tuple[Float, Float | None, Float, Float | None]:
     """Whitened residuals ``r`` (N, c), Jacobian (N, c, P') or None, and the raw
     position (N, 3) and rotation errors of a model output (:class:`ModelOutput`) against
-    the reference points ``p_ref`` (N, 3) and orientations ``R_meas`` (pose data)."""
+    the reference points ``p_ref`` (N, 3) and orientations ``R_meas`` (pose data).
+    ``whiten_jacobian=False`` leaves a position-only Jacobian as the model gave it."""
     e_p = out.p_user - p_ref  # model minus measurement; Eq. (6)
     inv_s = 1.0 / sigma
     J_p = out.J_p
     if R_meas is None:
         r = e_p * inv_s[:, None]
-        if J_p is not None:
+        if J_p is not None and whiten_jacobian:
             J_p *= inv_s[:, None, None]  # the model's fresh array: whitened in place
         return r, J_p, e_p, None
     R_uc = out.R_user_cam
@@ -235,7 +238,7 @@ def _by_blocks(
     x = params.copy()
 
     def rows_fn(
-        sl: slice, inp: ModelInputs, jacobian: bool, products: bool
+        sl: slice, inp: ModelInputs, jacobian: bool, products: bool, raw: bool
     ) -> tuple[Float, Float | None, Float, Float | None]:
         out = model.evaluate(
             x, inp, orientation=pose, jacobian=jacobian, products=products
@@ -252,11 +255,15 @@ def _by_blocks(
             weights.sigma[sl],
             None if weights.sigma_rot is None else weights.sigma_rot[sl],
             jacobian,
+            whiten_jacobian=not raw,
         )
 
     c = meas.components
     n_all = model.size + len(model.link_products)
-    bj = BlockJacobian(rows_fn, inputs, c, model.size, n_all)
+    # Point and sensor rows are whitened by one factor each: the normal equations apply
+    # it on the way, to the columns they use (pose rows are turned, too: no raw form).
+    scale = None if pose else 1.0 / weights.sigma
+    bj = BlockJacobian(rows_fn, inputs, c, model.size, n_all, scale)
     N = meas.n
     r = np.empty((N, c))
     e_p = np.empty((N, 3))
