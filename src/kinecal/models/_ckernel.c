@@ -358,12 +358,19 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
     }
     chain(n, rows, ct, st, &F0);
 
-    vd p_load[3], tau[NMAX], ltp[PMAX], u[3] = {vsplat(0.0), vsplat(0.0), vsplat(0.0)};
+    vd p_load[3] = {vsplat(0.0), vsplat(0.0), vsplat(0.0)}, tau[NMAX], ltp[PMAX];
+    vd u[3] = {vsplat(0.0), vsplat(0.0), vsplat(0.0)};
     vd norm = vsplat(1.0);
     vd ls = load ? vload(in->load_scale + k) : vsplat(1.0);
     const double xs = r[h[H_R_XSIGN]];
     const Chain *F = &F0;
-    if (load) {
+    /* Every deflection is a multiple of some lambda*_j: with all of them zero (the
+       kinematic stages of a calibration) the chain is not deflected and the torques
+       are needed only for the Jacobian's compliance columns (adj 0). */
+    int adj = 0;
+    for (int j = 0; j < n && load; j++)
+        adj |= lam[j] != 0.0;
+    if (load && (adj || h[H_JACOBIAN])) {
         /* Load point: origin of the first marker's cam frame (Eq. 19 with Delta = 0). */
         const double *tc0 = cam_t + 9;
         for (int q = 0; q < 3; q++)
@@ -408,6 +415,8 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
             ltp[p] = dot(F0.R[j][2], mg);
             tau[j] += slink[d[1]] * ltp[p];
         }
+    }
+    if (adj) {
         /* Eq. (22), (24), (26): the deflected chain. */
         for (int i = 0; i < n; i++) {
             vd defl = lam[i] * tau[i];
@@ -476,12 +485,8 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
        sum_j H_j d tau_j (_compliance.torque_adjoint). ext holds these terms per row
        parameter, turn those of a turn of each joint, camload those of the first
        marker's translation (it moves the load point). Every term is a multiple of some
-       lambda*_j: with all of them zero (the kinematic stages of a calibration) they
-       vanish and are skipped (adj 0). */
+       lambda*_j: with all of them zero they vanish and are skipped (adj 0). */
     vd ext[NMAX][5][CMAX], turn[NMAX][CMAX], camload[3][CMAX] = {{vsplat(0.0)}};
-    int adj = 0;
-    for (int j = 0; j < n && load; j++)
-        adj |= lam[j] != 0.0;
     Adjoint A;
     if (adj) {
         for (int j = 0; j < n; j++)
