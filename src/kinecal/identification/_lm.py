@@ -328,6 +328,7 @@ def solve_lm(
     A = np.zeros((fidx.size, fidx.size))
     g = np.zeros(fidx.size)
     final: Float | Callable[[], tuple[Float, Float]] = A
+    trust = False  # whether the last step's quadratic model predicted its decrease well
     it = 0
     for it in range(1, opts.max_iter + 1):
         A, g = normal(x, r, J, w)
@@ -335,22 +336,34 @@ def solve_lm(
         if gnorm <= opts.gtol * max(cost, 1e-300) or fidx.size == 0:
             status, message, success = "gtol", f"{label}: gradient vanished", True
             break
-        if opts.stol > 0 and _near_optimum(A, g, unit(cost), opts.stol):
-            it -= 1  # no step taken in this iteration
-            status, success = "stol", True
-            message = f"{label}: converged (stol) after {it} iterations"
-            break
+        accepted = False
+        if opts.stol > 0:
+            dz, pred = _gauss_newton(A, g)
+            if pred <= opts.stol * unit(cost):
+                it -= 1  # no step taken in this iteration
+                status, success = "stol", True
+                message = f"{label}: converged (stol) after {it} iterations"
+                break
+            if trust:  # the last step's quadratic model held: the undamped step first
+                x_new = x.copy()
+                x_new[fidx] += dz * s
+                r_new, _ = fun(x_new, False)
+                n_eval += 1
+                cost_new, w_new = total_cost(x_new, r_new)
+                rho = float((cost - cost_new) / pred)
+                accepted = bool(np.isfinite(cost_new)) and rho > 0.75
+                if accepted:
+                    mu = max(mu / 10.0, 1e-15)
         diag = np.diag(A).copy()
         diag = np.maximum(diag, 1e-12 * max(float(diag.max()), 1e-300))
-        accepted = False
-        while True:
+        while not accepted:
             dz = -spd_solve(A + mu * np.diag(diag), g)
             x_new = x.copy()
             x_new[fidx] += dz * s
             r_new, _ = fun(x_new, False)
             n_eval += 1
             cost_new, w_new = total_cost(x_new, r_new)
-            pred = -(g @ dz + 0.5 * dz @ (A @ dz))
+            pred = -float(g @ dz + 0.5 * dz @ (A @ dz))
             actual = cost - cost_new
             rho = float(actual / pred) if pred > 0 else -1.0
             if np.isfinite(cost_new) and rho > 0:
@@ -392,6 +405,7 @@ def solve_lm(
             if success:
                 message = f"{label}: converged (no further decrease above round-off)"
             break
+        trust = rho > 0.75
         dcost = cost - cost_new
         step_small = np.linalg.norm(dz) <= opts.xtol * (
             np.linalg.norm(x[fidx] / s) + opts.xtol
@@ -439,15 +453,12 @@ def solve_lm(
     )
 
 
-def _near_optimum(A: Float, g: Float, s0sq: float, stol: float) -> bool:
-    """Whether the undamped Gauss-Newton step from here would lower the cost by at most
-    ``stol`` times the variance of unit weight ``s0sq``: the estimate is then within
-    about ``sqrt(2 stol)`` of its standard deviations of the optimum of the local
-    quadratic model, whatever the number of residuals (the decrease a step of a given
-    fraction of the standard deviations brings does not grow with it)."""
+def _gauss_newton(A: Float, g: Float) -> tuple[Float, float]:
+    """The undamped Gauss-Newton step (scaled) and the decrease of the cost its quadratic
+    model predicts (``inf`` where it is not finite)."""
     dz = -spd_solve(A, g)
     pred = -float(g @ dz + 0.5 * dz @ (A @ dz))
-    return bool(np.isfinite(pred)) and pred <= stol * s0sq
+    return dz, pred if np.isfinite(pred) else float("inf")
 
 
 def _deferred(
