@@ -143,6 +143,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = ap.parse_args(argv)
     if args.issue26:
+        from benchmarks._large import issue26
+
         return issue26(args.out)
     if args.robust:
         from benchmarks._robust import main as robust
@@ -498,95 +500,6 @@ def main(argv: list[str] | None = None) -> int:
     tmp.write_text(json.dumps(out, indent=2) + "\n")
     os.replace(tmp, args.out)
     print(f"-> {args.out}")
-    return 0
-
-
-def issue26(path: str) -> int:
-    """The issue-26 rows, merged into the results file ``path`` (its other rows kept):
-    calibrations of 1e5 and 1e6 poses in fresh processes, ``--model auto`` against one
-    calibration on 2000 poses (CPU time: the VM is shared), and the start-up of
-    ``kinecal --help`` and ``kinecal fk``."""
-    from benchmarks._large import large_cases
-    from kinecal._parallel import available_cpus
-    from kinecal.identification import calibrate, select_model
-    from kinecal.simulation import LaserTracker, experiment2
-
-    out_path = Path(path)
-    old = json.loads(out_path.read_text()) if out_path.is_file() else {}
-    results: dict[str, dict[str, Any]] = dict(old.get("results", {}))
-
-    def record(name: str, seconds: float, target: str, **extra: Any) -> None:
-        results[name] = {"seconds": float(seconds), "target": target, **extra}
-        print(f"  {name:38s} {seconds:10.3f} s   ({target}) {extra}", flush=True)
-
-    def cpu_and_wall(fn: Callable[[], Any], repeat: int) -> tuple[float, float, Any]:
-        cpus, walls, out = [], [], None
-        for _ in range(repeat):
-            t, c = time.perf_counter(), time.process_time()
-            out = fn()
-            walls.append(time.perf_counter() - t)
-            cpus.append(time.process_time() - c)
-        return statistics.median(cpus), statistics.median(walls), out
-
-    print("kinecal issue-26 benchmarks", json.dumps(_machine()), flush=True)
-    e = experiment2(3, tracker=LaserTracker(5e-6, 0.0))
-    robot, big = e.truth.robot, e.test
-    sub = big.subset(np.random.default_rng(1).permutation(big.n)[:2000])
-    c1, w1, _ = cpu_and_wall(lambda: calibrate(robot, sub, "full"), 5)
-    record("calibrate_full_2000_cpu", c1, "CPU time of one calibration", wall=w1)
-    ca, wa, sel = cpu_and_wall(lambda: select_model(robot, sub, jobs=1), 3)
-    record(
-        "select_model_auto_2000_serial_cpu",
-        ca,
-        "<= 3x one calibration",
-        wall=wa,
-        ratio_to_calibration=ca / c1,
-        chosen=sel.spec.name,
-    )
-    cpus = available_cpus()
-    t0 = time.perf_counter()
-    seln = select_model(robot, sub, jobs=cpus)
-    record(
-        "select_model_auto_2000_workers_wall",
-        time.perf_counter() - t0,
-        "one worker process per CPU (wall, shared VM)",
-        workers=cpus,
-        same_choice=sel.as_dict() == seln.as_dict(),
-        load_average=os.getloadavg()[0],
-    )
-    fk = ["fk", "--robot", "fanuc-lrmate200id", "--json", "--", "0", "0", "0", "0"]
-    for name, cmd in (
-        ("cli_help_startup", ["--help"]),
-        ("cli_fk_startup", [*fk, "-90", "0"]),
-    ):
-        full = [sys.executable, "-m", "kinecal", *cmd]
-        _run(full)  # warm-up: bytecode cache
-        usage, walls = [], []
-        for _ in range(15):
-            before = resource.getrusage(resource.RUSAGE_CHILDREN)
-            t = time.perf_counter()
-            _run(full)
-            walls.append(time.perf_counter() - t)
-            after = resource.getrusage(resource.RUSAGE_CHILDREN)
-            usage.append(
-                after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
-            )
-        record(
-            name,
-            statistics.median(walls),
-            "< 0.1 s unloaded",
-            cpu_seconds=statistics.median(usage),
-            best_seconds=min(walls),
-            load_average=os.getloadavg()[0],
-        )
-    large_cases(record, (10**5, 10**6))
-    old["results"] = results
-    old.setdefault("machine", _machine())
-    old["issue26_created_unix"] = time.time()
-    tmp = out_path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(old, indent=2) + "\n")
-    os.replace(tmp, out_path)
-    print(f"-> {out_path}")
     return 0
 
 
