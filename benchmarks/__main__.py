@@ -138,12 +138,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--stripes", action="store_true", help="only the stripe benchmarks (issue 24)"
     )
+    ap.add_argument(
+        "--issue26",
+        action="store_true",
+        help="only the issue-26 rows (large data, --model auto, start-up), merged into "
+        "--out",
+    )
     args = ap.parse_args(argv)
     if args.stripes:
         from benchmarks._stripes import main as stripes_main
 
         out_args = [] if args.out == ap.get_default("out") else ["--out", args.out]
         return stripes_main(out_args + (["--quick"] if args.quick else []))
+    if args.issue26:
+        from benchmarks._large import issue26
+
+        return issue26(args.out)
     if args.robust:
         from benchmarks._robust import main as robust
 

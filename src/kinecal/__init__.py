@@ -2,10 +2,20 @@
 
 The method follows Ye et al., "Kinematic and Joint Compliance Modeling Method to Improve
 Position Accuracy of a Robotic Vision System", Sensors 24(8), 2559 (2024).
-Subpackages are imported on demand so ``kinecal --help`` starts fast.
+Subpackages are imported on demand so ``kinecal --help`` starts fast; so is
+:func:`keep_freed_memory` (ctypes).
 """
 
-from kinecal._memory import keep_freed_memory
+from typing import TYPE_CHECKING
+
+from kinecal import _lazy
 from kinecal._version import __version__
 
+if TYPE_CHECKING:
+    from kinecal._memory import keep_freed_memory
+
 __all__ = ["__version__", "keep_freed_memory"]
+
+__getattr__, __dir__ = _lazy.exports(
+    __name__, {"_version": ("__version__",), "_memory": ("keep_freed_memory",)}
+)

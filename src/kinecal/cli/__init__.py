@@ -1,7 +1,8 @@
 """The ``kinecal`` command. Parsing only: every command loads files and calls the API.
 
-Heavy modules (numpy, scipy, matplotlib, OpenCV) are imported inside the commands so
-``kinecal --help`` starts fast. Every failure goes through :func:`main`: one line
+Heavy modules (numpy, scipy, OpenCV) are imported inside the commands, and a command's
+module only when that command runs (:class:`_LazyGroup`), so ``kinecal --help`` starts
+fast. Every failure goes through :func:`main`: one line
 ``Error: ...`` on stderr and an exit code of :class:`~kinecal.cli._errors.ExitCode`
 (0 success, 1 internal error, 2 bad input or usage, 3 calibration not converged, 4 some
 targets unreachable, 5 the system refused a read or write, 130 Ctrl-C); docs/errors.md
@@ -11,6 +12,7 @@ command succeeds (:mod:`kinecal._outputs`).
 
 from __future__ import annotations
 
+import importlib
 import sys
 
 import click
@@ -26,7 +28,107 @@ EXIT_IO = int(ExitCode.IO)
 EXIT_INTERRUPTED = int(ExitCode.INTERRUPTED)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+# Every command: (module, function, the first paragraph of its help). A command's module
+# is imported when the command runs (or its --help is asked for); `kinecal --help` lists
+# them from this table (tests/cli check it against the commands' own help).
+COMMANDS: dict[str, tuple[str, str, str]] = {
+    "calibrate": (
+        "_calibrate",
+        "calibrate",
+        "Identify a robot (and sensor) model from measurements DATA.csv.",
+    ),
+    "compare": (
+        "_simulate",
+        "compare",
+        "Fit several models on TRAIN and score each on TEST (Tables 5 and 8).",
+    ),
+    "compensate": (
+        "_compensate",
+        "compensate",
+        "Corrected controller angles so the robot reaches TARGETS.",
+    ),
+    "demo": (
+        "_simulate",
+        "demo",
+        "Run both of the paper's experiments on the built-in digital twin.",
+    ),
+    "evaluate": (
+        "_calibrate",
+        "evaluate",
+        "Accuracy of a calibrated model on measurements DATA.csv (held-out poses).",
+    ),
+    "export-urdf": (
+        "_export",
+        "export_urdf",
+        "Write the calibrated kinematic part of MODEL.yaml as a URDF (or a DH table).",
+    ),
+    "fk": (
+        "_fk",
+        "fk",
+        "Flange pose from controller joint angles J1 ... JN [deg; mm if prismatic].",
+    ),
+    "import-urdf": (
+        "_fk",
+        "import_urdf",
+        "Write a robot YAML (standard DH, mm, deg) for the serial chain of a URDF.",
+    ),
+    "plan": (
+        "_plan",
+        "plan",
+        "Choose the poses that determine a calibration model best.",
+    ),
+    "report": (
+        "_report",
+        "report",
+        "Draw report.html from a folder written by `kinecal calibrate`.",
+    ),
+    "robots": ("_fk", "robots", "List the built-in robots."),
+    "sensor": (
+        "_sensor",
+        "sensor",
+        "The 3D rotary laser sensor: stripes, calibration, reconstruction, sphere fits.",
+    ),
+    "simulate": (
+        "_simulate",
+        "simulate",
+        "Simulate one of the paper's experiments on the digital twin (LR Mate 200iD).",
+    ),
+}
+
+
+class _LazyGroup(click.Group):
+    """A command group that imports a command's module only when that command runs."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted({*COMMANDS, *self.commands})
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name not in self.commands and cmd_name in COMMANDS:
+            module, name, _ = COMMANDS[cmd_name]
+            cmd = getattr(importlib.import_module(f"kinecal.cli.{module}"), name)
+            self.add_command(cmd, cmd_name)
+        return self.commands.get(cmd_name)
+
+    def format_commands(
+        self, ctx: click.Context, formatter: click.HelpFormatter
+    ) -> None:
+        """The command list of ``--help``, from :data:`COMMANDS` (no module imported):
+        the same text click writes from the commands themselves."""
+        names = self.list_commands(ctx)
+        if not names:
+            return
+        limit = formatter.width - 6 - max(len(n) for n in names)
+        rows = [
+            (n, click.Command(n, help=COMMANDS[n][2]).get_short_help_str(limit))
+            if n in COMMANDS and n not in self.commands
+            else (n, self.commands[n].get_short_help_str(limit))
+            for n in names
+        ]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
+
+@click.group(cls=_LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="kinecal")
 def cli() -> None:
     """kinecal: calibrate robots and robotic vision systems.
@@ -40,39 +142,6 @@ def cli() -> None:
 
     keep_freed_memory()  # a command is one run: keep freed arrays for reuse
     single_thread_blas()  # small matrices; the cores go to worker processes instead
-
-
-def _register() -> None:
-    from kinecal.cli import (
-        _calibrate,
-        _compensate,
-        _export,
-        _fk,
-        _plan,
-        _report,
-        _sensor,
-        _simulate,
-    )
-
-    for cmd in (
-        _fk.fk,
-        _fk.robots,
-        _fk.import_urdf,
-        _calibrate.calibrate,
-        _calibrate.evaluate,
-        _compensate.compensate,
-        _export.export_urdf,
-        _simulate.simulate,
-        _simulate.compare,
-        _simulate.demo,
-        _sensor.sensor,
-        _plan.plan,
-        _report.report,
-    ):
-        cli.add_command(cmd)
-
-
-_register()
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -27,6 +27,19 @@ from kinecal.typing import ArrayLike, Float
 __all__ = ["STATUS", "CompensationResult", "compensate", "program_targets"]
 
 STATUS = ("ok", "unreachable", "joint_limit")
+# Targets solved at once: more are solved by chunks of this many (the IK's state is a few
+# hundred numbers a target; 1e6 targets took 2.7 GB at once). Every target is solved
+# on its own, so the chunks give the same numbers.
+CHUNK = 50_000
+_ROW_FIELDS = (
+    "q_ctrl",
+    "q_program",
+    "error",
+    "rotation_error",
+    "status",
+    "limit_joint",
+    "cond",
+)
 
 
 @dataclass(frozen=True)
@@ -113,6 +126,32 @@ def compensate(
     if not (np.isfinite(p).all() and np.isfinite(q0).all()):
         raise DataError("p_target and q_seed must be finite.")
     ls = None if load_scale is None else np.asarray(load_scale, np.float64).reshape(-1)
+    if p.shape[0] > CHUNK:  # large programs by chunks of targets: memory stays small
+        parts = []
+        for lo in range(0, p.shape[0], CHUNK):
+            rows = slice(lo, lo + CHUNK)
+
+            def cut(v: ArrayLike | None, rows: slice = rows) -> np.ndarray | None:
+                return None if v is None else np.asarray(v)[rows]
+
+            parts.append(
+                compensate(
+                    calibrated,
+                    p[rows],
+                    q0[rows],
+                    R_target=cut(R_target),
+                    set_index=cut(set_index),
+                    marker_index=cut(marker_index),
+                    load_scale=cut(ls),
+                    tol=tol,
+                    tol_rotation=tol_rotation,
+                    max_iter=max_iter,
+                )
+            )
+        joined = {
+            f: np.concatenate([getattr(r, f) for r in parts]) for f in _ROW_FIELDS
+        }
+        return CompensationResult(**joined, iterations=max(r.iterations for r in parts))
     res = solve_ik_lm(
         model,
         calibrated.params,

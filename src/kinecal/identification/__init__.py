@@ -1,81 +1,89 @@
-"""Identification: residuals, LM solver, stages (Sec. 4, Fig. 6), identifiability, metrics."""
+"""Identification: residuals, LM solver, stages (Sec. 4, Fig. 6), identifiability, metrics.
 
-from kinecal.identification._calibrate import (
-    CalibrationResult,
-    calibrate,
-    default_stages,
-)
-from kinecal.identification._calibrated import STATUSES, CalibratedModel
-from kinecal.identification._crossval import (
-    ComparisonRow,
-    CrossValidation,
-    Folds,
-    compare_models,
-    cross_validate,
-    cross_validate_many,
-    kfold_indices,
-    make_folds,
-    train_test_split,
-)
-from kinecal.identification._diagnose import Diagnose
-from kinecal.identification._diagnostics import CODES, Diagnostic, Outlier, StageLog
-from kinecal.identification._evaluate import (
-    Evaluation,
-    evaluate,
-    refit,
-    refit_diagnosed,
-    registered_model,
-)
-from kinecal.identification._identifiability import (
-    DroppedParameter,
-    Identifiability,
-    analyse_identifiability,
-    correlation_from_covariance,
-    priority_order,
-)
-from kinecal.identification._init import initial_frames
-from kinecal.identification._lm import (
-    LMOptions,
-    LMResult,
-    normal_equations,
-    solve_fixed_step,
-    solve_lm,
-)
-from kinecal.identification._measurements import KINDS, Measurements
-from kinecal.identification._metrics import Metrics, metrics_from_errors
-from kinecal.identification._noise import NoiseModel
-from kinecal.identification._nominal_check import nominal_check
-from kinecal.identification._options import PRIOR_SIGMA, CalibrationOptions
-from kinecal.identification._priors import EvidencePriors, Priors, build_prior
-from kinecal.identification._problem import (
-    EvaluationCache,
-    Problem,
-    Stage,
-    State,
-    run_stages,
-    spec_for,
-)
-from kinecal.identification._registration import (
-    Registration,
-    initial_registration,
-    register,
-)
-from kinecal.identification._residuals import ResidualBlock, Weights, residuals
-from kinecal.identification._robust import RobustRejection
-from kinecal.identification._select import (
-    Candidate,
-    Selection,
-    candidate_specs,
-    select_model,
-)
-from kinecal.identification._stages import (
-    FullStage,
-    Identify,
-    KinematicStage,
-    Register,
-    TransmissionStage,
-)
-from kinecal.identification._uncertainty import Uncertainty
+Each name loads its module on first use (:mod:`kinecal._lazy`).
+"""
+
+from typing import TYPE_CHECKING
+
+from kinecal import _lazy
+
+if TYPE_CHECKING:
+    from kinecal.identification._calibrate import (
+        CalibrationResult,
+        calibrate,
+        default_stages,
+    )
+    from kinecal.identification._calibrated import STATUSES, CalibratedModel
+    from kinecal.identification._crossval import (
+        ComparisonRow,
+        CrossValidation,
+        Folds,
+        compare_models,
+        cross_validate,
+        cross_validate_many,
+        kfold_indices,
+        make_folds,
+        train_test_split,
+    )
+    from kinecal.identification._diagnose import Diagnose
+    from kinecal.identification._diagnostics import CODES, Diagnostic, Outlier, StageLog
+    from kinecal.identification._evaluate import (
+        Evaluation,
+        evaluate,
+        refit,
+        refit_diagnosed,
+        registered_model,
+    )
+    from kinecal.identification._identifiability import (
+        DroppedParameter,
+        Identifiability,
+        analyse_identifiability,
+        correlation_from_covariance,
+        priority_order,
+    )
+    from kinecal.identification._init import initial_frames
+    from kinecal.identification._lm import (
+        LMOptions,
+        LMResult,
+        normal_equations,
+        solve_fixed_step,
+        solve_lm,
+    )
+    from kinecal.identification._measurements import KINDS, Measurements
+    from kinecal.identification._metrics import Metrics, metrics_from_errors
+    from kinecal.identification._noise import NoiseModel
+    from kinecal.identification._nominal_check import nominal_check
+    from kinecal.identification._options import PRIOR_SIGMA, CalibrationOptions
+    from kinecal.identification._priors import EvidencePriors, Priors, build_prior
+    from kinecal.identification._problem import (
+        EvaluationCache,
+        Problem,
+        Stage,
+        State,
+        run_stages,
+        spec_for,
+    )
+    from kinecal.identification._registration import (
+        Registration,
+        initial_registration,
+        register,
+    )
+    from kinecal.identification._residuals import ResidualBlock, Weights, residuals
+    from kinecal.identification._robust import RobustRejection
+    from kinecal.identification._select import (
+        Candidate,
+        Selection,
+        candidate_specs,
+        select_model,
+    )
+    from kinecal.identification._stages import (
+        FullStage,
+        Identify,
+        KinematicStage,
+        Register,
+        TransmissionStage,
+    )
+    from kinecal.identification._uncertainty import Uncertainty
 
 __all__ = [
     "CODES",
@@ -148,3 +156,122 @@ __all__ = [
     "spec_for",
     "train_test_split",
 ]
+
+__getattr__, __dir__ = _lazy.exports(
+    __name__,
+    {
+        "_calibrate": (
+            "CalibrationResult",
+            "calibrate",
+            "default_stages",
+        ),
+        "_calibrated": (
+            "STATUSES",
+            "CalibratedModel",
+        ),
+        "_crossval": (
+            "ComparisonRow",
+            "CrossValidation",
+            "Folds",
+            "compare_models",
+            "cross_validate",
+            "cross_validate_many",
+            "kfold_indices",
+            "make_folds",
+            "train_test_split",
+        ),
+        "_diagnose": (
+            "Diagnose",
+        ),
+        "_diagnostics": (
+            "CODES",
+            "Diagnostic",
+            "Outlier",
+            "StageLog",
+        ),
+        "_evaluate": (
+            "Evaluation",
+            "evaluate",
+            "refit",
+            "refit_diagnosed",
+            "registered_model",
+        ),
+        "_identifiability": (
+            "DroppedParameter",
+            "Identifiability",
+            "analyse_identifiability",
+            "correlation_from_covariance",
+            "priority_order",
+        ),
+        "_init": (
+            "initial_frames",
+        ),
+        "_lm": (
+            "LMOptions",
+            "LMResult",
+            "normal_equations",
+            "solve_fixed_step",
+            "solve_lm",
+        ),
+        "_measurements": (
+            "KINDS",
+            "Measurements",
+        ),
+        "_metrics": (
+            "Metrics",
+            "metrics_from_errors",
+        ),
+        "_noise": (
+            "NoiseModel",
+        ),
+        "_nominal_check": (
+            "nominal_check",
+        ),
+        "_options": (
+            "PRIOR_SIGMA",
+            "CalibrationOptions",
+        ),
+        "_priors": (
+            "EvidencePriors",
+            "Priors",
+            "build_prior",
+        ),
+        "_problem": (
+            "EvaluationCache",
+            "Problem",
+            "Stage",
+            "State",
+            "run_stages",
+            "spec_for",
+        ),
+        "_registration": (
+            "Registration",
+            "initial_registration",
+            "register",
+        ),
+        "_residuals": (
+            "ResidualBlock",
+            "Weights",
+            "residuals",
+        ),
+        "_robust": (
+            "RobustRejection",
+        ),
+        "_select": (
+            "Candidate",
+            "Selection",
+            "candidate_specs",
+            "select_model",
+        ),
+        "_stages": (
+            "FullStage",
+            "Identify",
+            "KinematicStage",
+            "Register",
+            "TransmissionStage",
+        ),
+        "_uncertainty": (
+            "Uncertainty",
+        ),
+    },
+)

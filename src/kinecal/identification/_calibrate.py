@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kinecal.identification._blocks import reporting
 from kinecal.identification._calibrated import CalibratedModel
 from kinecal.identification._diagnose import Diagnose
 from kinecal.identification._diagnostics import Diagnostic, Outlier, StageLog
@@ -120,8 +121,13 @@ def calibrate(
     t_start = time.perf_counter()
     problem = Problem.make(robot, meas, model, options, progress)
     recipe = default_stages(problem.options) if stages is None else stages
-    state = run_stages(problem, problem.start(), recipe)
-    return CalibrationResult.from_state(problem, state, time.perf_counter() - t_start)
+    # Passes over large data and other long loops report too.
+    with reporting(problem.progress.rows, problem.progress.beat):
+        state = run_stages(problem, problem.start(), recipe)
+        problem.progress("result", "errors before and after")
+        return CalibrationResult.from_state(
+            problem, state, time.perf_counter() - t_start
+        )
 
 
 @dataclass

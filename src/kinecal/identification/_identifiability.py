@@ -28,6 +28,7 @@ __all__ = [
     "Identifiability",
     "analyse_identifiability",
     "correlation_from_covariance",
+    "identifiability_from_normal",
     "priority_order",
 ]
 
@@ -184,6 +185,90 @@ def analyse_identifiability(
         sv = np.asarray(
             np.linalg.svd(R[:, [order.index(k) for k in kept]], compute_uv=False),
             np.float64,
+        )
+        cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
+    return Identifiability(
+        layout.names, candidate, free, fraction, dropped, weak, sv, cond
+    )
+
+
+def identifiability_from_normal(
+    A: Float,
+    layout: ParameterLayout,
+    candidate: np.ndarray,
+    *,
+    drop_tol: float = 1e-6,
+    weak_tol: float = 1e-3,
+) -> Identifiability:
+    """:func:`analyse_identifiability` from the normal matrix ``A = Jᵀ J`` (P, P).
+
+    For data too large to hold ``J`` (:mod:`._blocks`). The scaled, column-normalised
+    normal matrix is factored by Cholesky in the same order of preference, ``Rᵀ R = A_n``:
+    in exact arithmetic ``R`` is the triangular factor of the QR decomposition the
+    Jacobian form uses, so ``|R_kk|``, the partners and the singular values agree. A
+    column found unidentifiable is left out of the elimination of the columns after it,
+    so a later column's fraction is its part the kept columns cannot explain. (The QR
+    form's Householder step turns a dropped column's remainder, typically of round-off
+    size, into a unit direction and projects the later columns on it too: their
+    fractions come out smaller there, by a few percent up to half on the shipped
+    examples, the decisions alike; tests/identification/test_issue_26_blocks.py.) A
+    fraction is accurate to about ``1e-14 / (2 f)`` here, far below the tolerances.
+    """
+    candidate = np.asarray(candidate, dtype=bool)
+    P = layout.size
+    As = np.asarray(A, np.float64) * np.outer(layout.scales, layout.scales)
+    norms = np.sqrt(np.clip(np.diag(As), 0.0, None))
+    order = [i for i in priority_order(layout) if candidate[i]]
+    fraction = np.full(P, np.nan)
+    free = np.zeros(P, dtype=bool)
+    if not order:
+        return Identifiability(layout.names, candidate, free, fraction)
+    o = np.array(order)
+    big = max(float(norms[o].max()), 1e-300)
+    zero = norms[o] <= 1e-12 * big
+    nz = np.where(zero, 1.0, norms[o])
+    An = As[np.ix_(o, o)] / np.outer(nz, nz)
+    An[zero, :] = 0.0
+    An[:, zero] = 0.0
+    k = len(order)
+    R = np.zeros((k, k))
+    S = An.copy()  # Schur complement of the columns kept so far
+    kept_pos: list[int] = []
+    kept: list[int] = []
+    dropped: list[DroppedParameter] = []
+    weak: list[tuple[str, float]] = []
+    for c, i in enumerate(order):
+        f = 0.0 if zero[c] else float(np.sqrt(max(S[c, c], 0.0)))
+        fraction[i] = f
+        if f < drop_tol:
+            partners: list[tuple[str, float]] = []
+            if not zero[c] and kept:
+                Rk = R[np.ix_(kept_pos, kept_pos)]
+                # Least squares of column c on the kept ones: Rk^T Rk coef = A_n[kept, c].
+                y = np.linalg.solve(Rk.T, An[kept_pos, c])
+                coef = np.linalg.solve(Rk, y)
+                coef = coef * norms[i] / norms[kept]
+                top = np.argsort(-np.abs(coef))[:4]
+                partners = [
+                    (layout.names[kept[t]], float(coef[t]))
+                    for t in top
+                    if abs(coef[t]) > 1e-3 * np.abs(coef).max()
+                ]
+            dropped.append(DroppedParameter(layout.names[i], f, partners))
+            continue
+        R[c, c] = f
+        R[c, c + 1 :] = S[c, c + 1 :] / f
+        S[c + 1 :, c + 1 :] -= np.outer(R[c, c + 1 :], R[c, c + 1 :])
+        kept_pos.append(c)
+        kept.append(i)
+        if f < weak_tol:
+            weak.append((layout.names[i], f))
+    free[kept] = True
+    sv: Float = np.zeros(0)
+    cond = float("nan")
+    if kept:
+        sv = np.asarray(
+            np.linalg.svd(R[np.ix_(kept_pos, kept_pos)], compute_uv=False), np.float64
         )
         cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
     return Identifiability(

@@ -25,6 +25,7 @@ from kinecal.geometry import (
     solve_axyb,
     transform_inv,
 )
+from kinecal.identification import _blocks
 from kinecal.identification._measurements import Measurements
 from kinecal.models import CalibrationModel
 from kinecal.typing import Float
@@ -37,7 +38,31 @@ _GIMBAL_MARGIN = np.radians(15.0)
 def _flange(
     model: CalibrationModel, params: Float, meas: Measurements
 ) -> tuple[Float, Float]:
-    return model.flange_frames(params, meas.model_inputs())
+    """Flange frames ``(R (N, 3, 3), o (N, 3))``.
+
+    Large data by blocks of poses, from the model's own evaluation of the tool pose with
+    the user frame at the identity (the compiled kernel where it is built; the same
+    numbers to rounding): ``R_fl = R_user_cam R_fc^T``, ``o_fl = p - R_fl (t_fc + R_fc
+    p_cam)``."""
+    inputs = meas.model_inputs()
+    if 3 * meas.n <= _blocks.BLOCK_ROWS:
+        return model.flange_frames(params, inputs)
+    bare = model.with_references(np.broadcast_to(np.eye(3), model.R_ref_base.shape))
+    x = params.copy()
+    x[bare.base_index] = 0.0
+    R_fc, t_fc = bare.cam_frames(x)
+    R = np.empty((meas.n, 3, 3))
+    o = np.empty((meas.n, 3))
+    for rows, inp in _blocks.block_inputs(inputs, _blocks.BLOCK_ROWS // 3):
+        out = bare.evaluate(x, inp, orientation=True)
+        assert out.R_user_cam is not None
+        mi = inp.marker_index
+        R_fl = out.R_user_cam @ np.swapaxes(R_fc, 1, 2)[mi]
+        fl_p = t_fc[mi] + np.einsum("nij,nj->ni", R_fc[mi], inp.p_cam)
+        R[rows] = R_fl
+        o[rows] = out.p_user - np.einsum("nij,nj->ni", R_fl, fl_p)
+        _blocks.tick(rows.stop, meas.n)
+    return R, o
 
 
 def _init_point(
@@ -45,6 +70,8 @@ def _init_point(
 ) -> tuple[Float, Float, Float, list[int]]:
     """Base rotations (S, 3, 3), base translations (S, 3), tool points (M, 3), and the
     sets whose points do not fix their rotation."""
+    if 3 * meas.n > _blocks.BLOCK_ROWS:
+        return _init_point_large(model, params, meas, n_iter)
     R_fl, o_fl = _flange(model, params, meas)
     S, M = len(model.spec.sets), len(model.spec.markers)
     _, t_cam = model.cam_frames(params)
@@ -95,6 +122,91 @@ def _init_point(
             break
         prev = res
     return R_b, t_b, tool, sorted(loose)
+
+
+def _init_point_large(
+    model: CalibrationModel, params: Float, meas: Measurements, n_iter: int
+) -> tuple[Float, Float, Float, list[int]]:
+    """:func:`_init_point` for data too large for its dense solve: the same alternation,
+    with the linear step by its normal equations in each set's rotated frame.
+
+    Row i, ``R_b[s] (R_fl,i tool[m] + o_fl,i) + t_b[s] = p_i``, turned by ``R_b[s]ᵀ``
+    (which keeps the squared error) reads ``R_fl,i tool[m] + t'_s = R_b[s]ᵀ p_i - o_fl,i``
+    with ``t'_s = R_b[s]ᵀ t_b[s]``: its normal matrix depends on the flange frames only
+    and is formed once; each round is then a few matrix-vector products over the poses.
+    """
+    R_fl, o_fl = _flange(model, params, meas)
+    S, M = len(model.spec.sets), len(model.spec.markers)
+    _, t_cam = model.cam_frames(params)
+    tool, tool_nominal = t_cam.copy(), t_cam.copy()
+    reg = 1e-4 * np.sqrt(meas.n)  # as in _init_point
+    R_b = np.broadcast_to(np.eye(3), (S, 3, 3)).copy()
+    t_b = np.zeros((S, 3))
+    si, mi, p = meas.set_index, meas.marker_index, meas.p
+    sets, marks = _groups(si, S), _groups(mi, M)  # (views where one group has all)
+    for s, rows in enumerate(sets):
+        if np.sum(si[rows] == s) < 3:
+            raise IdentifiabilityError(
+                f"{meas.source}: set {model.spec.sets[s]!r} has "
+                f"{np.sum(si[rows] == s)} rows; a user frame needs at least 3."
+            )
+    # Normal matrix of the unknowns (tool points, then t'_s): constant.
+    n_x = 3 * M + 3 * S
+    K = np.zeros((n_x, n_x))
+    Xs = [R_fl[rows].reshape(-1, 3) for rows in marks]  # (3 n_m, 3)
+    for m in range(M):
+        tm = slice(3 * m, 3 * m + 3)
+        K[tm, tm] = Xs[m].T @ Xs[m] + reg**2 * np.eye(3)
+        for s in range(S):
+            cell = slice(None) if S == M == 1 else (mi == m) & (si == s)
+            C = R_fl[cell].sum(axis=0).T  # sum of R_fl,i^T
+            ts = slice(3 * M + 3 * s, 3 * M + 3 * s + 3)
+            K[tm, ts], K[ts, tm] = C, C.T
+    for s, rows in enumerate(sets):
+        ts = slice(3 * M + 3 * s, 3 * M + 3 * s + 3)
+        K[ts, ts] = np.sum(si[rows] == s) * np.eye(3)
+
+    def turned(v: Float) -> Float:  # (N, 3): R_fl,i v[m_i]
+        out = np.empty((meas.n, 3))
+        for m, rows in enumerate(marks):
+            out[rows] = (Xs[m] @ v[m]).reshape(-1, 3)
+        return out
+
+    prev = np.inf
+    loose: set[int] = set()
+    b = np.empty((meas.n, 3))
+    for k in range(n_iter):
+        p_base = o_fl + turned(tool)
+        for s, rows in enumerate(sets):
+            R_b[s], t_b[s], determined = rigid_fit_nearest(
+                p_base[rows], p[rows], R_b[s]
+            )
+            if not determined:
+                loose.add(s)
+            b[rows] = p[rows] @ R_b[s] - o_fl[rows]  # R_b^T p - o_fl
+        h = np.zeros(n_x)
+        for m, rows in enumerate(marks):
+            h[3 * m : 3 * m + 3] = Xs[m].T @ b[rows].reshape(-1)
+            h[3 * m : 3 * m + 3] += reg**2 * tool_nominal[m]
+        for s, rows in enumerate(sets):
+            h[3 * M + 3 * s : 3 * M + 3 * s + 3] = b[rows].sum(axis=0)
+        _blocks.beat(f"closed form, round {k + 1}")
+        sol = np.asarray(np.linalg.solve(K, h), np.float64)
+        tool = sol[: 3 * M].reshape(M, 3)
+        t_rot = sol[3 * M :].reshape(S, 3)
+        t_b = np.einsum("sij,sj->si", R_b, t_rot)
+        res = float(np.linalg.norm(turned(tool) + t_rot[si] - b))
+        if abs(prev - res) <= 1e-12 * max(res, 1e-9):
+            break
+        prev = res
+    return R_b, t_b, tool, sorted(loose)
+
+
+def _groups(index: np.ndarray, count: int) -> list[np.ndarray | slice]:
+    """The rows of each group: all (a slice, no copy) when there is one group."""
+    if count == 1:
+        return [slice(None)]
+    return [np.flatnonzero(index == k) for k in range(count)]
 
 
 def _init_pose(

@@ -21,8 +21,9 @@ import numpy as np
 
 from kinecal.identification._lm import (
     LMOptions,
+    NormalSource,
     Prior,
-    normal_equations,
+    normal_of,
     solve_lm,
     spd_solve,
 )
@@ -36,10 +37,13 @@ def lifted_start(
     model: CalibrationModel,
     x: Float,
     r: Float,
-    J: Float,
+    J: Float | NormalSource,
     free: np.ndarray,
     prior: Prior | None,
     row_weights: Float | None = None,
+    *,
+    stol: float = 0.0,
+    s0sq: float | None = None,
 ) -> Float:
     """Parameters from one Gauss-Newton step in product coordinates, mapped back.
 
@@ -49,10 +53,15 @@ def lifted_start(
     x : (P,) the point of linearisation (any point; the stage-2 result or a previous fit).
     r : (N, c) whitened residuals at ``x``.
     J : (N, c, P + K) their Jacobian with the product columns of
-        :attr:`CalibrationModel.link_products` (``evaluate(..., products=True)``).
+        :attr:`CalibrationModel.link_products` (``evaluate(..., products=True)``), or a
+        block-wise one (:class:`~kinecal.identification._lm.NormalSource`).
     free : (P,) bool, the estimated parameters.
     prior : Prior or None
     row_weights : (N,) square roots of robust row weights, or None.
+    stol, s0sq : the statistical stop of the small bilinear fit at the end
+        (:class:`LMOptions`) and the data's variance of unit weight it compares with:
+        the start need not be closer to that fit's optimum than the stage's own LM
+        would resolve. 0 (default): to convergence.
 
     Returns
     -------
@@ -74,7 +83,7 @@ def lifted_start(
     cols = np.concatenate([native, [c for c, _, _ in pairs]])
     sc_mu = np.array([scales[lam] * scales[s] for _, lam, s in pairs])
     sc_l = np.concatenate([scales[native], sc_mu])
-    A, g = normal_equations(r, J, cols, sc_l, row_weights)
+    A, g = normal_of(r, J, cols, sc_l, row_weights)
 
     # At a point of the manifold the lifted column of lambda*_j is the model's column
     # minus sum_k s_k (column of mu_jk): change of variables T, A -> T' A T.
@@ -131,7 +140,14 @@ def lifted_start(
         return res, (U @ D)[:, None, :]
 
     fit = solve_lm(
-        quadratic, x1, free, scales, LMOptions(max_iter=200), prior=prior, label="lift"
+        quadratic,
+        x1,
+        free,
+        scales,
+        LMOptions(max_iter=200, stol=stol),
+        prior=prior,
+        label="lift",
+        s0sq=s0sq,
     )
     return fit.x
 

@@ -22,6 +22,7 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
@@ -31,9 +32,11 @@ __all__ = [
     "LOSSES",
     "LMOptions",
     "LMResult",
+    "NormalSource",
     "Prior",
     "loss_weights",
     "normal_equations",
+    "normal_of",
     "objective",
     "psd_inverse",
     "solve_fixed_step",
@@ -45,7 +48,7 @@ log = logging.getLogger(__name__)
 
 LOSSES = ("linear", "huber", "soft_l1")
 
-ResidualFn = Callable[[Float, bool], tuple[Float, Float | None]]
+ResidualFn = Callable[[Float, bool], tuple[Float, "Float | NormalSource | None"]]
 
 
 @dataclass(frozen=True)
@@ -67,8 +70,10 @@ class LMOptions:
     stol : float
         Statistical tolerance: also stop when an accepted step lowered the cost by at most
         ``stol`` times the a-posteriori variance of unit weight, ``2 cost / (m - k)`` (m
-        residuals, k free parameters). Such a step moved the estimate by about
-        ``sqrt(2 stol)`` of its standard deviations. 0 (the default) turns it off.
+        residuals, k free parameters), or when the undamped Gauss-Newton step from the
+        current point would (so no step is taken). Such a step moves the estimate by
+        about ``sqrt(2 stol)`` of its standard deviations, a criterion that does not
+        tighten with the number of residuals. 0 (the default) turns it off.
     """
 
     max_iter: int = 100
@@ -92,7 +97,9 @@ class LMResult:
     """Outcome of :func:`solve_lm`.
 
     ``normal_matrix`` is ``J_s^T W J_s`` of the free parameters in scaled variables at the
-    solution; ``row_weights`` are the robust weights of the rows (1 for the linear loss).
+    solution (computed when first asked for: for large data a pass over every pose) and
+    ``gradient`` its ``J_s^T W r``; ``row_weights`` are the robust weights of the rows (1
+    for the linear loss).
     """
 
     x: Float
@@ -102,12 +109,24 @@ class LMResult:
     success: bool
     status: str
     message: str
-    normal_matrix: Float
-    gradient: Float
+    _normal: Float | Callable[[], tuple[Float, Float]]
+    _gradient: Float | None
     row_weights: Float
     residual: Float
     log: list[dict[str, float]] = field(default_factory=list)
     seconds: float = 0.0
+
+    @property
+    def normal_matrix(self) -> Float:
+        if callable(self._normal):
+            self._normal, self._gradient = self._normal()
+        return self._normal
+
+    @property
+    def gradient(self) -> Float:
+        self.normal_matrix  # noqa: B018 - computes both
+        assert self._gradient is not None
+        return self._gradient
 
 
 def loss_weights(z: Float, loss: str) -> tuple[Float, Float]:
@@ -122,6 +141,28 @@ def loss_weights(z: Float, loss: str) -> tuple[Float, Float]:
         t = np.sqrt(1.0 + z)
         return 2.0 * (t - 1.0), 1.0 / t
     raise ValueError(f"unknown loss {loss!r}")
+
+
+class NormalSource(Protocol):
+    """A Jacobian that gives its normal equations without being held
+    (:class:`~kinecal.identification._blocks.BlockJacobian`)."""
+
+    def normal(
+        self, cols: np.ndarray, scales: Float, row_weights: Float | None = None
+    ) -> tuple[Float, Float]: ...
+
+
+def normal_of(
+    r: Float,
+    J: Float | NormalSource,
+    cols: np.ndarray,
+    scales: Float,
+    row_weights: Float | None = None,
+) -> tuple[Float, Float]:
+    """:func:`normal_equations` of a held Jacobian, or those a block-wise one gives."""
+    if isinstance(J, np.ndarray):
+        return normal_equations(r, J, cols, scales, row_weights)
+    return J.normal(cols, scales, row_weights)
 
 
 def normal_equations(
@@ -219,6 +260,8 @@ def solve_lm(
     *,
     prior: Prior | None = None,
     label: str = "lm",
+    on_iteration: Callable[[int, float, float], None] | None = None,
+    s0sq: float | None = None,
 ) -> LMResult:
     """Levenberg-Marquardt on ``fun`` over the parameters flagged in ``free``.
 
@@ -232,6 +275,12 @@ def solve_lm(
     options : LMOptions
     prior : Prior, optional (MAP estimation)
     label : str, name used in the log
+    on_iteration : callable ``on_iteration(it, cost, relative change)``, optional
+        Called after each iteration (for progress displays).
+    s0sq : float, optional
+        The variance of unit weight the statistical stop (``stol``) compares with;
+        default ``2 cost / (m - k)`` of the residuals at hand (a sub-problem such as the
+        lifted start passes its parent's).
 
     Returns
     -------
@@ -248,13 +297,18 @@ def solve_lm(
     prec = pr.precision[fidx] * s * s  # prior precision in scaled variables
     pmean = pr.mean[fidx]
 
+    def unit(c: float) -> float:  # variance of unit weight
+        return s0sq if s0sq is not None else 2.0 * c / max(r.size - fidx.size, 1)
+
     def total_cost(xx: Float, rr: Float) -> tuple[float, Float]:
         c, ww = objective(rr, opts)
         return c + pr.cost(xx) if prior is not None else c, ww
 
-    def normal(xx: Float, rr: Float, JJ: Float, ww: Float) -> tuple[Float, Float]:
+    def normal(
+        xx: Float, rr: Float, JJ: Float | NormalSource, ww: Float
+    ) -> tuple[Float, Float]:
         sw_ = None if opts.loss == "linear" else np.sqrt(ww)
-        A_, g_ = normal_equations(rr, JJ, fidx, s, sw_)
+        A_, g_ = normal_of(rr, JJ, fidx, s, sw_)
         A_ += np.diag(prec)  # the prior of Eq. (T-6), in scaled variables
         if prior is not None:
             g_ = g_ + prec * (xx[fidx] - pmean) / s
@@ -263,7 +317,7 @@ def solve_lm(
     r, J0 = fun(x, True)
     if J0 is None:
         raise ValueError("fun(x, True) must return a Jacobian.")
-    J: Float = J0
+    J: Float | NormalSource = J0
     n_eval = 1
     cost, w = total_cost(x, r)
     mu = opts.mu0
@@ -273,6 +327,8 @@ def solve_lm(
     success = False
     A = np.zeros((fidx.size, fidx.size))
     g = np.zeros(fidx.size)
+    final: Float | Callable[[], tuple[Float, Float]] = A
+    trust = False  # whether the last step's quadratic model predicted its decrease well
     it = 0
     for it in range(1, opts.max_iter + 1):
         A, g = normal(x, r, J, w)
@@ -280,17 +336,34 @@ def solve_lm(
         if gnorm <= opts.gtol * max(cost, 1e-300) or fidx.size == 0:
             status, message, success = "gtol", f"{label}: gradient vanished", True
             break
+        accepted = False
+        if opts.stol > 0:
+            dz, pred = _gauss_newton(A, g)
+            if pred <= opts.stol * unit(cost):
+                it -= 1  # no step taken in this iteration
+                status, success = "stol", True
+                message = f"{label}: converged (stol) after {it} iterations"
+                break
+            if trust:  # the last step's quadratic model held: the undamped step first
+                x_new = x.copy()
+                x_new[fidx] += dz * s
+                r_new, _ = fun(x_new, False)
+                n_eval += 1
+                cost_new, w_new = total_cost(x_new, r_new)
+                rho = float((cost - cost_new) / pred)
+                accepted = bool(np.isfinite(cost_new)) and rho > 0.75
+                if accepted:
+                    mu = max(mu / 10.0, 1e-15)
         diag = np.diag(A).copy()
         diag = np.maximum(diag, 1e-12 * max(float(diag.max()), 1e-300))
-        accepted = False
-        while True:
+        while not accepted:
             dz = -spd_solve(A + mu * np.diag(diag), g)
             x_new = x.copy()
             x_new[fidx] += dz * s
             r_new, _ = fun(x_new, False)
             n_eval += 1
             cost_new, w_new = total_cost(x_new, r_new)
-            pred = -(g @ dz + 0.5 * dz @ (A @ dz))
+            pred = -float(g @ dz + 0.5 * dz @ (A @ dz))
             actual = cost - cost_new
             rho = float(actual / pred) if pred > 0 else -1.0
             if np.isfinite(cost_new) and rho > 0:
@@ -313,6 +386,8 @@ def solve_lm(
             }
         )
         log.debug("%s it %d cost %.6g -> %.6g mu %.2e", label, it, cost, cost_new, mu)
+        if on_iteration is not None and accepted:
+            on_iteration(it, cost_new, (cost_new - cost) / max(abs(cost), 1e-300))
         if not accepted:
             status = "stalled"
             message = f"{label}: no step reduces the cost (damping {mu:.1e})"
@@ -330,19 +405,19 @@ def solve_lm(
             if success:
                 message = f"{label}: converged (no further decrease above round-off)"
             break
+        trust = rho > 0.75
         dcost = cost - cost_new
         step_small = np.linalg.norm(dz) <= opts.xtol * (
             np.linalg.norm(x[fidx] / s) + opts.xtol
         )
         x, r, cost, w = x_new, r_new, cost_new, w_new
-        s0sq = 2.0 * cost / max(r.size - fidx.size, 1)  # variance of unit weight
         converged = (
             "ftol"
             if dcost <= opts.ftol * cost
             else "xtol"
             if step_small
             else "stol"
-            if dcost <= opts.stol * s0sq
+            if dcost <= opts.stol * unit(cost)
             else None
         )
         if converged is not None:
@@ -353,7 +428,9 @@ def solve_lm(
             n_eval += 1
             if J1 is not None:
                 J = J1
-            A, g = normal(x, r, J, w)
+            # The normal matrix at the solution, computed when asked for (large data
+            # take a pass over every pose for it).
+            final = _deferred(normal, x, r, J, w)
             break
         r, J1 = fun(x, True)
         n_eval += 1
@@ -367,13 +444,31 @@ def solve_lm(
         success=success,
         status=status,
         message=message,
-        normal_matrix=A,
-        gradient=g,
+        _normal=final if callable(final) else A,
+        _gradient=None if callable(final) else g,
         row_weights=w,
         residual=r,
         log=history,
         seconds=time.perf_counter() - t0,
     )
+
+
+def _gauss_newton(A: Float, g: Float) -> tuple[Float, float]:
+    """The undamped Gauss-Newton step (scaled) and the decrease of the cost its quadratic
+    model predicts (``inf`` where it is not finite)."""
+    dz = -spd_solve(A, g)
+    pred = -float(g @ dz + 0.5 * dz @ (A @ dz))
+    return dz, pred if np.isfinite(pred) else float("inf")
+
+
+def _deferred(
+    normal: Callable[[Float, Float, Float | NormalSource, Float], tuple[Float, Float]],
+    x: Float,
+    r: Float,
+    J: Float | NormalSource,
+    w: Float,
+) -> Callable[[], tuple[Float, Float]]:
+    return lambda: normal(x, r, J, w)
 
 
 def solve_fixed_step(
@@ -399,7 +494,7 @@ def solve_fixed_step(
     costs = []
     for _ in range(n_iter):
         r, J = fun(x, True)
-        assert J is not None
+        assert isinstance(J, np.ndarray), "solve_fixed_step needs the Jacobian held"
         Jf = J[:, :, fidx].reshape(-1, fidx.size)
         rf = r.reshape(-1)
         costs.append(0.5 * float(rf @ rf))

@@ -26,15 +26,17 @@ the UR10 motion capture data orientations keep their weight.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from kinecal.identification._diagnostics import Diagnostic
 from kinecal.identification._lm import Prior
+from kinecal.identification._measurements import Measurements
 from kinecal.identification._press import loo_position_errors, rms_mm
 from kinecal.identification._problem import Problem, State
-from kinecal.identification._residuals import Weights
+from kinecal.identification._residuals import ResidualBlock, Weights
 from kinecal.identification._solve import run_lm
 from kinecal.typing import Float
 
@@ -47,9 +49,10 @@ _SPLIT_Z = 3.0
 _SPLIT_RATIO = 1.2
 
 
-def _group_normals(
-    J: Float, r: Float, groups: np.ndarray, n_groups: int
-) -> tuple[list[Float], Float, Float]:
+Grouped = tuple[list[Float], Float, Float]
+
+
+def _group_normals(J: Float, r: Float, groups: np.ndarray, n_groups: int) -> Grouped:
     """Per group: the normal matrix part, the count of components and ``‖r‖²``."""
     k = J.shape[-1]
     Ns, counts, sq = [], np.zeros(n_groups), np.zeros(n_groups)
@@ -62,15 +65,14 @@ def _group_normals(
     return Ns, counts, sq
 
 
-def _components(
-    J: Float, r: Float, groups: np.ndarray, n_groups: int, P: Float
-) -> tuple[Float, Float]:
+def _components(grouped: Grouped, P: Float) -> tuple[Float, Float]:
     """Helmert factors ``σ_g,new / σ_g`` and redundancies of component groups.
 
-    ``J`` (M, k), ``r`` (M,) whitened rows of single components with their group in
-    ``groups``; ``P`` (k, k) the prior precision (scaled).
+    ``grouped``: per group the part of the normal matrix (k, k), the count of its
+    components and their ``‖r‖²`` (whitened); ``P`` (k, k) the prior precision (scaled).
     """
-    Ns, counts, sq = _group_normals(J, r, groups, n_groups)
+    Ns, counts, sq = grouped
+    n_groups = len(Ns)
     factor = np.ones(n_groups)
     red = counts.copy()
     for _ in range(20):
@@ -105,10 +107,8 @@ def helmert(
     meas = problem.meas
     cm, w = state.model, state.weights
     blk = problem.evaluations(cm, x, w, jacobian=True)
-    assert blk.J is not None
     fidx = np.flatnonzero(free)
     sc = cm.layout.scales[fidx]
-    J = blk.J[:, :, fidx] * sc  # (N, c, k) whitened, scaled
     P = (
         np.zeros((fidx.size, fidx.size))
         if prior is None
@@ -124,32 +124,88 @@ def helmert(
         splits.append(("per set", meas.set_index))
     if len(meas.marker_labels) > 1:
         splits.append(("per marker", meas.marker_index))
-    # Components of every kind, with their row: (N * parts) rows of J.
+    if blk.J is not None:
+        grouped, others = _held_groups(blk.J[:, :, fidx] * sc, blk.r, kinds)
+    else:  # large data: every group's part summed in one pass over blocks of poses
+        grouped, others = _block_groups(blk, fidx, sc, kinds, meas)
     out_sigma: list[Float] = []
     words = []
-    for kind, cols, sigma in kinds:
-        Jk = J[:, cols].reshape(-1, fidx.size)
-        rk = blk.r[:, cols].reshape(-1)
+    for kind, _, sigma in kinds:
         # The other kinds stay in the normal matrix as one fixed group.
-        others = [o for o in kinds if o[0] != kind]
         P_k = P.copy()
-        for _, ocols, _ in others:
-            Jo = J[:, ocols].reshape(-1, fidx.size)
-            P_k = P_k + Jo.T @ Jo
+        for o in others[kind]:
+            P_k = P_k + o
         best_label, best_idx, best_z = "", np.zeros(N, np.intp), 0.0
         for label, idx in splits[1:]:
-            n_g = int(idx.max()) + 1
-            comp_g = np.repeat(idx, 3)
-            f, red = _components(Jk, rk, comp_g, n_g, P_k)
+            f, red = _components(grouped(kind, idx), P_k)
             z = _split_z(f, red)
             if z > max(best_z, _SPLIT_Z) and f.max() / f.min() > _SPLIT_RATIO:
                 best_label, best_idx, best_z = label, idx, z
-        n_g = int(best_idx.max()) + 1
-        f, _ = _components(Jk, rk, np.repeat(best_idx, 3), n_g, P_k)
+        f, _ = _components(grouped(kind, best_idx), P_k)
         out_sigma.append(np.maximum(sigma * f[best_idx], 1e-12))
         words.append(f"{kind} {best_label}".strip())
     weights = Weights(out_sigma[0], out_sigma[1] if len(out_sigma) > 1 else None)
     return weights, words
+
+
+Kinds = list[tuple[str, slice, Float]]
+GroupFn = Callable[[str, np.ndarray], Grouped]
+
+
+def _held_groups(
+    J: Float, r: Float, kinds: Kinds
+) -> tuple[GroupFn, dict[str, list[Float]]]:
+    """Group parts of the normal matrix from a held Jacobian (N, c, k), scaled."""
+    k = J.shape[-1]
+    Jks = {kind: J[:, cols].reshape(-1, k) for kind, cols, _ in kinds}
+    rks = {kind: r[:, cols].reshape(-1) for kind, cols, _ in kinds}
+
+    def grouped(kind: str, idx: np.ndarray) -> Grouped:
+        n_g = int(idx.max()) + 1
+        return _group_normals(Jks[kind], rks[kind], np.repeat(idx, 3), n_g)
+
+    others = {
+        kind: [Jks[o].T @ Jks[o] for o, _, _ in kinds if o != kind]
+        for kind, _, _ in kinds
+    }
+    return grouped, others
+
+
+def _block_groups(
+    blk: ResidualBlock, fidx: np.ndarray, sc: Float, kinds: Kinds, meas: Measurements
+) -> tuple[GroupFn, dict[str, list[Float]]]:
+    """Group parts of the normal matrix by one pass over blocks of poses: per kind, set
+    and marker; a grouping by set or marker sums them."""
+    S, M, k = len(meas.set_labels), len(meas.marker_labels), fidx.size
+    parts = {kind: np.zeros((S, M, k, k)) for kind, _, _ in kinds}
+    cols_of = {kind: cols for kind, cols, _ in kinds}
+    cell = meas.set_index * M + meas.marker_index
+    present = np.unique(cell)
+    for rows, Jb in blk.jacobian_blocks():
+        J = Jb[:, :, fidx] * sc
+        cb = cell[rows]
+        for kind, cols, _ in kinds:
+            for cc in present:
+                Jg = J[cb == cc][:, cols].reshape(-1, k)
+                if Jg.size:
+                    parts[kind][cc // M, cc % M] += Jg.T @ Jg
+
+    def grouped(kind: str, idx: np.ndarray) -> Grouped:
+        n_g = int(idx.max()) + 1
+        Ns = [np.zeros((k, k)) for _ in range(n_g)]
+        for cc in present:
+            g = int(idx[np.argmax(cell == cc)])  # every row of a cell is in one group
+            Ns[g] = Ns[g] + parts[kind][cc // M, cc % M]
+        r2 = np.sum(blk.r[:, cols_of[kind]] ** 2, axis=1)
+        counts = 3.0 * np.bincount(idx, minlength=n_g).astype(np.float64)
+        sq = np.bincount(idx, weights=r2, minlength=n_g).astype(np.float64)
+        return Ns, counts, sq
+
+    others = {
+        kind: [parts[o].sum(axis=(0, 1)) for o, _, _ in kinds if o != kind]
+        for kind, _, _ in kinds
+    }
+    return grouped, others
 
 
 def estimate_noise(

@@ -34,17 +34,19 @@ def loo_position_errors(
     cm = state.model
     w = state.weights if weights is None else weights
     blk = problem.evaluations(cm, state.x, w, jacobian=True)
-    assert blk.J is not None
     fidx = np.flatnonzero(state.free)
     sc = cm.layout.scales[fidx]
     N, c = blk.r.shape
-    A = np.zeros((fidx.size, fidx.size))
-    g = np.zeros(fidx.size)
-    for lo in range(0, N, _CHUNK):
-        J = blk.J[lo : lo + _CHUNK][:, :, fidx] * sc
-        Jf = J.reshape(-1, fidx.size)
-        A += Jf.T @ Jf
-        g += Jf.T @ blk.r[lo : lo + _CHUNK].reshape(-1)
+    if blk.J is not None:
+        A = np.zeros((fidx.size, fidx.size))
+        g = np.zeros(fidx.size)
+        for lo in range(0, N, _CHUNK):
+            J = blk.J[lo : lo + _CHUNK][:, :, fidx] * sc
+            Jf = J.reshape(-1, fidx.size)
+            A += Jf.T @ Jf
+            g += Jf.T @ blk.r[lo : lo + _CHUNK].reshape(-1)
+    else:  # large data: summed by blocks of poses (shared with other products)
+        A, g = blk.normal(fidx, sc)
     prior = state.active_prior()
     if prior is not None:
         prec = prior.precision[fidx] * sc**2
@@ -54,12 +56,12 @@ def loo_position_errors(
     dz = -Ai @ g if weights is not None else np.zeros(fidx.size)
     out = np.empty((N, 3))
     eye = np.eye(c)
-    for lo in range(0, N, _CHUNK):
-        J = blk.J[lo : lo + _CHUNK][:, :, fidx] * sc
-        r = blk.r[lo : lo + _CHUNK] + J @ dz
+    for rows, Jb in blk.jacobian_blocks(_CHUNK):
+        J = Jb[:, :, fidx] * sc
+        r = blk.r[rows] + J @ dz
         H = np.einsum("nip,pq,njq->nij", J, Ai, J)
         r_loo = np.linalg.solve(eye - H, r[:, :, None])[:, :, 0]  # Eq. (T-5)
-        out[lo : lo + _CHUNK] = r_loo[:, :3] * w.sigma[lo : lo + _CHUNK, None]
+        out[rows] = r_loo[:, :3] * w.sigma[rows, None]
     return out
 
 

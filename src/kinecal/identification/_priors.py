@@ -16,12 +16,7 @@ import numpy as np
 
 from kinecal._stats import median
 from kinecal.identification._diagnostics import Diagnostic
-from kinecal.identification._lm import (
-    Prior,
-    loss_weights,
-    normal_equations,
-    psd_inverse,
-)
+from kinecal.identification._lm import Prior, loss_weights, psd_inverse
 from kinecal.identification._noise import estimate_noise
 from kinecal.identification._options import (
     PRIOR_GROUPS,
@@ -135,9 +130,8 @@ def adapt_prior(
     free = state.free & problem.kinematic
     fidx = np.flatnonzero(free)
     blk = problem.evaluations(cm, x, state.weights, jacobian=True)
-    assert blk.J is not None
     scales = cm.layout.scales[fidx]
-    JtJ, _ = normal_equations(blk.r, blk.J, fidx, scales)
+    JtJ, _ = blk.normal(fidx, scales)
     dof = max(blk.r.size - fidx.size, 1)
     s0sq = float(np.sum(blk.r**2)) / dof
     var = s0sq * np.diag(psd_inverse(JtJ, 1e-12)) * scales**2
@@ -222,10 +216,9 @@ def evidence_prior(
     if not tune:
         return prior, {}
     blk = problem.evaluations(cm, x, state.weights, jacobian=True)
-    assert blk.J is not None
     sc = cm.layout.scales[fidx]
     sw = np.sqrt(loss_weights(np.sum(blk.r**2, axis=1) / lm.f_scale**2, lm.loss)[1])
-    JtJ, Jtr = normal_equations(blk.r, blk.J, fidx, sc, sw)
+    JtJ, Jtr = blk.normal(fidx, sc, sw)
     # b = r + J (m - x): the data about the prediction at the prior mean
     d = (prior.mean[fidx] - x[fidx]) / sc
     Jtb = Jtr + JtJ @ d

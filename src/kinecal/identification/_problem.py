@@ -9,6 +9,7 @@ States are immutable: a stage returns a new one (:meth:`State.but`).
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
 from typing import Protocol
@@ -30,9 +31,65 @@ from kinecal.models import CalibrationModel, ModelInputs, ModelSpec
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float
 
-__all__ = ["EvaluationCache", "Problem", "Stage", "State", "run_stages"]
+__all__ = ["EvaluationCache", "Problem", "Stage", "State", "Ticker", "run_stages"]
 
 Progress = Callable[[str, str], None]
+
+# Inside a stage, a progress line at most this often [s] (solver iterations, passes over
+# the poses of large data); each stage's start is always reported.
+REPORT_EVERY = 1.0
+
+
+class Ticker:
+    """A calibration's progress callback ``say(stage, detail)``, which long stages also
+    tell how they get on: solver iterations (:meth:`iteration`) and passes over the
+    poses of large data (:meth:`rows`, with the time left in the pass), at most one line
+    every :data:`REPORT_EVERY` seconds."""
+
+    def __init__(self, say: Progress) -> None:
+        self.say = say
+        self.stage = ""
+        self._last = time.perf_counter()
+        self._in_pass = False
+        self._pass_t0, self._pass_first, self._pass_prev = self._last, 0, 0
+
+    def __call__(self, stage: str, detail: str = "") -> None:
+        self.stage = stage
+        self._last = time.perf_counter()
+        self.say(stage, detail)
+
+    def _due(self) -> bool:
+        return time.perf_counter() - self._last >= REPORT_EVERY
+
+    def _emit(self, detail: str) -> None:
+        self._last = time.perf_counter()
+        self.say(self.stage, detail)
+
+    def iteration(self, label: str, it: int, cost: float, change: float) -> None:
+        """After solver iteration ``it`` of ``label`` (cost and its relative change)."""
+        if self._due():
+            self.stage = label
+            self._emit(f"iteration {it}, cost {cost:.6g} ({change:+.2%})")
+
+    def beat(self, what: str) -> None:
+        """A long loop's progress, in words."""
+        if self._due():
+            self._emit(what)
+
+    def rows(self, done: int, total: int) -> None:
+        """``done`` of ``total`` poses evaluated in the current pass over large data."""
+        now = time.perf_counter()
+        if not self._in_pass or done <= self._pass_prev:  # a pass begins
+            self._in_pass, self._pass_t0, self._pass_first = True, now, done
+        self._pass_prev = done
+        if done >= total:
+            self._in_pass = False
+        elif self._due() and done > self._pass_first:
+            rate = (now - self._pass_t0) / (done - self._pass_first)
+            self._emit(
+                f"{done:,} of {total:,} poses ({done / total:.0%}), about "
+                f"{(total - done) * rate:.1f} s left in this pass"
+            )
 
 
 class EvaluationCache:
@@ -67,9 +124,7 @@ class EvaluationCache:
         forward = None  # the model's forward state at x, from any block (any weights)
         for m, k, ww, blk in reversed(self._blocks):
             if m is cm and k == key:
-                if ww is w and (
-                    not jacobian or (blk.J is not None and blk.J.shape[-1] >= n_cols)
-                ):
+                if ww is w and (not jacobian or blk.has_jacobian(n_cols)):
                     return blk
                 forward = forward or blk.forward
         blk = residuals(
@@ -160,7 +215,7 @@ class Problem:
     groups: np.ndarray
     kinematic: np.ndarray
     frames: np.ndarray
-    progress: Progress = field(default=lambda stage, detail: None)
+    progress: Ticker = field(default_factory=lambda: Ticker(lambda stage, detail: None))
     root: Problem | None = None
     _views: dict[bytes, Problem] = field(default_factory=dict, repr=False)
 
@@ -199,7 +254,10 @@ class Problem:
         ref_payload = meas.reference_payload() or robot.payload_kg
         inputs = meas.model_inputs(ref_payload)
         groups = np.array([s.group for s in cm.layout.specs])
-        say = progress if callable(progress) else (lambda stage, detail: None)
+        if isinstance(progress, Ticker):
+            say = progress
+        else:
+            say = Ticker(progress if callable(progress) else (lambda s, d: None))
         return cls(
             robot,
             meas,

@@ -30,7 +30,7 @@ from kinecal.errors import IdentifiabilityError
 from kinecal.geometry import project_to_so3, rigid_fit_nearest, so3_log
 from kinecal.identification._diagnostics import Diagnostic
 from kinecal.identification._init import closed_form_frames, euler_with_reference
-from kinecal.identification._lm import LMOptions, LMResult, solve_lm
+from kinecal.identification._lm import LMOptions, LMResult, NormalSource, solve_lm
 from kinecal.identification._measurements import Measurements
 from kinecal.identification._residuals import Weights, residuals
 from kinecal.models import CalibrationModel, ModelInputs
@@ -170,9 +170,9 @@ def _lm(
     inputs: ModelInputs,
     max_iter: int,
 ) -> LMResult:
-    def fun(xx: Float, jac: bool) -> tuple[Float, Float | None]:
+    def fun(xx: Float, jac: bool) -> tuple[Float, Float | NormalSource | None]:
         blk = residuals(model, xx, meas, w, inputs=inputs, jacobian=jac)
-        return blk.r, blk.J
+        return blk.r, blk.jacobian  # held, or by blocks for large data
 
     return solve_lm(
         fun,

@@ -205,6 +205,7 @@ def compliance_score(
         inputs=problem.inputs.subset(rows),
         jacobian=True,
         products=True,
+        hold=True,
     )
     assert blk.J is not None
     names = full.layout.names

@@ -17,8 +17,10 @@ from typing import Any
 
 import numpy as np
 
+from kinecal._parallel import parallel_map
+from kinecal.identification._autofit import AutoFold, Run, rejected_rows, run_auto_fold
 from kinecal.identification._calibrate import CalibrationOptions, spec_for
-from kinecal.identification._crossval import cross_validate_many
+from kinecal.identification._crossval import CrossValidation, make_folds
 from kinecal.identification._measurements import Measurements
 from kinecal.models import ModelSpec
 from kinecal.robot import RobotDescription
@@ -162,34 +164,49 @@ def select_model(
 
     Each layout is cross-validated with priors at strength 1; the best layout is then
     tried with its priors scaled by ``prior_scales`` (sigma times the scale). ``jobs`` > 1
-    runs the fold calibrations in that many worker processes (the same result). The folds
-    are those of :func:`~kinecal.identification.make_folds` (sets, poses or ``groups``).
+    runs the folds in that many worker processes (the same result). The folds are those
+    of :func:`~kinecal.identification.make_folds` (sets, poses or ``groups``).
+
+    Work is shared (:mod:`._autofit`): gross errors are decided once on all rows (by the
+    largest candidate, and only where a robust kinematic fit finds suspects) and left
+    out of every fold's training data; in each fold the registration, the priors'
+    pre-fit and stage 1 run once for all candidates, and each candidate starts from the
+    largest one fitted before it whose terms it holds.
     """
     opts = options or CalibrationOptions()
     say = progress if callable(progress) else (lambda stage, detail: None)
     cands: list[Candidate] = []
-    n_sets = len(meas.set_labels)
-    folds = min(k, n_sets) if n_sets > 1 else k
+    folds = make_folds(meas, k, seed, groups=groups, group_name=group_name)
+    n_folds = len(folds.test)
     from kinecal.models import CalibrationModel
 
-    def run(runs: list[tuple[str, ModelSpec, float]]) -> None:
-        """Cross-validate the (label, spec, prior scale) runs, all folds at once."""
-        for label, _, scale in runs:
+    layouts = candidate_specs(robot, meas, hayati=hayati, ntm_joints=ntm_joints)
+    say("auto", "gross errors (a robust kinematic fit; the largest model if needed)")
+    keep = ~rejected_rows(robot, meas, layouts[-1][1], opts)
+
+    def run(runs: list[Run], variants: tuple[Run, ...] = ()) -> None:
+        """Cross-validate the runs (and variants), every fold sharing its work."""
+        for label, _, scale in (*runs, *variants):
             say("auto", f"{label} (priors x{scale:g})")
-        cvs = cross_validate_many(
-            robot,
-            meas,
-            [(spec, replace(opts, prior_scale=scale)) for _, spec, scale in runs],
-            k=k,
-            seed=seed,
-            jobs=jobs,
-            groups=groups,
-            group_name=group_name,
-        )
-        for (label, spec, scale), cv in zip(runs, cvs):
-            if isinstance(cv, ValueError):  # too few poses for this candidate in a fold
-                say("auto", f"{label} (priors x{scale:g}) skipped: {cv}")
+        tasks = [
+            AutoFold(
+                robot, meas, t, keep, folds.by_set, opts, tuple(runs), tuple(variants)
+            )
+            for t in folds.test
+        ]
+        per_fold = parallel_map(run_auto_fold, tasks, jobs)
+        shown = list(runs) if not variants else list(variants)
+        offset = 0 if not variants else len(runs)
+        for j, (label, spec, scale) in enumerate(shown):
+            scores = [fold[offset + j] for fold in per_fold]
+            failed = next((s for s in scores if isinstance(s, ValueError)), None)
+            if failed is not None:  # too few poses for this candidate in a fold
+                say("auto", f"{label} (priors x{scale:g}) skipped: {failed}")
                 continue
+            cv = CrossValidation(spec.name, unit=folds.unit, notes=folds.notes)
+            for tr, te in scores:  # type: ignore[misc]
+                cv.train.append(tr)
+                cv.folds.append(te)
             train = float(np.sqrt(np.mean([m.rms_mm**2 for m in cv.train])))
             say("auto", f"{label} (priors x{scale:g}): held-out RMS {cv.rms_mm:.4f} mm")
             cands.append(
@@ -205,19 +222,15 @@ def select_model(
                 )
             )
 
-    run(
-        [
-            (label, spec, 1.0)
-            for label, spec in candidate_specs(
-                robot, meas, hayati=hayati, ntm_joints=ntm_joints
-            )
-        ]
-    )
+    run([(label, spec, 1.0) for label, spec in layouts])
     if not cands:
         raise ValueError(f"{meas.source}: no candidate model could be cross-validated.")
     best = min(cands, key=lambda c: c.cv_rms_mm)
     if opts.priors != "none":
-        run([(best.label, best.spec, s) for s in prior_scales if s != 1.0])
+        variants = tuple((best.label, best.spec, s) for s in prior_scales if s != 1.0)
+        if variants:  # from the best layout's fit at strength 1 in each fold
+            start = [layouts[0], (best.label, best.spec)]
+            run([(lab, sp, 1.0) for lab, sp in dict(start).items()], variants)
     best = min(cands, key=lambda c: c.cv_rms_mm)
     eligible = [c for c in cands if _within_one_se(c, best)]
     # Smallest model; among equal sizes the strongest priors (the simplest fit).
@@ -237,4 +250,4 @@ def select_model(
                 "the extra terms fit noise."
             )
     spec = replace(chosen.spec, name=f"auto:{chosen.label}")
-    return Selection(spec, chosen.prior_scale, cands, warnings, folds)
+    return Selection(spec, chosen.prior_scale, cands, warnings, n_folds)

@@ -19,6 +19,7 @@ from kinecal.identification._lift import lifted_start
 from kinecal.identification._lm import (
     LMOptions,
     LMResult,
+    NormalSource,
     Prior,
     objective,
     solve_lm,
@@ -71,12 +72,21 @@ def run_lm(
         x0 = _lift(problem, cm, x0, free, lm, w, prior)
         lm = replace(lm, mu0=MU0_WARM)
 
-    def fun(x: Float, jac: bool) -> tuple[Float, Float | None]:
+    def fun(x: Float, jac: bool) -> tuple[Float, Float | NormalSource | None]:
         # A lifted stage's Jacobians carry the product columns (served from the cache).
         blk = ev(cm, x, w, jacobian=jac, products=lifted)
-        return blk.r, blk.J
+        return blk.r, blk.jacobian
 
-    res = solve_lm(fun, x0, free, cm.layout.scales, lm, prior=prior, label=name)
+    res = solve_lm(
+        fun,
+        x0,
+        free,
+        cm.layout.scales,
+        lm,
+        prior=prior,
+        label=name,
+        on_iteration=lambda it, c, ch: problem.progress.iteration(name, it, c, ch),
+    )
     after = ev.rms_mm(cm, res.x, w)
     entry = StageLog(
         name,
@@ -125,10 +135,12 @@ def _lift(
         return x0
     ev = problem.evaluations
     blk = ev(cm, x0, w, jacobian=True, products=True)
-    assert blk.J is not None
+    J = blk.jacobian
+    assert J is not None
     cost0, drho = objective(blk.r, lm)
     sw = None if lm.loss == "linear" else np.sqrt(drho)
-    x1 = lifted_start(cm, x0, blk.r, blk.J, free, prior, sw)
+    s0sq = 2.0 * cost0 / max(blk.r.size - int(free.sum()), 1)
+    x1 = lifted_start(cm, x0, blk.r, J, free, prior, sw, stol=lm.stol, s0sq=s0sq)
     # With the Jacobian the stage's LM starts with (served from the cache then).
     cost1 = objective(ev(cm, x1, w, jacobian=True, products=True).r, lm)[0]
     if prior is not None:

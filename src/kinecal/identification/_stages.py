@@ -27,10 +27,13 @@ import numpy as np
 from kinecal._stats import median
 from kinecal.errors import IdentifiabilityError
 from kinecal.identification._diagnostics import Diagnostic, StageLog
-from kinecal.identification._identifiability import analyse_identifiability
-from kinecal.identification._lm import LMOptions
+from kinecal.identification._identifiability import (
+    analyse_identifiability,
+    identifiability_from_normal,
+)
+from kinecal.identification._lm import LMOptions, spd_solve
 from kinecal.identification._noise import estimate_noise
-from kinecal.identification._options import STOL
+from kinecal.identification._options import MU0_WARM, STOL
 from kinecal.identification._problem import Problem, State
 from kinecal.identification._registration import initial_registration
 from kinecal.identification._residuals import Weights, residuals
@@ -81,11 +84,13 @@ class Register:
             *(replace(d, severity="info") for d in found)
         )
         frames = problem.frames
-        state, res = run_lm(problem, state, self.name, x, frames, state.lm)
+        # The closed form is next to the optimum: little initial damping (MU0_WARM).
+        warm = replace(state.lm, mu0=MU0_WARM)
+        state, res = run_lm(problem, state, self.name, x, frames, warm)
         x = res.x
         if problem.meas.kind == "pose" and problem.estimate_noise:
             state = estimate_noise(problem, state, x, frames, None)
-            state, res = run_lm(problem, state, self.name, x, frames, state.lm)
+            state, res = run_lm(problem, state, self.name, x, frames, warm)
             x = res.x
         return state.but(x=x, x_registered=x)
 
@@ -136,14 +141,18 @@ class Identify:
             inputs=problem.inputs,
             jacobian=True,
         )
-        assert blk.J is not None
-        ident = analyse_identifiability(
-            blk.J.transpose(2, 1, 0).reshape(cm.size, -1).T,  # (m, P), no copy
-            cm.layout,
-            np.ones(cm.size, bool),
-            drop_tol=opts.drop_tol,
-            weak_tol=opts.weak_tol,
-        )
+        tol = {"drop_tol": opts.drop_tol, "weak_tol": opts.weak_tol}
+        every = np.ones(cm.size, bool)
+        if blk.J is not None:
+            ident = analyse_identifiability(
+                blk.J.transpose(2, 1, 0).reshape(cm.size, -1).T,  # (m, P), no copy
+                cm.layout,
+                every,
+                **tol,
+            )
+        else:  # large data: from the normal matrix, summed by blocks of poses
+            A, _ = blk.normal(np.arange(cm.size), np.ones(cm.size))
+            ident = identifiability_from_normal(A, cm.layout, every, **tol)
         found = _few_targets(problem, cm)
         specs = cm.layout.specs
         lost = tuple(
@@ -271,10 +280,13 @@ class TransmissionStage:
 def _stage2_direct(problem: Problem, state: State, cols: np.ndarray) -> Float:
     """Fourier coefficients by linear least squares on the whitened residuals."""
     blk = problem.evaluations(state.model, state.x, state.weights, jacobian=True)
-    assert blk.J is not None
     idx = np.flatnonzero(cols)
-    A = blk.J[:, :, idx].reshape(-1, idx.size)
-    delta, *_ = np.linalg.lstsq(A, -blk.r.reshape(-1), rcond=None)  # Eq. (T-1)
+    if blk.J is not None:
+        A = blk.J[:, :, idx].reshape(-1, idx.size)
+        delta, *_ = np.linalg.lstsq(A, -blk.r.reshape(-1), rcond=None)  # Eq. (T-1)
+    else:  # large data: the same least squares by its normal equations
+        N_, g_ = blk.normal(idx, np.ones(idx.size))
+        delta = -spd_solve(N_, g_, rcond=1e-15)  # Eq. (T-1)
     out = state.x.copy()
     out[idx] += delta
     return out

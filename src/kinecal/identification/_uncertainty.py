@@ -8,8 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinecal.identification._diagnostics import Diagnostic
-from kinecal.identification._lm import loss_weights, normal_equations, psd_inverse
+from kinecal.identification._lm import loss_weights, psd_inverse
 from kinecal.identification._problem import Problem, State
+from kinecal.identification._residuals import ResidualBlock
 from kinecal.typing import Float
 
 __all__ = ["Uncertainty"]
@@ -28,12 +29,11 @@ class Uncertainty:
         fidx = np.flatnonzero(state.free)
         scales = cm.layout.scales[fidx]
         blk = problem.evaluations(cm, state.x, state.weights, jacobian=True)
-        assert blk.J is not None
         wr = loss_weights(np.sum(blk.r**2, axis=1) / lm.f_scale**2, lm.loss)[1]
         dof = problem.n_residuals - fidx.size
         sigma0 = float(np.sqrt(np.sum(wr[:, None] * blk.r**2) / max(dof, 1)))
         sw = None if lm.loss == "linear" else np.sqrt(wr)
-        A, _ = normal_equations(blk.r, blk.J, fidx, scales, sw)
+        A, _ = blk.normal(fidx, scales, sw)
         prior = state.active_prior()
         prec = (
             np.zeros(fidx.size) if prior is None else prior.precision[fidx] * scales**2
@@ -48,7 +48,8 @@ class Uncertainty:
             else:
                 # The data are weighed otherwise than their noise (orientations
                 # down-weighted): the sandwich A^-1 (J^T W S W J + P) A^-1 with the noise S.
-                cov_f = Ai @ (_meat(blk.J, fidx, scales, state) + np.diag(prec)) @ Ai
+                meat = _meat(blk, fidx, scales, state)
+                cov_f = Ai @ (meat + np.diag(prec)) @ Ai
             cov[np.ix_(fidx, fidx)] = cov_f * np.outer(scales, scales)
         except np.linalg.LinAlgError:
             found.append(
@@ -63,15 +64,22 @@ class Uncertainty:
         return state.but(covariance=cov, std=std, sigma0=sigma0).note(*found)
 
 
-def _meat(J: Float, fidx: np.ndarray, scales: Float, state: State) -> Float:
+def _meat(blk: ResidualBlock, fidx: np.ndarray, scales: Float, state: State) -> Float:
     """``J^T W S W J`` (scaled): the whitened Jacobian rows times the ratio of each
-    component's noise variance to its weighting variance."""
+    component's noise variance to its weighting variance (by blocks of poses for large
+    data)."""
     assert state.noise is not None
     w, s = state.weights, state.noise
     ratio = [s.sigma / w.sigma] * 3
     if w.sigma_rot is not None and s.sigma_rot is not None:
         ratio += [s.sigma_rot / w.sigma_rot] * 3
     R = np.stack(ratio, axis=1)  # (N, c)
-    Js = J[:, :, fidx] * scales * R[:, :, None]
-    Jf = Js.reshape(-1, fidx.size)
-    return Jf.T @ Jf
+    if blk.J is not None:
+        Js = blk.J[:, :, fidx] * scales * R[:, :, None]
+        Jf = Js.reshape(-1, fidx.size)
+        return Jf.T @ Jf
+    out = np.zeros((fidx.size, fidx.size))
+    for rows, J in blk.jacobian_blocks():
+        Jf = (J[:, :, fidx] * scales * R[rows, :, None]).reshape(-1, fidx.size)
+        out += Jf.T @ Jf
+    return out

@@ -358,12 +358,19 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
     }
     chain(n, rows, ct, st, &F0);
 
-    vd p_load[3], tau[NMAX], ltp[PMAX], u[3] = {vsplat(0.0), vsplat(0.0), vsplat(0.0)};
+    vd p_load[3] = {vsplat(0.0), vsplat(0.0), vsplat(0.0)}, tau[NMAX], ltp[PMAX];
+    vd u[3] = {vsplat(0.0), vsplat(0.0), vsplat(0.0)};
     vd norm = vsplat(1.0);
     vd ls = load ? vload(in->load_scale + k) : vsplat(1.0);
     const double xs = r[h[H_R_XSIGN]];
     const Chain *F = &F0;
-    if (load) {
+    /* Every deflection is a multiple of some lambda*_j: with all of them zero (the
+       kinematic stages of a calibration) the chain is not deflected and the torques
+       are needed only for the Jacobian's compliance columns (adj 0). */
+    int adj = 0;
+    for (int j = 0; j < n && load; j++)
+        adj |= lam[j] != 0.0;
+    if (load && (adj || h[H_JACOBIAN])) {
         /* Load point: origin of the first marker's cam frame (Eq. 19 with Delta = 0). */
         const double *tc0 = cam_t + 9;
         for (int q = 0; q < 3; q++)
@@ -408,6 +415,8 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
             ltp[p] = dot(F0.R[j][2], mg);
             tau[j] += slink[d[1]] * ltp[p];
         }
+    }
+    if (adj) {
         /* Eq. (22), (24), (26): the deflected chain. */
         for (int i = 0; i < n; i++) {
             vd defl = lam[i] * tau[i];
@@ -475,10 +484,11 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
        of row i moves frames i + 1.. by a twist; M_f, V_f turn the twist into
        sum_j H_j d tau_j (_compliance.torque_adjoint). ext holds these terms per row
        parameter, turn those of a turn of each joint, camload those of the first
-       marker's translation (it moves the load point). */
+       marker's translation (it moves the load point). Every term is a multiple of some
+       lambda*_j: with all of them zero they vanish and are skipped (adj 0). */
     vd ext[NMAX][5][CMAX], turn[NMAX][CMAX], camload[3][CMAX] = {{vsplat(0.0)}};
-    if (load) {
-        Adjoint A;
+    Adjoint A;
+    if (adj) {
         for (int j = 0; j < n; j++)
             for (int q = 0; q < c; q++)
                 A.H[j][q] = lam[j] * G[j][q];
@@ -602,7 +612,8 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
                 mat_apply_add(c, Vs, oy, ext[i][R_BETA]);
             }
         }
-
+    }
+    if (load) {
         /* lambda* columns (Eq. 24): d output / d theta_j tau_j; link columns and products
            (Eq. 26). */
         vd col[CMAX];
@@ -618,7 +629,7 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
                 linkcol[kc][q] = vsplat(0.0);
         for (int p = 0; p < nprod; p++) {
             int j = (int)prod[5 * p], kcol = (int)prod[5 * p + 1];
-            for (int q = 0; q < c; q++)
+            for (int q = 0; q < c && adj; q++)
                 linkcol[kcol][q] += A.H[j][q] * ltp[p];
             if (p < (int)h[H_K]) {
                 for (int q = 0; q < c; q++)
@@ -636,13 +647,13 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
         vd col[CMAX], rel[3];
         if (idx[R_OFF] >= 0) {
             for (int q = 0; q < c; q++)
-                col[q] = load ? G[i][q] + turn[i][q] : G[i][q];
+                col[q] = adj ? G[i][q] + turn[i][q] : G[i][q];
             PUT(idx[R_OFF], col);
         }
         if (idx[R_D] >= 0) {
             for (int q = 0; q < c; q++)
                 col[q] = q < 3 ? F->R[i][2][q] : vsplat(0.0);
-            if (load)
+            if (adj)
                 for (int q = 0; q < c; q++)
                     col[q] += ext[i][R_D][q];
             PUT(idx[R_D], col);
@@ -650,7 +661,7 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
         if (idx[R_A] >= 0) {
             for (int q = 0; q < c; q++)
                 col[q] = q < 3 ? F->ax[i][q] : vsplat(0.0);
-            if (load)
+            if (adj)
                 for (int q = 0; q < c; q++)
                     col[q] += ext[i][R_A][q];
             PUT(idx[R_A], col);
@@ -661,7 +672,7 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
             cross(F->ax[i], rel, col);
             for (int q = 3; q < c; q++)
                 col[q] = F->ax[i][q - 3];
-            if (load)
+            if (adj)
                 for (int q = 0; q < c; q++)
                     col[q] += ext[i][R_ALPHA][q];
             PUT(idx[R_ALPHA], col);
@@ -671,7 +682,7 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
             cross(y, rel, col);
             for (int q = 3; q < c; q++)
                 col[q] = y[q - 3];
-            if (load)
+            if (adj)
                 for (int q = 0; q < c; q++)
                     col[q] += ext[i][R_BETA][q];
             PUT(idx[R_BETA], col);
@@ -684,7 +695,7 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
         int j = (int)ntm_j[kk];
         vd dturn[CMAX], col[CMAX];
         for (int q = 0; q < c; q++)
-            dturn[q] = load ? G[j][q] + turn[j][q] : G[j][q];
+            dturn[q] = adj ? G[j][q] + turn[j][q] : G[j][q];
         for (int b = 0; b < nb; b++) {
             vd B = vload(in->basis + (kk * nb + b) * N + k);
             for (int q = 0; q < c; q++)
@@ -706,7 +717,7 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
         for (int a = 0; a < 3; a++) {
             for (int q = 0; q < c; q++) {
                 vd v = q < 3 ? vsel(mine, Rn[a][q], vsplat(0.0)) : vsplat(0.0);
-                col[q] = (load && mm == 0) ? v + camload[a][q] : v;
+                col[q] = (adj && mm == 0) ? v + camload[a][q] : v;
             }
             PUT(idx[a], col);
         }

@@ -1,15 +1,23 @@
-"""Robot descriptions: DH/MDH joint tables, coupling, limits, frames, built-in robots."""
+"""Robot descriptions: DH/MDH joint tables, coupling, limits, frames, built-in robots.
 
-from kinecal.robot._builtin import builtin_robot_names, load_robot
-from kinecal.robot._description import (
-    DHChain,
-    JointSpec,
-    RobotDescription,
-    SelfWeightSpec,
-    dh_transforms,
-)
-from kinecal.robot._schema import dump_robot, load_robot_file, robot_from_dict
-from kinecal.robot._urdf import robot_from_urdf
+Each name loads its module on first use (:mod:`kinecal._lazy`).
+"""
+
+from typing import TYPE_CHECKING
+
+from kinecal import _lazy
+
+if TYPE_CHECKING:
+    from kinecal.robot._builtin import builtin_robot_names, load_robot
+    from kinecal.robot._description import (
+        DHChain,
+        JointSpec,
+        RobotDescription,
+        SelfWeightSpec,
+        dh_transforms,
+    )
+    from kinecal.robot._schema import dump_robot, load_robot_file, robot_from_dict
+    from kinecal.robot._urdf import robot_from_urdf
 
 __all__ = [
     "DHChain",
@@ -24,3 +32,26 @@ __all__ = [
     "robot_from_dict",
     "robot_from_urdf",
 ]
+
+__getattr__, __dir__ = _lazy.exports(
+    __name__,
+    {
+        "_builtin": (
+            "builtin_robot_names",
+            "load_robot",
+        ),
+        "_description": (
+            "DHChain",
+            "JointSpec",
+            "RobotDescription",
+            "SelfWeightSpec",
+            "dh_transforms",
+        ),
+        "_schema": (
+            "dump_robot",
+            "load_robot_file",
+            "robot_from_dict",
+        ),
+        "_urdf": ("robot_from_urdf",),
+    },
+)

@@ -1,0 +1,97 @@
+"""Issue 26: start-up. Packages load their modules when a name is first used, and the
+``kinecal`` command imports a command's module only when that command runs."""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import json
+import subprocess
+import sys
+
+import click
+import pytest
+
+LAZY = (
+    "kinecal",
+    "kinecal.identification",
+    "kinecal.io",
+    "kinecal.robot",
+    "kinecal.sensor",
+)
+
+
+def _modules_after(code: str) -> set[str]:
+    """The modules a fresh interpreter has imported after running ``code``."""
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            f"{code}\nimport sys, json; print(json.dumps(list(sys.modules)))",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return set(json.loads(out.stdout.splitlines()[-1]))
+
+
+@pytest.mark.parametrize("package", LAZY)
+def test_issue_26_every_public_name_of_a_lazy_package_is_its_modules_object(package):
+    pkg = importlib.import_module(package)
+    assert sorted(pkg.__all__) == sorted(set(pkg.__all__))
+    for name in pkg.__all__:
+        value = getattr(pkg, name)
+        if callable(value):
+            home = importlib.import_module(value.__module__)
+            assert getattr(home, name, value) is value, name
+        assert name in dir(pkg)
+    with pytest.raises(AttributeError, match="no attribute 'not_a_name'"):
+        pkg.not_a_name  # noqa: B018
+
+
+def test_issue_26_help_imports_no_command_and_no_numpy():
+    loaded = _modules_after(
+        "import sys; sys.argv = ['kinecal', '--help']\n"
+        "from kinecal.cli import main\n"
+        "try:\n    main(['--help'])\nexcept SystemExit:\n    pass"
+    )
+    assert not {"numpy", "yaml", "scipy"} & loaded
+    assert not [m for m in loaded if m.startswith("kinecal.cli._")], sorted(loaded)
+
+
+def test_issue_26_a_sphere_fit_imports_neither_scipy_nor_opencv():
+    loaded = _modules_after(
+        "import numpy as np\nfrom kinecal.sensor import fit_sphere\n"
+        "d = np.random.default_rng(0).normal(size=(500, 3))\n"
+        "fit_sphere(d / np.linalg.norm(d, axis=1, keepdims=True))"
+    )
+    assert "kinecal.sensor._sphere" in loaded
+    assert not {"scipy", "cv2", "kinecal.sensor._stripes"} & loaded
+
+
+def test_issue_26_reading_a_robot_does_not_import_the_urdf_reader():
+    loaded = _modules_after("from kinecal.robot import load_robot\nload_robot('ur10')")
+    assert (
+        not {"xml.etree.ElementTree", "kinecal.robot._urdf", "kinecal.identification"}
+        & loaded
+    )
+
+
+def test_issue_26_the_command_table_is_the_commands_own_help():
+    """`kinecal --help` lists the commands from a table, without importing them: each
+    entry must name the command's module and function and the first paragraph of its
+    help, so the listing is what click would write from the commands themselves."""
+    from kinecal.cli import COMMANDS, cli
+
+    names = set()
+    for name, (module, attr, first) in COMMANDS.items():
+        cmd = getattr(importlib.import_module(f"kinecal.cli.{module}"), attr)
+        assert isinstance(cmd, click.Command) and cmd.name == name
+        assert inspect.cleandoc(cmd.help or "").split("\n\n")[0] == first, name
+        for limit in (30, 45, 60, 80):
+            assert click.Command(name, help=first).get_short_help_str(limit) == (
+                cmd.get_short_help_str(limit)
+            )
+        names.add(name)
+    assert names == set(cli.list_commands(click.Context(cli)))
