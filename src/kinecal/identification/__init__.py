@@ -180,9 +180,7 @@ __getattr__, __dir__ = _lazy.exports(
             "make_folds",
             "train_test_split",
         ),
-        "_diagnose": (
-            "Diagnose",
-        ),
+        "_diagnose": ("Diagnose",),
         "_diagnostics": (
             "CODES",
             "Diagnostic",
@@ -203,9 +201,7 @@ __getattr__, __dir__ = _lazy.exports(
             "correlation_from_covariance",
             "priority_order",
         ),
-        "_init": (
-            "initial_frames",
-        ),
+        "_init": ("initial_frames",),
         "_lm": (
             "LMOptions",
             "LMResult",
@@ -221,12 +217,8 @@ __getattr__, __dir__ = _lazy.exports(
             "Metrics",
             "metrics_from_errors",
         ),
-        "_noise": (
-            "NoiseModel",
-        ),
-        "_nominal_check": (
-            "nominal_check",
-        ),
+        "_noise": ("NoiseModel",),
+        "_nominal_check": ("nominal_check",),
         "_options": (
             "PRIOR_SIGMA",
             "CalibrationOptions",
@@ -254,9 +246,7 @@ __getattr__, __dir__ = _lazy.exports(
             "Weights",
             "residuals",
         ),
-        "_robust": (
-            "RobustRejection",
-        ),
+        "_robust": ("RobustRejection",),
         "_select": (
             "Candidate",
             "Selection",
@@ -270,8 +260,6 @@ __getattr__, __dir__ = _lazy.exports(
             "Register",
             "TransmissionStage",
         ),
-        "_uncertainty": (
-            "Uncertainty",
-        ),
+        "_uncertainty": ("Uncertainty",),
     },
 )

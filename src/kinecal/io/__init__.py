@@ -44,7 +44,12 @@ if TYPE_CHECKING:
         prepare_output_dir,
         write_json,
     )
-    from kinecal.io._model_file import FORMAT_VERSION, load_model, model_to_dict, save_model
+    from kinecal.io._model_file import (
+        FORMAT_VERSION,
+        load_model,
+        model_to_dict,
+        save_model,
+    )
     from kinecal.io._parameters import parameter_records
     from kinecal.io._programs import (
         PROGRAM_FORMATS,
@@ -181,9 +186,7 @@ __getattr__, __dir__ = _lazy.exports(
             "model_to_dict",
             "save_model",
         ),
-        "_parameters": (
-            "parameter_records",
-        ),
+        "_parameters": ("parameter_records",),
         "_programs": (
             "PROGRAM_FORMATS",
             "Program",

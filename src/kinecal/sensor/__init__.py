@@ -136,9 +136,7 @@ __getattr__, __dir__ = _lazy.exports(
             "intersect_planes",
             "rotary_planes",
         ),
-        "_png": (
-            "decode_grey_png",
-        ),
+        "_png": ("decode_grey_png",),
         "_render": (
             "ChessboardTarget",
             "PlaneSurface",
