@@ -1,232 +1,507 @@
-"""The fold calibrations of ``--model auto`` with the work the candidates share done once.
+"""The cross-validation of ``--model auto`` with the work the candidates share done once.
 
 Every candidate of :func:`~kinecal.identification.select_model` is the kinematic model
-plus some compliance terms, and its calibration starts alike: the registration, the
-identifiability of the kinematic parameters, the priors' pre-fit and stage 1 see the
-compliance terms at zero, where every candidate's model is the kinematic one. So each
-fold runs those stages once (:data:`PREFIX`, on the kinematic candidate) and every
-candidate goes on from there with its own stages (:data:`TAIL`: stage 2, stage 3, the
-noise model, the evidence priors), started from the largest candidate fitted before it
-whose terms it contains (a warm start: stage 3's optimum is unique, so only the path
-changes, by less than the statistical stop resolves). The variants of the best layout
-with other prior strengths start from its fit at strength 1 in the same fold.
+plus some compliance terms. What does not depend on the candidate is decided once, by a
+calibration of the largest candidate on every row (:func:`shared_fit`): the rows
+rejected as gross errors (a bumped reflector is an error of the data whatever the model,
+and a held-out one scores nothing), the reference rotations of the frames, the noise
+model (the weights) and the priors with their widths after the evidence scaling. These
+are the hyperparameters of the comparison: a handful of numbers from every row, as a
+rejection decided on all rows is.
 
-Gross errors are decided once, on every row, by a calibration with the largest
-candidate (:func:`rejected_rows`): a bumped reflector is an error of the data whatever
-the model, and a held-out one scores nothing. The folds then leave those rows out, and
-fit without rejection.
+Each candidate is then fitted on the kept rows with those weights and priors, from the
+best of the fits before it (:func:`fit_candidate`: the largest candidate's, or a smaller
+one's, transferred by parameter name; the lowest objective wins), and each fold's
+training rows are fitted from that solution (:func:`run_folds`): a warm start a few
+Levenberg-Marquardt iterations from the fold's optimum, where the paper's three stages
+from nominal kinematics took dozens. Every fold fit is a full non-linear fit of the
+candidate's free parameters on its training rows, to the statistical stop; only the
+hyperparameters are shared. A user frame (or cam frame) whose set (marker) has no
+training row in a fold is held: the fold's held-out sets are registered anew, as for a
+new set-up (:func:`~kinecal.identification.evaluate` with ``refit_user``).
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from kinecal.identification._calibrate import (
-    CalibrationOptions,
-    CalibrationResult,
-    calibrate,
-    default_stages,
-)
+from kinecal.errors import IdentifiabilityError
+from kinecal.identification._calibrate import CalibrationOptions, default_stages
+from kinecal.identification._calibrated import CalibratedModel
+from kinecal.identification._diagnose import Diagnose
 from kinecal.identification._evaluate import evaluate
+from kinecal.identification._lm import LMOptions, Prior, objective, spd_solve
 from kinecal.identification._measurements import Measurements
-from kinecal.identification._metrics import Metrics
-from kinecal.identification._priors import (
-    EvidencePriors,
-    Priors,
-    adapt_prior,
-    build_prior,
-)
+from kinecal.identification._metrics import Metrics, metrics_from_errors
+from kinecal.identification._options import MU0_WARM
+from kinecal.identification._priors import EvidencePriors, build_prior
 from kinecal.identification._problem import Problem, State, run_stages
-from kinecal.identification._robust import RobustRejection, chi2_isf, row_z
-from kinecal.identification._stages import (
-    FullStage,
-    Identify,
-    KinematicStage,
-    Register,
-    TransmissionStage,
-)
-from kinecal.models import ModelSpec
+from kinecal.identification._residuals import Weights
+from kinecal.identification._solve import run_lm
+from kinecal.identification._stages import Identify
+from kinecal.identification._uncertainty import Uncertainty
+from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import RobotDescription
+from kinecal.typing import Float
 
-__all__ = ["AutoFold", "rejected_rows", "run_auto_fold"]
+__all__ = [
+    "CandidateFit",
+    "Shared",
+    "fit_candidate",
+    "rescaled",
+    "run_folds",
+    "shared_fit",
+]
 
 Run = tuple[str, ModelSpec, float]  # label, layout, prior scale
 Score = tuple[Metrics, Metrics] | ValueError  # training and held-out metrics
 
+# A candidate's fits may take longer than a stage from a good start.
+_MAX_ITER = 200
 
-def rejected_rows(
+
+@dataclass(frozen=True)
+class Shared:
+    """What every candidate shares, from the largest candidate's calibration.
+
+    Attributes
+    ----------
+    keep : (N,) bool, the rows not rejected as gross errors.
+    sigma, sigma_rot : (N,) the weights' sigmas per row (NaN on rejected rows).
+    lm : the solver options of the data term (loss, where it bends, the stop).
+    names, x, x_registered, prior_mean, prior_sigma, free : the largest candidate's
+        layout, its solution, its registered start, its priors and free parameters.
+    R_ref_base, R_ref_cam : the frames' reference rotations.
+    prior_factors : the evidence's scale of each group's priors in ``prior_sigma``.
+    """
+
+    keep: np.ndarray
+    sigma: Float
+    sigma_rot: Float | None
+    lm: LMOptions
+    names: tuple[str, ...]
+    x: Float
+    x_registered: Float
+    prior_mean: Float
+    prior_sigma: Float
+    free: np.ndarray
+    R_ref_base: Float
+    R_ref_cam: Float
+    prior_factors: dict[str, float]
+
+    def weights(self, rows: np.ndarray) -> Weights:
+        """The weights of the rows ``rows`` (a mask over every row)."""
+        return Weights(
+            self.sigma[rows], None if self.sigma_rot is None else self.sigma_rot[rows]
+        )
+
+
+def shared_fit(
     robot: RobotDescription,
     meas: Measurements,
     spec: ModelSpec,
     options: CalibrationOptions,
-) -> np.ndarray:
-    """(N,) bool, the rows a calibration of ``spec`` on all of ``meas`` rejects as gross
-    errors (none with ``options.reject == 'off'``).
-
-    The robust kinematic fit that finds the suspects comes first (it is the same for
-    every model); without suspects nothing is rejected and no calibration is needed.
-    """
-    out = np.zeros(meas.n, bool)
-    if options.reject == "off":
-        return out
-    stages = default_stages(options)
-    rr = stages[-3]
-    assert isinstance(rr, RobustRejection)
+) -> Shared:
+    """Calibrate ``spec`` on every row (rejection included, no uncertainty) and keep
+    what the candidates share."""
     problem = Problem.make(robot, meas, spec, options)
-    rob = problem.with_options(
-        replace(options, loss=options.loss if options.loss != "linear" else "huber")
+    stages = [
+        s for s in default_stages(options) if not isinstance(s, (Uncertainty, Diagnose))
+    ]
+    state = run_stages(problem, problem.start(), stages)
+    keep = np.ones(meas.n, bool) if state.active is None else state.active.copy()
+    assert state.weights.sigma.shape == (int(keep.sum()),)
+    sigma = np.full(meas.n, np.nan)
+    sigma[keep] = state.weights.sigma
+    sigma_rot = None
+    if state.weights.sigma_rot is not None:
+        sigma_rot = np.full(meas.n, np.nan)
+        sigma_rot[keep] = state.weights.sigma_rot
+    cm = state.model
+    prior = state.prior or Prior.none(cm.size)
+    assert state.x_registered is not None
+    return Shared(
+        keep,
+        sigma,
+        sigma_rot,
+        state.lm,
+        tuple(cm.layout.names),
+        state.x,
+        state.x_registered,
+        prior.mean,
+        prior.sigma,
+        state.free,
+        cm.R_ref_base,
+        cm.R_ref_cam,
+        dict(state.prior_factors),
     )
-    z, _, _ = row_z(rob, run_stages(rob, rob.start(), rr.probe))
-    limit = options.reject_z
-    if limit is None:
-        limit = math.sqrt(chi2_isf(meas.components, options.outlier_p))
-    if not np.any(z > limit):
-        return out
-    res = calibrate(robot, meas, spec, options)
-    out[np.isin(meas.rows, [o.row for o in res.rejected])] = True
-    return out
 
 
 @dataclass(frozen=True)
-class AutoFold:
-    """One fold of ``--model auto`` (sent to a worker process).
-
-    ``runs`` at prior scale 1 come first, smallest layout first, the kinematic one
-    leading; ``variants`` are runs of one of them at other prior scales.
-    """
+class CandidateFit:
+    """A candidate fitted on the kept rows, and what its folds need (sent to a worker
+    process: everything in it can be pickled)."""
 
     robot: RobotDescription
     meas: Measurements
-    test_idx: np.ndarray
-    keep: np.ndarray  # (N,) bool, rows not rejected as gross errors
-    by_set: bool
+    spec: ModelSpec
     options: CalibrationOptions
-    runs: tuple[Run, ...]
-    variants: tuple[Run, ...] = ()
+    shared: Shared
+    x: Float
+    free: np.ndarray
+    prior_mean: Float
+    prior_sigma: Float
+    names: tuple[str, ...] = ()  # the candidate's layout
+
+    def problem(self) -> tuple[Problem, CalibrationModel]:
+        """The candidate's problem and model (:func:`_problem`)."""
+        return _problem(self.robot, self.meas, self.spec, self.options, self.shared)
 
 
-def run_auto_fold(f: AutoFold) -> list[Score]:
-    """The training and held-out metrics of every run of the fold, in order."""
-    from kinecal.identification._crossval import _relabel_sets
-
-    mask = np.zeros(f.meas.n, bool)
-    mask[f.test_idx] = True
-    train, test = f.meas.subset(~mask & f.keep), f.meas.subset(mask)
-    if f.by_set:
-        train, test = _relabel_sets(train), _relabel_sets(test)
-    opts = replace(f.options, reject="off")
-    fitted: list[tuple[ModelSpec, State]] = []
-    scores: list[Score] = []
-    prefix: tuple[Problem, State, State] | None = None
-    for _, spec, scale in f.runs:
-        try:
-            if prefix is None:
-                prefix = _prefix(f.robot, train, spec, replace(opts, prior_scale=scale))
-            problem, state = _tail(f.robot, train, spec, scale, opts, prefix, fitted)
-        except ValueError as exc:  # too few poses for this candidate
-            scores.append(exc)
-            continue
-        fitted.append((spec, state))
-        scores.append(_score(problem, state, test, f.by_set))
-    for label, spec, scale in f.variants:
-        try:
-            if prefix is None:
-                raise ValueError(f"{label}: no kinematic fit to start from")
-            base = _rescaled(f.robot, train, replace(opts, prior_scale=scale), prefix)
-            same = [(s, st) for s, st in fitted if s == spec]
-            problem, state = _tail(f.robot, train, spec, scale, opts, base, same)
-        except ValueError as exc:
-            scores.append(exc)
-            continue
-        scores.append(_score(problem, state, test, f.by_set))
-    return scores
-
-
-PREFIX = (Register(), Identify(), Priors())
-TAIL = (TransmissionStage(), FullStage(), EvidencePriors())
-
-
-def _prefix(
+def _problem(
     robot: RobotDescription,
-    train: Measurements,
+    meas: Measurements,
     spec: ModelSpec,
     options: CalibrationOptions,
-) -> tuple[Problem, State, State]:
-    """The kinematic candidate's problem, its state after the priors (the pre-fit) and
-    after stage 1."""
-    problem = Problem.make(robot, train, spec, options)
-    pre = run_stages(problem, problem.start(), PREFIX)
-    return problem, pre, KinematicStage()(problem, pre)
+    shared: Shared,
+) -> tuple[Problem, CalibrationModel]:
+    """A candidate's problem on every row, and its model with the shared reference
+    rotations."""
+    problem = Problem.make(robot, meas, spec, options)
+    R_cam = shared.R_ref_cam if spec.cam_rotation else None
+    return problem, problem.model.with_references(shared.R_ref_base, R_cam)
 
 
-def _rescaled(
+def fit_candidate(
     robot: RobotDescription,
-    train: Measurements,
-    options: CalibrationOptions,
-    prefix: tuple[Problem, State, State],
-) -> tuple[Problem, State, State]:
-    """The prefix with the priors at another strength: the same pre-fit, the priors of
-    the new scale adapted to it, stage 1 again."""
-    problem0, pre, _ = prefix
-    problem = problem0.with_options(options)
-    assert pre.x_registered is not None
-    prior = build_prior(pre.model, pre.x_registered, options)
-    if options.adapt_priors and pre.prior is not None:
-        prior, _ = adapt_prior(problem, pre, pre.x, pre.x_registered, prior)
-    pre = pre.but(prior=prior)
-    return problem, pre, KinematicStage()(problem, pre)
-
-
-def _tail(
-    robot: RobotDescription,
-    train: Measurements,
+    meas: Measurements,
     spec: ModelSpec,
     scale: float,
     options: CalibrationOptions,
-    prefix: tuple[Problem, State, State],
-    fitted: list[tuple[ModelSpec, State]],
-) -> tuple[Problem, State]:
-    """A candidate's calibration from the shared prefix, warm-started from the largest
-    fitted candidate whose terms it holds."""
-    problem_k, _, kin = prefix
-    opts = replace(options, prior_scale=scale)
-    if spec == problem_k.model.spec:
-        return problem_k, kin
-    problem = Problem.make(robot, train, spec, opts)
-    cm = problem.model.with_references(
-        kin.model.R_ref_base, kin.model.R_ref_cam if spec.cam_rotation else None
+    shared: Shared,
+    starts: list[tuple[tuple[str, ...], Float]],
+) -> CandidateFit:
+    """Fit one candidate on the kept rows with the shared weights and priors (these
+    scaled by ``scale``), from the lowest-objective of ``starts`` (layouts' names and
+    values, transferred by name; the registered start too).
+
+    Raises
+    ------
+    ValueError
+        The candidate has more free parameters than the data residuals.
+    """
+    problem, cm = _problem(robot, meas, spec, options, shared)
+    lay = cm.layout
+    x_reg = _transfer(lay.names, shared.names, shared.x_registered)
+    # Priors: those of the largest candidate (adapted to the data) before their
+    # evidence scaling, the candidate's own physical ones for terms it lacks (another
+    # link model); the candidate's own evidence scales them after its fit.
+    base = build_prior(cm, x_reg, replace(options, prior_scale=1.0))
+    mean, sigma = base.mean.copy(), base.sigma.copy()
+    idx = {n: i for i, n in enumerate(shared.names)}
+    for i, sp in enumerate(lay.specs):
+        j = idx.get(sp.name)
+        if j is not None:
+            key = f"joint:{sp.kind}" if sp.group == "joint" else sp.group
+            mean[i] = shared.prior_mean[j]
+            sigma[i] = shared.prior_sigma[j] / shared.prior_factors.get(key, 1.0)
+    prior = Prior(mean, sigma)
+    state = problem.start(shared.keep)
+    state = state.but(model=cm, x=x_reg, weights=shared.weights(shared.keep))
+    view = problem.on(state)
+    # Its own identifiability: a term held in the largest candidate (redundant with a
+    # term this one lacks) may be free here.
+    state = Identify()(view, state)
+    free = state.free
+    w = state.weights
+    lm = _warm(shared.lm)
+    candidates = [x_reg] + [_transfer(lay.names, n, v) for n, v in starts]
+    costs = [
+        objective(view.evaluations(cm, x, w).r, lm)[0] + _prior_cost(prior, x, free)
+        for x in candidates
+    ]
+    x0 = candidates[int(np.argmin(costs))]
+    label = f"auto: {spec.name}"
+    # The link moments enter as products with the compliances: from a start beside
+    # the optimum the LM crawls along that valley; the lifted start solves it.
+    state = state.but(prior=prior, lm=lm)
+    _, res = run_lm(view, state, label, x0, free, lm, _active(prior, free), lifted=True)
+    state = EvidencePriors()(view, state.but(x=res.x))
+    prior = state.prior or prior
+    fit = CandidateFit(
+        robot,
+        meas,
+        spec,
+        options,
+        shared,
+        state.x,
+        free,
+        prior.mean,
+        prior.sigma,
+        tuple(lay.names),
     )
-    lay, lay_k = cm.layout, kin.model.layout
-    x = lay.transfer(kin.x, lay_k)
-    warm = [st for s, st in fitted if set(st.model.layout.names) <= set(lay.names)]
-    if warm:  # the largest candidate inside this one, all its values
-        src = max(warm, key=lambda st: st.model.size)
-        x = lay.transfer(src.x, src.model.layout)
-    assert kin.x_registered is not None and kin.prior is not None
-    x_reg = lay.transfer(kin.x_registered, lay_k)
-    prior = build_prior(cm, x_reg, opts)
-    kin_names = [lay_k.names[i] for i in np.flatnonzero(problem_k.kinematic)]
-    idx = [lay.index(n) for n in kin_names]
-    prior.sigma[idx] = kin.prior.sigma[[lay_k.index(n) for n in kin_names]]
-    state = problem.start().but(model=cm, x=x_reg)
-    state = Identify()(problem, state)  # this layout's decisions (kinematic ones alike)
-    state = state.but(
-        x=x,
-        x_registered=x_reg,
-        prior=prior,
-        weights=kin.weights,
-        noise_estimated=kin.noise_estimated,
-        noise_groups=kin.noise_groups,
-        lm=kin.lm,
-        stages=kin.stages,
-    )
-    return problem, run_stages(problem, state, TAIL)
+    return fit if scale == 1.0 else rescaled(fit, scale)
 
 
-def _score(problem: Problem, state: State, test: Measurements, by_set: bool) -> Score:
-    res = CalibrationResult.from_state(problem, state)
-    held = evaluate(res.calibrated, test, refit_user=by_set).metrics
-    return res.metrics_after, held
+def rescaled(fit: CandidateFit, scale: float) -> CandidateFit:
+    """A fitted candidate with its priors (after the evidence) ``scale`` times wider,
+    fitted again from its solution."""
+    problem, cm = fit.problem()
+    keep = fit.shared.keep
+    sigma = np.where(problem.frames, fit.prior_sigma, fit.prior_sigma * scale)
+    prior = Prior(fit.prior_mean, sigma)
+    lm = _warm(fit.shared.lm)
+    state = problem.start(keep).but(
+        model=cm, x=fit.x, weights=fit.shared.weights(keep), lm=lm, free=fit.free
+    )
+    view = problem.on(state)
+    _, res = run_lm(
+        view,
+        state,
+        f"auto: {fit.spec.name} priors x{scale:g}",
+        fit.x,
+        fit.free,
+        lm,
+        _active(prior, fit.free),
+        lifted=True,
+    )
+    return replace(fit, x=res.x, prior_sigma=sigma)
+
+
+def run_folds(
+    fit: CandidateFit, test: list[np.ndarray], always_train: np.ndarray, by_set: bool
+) -> list[Score]:
+    """The training and held-out metrics of the candidate in every fold (a
+    ``ValueError`` for a fold whose training rows cannot determine it)."""
+    from kinecal.identification._crossval import _relabel_sets
+
+    problem, cm = fit.problem()
+    meas, shared = fit.meas, fit.shared
+    lm = _warm(shared.lm)
+    prior = Prior(fit.prior_mean, fit.prior_sigma)
+    held = np.asarray([s.group in ("base", "cam") for s in cm.layout.specs])
+    labels = [s.label for s in cm.layout.specs]
+    step = _FoldStep.at(problem, cm, fit, prior)
+    scores: list[Score] = []
+    for t in test:
+        mask = np.zeros(meas.n, bool)
+        mask[t] = True
+        mask &= ~always_train
+        train = shared.keep & ~mask
+        # Frames of sets and markers without a training row are held.
+        present = {meas.set_labels[i] for i in np.unique(meas.set_index[train])}
+        present |= {meas.marker_labels[i] for i in np.unique(meas.marker_index[train])}
+        free = fit.free & ~(held & np.array([lb not in present for lb in labels]))
+        c, n_train = meas.components, int(train.sum())
+        if n_train * c <= cm.size:  # as a calibration on these rows would refuse
+            scores.append(
+                IdentifiabilityError(
+                    f"{meas.source}: {n_train} training poses give {n_train * c} "
+                    f"residuals, but the '{fit.spec.name}' model has {cm.size} "
+                    "parameters."
+                )
+            )
+            continue
+        state = problem.start(train).but(
+            model=cm, x=fit.x, weights=shared.weights(train)
+        )
+        view = problem.on(state)
+        x, blk = step.fold(view, state, mask, free) if step else (None, None)
+        if x is None:  # the LM, lifted, from the step (or from the candidate's fit)
+            _, res = run_lm(
+                view,
+                state,
+                "auto: fold",
+                fit.x if blk is None else blk,
+                free,
+                lm,
+                _active(prior, free),
+                required=False,
+                lifted=True,
+            )
+            x = res.x
+        ev = view.evaluations(cm, x, state.weights)
+        trained = metrics_from_errors(ev.raw_position, ev.raw_rotation)
+        status = ["estimated" if f else "unidentifiable" for f in fit.free]
+        cal = CalibratedModel(
+            cm, x, np.full(cm.size, np.nan), status, problem.reference_payload_kg
+        )
+        test_meas = meas.subset(mask)
+        if by_set:
+            test_meas = _relabel_sets(test_meas)
+        scores.append((trained, evaluate(cal, test_meas, refit_user=by_set).metrics))
+    return scores
+
+
+class _FoldStep:
+    """A fold's fit as a Newton step from the candidate's fit on every kept row, with
+    the Jacobian there (Eq. (T-10), docs/theory.md): the training rows' normal
+    equations are those of every row less the held-out rows', the gradient is minus the
+    held-out rows', and the link pairs add their exact second-order terms. The step is
+    kept when the training cost falls as its quadratic model predicts; otherwise up to
+    :data:`_NEWTON_STEPS` in all, then the fold's LM."""
+
+    def __init__(
+        self,
+        cm: CalibrationModel,
+        fit: CandidateFit,
+        prior: Prior,
+        J: Float,
+        r: Float,
+        keep: np.ndarray,
+    ) -> None:
+        P = cm.size
+        self.cm, self.x, self.prior = cm, fit.x, prior
+        self.cols = np.flatnonzero(fit.free)
+        self.s = cm.layout.scales[self.cols]
+        c = r.shape[1]
+        self.J = (J[:, :, self.cols] * self.s).reshape(-1, c, self.cols.size)
+        # The link terms are bilinear (lambda*_j s_k, Eq. 24-26): the cost's exact
+        # Hessian adds, for each free pair, sum(r * d2r / dlambda ds), and d2r / dlambda
+        # ds is the pair's product column (to first order in the deflection).
+        at = {int(c_): i for i, c_ in enumerate(self.cols)}
+        pairs = [
+            (k, at[a], at[b])
+            for k, (a, b) in enumerate(cm.link_products)
+            if a in at and b in at
+        ]
+        self.pairs = np.array([(i, j) for _, i, j in pairs], np.intp).reshape(-1, 2)
+        self.pair_index = np.array([k for k, _, _ in pairs], np.intp)
+        self.Jp = J[:, :, P + self.pair_index]
+        self.pair_scale = self.s[self.pairs[:, 0]] * self.s[self.pairs[:, 1]]
+        self.r = r
+        self.A = _gram(self.J)
+        self.g = _flat(self.J).T @ r.ravel()
+        self.t = (_flat(self.Jp).T @ r.ravel()) * self.pair_scale
+        self.P = prior.precision[self.cols] * self.s**2
+        self.pos = np.full(keep.size, -1)
+        self.pos[keep] = np.arange(int(keep.sum()))
+
+    @classmethod
+    def at(
+        cls, problem: Problem, cm: CalibrationModel, fit: CandidateFit, prior: Prior
+    ) -> _FoldStep | None:
+        """The step's factors at the candidate's fit (None for a robust loss, or large
+        data whose Jacobian is not held: the folds take the LM)."""
+        if fit.shared.lm.loss != "linear":
+            return None
+        keep = fit.shared.keep
+        state = problem.start(keep).but(
+            model=cm, x=fit.x, weights=fit.shared.weights(keep)
+        )
+        blk = problem.on(state).evaluations(
+            cm, fit.x, state.weights, jacobian=True, products=True
+        )
+        if blk.J is None:
+            return None
+        return cls(cm, fit, prior, blk.J, blk.r, keep)
+
+    def fold(
+        self, view: Problem, state: State, held_out: np.ndarray, free: np.ndarray
+    ) -> tuple[Float | None, Float | None]:
+        """``(x, None)``: the fold's solution; ``(None, x0)``: Newton did not settle,
+        the LM goes on from ``x0`` (None: from the candidate's fit)."""
+        rows = self.pos[held_out & (self.pos >= 0)]
+        train = np.ones(self.r.shape[0], bool)
+        train[rows] = False
+        use = free[self.cols]
+        # The training rows' Hessian and gradient: every row's less the held-out ones'.
+        Jh, rh = self.J[rows], self.r[rows]
+        H = self.A - _gram(Jh)
+        g = self.g - _flat(Jh).T @ rh.ravel()
+        if self.pairs.size:
+            t = self.t - (_flat(self.Jp[rows]).T @ rh.ravel()) * self.pair_scale
+            H[self.pairs[:, 0], self.pairs[:, 1]] += t
+            H[self.pairs[:, 1], self.pairs[:, 0]] += t
+        x = self.x
+        cost = 0.5 * float(np.sum(self.r[train] ** 2)) + self.prior.cost(x)
+        for it in range(_NEWTON_STEPS):
+            if it:  # Hessian and gradient at the new point, on the training rows
+                blk = view.evaluations(
+                    self.cm, x, state.weights, jacobian=True, products=True
+                )
+                if blk.J is None:
+                    return None, x
+                H, g = self._hessian(blk.J, blk.r)
+            A = H[np.ix_(use, use)]
+            A[np.diag_indices_from(A)] += self.P[use]
+            gu = g[use] + self._prior_gradient(x)[use]
+            d = -spd_solve(A, gu, rcond=1e-14)  # Eq. (T-10)
+            if not np.all(np.isfinite(d)):
+                return None, x if it else None
+            predicted = -(gu @ d + 0.5 * d @ A @ d)
+            x1 = x.copy()
+            x1[self.cols[use]] += d * self.s[use]
+            r1 = view.evaluations(self.cm, x1, state.weights).r
+            cost1 = 0.5 * float(np.sum(r1**2)) + self.prior.cost(x1)
+            as_predicted = (
+                abs((cost - cost1) - predicted) <= 0.1 * abs(predicted) + _STEP_SLACK
+            )
+            if as_predicted:  # the quadratic model holds: x1 is its optimum
+                return x1, None
+            if cost1 >= cost:
+                return None, x if it else None
+            x, cost = x1, cost1
+        return None, x
+
+    def _hessian(self, J: Float, r: Float) -> tuple[Float, Float]:
+        """Gauss-Newton Hessian with the link pairs' exact terms, and the gradient, of
+        the data rows ``J``, ``r`` (scaled coordinates)."""
+        Js = J[:, :, self.cols] * self.s
+        H = _gram(Js)
+        if self.pairs.size:
+            Jp = J[:, :, self.cm.size + self.pair_index]
+            t = (_flat(Jp).T @ r.ravel()) * self.pair_scale
+            H[self.pairs[:, 0], self.pairs[:, 1]] += t
+            H[self.pairs[:, 1], self.pairs[:, 0]] += t
+        return H, _flat(Js).T @ r.ravel()
+
+    def _prior_gradient(self, x: Float) -> Float:
+        """The prior's gradient at ``x`` over the free columns (scaled coordinates)."""
+        c = self.cols
+        dev = np.where(np.isfinite(self.prior.sigma[c]), x[c] - self.prior.mean[c], 0.0)
+        return dev * self.prior.precision[c] * self.s
+
+
+def _flat(J: Float) -> Float:
+    """(N, c, P) as (N c, P)."""
+    return J.reshape(J.shape[0] * J.shape[1], J.shape[2])
+
+
+def _gram(J: Float) -> Float:
+    """``J^T J`` of an (N, c, P) Jacobian (BLAS)."""
+    f = _flat(J)
+    return f.T @ f
+
+
+# Newton steps a fold may take before the LM takes over.
+_NEWTON_STEPS = 3
+
+# The cost [chi^2 / 2] a Newton step may miss its quadratic model by, and the decrease
+# below which a fold's fit has converged (the statistical resolution of a parameter is
+# 1/2).
+_STEP_SLACK = 0.5
+
+
+def _warm(lm: LMOptions) -> LMOptions:
+    """The solver options from a start next to the optimum: little initial damping."""
+    return replace(lm, max_iter=max(lm.max_iter, _MAX_ITER), mu0=MU0_WARM)
+
+
+def _transfer(
+    names: tuple[str, ...] | list[str], source: tuple[str, ...], v: Float
+) -> Float:
+    """``v`` (laid out as ``source``) in the layout ``names``; 0 where absent."""
+    idx = {n: i for i, n in enumerate(source)}
+    return np.array([v[idx[n]] if n in idx else 0.0 for n in names])
+
+
+def _active(prior: Prior, free: np.ndarray) -> Prior | None:
+    """The prior, or None when it holds none of the free parameters."""
+    return prior if np.any(np.isfinite(prior.sigma) & free) else None
+
+
+def _prior_cost(prior: Prior, x: Float, free: np.ndarray) -> float:
+    return prior.cost(x) if _active(prior, free) is not None else 0.0

@@ -18,7 +18,16 @@ from typing import Any
 import numpy as np
 
 from kinecal._parallel import parallel_map
-from kinecal.identification._autofit import AutoFold, Run, rejected_rows, run_auto_fold
+from kinecal.errors import IdentifiabilityError
+from kinecal.identification._autofit import (
+    CandidateFit,
+    Run,
+    Score,
+    fit_candidate,
+    rescaled,
+    run_folds,
+    shared_fit,
+)
 from kinecal.identification._calibrate import CalibrationOptions, spec_for
 from kinecal.identification._crossval import CrossValidation, make_folds
 from kinecal.identification._measurements import Measurements
@@ -58,8 +67,8 @@ class Selection:
             "chosen": self.spec.name,
             "prior_scale": self.prior_scale,
             "folds": self.folds,
-            "rule": "smallest model within one standard error (paired over folds) of the "
-            "best validation RMS",
+            "rule": "smallest model within one standard error (paired over folds), or "
+            "1 %, of the best validation RMS",
             "candidates": [
                 {
                     "label": c.label,
@@ -129,20 +138,34 @@ def candidate_specs(
     return out
 
 
+def _folds_of(
+    task: tuple[CandidateFit, list[np.ndarray], np.ndarray, bool],
+) -> list[Score]:
+    return run_folds(*task)
+
+
 def _within_one_se(c: Candidate, best: Candidate) -> bool:
     """One-standard-error rule on the paired fold differences.
 
     All candidates share the folds, so the fold-to-fold spread (which pose happened to be
     in which fold) is common to them; the standard error of the per-fold *differences*
-    to the best candidate is the one that says whether ``c`` is really worse.
+    to the best candidate is the one that says whether ``c`` is really worse. A gain
+    below :data:`_PRACTICAL` of the RMS does not count either: when every candidate
+    predicts alike (the data hold no compliance), the paired error can be smaller than
+    what separates them by chance, and extra terms must earn their place.
     """
+    margin = _PRACTICAL * best.cv_rms_mm
     a, b = np.asarray(c.fold_rms_mm), np.asarray(best.fold_rms_mm)
     if a.size != b.size or a.size < 2:
         se = best.cv_se_mm if np.isfinite(best.cv_se_mm) else 0.0
-        return c.cv_rms_mm <= best.cv_rms_mm + se
+        return c.cv_rms_mm <= best.cv_rms_mm + max(se, margin)
     d = a - b
     se_d = float(d.std(ddof=1) / np.sqrt(d.size))
-    return c.cv_rms_mm - best.cv_rms_mm <= se_d
+    return c.cv_rms_mm - best.cv_rms_mm <= max(se_d, margin)
+
+
+# A larger model must predict at least this much better (relative RMS) to be chosen.
+_PRACTICAL = 0.01
 
 
 def select_model(
@@ -167,11 +190,10 @@ def select_model(
     runs the folds in that many worker processes (the same result). The folds are those
     of :func:`~kinecal.identification.make_folds` (sets, poses or ``groups``).
 
-    Work is shared (:mod:`._autofit`): gross errors are decided once on all rows (by the
-    largest candidate, and only where a robust kinematic fit finds suspects) and left
-    out of every fold's training data; in each fold the registration, the priors'
-    pre-fit and stage 1 run once for all candidates, and each candidate starts from the
-    largest one fitted before it whose terms it holds.
+    Work is shared (:mod:`._autofit`): one calibration of the largest candidate on
+    every row decides the gross errors, the weights and the priors' widths for all;
+    each candidate is fitted on the kept rows from the best fit before it, and each of
+    its folds from that fit (the folds' fits go to the worker processes).
     """
     opts = options or CalibrationOptions()
     say = progress if callable(progress) else (lambda stage, detail: None)
@@ -181,24 +203,51 @@ def select_model(
     from kinecal.models import CalibrationModel
 
     layouts = candidate_specs(robot, meas, hayati=hayati, ntm_joints=ntm_joints)
-    say("auto", "gross errors (a robust kinematic fit; the largest model if needed)")
-    keep = ~rejected_rows(robot, meas, layouts[-1][1], opts)
+    shared = None
+    for label, spec in reversed(layouts):  # the largest one the data can determine
+        say("auto", f"{label}: on every row (gross errors, weights, priors)")
+        try:
+            shared = shared_fit(robot, meas, spec, opts)
+            break
+        except IdentifiabilityError as exc:
+            say("auto", f"{label} skipped: {exc}")
+    if shared is None:
+        raise ValueError(f"{meas.source}: no candidate model could be cross-validated.")
+    fitted: dict[tuple[str, float], CandidateFit] = {}
 
-    def run(runs: list[Run], variants: tuple[Run, ...] = ()) -> None:
-        """Cross-validate the runs (and variants), every fold sharing its work."""
-        for label, _, scale in (*runs, *variants):
+    def run(runs: list[Run]) -> None:
+        """Fit the runs on the kept rows, then cross-validate them (the folds of each
+        run in a worker process when ``jobs`` > 1)."""
+        tasks: list[tuple[Run, CandidateFit | ValueError]] = []
+        for label, spec, scale in runs:
             say("auto", f"{label} (priors x{scale:g})")
-        tasks = [
-            AutoFold(
-                robot, meas, t, keep, folds.by_set, opts, tuple(runs), tuple(variants)
+            same = fitted.get((label, 1.0))
+            starts = [(shared.names, shared.x)] + [
+                (f.names, f.x) for f in fitted.values() if f.spec != spec
+            ]
+            if same is not None:
+                starts.insert(0, (same.names, same.x))
+            try:
+                if same is not None and same.spec == spec and scale != 1.0:
+                    fit = rescaled(same, scale)  # a variant of a fitted layout
+                else:
+                    fit = fit_candidate(robot, meas, spec, scale, opts, shared, starts)
+                fitted.setdefault((label, scale), fit)
+                tasks.append(((label, spec, scale), fit))
+            except IdentifiabilityError as exc:  # too few poses for this candidate
+                tasks.append(((label, spec, scale), exc))
+        fits = [f for _, f in tasks if isinstance(f, CandidateFit)]
+        per_run = iter(
+            parallel_map(
+                _folds_of,
+                [(f, folds.test, folds.always_train, folds.by_set) for f in fits],
+                jobs,
             )
-            for t in folds.test
-        ]
-        per_fold = parallel_map(run_auto_fold, tasks, jobs)
-        shown = list(runs) if not variants else list(variants)
-        offset = 0 if not variants else len(runs)
-        for j, (label, spec, scale) in enumerate(shown):
-            scores = [fold[offset + j] for fold in per_fold]
+        )
+        for (label, spec, scale), done in tasks:
+            scores: list[Score] = (
+                [done] * n_folds if isinstance(done, ValueError) else next(per_run)
+            )
             failed = next((s for s in scores if isinstance(s, ValueError)), None)
             if failed is not None:  # too few poses for this candidate in a fold
                 say("auto", f"{label} (priors x{scale:g}) skipped: {failed}")
@@ -226,11 +275,8 @@ def select_model(
     if not cands:
         raise ValueError(f"{meas.source}: no candidate model could be cross-validated.")
     best = min(cands, key=lambda c: c.cv_rms_mm)
-    if opts.priors != "none":
-        variants = tuple((best.label, best.spec, s) for s in prior_scales if s != 1.0)
-        if variants:  # from the best layout's fit at strength 1 in each fold
-            start = [layouts[0], (best.label, best.spec)]
-            run([(lab, sp, 1.0) for lab, sp in dict(start).items()], variants)
+    if opts.priors != "none":  # the best layout with other prior strengths
+        run([(best.label, best.spec, s) for s in prior_scales if s != 1.0])
     best = min(cands, key=lambda c: c.cv_rms_mm)
     eligible = [c for c in cands if _within_one_se(c, best)]
     # Smallest model; among equal sizes the strongest priors (the simplest fit).
