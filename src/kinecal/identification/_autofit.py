@@ -75,6 +75,7 @@ class Shared:
         layout, its solution, its registered start, its priors and free parameters.
     R_ref_base, R_ref_cam : the frames' reference rotations.
     prior_factors : the evidence's scale of each group's priors in ``prior_sigma``.
+    spec : the largest candidate.
     """
 
     keep: np.ndarray
@@ -90,6 +91,7 @@ class Shared:
     R_ref_base: Float
     R_ref_cam: Float
     prior_factors: dict[str, float]
+    spec: ModelSpec | None = None  # the largest candidate's layout
 
     def weights(self, rows: np.ndarray) -> Weights:
         """The weights of the rows ``rows`` (a mask over every row)."""
@@ -136,6 +138,7 @@ def shared_fit(
         cm.R_ref_base,
         cm.R_ref_cam,
         dict(state.prior_factors),
+        spec,
     )
 
 
@@ -192,6 +195,20 @@ def fit_candidate(
     ValueError
         The candidate has more free parameters than the data residuals.
     """
+    if spec == shared.spec:  # the largest candidate: its calibration is the fit
+        fit = CandidateFit(
+            robot,
+            meas,
+            spec,
+            options,
+            shared,
+            shared.x,
+            shared.free,
+            shared.prior_mean,
+            shared.prior_sigma,
+            shared.names,
+        )
+        return fit if scale == 1.0 else rescaled(fit, scale)
     problem, cm = _problem(robot, meas, spec, options, shared)
     lay = cm.layout
     x_reg = _transfer(lay.names, shared.names, shared.x_registered)
