@@ -1,5 +1,6 @@
 """Issue 20, point 4: a wrong nominal robot is named, and so are the parameters the
-priors hold near nominal values the data reject (a fit without priors on the fly)."""
+priors hold near nominal values the data reject (a fit without the geometry priors on
+the fly)."""
 
 from __future__ import annotations
 
@@ -39,7 +40,7 @@ def test_issue_20_cb_table_on_ur10e_poses_is_flagged(mocap):
     # longer than the CB table's; the priors hold them at a fraction of that (joint2.d
     # the most).
     assert held.parameters[0] == "joint2.d"
-    assert "--priors none" in held.message
+    assert "--priors compliance" in held.message
     assert "ur10 with fitted frames leaves 10.97 mm" in found[1].message
 
 

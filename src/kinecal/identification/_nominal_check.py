@@ -1,8 +1,10 @@
 """Is the nominal robot right, and do the priors hold the fit back? (issue 20, point 4)
 
 A calibration starts from the nominal table and its priors pull every joint-geometry term
-towards it (MAP, Eq. (T-5)). Two findings, both from a second fit without priors (plain
-least squares, ``--priors none``) run on the fly:
+towards it (MAP, Eq. (T-5)). Two findings, both from a second fit without the priors of
+the joint geometry and the frames (``--priors compliance``: the transmission and
+compliance terms keep theirs, which say nothing of the nominal table and keep their
+weakly determined combinations from wandering) run on the fly:
 
 * ``priors_held``: the fit with priors leaves residuals clearly larger, relative to the
   noise, than the fit without, ``s0_MAP / s0_LS > 1.5`` (``s0``: a-posteriori standard
@@ -15,7 +17,9 @@ least squares, ``--priors none``) run on the fly:
   leaves errors far above the calibrated noise: a nominal table of another robot (a UR10
   table for a UR10e), or a robot file in the wrong units.
 
-The cost is one more calibration of the same model.
+The cost is one more calibration, on the rows the first one kept and without its
+rejection (without any priors the full model's stage 3 took 94 iterations and 1 s on
+2000 poses; with the compliance priors kept, 0.07 s).
 """
 
 from __future__ import annotations
@@ -48,6 +52,26 @@ FAR_FACTOR = 2.0
 _STAGE = "nominal check"
 
 
+def _without_geometry_priors(
+    result: CalibrationResult,
+    robot: RobotDescription,
+    meas: Measurements,
+    opts: CalibrationOptions,
+) -> CalibrationResult:
+    """The calibration again without the geometry priors (``--priors compliance``), on
+    the rows it kept (its gross errors are not the nominal's fault), with its own noise
+    estimate: each fit's ``s0`` is relative to the noise its own residuals give.
+
+    (A refit from the calibration's solution with its weights was tried: on the UR10e
+    mocap poses with the CB table its ``s0`` stays that of the calibration, 2.96, where
+    the fit with its own noise gives 0.99; the finding rests on that difference.)
+    """
+    free = replace(opts, priors="compliance", reject="off")
+    kept = ~np.isin(meas.rows, [o.row for o in result.rejected])
+    data = meas if kept.all() else meas.subset(kept)
+    return calibrate(robot, data, result.model.spec, free)
+
+
 def nominal_check(
     result: CalibrationResult,
     robot: RobotDescription,
@@ -56,14 +80,15 @@ def nominal_check(
     options: CalibrationOptions | None = None,
     unconstrained: CalibrationResult | None = None,
 ) -> list[Diagnostic]:
-    """Compare a calibration with its nominal robot and with a fit without priors.
+    """Compare a calibration with its nominal robot and with a fit without the geometry
+    priors.
 
     Parameters
     ----------
     result : the calibration to check (``calibrate(robot, meas, spec, options)``).
     robot, meas : what it was calibrated from.
     options : the options it was calibrated with (default :class:`CalibrationOptions`).
-    unconstrained : the same calibration with ``priors='none'``, if already done;
+    unconstrained : the same calibration with ``priors='compliance'``, if already done;
         otherwise it is run here.
 
     Returns
@@ -73,10 +98,9 @@ def nominal_check(
         nominal robot and the priors agree with the data.
     """
     opts = options or CalibrationOptions()
-    if result.prior is None or not np.isfinite(result.prior.sigma).any():
-        return []  # no priors: nothing held; the fit itself is the unconstrained one
-    free = replace(opts, priors="none")
-    ls = unconstrained or calibrate(robot, meas, result.model.spec, free)
+    if opts.priors != "all" or result.prior is None:
+        return []  # no geometry priors: nothing held; the fit is the unconstrained one
+    ls = unconstrained or _without_geometry_priors(result, robot, meas, opts)
     names = result.model.layout.names
     x0 = result.registered
     sigma = result.prior.sigma
@@ -94,7 +118,7 @@ def nominal_check(
         pull = np.where(
             np.isfinite(sigma) & est, np.abs(result.params - x0) / sigma, 0.0
         )
-        # ... and the data, without priors, put it further still the same way.
+        # ... and the data, without its prior, put it further still the same way.
         d_map, d_ls = result.params - x0, ls.params - x0
         further = (np.sign(d_ls) == np.sign(d_map)) & (np.abs(d_ls) > np.abs(d_map))
         order = np.argsort(-pull)
@@ -106,19 +130,20 @@ def nominal_check(
             parts.append(
                 f"{names[i]} {(result.params[i] - x0[i]) * f:+.3g} {unit} from nominal "
                 f"(prior {sigma[i] * f:.3g} {unit}; {(ls.params[i] - x0[i]) * f:+.3g} ± "
-                f"{ls.std[i] * f:.2g} {unit} without priors)"
+                f"{ls.std[i] * f:.2g} {unit} without)"
             )
         out.append(
             Diagnostic(
                 "priors_held",
                 f"the priors hold the fit back: it leaves {ratio:.2f}x the residuals "
-                "(relative to the noise) of plain least squares (--priors none: RMS "
+                "(relative to the noise) of a fit without the geometry priors "
+                "(--priors compliance: RMS "
                 f"{ls.metrics_after.rms_mm:.4g} mm against {result.metrics_after.rms_mm:.4g} "
                 "mm)"
                 + (f"; held: {'; '.join(parts)}" if parts else "")
                 + ". The nominal values are likely wrong: check the robot model "
                 "(version, e-Series or CB) and the robot file, or calibrate with "
-                "--priors none.",
+                "--priors compliance.",
                 parameters=tuple(held),
                 stage=_STAGE,
             )

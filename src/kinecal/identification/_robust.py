@@ -17,8 +17,9 @@ second:
 3. Candidates whose errors follow the pose (:func:`residual_structure`: their error
    grows with a joint angle or a joint's gravity load) are systematic: none is rejected.
 4. Otherwise the fit is repeated without the rejected rows (every stage: registration,
-   priors and their widening are computed on the cleaned data); the test is made at a
-   fit with a Huber loss on all rows the first time.
+   priors and their widening are computed on the cleaned data). The suspects come from a
+   fit with a Huber loss on all rows; the test is made at the accepted fit refitted
+   without them, from its own solution (a few Levenberg-Marquardt steps).
 5. The new fit is kept only if it predicts the rows both fits use better (leave-one-out
    position errors, Eq. (T-5)): a gross error pulls the fit and spoils the prediction of
    the others; a row that is far out but informative (a pose at the edge of the data on
@@ -35,9 +36,11 @@ import numpy as np
 
 from kinecal.identification._diagnostics import Diagnostic, Outlier
 from kinecal.identification._measurements import Measurements
+from kinecal.identification._options import MU0_WARM
 from kinecal.identification._press import loo_position_errors, rms_mm
 from kinecal.identification._problem import Problem, Stage, State, run_stages
 from kinecal.identification._residuals import Weights, residuals
+from kinecal.identification._solve import run_lm
 from kinecal.identification._stages import robust_sigma
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.typing import Float
@@ -397,7 +400,7 @@ class RobustRejection:
             # pull it): rows far from it that stand apart are rejected, the others come
             # back.
             probe = _keep_enough(root, suspect)
-            trimmed = run_stages(root, root.start(~probe), self.fit)
+            trimmed = _test_fit(root, current, ~probe)
             z, err, _ = row_z(root, trimmed)
             reject = _keep_enough(
                 root, gross(z, ~probe, c, opts.outlier_p, opts.reject_z)
@@ -413,11 +416,7 @@ class RobustRejection:
                 found.append(systematic_diagnostic(view, current, st, self.name))
                 break
             problem.progress(self.name, f"{int(reject.sum())} rows; fitting again")
-            trial = (
-                trimmed
-                if np.array_equal(reject, probe)
-                else run_stages(root, root.start(~reject), self.fit)
-            )
+            trial = run_stages(root, root.start(~reject), self.fit)
             if not _predicts_better(root, trial, current):
                 break  # the rows carry information the others confirm: keep them
             current = trial
@@ -428,6 +427,38 @@ class RobustRejection:
         if current.active is None or current.active.all():
             return current.note(*found)
         return _report(root, current, found, self.name)
+
+
+def _test_fit(root: Problem, current: State, rows: np.ndarray) -> State:
+    """The accepted fit refitted on ``rows`` (a mask over every row) from its own
+    solution, with its priors and weights: the fit the test is made at. The fit that
+    replaces the accepted one runs every stage on the cleaned rows (its priors and their
+    widening from them); this one only has to leave the suspects out."""
+    meas = root.meas
+    use = current.active if current.active is not None else np.ones(meas.n, bool)
+    sigma = Weights.default(meas)
+    s, s_rot = sigma.sigma.copy(), sigma.sigma_rot
+    s[use] = current.weights.sigma
+    if s_rot is not None and current.weights.sigma_rot is not None:
+        s_rot = s_rot.copy()
+        s_rot[use] = current.weights.sigma_rot
+    state = current.but(
+        active=None if rows.all() else rows.copy(),
+        weights=Weights(s, s_rot).subset(rows),
+    )
+    lm = replace(current.lm, max_iter=max(current.lm.max_iter, 200), mu0=MU0_WARM)
+    state, res = run_lm(
+        root.on(state),
+        state,
+        "robust rejection: test fit",
+        current.x,
+        current.free,
+        lm,
+        current.active_prior(),
+        required=False,
+        lifted=True,
+    )
+    return state.but(x=res.x)
 
 
 def _largest(mask: np.ndarray, z: Float, most: float) -> np.ndarray:

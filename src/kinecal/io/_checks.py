@@ -79,7 +79,9 @@ def duplicate_rows(meas: Measurements) -> Diagnostic | None:
     # Equal rows have equal fingerprints (the same arithmetic on the same numbers); a
     # stable sort puts them next to each other, earliest first, and the rows themselves
     # are compared. (np.unique on rows is ten times slower.)
-    weights = np.asarray(np.random.default_rng(0).uniform(1.0, 2.0, (key.shape[1],)))
+    # Irrational weights in [1, 2) (the golden ratio's multiples, mod 1): no two columns
+    # alike, no random generator (numpy.random costs 10 ms to import).
+    weights = 1.0 + np.modf(np.arange(1, key.shape[1] + 1) * 0.6180339887498949)[0]
     fingerprint = np.zeros(meas.n)
     for j in range(key.shape[1]):  # element-wise: BLAS rounding may depend on the row
         fingerprint += key[:, j] * weights[j]
@@ -141,7 +143,7 @@ def _pairs(meas: Measurements) -> tuple[np.ndarray, np.ndarray]:
             b_all.append(idx[step:])
     a, b = np.concatenate(a_all), np.concatenate(b_all)
     if a.size > _MAX_PAIRS:
-        keep = np.random.default_rng(0).choice(a.size, _MAX_PAIRS, replace=False)
+        keep = np.linspace(0, a.size - 1, _MAX_PAIRS).astype(np.intp)  # evenly spread
         a, b = a[keep], b[keep]
     return a, b
 
@@ -206,7 +208,8 @@ def _orientation_spread_deg(meas: Measurements, robot: RobotDescription) -> floa
     sample of the rows first (the forward kinematics of a million rows takes a lot of
     memory), all rows only when the sample stays within the limit."""
     n = meas.n
-    rows = np.unique(np.linspace(0, n - 1, min(n, _MAX_PAIRS)).astype(np.intp))
+    rows = np.linspace(0, n - 1, min(n, _MAX_PAIRS)).astype(np.intp)  # sorted
+    rows = rows[np.r_[True, np.diff(rows) > 0]]  # (np.unique imports numpy.ma)
     for idx in (rows, None) if rows.size < n else (rows,):
         sel = np.arange(n) if idx is None else idx
         spread = 0.0

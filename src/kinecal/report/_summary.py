@@ -35,9 +35,9 @@ def _noise(result: CalibrationResult) -> dict[str, Any]:
     median over the rows where they differ per set or marker) and, for pose data whose
     orientations were weighed otherwise, their estimated noise."""
     w = result.weights
-    out: dict[str, Any] = {"sigma_mm": float(np.median(w.sigma)) * 1e3}
+    out: dict[str, Any] = {"sigma_mm": float(median(w.sigma)) * 1e3}
     if w.sigma_rot is not None:
-        out["sigma_deg"] = float(np.degrees(np.median(w.sigma_rot)))
+        out["sigma_deg"] = float(np.degrees(median(w.sigma_rot)))
     est = next((d for d in result.diagnostics if d.code == "noise_model"), None)
     if est is not None:
         out["estimate"] = est.message
