@@ -210,7 +210,15 @@ def calibrate(
         check_folds(meas, cv_folds, groups, cv_groups)
     extra: dict[str, object] = {"data_checks": [d.as_dict() for d in data_checks]}
     hay = parallel_pairs(robot) if hayati else ()
-    nj = parse_int_list(ntm_joints, "--ntm-joints") or (1, 2, 3)
+    nj = parse_int_list(ntm_joints, "--ntm-joints") or robot.ntm_joints
+    revolute = [i + 1 for i, j in enumerate(robot.joints) if j.kind != "prismatic"]
+    bad = [j for j in nj if j not in revolute]
+    if bad:
+        raise click.BadParameter(
+            f"joint {bad[0]} is not a revolute joint of {robot.name} (a transmission "
+            f"series needs one); its revolute joints: {', '.join(map(str, revolute))}.",
+            param_hint="--ntm-joints",
+        )
     if model_name == "auto":
         from kinecal.identification import select_model
 

@@ -174,6 +174,7 @@ def spec_for(
             markers=meas.marker_labels,
             cam_rotation=cam_rotation,
         )
+    options = {"ntm_joints": robot.ntm_joints, **options}
     return ModelSpec.preset(
         model,
         cam_rotation=cam_rotation,

@@ -150,9 +150,10 @@ def _full_spec(model: CalibrationModel) -> ModelSpec:
         sets=spec.sets,
         markers=spec.markers,
         hayati=spec.hayati,
+        ntm_joints=spec.ntm_joints or model.robot.ntm_joints,
         has_self_weight=model.robot.self_weight is not None,
     )
-    return replace(full, ntm_joints=spec.ntm_joints or full.ntm_joints)
+    return full
 
 
 def _lacks_terms(model: CalibrationModel) -> bool:

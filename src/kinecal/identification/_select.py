@@ -90,10 +90,13 @@ def candidate_specs(
     meas: Measurements,
     *,
     hayati: tuple[int, ...] = (),
-    ntm_joints: tuple[int, ...] = (1, 2, 3),
+    ntm_joints: tuple[int, ...] | None = None,
 ) -> list[tuple[str, ModelSpec]]:
-    """Candidate layouts from the kinematic model to the full one, smallest first."""
+    """Candidate layouts from the kinematic model to the full one, smallest first
+    (``ntm_joints``: the robot's first three revolute joints by default)."""
     base = spec_for(robot, meas, "kinematic", hayati=hayati)
+    if ntm_joints is None:
+        ntm_joints = robot.ntm_joints
     has_link = robot.self_weight is not None
     out: list[tuple[str, ModelSpec]] = [("kinematic", base)]
     out.append(
@@ -177,7 +180,7 @@ def select_model(
     seed: int = 0,
     prior_scales: tuple[float, ...] = (0.3, 1.0, 3.0),
     hayati: tuple[int, ...] = (),
-    ntm_joints: tuple[int, ...] = (1, 2, 3),
+    ntm_joints: tuple[int, ...] | None = None,
     progress: object | None = None,
     jobs: int = 1,
     groups: np.ndarray | None = None,

@@ -100,6 +100,7 @@ def planning_model(
     spec = ModelSpec.preset(
         model,
         cam_rotation=instrument.kind != "point",
+        ntm_joints=robot.ntm_joints,
         has_self_weight=robot.self_weight is not None,
     )
     cm = CalibrationModel(robot, spec)

@@ -196,6 +196,15 @@ class RobotDescription:
         return np.array([j.kind == "prismatic" for j in self.joints])
 
     @property
+    def ntm_joints(self) -> tuple[int, ...]:
+        """The joints (1-based) that carry the transmission series by default: the first
+        three revolute ones (J1-J3 of a 6-axis arm; a prismatic joint has no Fourier
+        series in its angle)."""
+        return tuple(i + 1 for i, j in enumerate(self.joints) if j.kind != "prismatic")[
+            :3
+        ]
+
+    @property
     def limits(self) -> Float:
         """Joint limits in controller space, shape (n, 2) [rad or m]."""
         return np.array([j.limits for j in self.joints], dtype=np.float64)

@@ -124,13 +124,14 @@ class TrueRobot:
         return p, out.R_user_cam
 
 
-def _truth_spec(extras: tuple[str, ...]) -> ModelSpec:
-    ntm_joints: tuple[int, ...] = (1, 2, 3)
+def _truth_spec(robot: RobotDescription, extras: tuple[str, ...]) -> ModelSpec:
+    revolute = tuple(i + 1 for i, j in enumerate(robot.joints) if j.kind != "prismatic")
+    ntm_joints = robot.ntm_joints
     order = 2
     if "harmonics" in extras:
         order = 4
     if "wrist" in extras:
-        ntm_joints = (1, 2, 3, 4, 5, 6)
+        ntm_joints = revolute[:6]
     bodies = (2, 3, 4, 5) if "masses" in extras else ()
     return ModelSpec(
         cam_rotation=True,
@@ -188,7 +189,7 @@ def paper_truth(
             raise ValueError(f"unknown extra effect {e!r}; expected some of {EXTRAS}.")
     tab = PAPER_TABLES[experiment]
     robot = robot or load_robot("fanuc-lrmate200id")
-    model = CalibrationModel(robot, _truth_spec(extras))
+    model = CalibrationModel(robot, _truth_spec(robot, extras))
     x = model.nominal.copy()
     base = np.array(tab["base"], dtype=float)
     cam = np.array(tab["cam"], dtype=float)
@@ -250,7 +251,7 @@ def random_truth(
         robot's nominal tool and a tracker 2 m away.
     """
     rng = np.random.default_rng(seed)
-    spec = _truth_spec(extras)
+    spec = _truth_spec(robot, extras)
     if robot.self_weight is None:
         spec = ModelSpec(
             cam_rotation=True,
