@@ -11,6 +11,9 @@ PYDIRS := $(wildcard src tests benchmarks examples)
 # One BLAS thread per test process: pytest runs one worker per core, and BLAS threads on
 # top only oversubscribe them (the suite took 142 s with two, 100 s with one, on 2 cores).
 test test-slow: export OPENBLAS_NUM_THREADS ?= 1
+# Bytecode cached (some environments set PYTHONDONTWRITEBYTECODE): every `kinecal` process
+# the tests and benchmarks start would otherwise compile ~100 modules again (0.15-0.3 s).
+demo test test-slow bench examples: export PYTHONDONTWRITEBYTECODE =
 
 # The compiled model kernel is built by the install (setup.py; optional: skipped without a
 # C compiler), so a change to its source reinstalls.

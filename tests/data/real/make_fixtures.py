@@ -37,7 +37,9 @@ def tiago_points() -> str:
             for m in (1, 2, 3):
                 p = [float(r[f"{c}{m}"]) * 1e3 for c in "xyz"]
                 lines.append(
-                    ",".join([*(f"{v:.6f}" for v in q), *(f"{v:.4f}" for v in p), f"m{m}"])
+                    ",".join(
+                        [*(f"{v:.6f}" for v in q), *(f"{v:.4f}" for v in p), f"m{m}"]
+                    )
                 )
     return "\n".join(lines) + "\n"
 
