@@ -94,3 +94,10 @@ def test_issue_26_auto_runs_in_worker_processes_alike(poses_300, one_blas_thread
     a = select_model(ROBOT, poses_300.subset(np.arange(120)), k=4, jobs=1)
     b = select_model(ROBOT, poses_300.subset(np.arange(120)), k=4, jobs=2)
     assert a.as_dict() == b.as_dict()
+
+
+def test_issue_26_auto_on_too_few_poses_is_a_clear_identifiability_error(poses_300):
+    from kinecal.errors import IdentifiabilityError
+
+    with pytest.raises(IdentifiabilityError, match="measure more poses"):
+        select_model(ROBOT, poses_300.subset(np.arange(11)), k=5)

@@ -13,10 +13,13 @@ import click
 
 from kinecal.cli._common import (
     MODEL_CHOICES,
+    FiniteFloat,
     Progress,
     allow_out_of_limits_option,
+    check_auto_folds,
     check_distinct_poses,
     check_folds,
+    check_refit_poses,
     common_options,
     echo_diagnostics,
     jobs_option,
@@ -133,7 +136,7 @@ def _options_from(loss: str, priors: str, stage2: str):
 )
 @click.option(
     "--reject-z",
-    type=click.FloatRange(min=0.0, min_open=True),
+    type=FiniteFloat(0.0, low_open=True),
     default=None,
     metavar="Z",
     help="Reject every row beyond Z robust sigmas (whitened error over the robust noise) "
@@ -210,7 +213,7 @@ def calibrate(
         check_folds(meas, cv_folds, groups, cv_groups)
     extra: dict[str, object] = {"data_checks": [d.as_dict() for d in data_checks]}
     hay = parallel_pairs(robot) if hayati else ()
-    nj = parse_int_list(ntm_joints, "--ntm-joints") or robot.ntm_joints
+    nj = parse_int_list(ntm_joints, "--ntm-joints", robot.n_joints) or robot.ntm_joints
     revolute = [i + 1 for i, j in enumerate(robot.joints) if j.kind != "prismatic"]
     bad = [j for j in nj if j not in revolute]
     if bad:
@@ -222,7 +225,9 @@ def calibrate(
     if model_name == "auto":
         from kinecal.identification import select_model
 
-        check_distinct_poses(meas, robot, spec_for(robot, meas, "kinematic"), data)
+        smallest = spec_for(robot, meas, "kinematic")
+        check_distinct_poses(meas, robot, smallest, data)
+        check_auto_folds(meas, robot, smallest)
         say("auto", "cross-validating candidate models")
         sel = select_model(
             robot,
@@ -382,8 +387,8 @@ def _group_labels(data: str, column: str, rows: Any) -> Any:
 
 
 def _refit_groups(text: str | None) -> tuple[str, ...]:
-    """``--refit user,tool`` as a tuple; a bad word is a usage error."""
-    if not text:
+    """``--refit user,tool`` as a tuple; a bad word (or none) is a usage error."""
+    if text is None:
         return ()
     words = tuple(w.strip() for w in text.split(",") if w.strip())
     bad = [w for w in words if w not in ("user", "tool", "marker")]
@@ -450,6 +455,7 @@ def evaluate(
     meas, found = check_data_for_model(meas, cal)
     echo_diagnostics(found)
     what = _refit_groups(refit)
+    check_refit_poses(meas, what)
     say.begin("evaluate", f"{meas.n} rows")
     ev = run_evaluate(cal, meas, refit=what)
     for d in ev.diagnostics:

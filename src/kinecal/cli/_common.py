@@ -181,16 +181,35 @@ class Progress:
         self._stop.set()
 
 
-def parse_int_list(text: str | None, name: str) -> tuple[int, ...] | None:
-    """``"1,2,3"`` -> (1, 2, 3); None stays None."""
+def parse_int_list(
+    text: str | None, name: str, n_max: int | None = None
+) -> tuple[int, ...] | None:
+    """``"1,2,3"`` -> (1, 2, 3); None stays None. Empty text, a number twice or one
+    outside 1..``n_max`` is a usage error naming the option ``name``."""
     if text is None:
         return None
     try:
-        return tuple(int(t) for t in text.split(",") if t.strip())
+        out = tuple(int(t) for t in text.split(",") if t.strip())
     except ValueError:
+        out = ()
+    if not out:
         raise click.BadParameter(
             f"expected comma-separated joint numbers; got {text!r}", param_hint=name
-        ) from None
+        )
+    twice = sorted({j for j in out if out.count(j) > 1})
+    if twice:
+        raise click.BadParameter(
+            f"joint {twice[0]} is given twice in {text!r}; expected each joint once",
+            param_hint=name,
+        )
+    if n_max is not None:
+        bad = [j for j in out if not 1 <= j <= n_max]
+        if bad:
+            raise click.BadParameter(
+                f"joint {bad[0]} does not exist; expected joint numbers 1 to {n_max}",
+                param_hint=name,
+            )
+    return out
 
 
 def manifest(
@@ -262,6 +281,60 @@ def check_distinct_poses(meas: Any, robot: Any, spec: Any, path: str) -> None:
             f"'{spec.name}' model has {size} parameters: expected at least "
             f"{size // c + 1} different poses (several times more for a reliable result)"
         )
+
+
+def check_auto_folds(meas: Any, robot: Any, spec: Any, k: int = 5) -> None:
+    """``--model auto``: refuse data whose cross-validation folds cannot fit even the
+    smallest candidate ``spec`` (each fold is fitted on about (k-1)/k of the rows)."""
+    import math
+
+    from kinecal.errors import IdentifiabilityError
+    from kinecal.models import CalibrationModel
+
+    size = CalibrationModel(robot, spec).size
+    c = meas.components
+
+    def train(n: int) -> int:
+        return n - math.ceil(n / k)
+
+    if train(meas.n) * c > size:
+        return
+    need = meas.n + 1
+    while train(need) * c <= size:
+        need += 1
+    raise IdentifiabilityError(
+        f"{meas.source}: --model auto cross-validates in {k} folds, each fitted on about "
+        f"{train(meas.n)} of the {meas.n} poses ({train(meas.n) * c} residuals), but "
+        f"the smallest candidate '{spec.name}' has {size} parameters; expected at least "
+        f"{need} poses (several times more for a reliable choice), or a fixed --model."
+    )
+
+
+def check_refit_poses(meas: Any, what: tuple[str, ...]) -> None:
+    """``evaluate --refit``: refuse a set whose rows hold fewer than 3 distinct poses
+    (copies of one pose let the refitted frames absorb every error: an RMS of zero)."""
+    import numpy as np
+
+    from kinecal.errors import IdentifiabilityError
+
+    if not what:
+        return
+    cols = [meas.q_ctrl, meas.marker_index[:, None]]
+    if meas.target_index is not None:
+        cols.append(meas.target_index[:, None])
+    key = np.hstack(cols)
+    labels = meas.set_labels or ("",)
+    for s, label in enumerate(labels):
+        rows = meas.set_index == s
+        distinct = int(np.unique(key[rows], axis=0).shape[0]) if rows.any() else 0
+        if rows.sum() >= 3 and distinct < 3:
+            name = f"set {label!r}" if label else "the data"
+            raise IdentifiabilityError(
+                f"{meas.source}: {name}: its {int(rows.sum())} rows hold only {distinct} "
+                f"distinct pose{'s' if distinct != 1 else ''} (rows repeat the same "
+                f"joint angles); --refit {','.join(what)} needs at least 3 different "
+                "poses per set (or no --refit)."
+            )
 
 
 # Positions beyond 1 km from the instrument's origin are typing errors, not data (and

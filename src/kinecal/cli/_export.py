@@ -81,7 +81,22 @@ def export_urdf(
 
     if Path(out_path).exists() and not force:  # refuse before the work, not after it
         raise FileExistsError(f"{out_path}: exists; use --force to overwrite it.")
+    if marker is not None and fmt != "yaml-dh":
+        raise click.UsageError(
+            "--marker chooses the tool of --format yaml-dh; a URDF holds every marker "
+            "(tool_<marker> links)"
+        )
     cal = load_model(model_path)
+    for option, label, own in (
+        ("--set", set_label, cal.model.spec.sets),
+        ("--marker", marker, cal.model.spec.markers),
+    ):
+        if label is not None and label not in own:
+            raise click.BadParameter(
+                f"{option[2:]} {label!r} is not in the model {model_path}; expected "
+                f"one of {_labels(own)}",
+                param_hint=option,
+            )
     robot = cal.model.robot
     inputs, where, data_lines = _loss_poses(cal, data, targets)
     notes = [
@@ -251,3 +266,8 @@ def _check_yaml(cal, text, T_user_base, set_label, marker, q) -> float:
     out = cal.model.evaluate(kinematic_params(cal), inp)
     T = T_user_base @ again.fk_tool(q)
     return float(np.abs(T[:, :3, 3] - out.p_user).max())
+
+
+def _labels(own: tuple[str, ...]) -> str:
+    """A model's set or marker labels for a message (the default one is '')."""
+    return ", ".join(repr(x) if x else "'' (the default)" for x in own)

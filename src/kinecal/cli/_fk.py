@@ -158,7 +158,8 @@ def _model_fk(cal, q, payload_kg, set_label, marker) -> dict:
     ):
         if label is not None and label not in own:
             raise DataError(
-                f"{what} {label!r} is not in the model (it has {', '.join(map(repr, own))})."
+                f"--{what}: {what} {label!r} is not in the model; expected one of "
+                f"{_labels(own)}."
             )
         idx.append(0 if label is None else own.index(label))
     scale = 1.0
@@ -259,3 +260,8 @@ def import_urdf(
     header = f"# Imported from {urdf} by kinecal import-urdf ({robot.source}).\n"
     atomic_write_text(out, header + yaml.dump(doc, sort_keys=False), force=force)
     click.echo(f"{robot.name}: {robot.n_joints} joints -> {out}")
+
+
+def _labels(own: tuple[str, ...]) -> str:
+    """A model's set or marker labels for a message (the default one is '')."""
+    return ", ".join(repr(x) if x else "'' (the default)" for x in own)

@@ -115,6 +115,15 @@ def _read_poses(
                 f"{robot.name}"
                 + ("." if allow is None else " (use --allow-out-of-limits to accept).")
             )
+    deg = [k for k, c in enumerate(cols) if c.endswith("_deg")]
+    if deg and len(t.rows) >= 5:
+        vals = np.degrees(q[:, deg])
+        if np.abs(vals).max() <= 2 * np.pi + 1e-9 and np.ptp(vals, axis=0).max() > 0.05:
+            raise DataError(
+                f"{path}: columns {cols[deg[0]]}..{cols[deg[-1]]}: every value is within "
+                f"±{2 * np.pi:.2f}, which looks like radians; convert to degrees or name "
+                "the columns jK_rad."
+            )
     ti = None
     if labels is not None and "target" in t.header:
         index = {lab: i for i, lab in enumerate(labels)}
@@ -352,9 +361,11 @@ def _candidates(
     }
     say("candidates", f"generating {kw['n_candidates']} ({inst.name})")
     if inst.name == "sensor":
-        so = _floats(kw["standoff_mm"].replace(":", ","), 2, "--standoff-mm")
-        assert so is not None
-        if not 0 < so[0] <= so[1]:
+        try:
+            so = _floats(kw["standoff_mm"].replace(":", ","), 2, "--standoff-mm")
+        except click.BadParameter:
+            so = None
+        if so is None or not 0 < so[0] <= so[1]:
             raise click.BadParameter(
                 f"expected 0 < LO <= HI [mm]; got {kw['standoff_mm']!r}",
                 param_hint="--standoff-mm",
@@ -380,8 +391,11 @@ def _candidates(
     if c.q_ctrl.shape[0] < 1:
         from kinecal.errors import DataError
 
+        why = ", ".join(f"{v} {k}" for k, v in c.rejected.items() if v)
         raise DataError(
-            f"no acceptable candidate among {c.tried} poses drawn: {c.rejected}."
+            f"--n-candidates {kw['n_candidates']}: no acceptable candidate among "
+            f"{c.tried} poses drawn ({why}); expected looser --joint-range, "
+            "--min-j5-deg, --min-conditioning, --floor-mm, --station or --cone-deg."
         )
     info = {"generated": True, "tried": c.tried, "rejected": c.rejected}
     return {
@@ -391,6 +405,28 @@ def _candidates(
         "source": "generated",
         "info": info,
     }
+
+
+def _check_distinct(cand: dict[str, Any], n: int, option: str) -> None:
+    """Refuse a plan of ``n`` poses from fewer distinct candidates (copies of one pose
+    would be chosen again and again)."""
+    import numpy as np
+
+    from kinecal.errors import DataError
+
+    key = cand["q"] if cand["ti"] is None else np.column_stack([cand["q"], cand["ti"]])
+    distinct = int(np.unique(key, axis=0).shape[0])
+    if distinct < n:
+        src = cand["source"]
+        where = (
+            f"{src}: the {key.shape[0]} rows hold"
+            if src != "generated"
+            else f"the {key.shape[0]} generated candidates (--joint-range) hold"
+        )
+        raise DataError(
+            f"{where} only {distinct} distinct pose{'s' if distinct != 1 else ''}, but "
+            f"{option} {n} asks for {n}; expected at least {n} different candidate poses."
+        )
 
 
 def _pose_lines(robot: Any, q: Any, ti: Any, labels: Any) -> list[str]:
@@ -436,6 +472,7 @@ def _run(kw: dict[str, Any], say: Progress) -> None:
             f"{n} poses asked, but there are {cand['q'].shape[0]} candidates",
             param_hint="--add" if kw["add_n"] else "--poses",
         )
+    _check_distinct(cand, n, "--add" if kw["add_n"] else "--poses")
     say("plan", f"{n} of {cand['q'].shape[0]} poses, {kw['criterion']}-optimal")
     pl = plan_poses(
         env["model"],

@@ -62,6 +62,12 @@ def stripes(
 
     options: dict[str, Any] = {"method": method}
     if sigma_px is not None:
+        if not 0.5 <= sigma_px <= 10.0:  # nan too
+            raise click.BadParameter(
+                f"expected a finite number within 0.5..10 px (the ridge detector's "
+                f"sigma_px); got {sigma_px}",
+                param_hint="--sigma-px",
+            )
         if method != "ridge":
             raise click.BadParameter("only for --method ridge", param_hint="--sigma-px")
         options["sigma_px"] = sigma_px

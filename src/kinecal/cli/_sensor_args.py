@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -21,9 +22,24 @@ def _board(text: str, square_mm: float) -> Any:
         raise click.BadParameter(
             f"expected COLSxROWS, e.g. 10x7; got {text!r}", param_hint="--board"
         )
-    if square_mm <= 0:
-        raise click.BadParameter("must be positive", param_hint="--square-mm")
-    return ChessboardTarget(int(m.group(1)), int(m.group(2)), square_mm * 1e-3)
+    cols, rows = int(m.group(1)), int(m.group(2))
+    if min(cols, rows) < 3:
+        raise click.BadParameter(
+            f"expected at least 3 inner corners each way; got {text!r}",
+            param_hint="--board",
+        )
+    if cols % 2 == rows % 2:
+        raise click.BadParameter(
+            f"expected one even and one odd count of inner corners (a board with two "
+            f"even or two odd counts looks the same turned by 180 deg); got {text!r}",
+            param_hint="--board",
+        )
+    if not (square_mm > 0 and math.isfinite(square_mm)):
+        raise click.BadParameter(
+            f"expected a finite number > 0 [mm]; got {square_mm}",
+            param_hint="--square-mm",
+        )
+    return ChessboardTarget(cols, rows, square_mm * 1e-3)
 
 
 def _plane_index(path: Path) -> int:
@@ -42,8 +58,10 @@ def _triple(text: str, name: str) -> tuple[float, float, float]:
         vals = tuple(float(t) for t in text.split(","))
     except ValueError:
         vals = ()
-    if len(vals) != 3:
-        raise click.BadParameter(f"expected X,Y,Z; got {text!r}", param_hint=name)
+    if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
+        raise click.BadParameter(
+            f"expected X,Y,Z (3 finite numbers); got {text!r}", param_hint=name
+        )
     return vals
 
 

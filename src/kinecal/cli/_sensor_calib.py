@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from kinecal.cli._common import Progress, common_options, jobs_option
+from kinecal.cli._common import FiniteFloat, Progress, common_options, jobs_option
 
 if TYPE_CHECKING:
     pass
@@ -58,7 +58,7 @@ def _detector_option(f: Any) -> Any:
 )
 @click.option(
     "--outlier-k",
-    type=float,
+    type=FiniteFloat(0.0),
     default=4.0,
     show_default=True,
     help="Reject points further than K robust std from the sphere (0: keep all).",
@@ -94,6 +94,11 @@ def fit_sphere_cmd(
             f"must be positive, got {radius_mm}", param_hint="--radius-mm"
         )
     P = read_cloud(cloud)
+    if len(P) >= 5 and np.abs(P).max() * 1e3 < 5.0 and np.ptp(P, axis=0).max() > 0:
+        raise DataError(
+            f"{cloud}: columns x_mm, y_mm, z_mm: every value is below 5, which looks "
+            "like metres; convert to millimetres."
+        )
     try:
         f = fit_sphere(
             P,
@@ -191,6 +196,7 @@ def calibrate_camera_cmd(
     """Camera intrinsics from the chessboard images in FOLDER (*.png): Zhang's method
     refined by a bundle adjustment; standard deviations from the residuals."""
     from kinecal.cli._sensor_args import _board, _LazyImages
+    from kinecal.errors import DataError
     from kinecal.io import image_files, read_image, save_sensor
     from kinecal.sensor import calibrate_camera
 
@@ -200,7 +206,15 @@ def calibrate_camera_cmd(
     prog("images", f"{len(files)} in {folder}")
     paths: list[Path | None] = [*files]
     imgs = _LazyImages(paths, read_image)
-    res = calibrate_camera(imgs, tgt, jobs=jobs, k3=k3, detector=detector)
+    try:
+        res = calibrate_camera(imgs, tgt, jobs=jobs, k3=k3, detector=detector)
+    except DataError as exc:  # the folder instead of the function's name
+        text = str(exc)
+        if not text.startswith("calibrate_camera: "):
+            raise
+        raise DataError(
+            f"{folder}: {text.removeprefix('calibrate_camera: ')} (--board {board})"
+        ) from None
     skipped = sorted(set(range(len(files))) - set(res.used) - set(res.rejected))
     for k in skipped:
         click.echo(

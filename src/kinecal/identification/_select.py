@@ -215,7 +215,11 @@ def select_model(
         except IdentifiabilityError as exc:
             say("auto", f"{label} skipped: {exc}")
     if shared is None:
-        raise ValueError(f"{meas.source}: no candidate model could be cross-validated.")
+        raise IdentifiabilityError(
+            f"{meas.source}: no candidate model could be cross-validated: {meas.n} "
+            f"poses in {n_folds} folds leave too few for even the kinematic model; "
+            "measure more poses or give a fixed --model."
+        )
     fitted: dict[tuple[str, float], CandidateFit] = {}
 
     def run(runs: list[Run]) -> None:
@@ -276,7 +280,11 @@ def select_model(
 
     run([(label, spec, 1.0) for label, spec in layouts])
     if not cands:
-        raise ValueError(f"{meas.source}: no candidate model could be cross-validated.")
+        raise IdentifiabilityError(
+            f"{meas.source}: no candidate model could be cross-validated: {meas.n} "
+            f"poses in {n_folds} folds leave too few for even the kinematic model; "
+            "measure more poses or give a fixed --model."
+        )
     best = min(cands, key=lambda c: c.cv_rms_mm)
     if opts.priors != "none":  # the best layout with other prior strengths
         run([(best.label, best.spec, s) for s in prior_scales if s != 1.0])

@@ -99,6 +99,7 @@ def read_targets(path: str | Path) -> Targets:
             )
         seen[lab] = int(line)
     xyz = np.column_stack([t.numbers(c) for c in _POINT])
+    _check_far(t, xyz, _POINT)
     r = t.numbers("r_mm") if "r_mm" in t.header else None
     if len(t) >= 2 and np.abs(xyz).max() < 5.0 and np.ptp(xyz, axis=0).max() > 0:
         raise DataError(
@@ -264,7 +265,31 @@ def _kind(t: Table) -> tuple[str, Sequence[str]]:
     return "point", _POINT
 
 
+# Positions beyond 1 km from the instrument's origin are typing errors, not data (and
+# their squares overflow in the solvers: a cell of 1e300 hung the calibration).
+MAX_POSITION_MM = 1e6
+
+
+# The largest plausible value of the optional columns: beyond it a cell is a typing
+# error (a payload of 1e300 kg overflowed the compliance terms).
+_MAX_OPTIONAL = {"sigma_mm": MAX_POSITION_MM, "sigma_deg": 360.0, "payload_kg": 1e5}
+
+
+def _check_far(t: Table, xyz_mm: np.ndarray, cols: Sequence[str]) -> None:
+    """Refuse a row whose position (mm) is beyond :data:`MAX_POSITION_MM`."""
+    far = np.flatnonzero(np.abs(xyz_mm).max(axis=1) > MAX_POSITION_MM)
+    if far.size:
+        i = int(far[0])
+        v = xyz_mm[i]
+        raise DataError(
+            f"{t.path}: line {t.lines[i]}, columns {', '.join(cols)}: ({v[0]:.6g}, "
+            f"{v[1]:.6g}, {v[2]:.6g}) mm; expected positions within "
+            f"{MAX_POSITION_MM:.0e} mm of the origin (a typing error?)."
+        )
+
+
 def _looks_like_metres(t: Table, xyz: np.ndarray, cols: Sequence[str]) -> None:
+    _check_far(t, xyz, cols)
     if len(t) >= 5 and np.abs(xyz).max() < 5.0 and np.ptp(xyz, axis=0).max() > 1e-3:
         raise DataError(
             f"{t.path}: columns {', '.join(cols)}: every value is below 5, which looks "
@@ -325,6 +350,13 @@ def _read(
         if np.any(v <= 0):
             line = t.lines[int(np.flatnonzero(v <= 0)[0])]
             raise DataError(f"{t.path}: line {line}, column '{col}': must be positive.")
+        high = _MAX_OPTIONAL[col]
+        if np.any(v > high):
+            i = int(np.flatnonzero(v > high)[0])
+            raise DataError(
+                f"{t.path}: line {t.lines[i]}, column '{col}': {v[i]:.6g}; expected a "
+                f"value up to {high:.6g} (a typing error?)."
+            )
         common[name] = v * scale
     found = [] if limits is None else [limits]
     if kind == "sensor":

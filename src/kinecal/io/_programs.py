@@ -147,6 +147,14 @@ def _fanuc(text: str) -> tuple[list[ProgramPoint], int]:
     for rec in re.finditer(r"(P\[[^\]]*\])\s*\{(.*?)\};", text[pos.end() : stop], re.S):
         body_at = pos.end() + rec.start(2)
         body = rec.group(2)
+        inner = re.search(r"P\[[^\]]*\]\s*\{", body)
+        if inner is not None:  # an unclosed record would lend its name to the next
+            raise DataError(
+                f"line {_line(text, pos.end() + rec.start(1))}: {rec.group(1)} is not "
+                f"closed by '}};' before the next position on line "
+                f"{_line(text, body_at + inner.start())}; expected each position as "
+                "P[n]{ ... };"
+            )
         g1 = re.search(r"GP1\s*:(.*?)(?=GP\d+\s*:|\Z)", body, re.S)
         if g1 is None:
             continue

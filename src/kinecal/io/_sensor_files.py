@@ -60,6 +60,11 @@ def read_image(path: str | Path) -> np.ndarray:
             img = img[:, :, 0]
     if img.dtype not in (np.uint8, np.uint16):
         raise DataError(f"{p}: pixel type {img.dtype}; expected 8- or 16-bit grey.")
+    if min(img.shape) < 3:
+        raise DataError(
+            f"{p}: {img.shape[1]}x{img.shape[0]} pixels; expected an image of at least "
+            "3x3 pixels."
+        )
     return img
 
 

@@ -67,8 +67,13 @@ def _tree(
     by_child: dict[str, ET.Element] = {}
     children: dict[str, list[str]] = {}
     joint_names: set[str] = set()
-    for j in root.findall("joint"):
-        jn = j.get("name", "?")
+    for k, j in enumerate(root.findall("joint")):
+        jn = j.get("name", "")
+        if not jn:
+            raise ConfigError(
+                f"{src}: joint {k + 1} (in file order) has no name; expected "
+                '<joint name="..." type="...">.'
+            )
         if jn in joint_names:
             raise ConfigError(
                 f"{src}: joint {jn!r} is defined twice; expected unique names."
@@ -284,6 +289,11 @@ def robot_from_urdf(
             f"{src}: the first joint axis must be the base link's z axis (DH frame 0 "
             f"sits on it); it is {np.round(u1, 6).tolist()} through "
             f"{np.round(p1, 6).tolist()}. Choose another --base link."
+        )
+    if len(lines) < 2:
+        raise ConfigError(
+            f"{src}: one movable joint ({specs[0][0]!r}) between {base!r} and {tip!r}; "
+            "expected a chain of at least 2 (another --base or --tip?)."
         )
     # Frame 0 = base frame. Frames 1..n-1 on the axes 2..n; frame n on the last axis.
     z_prev, x_prev, o_prev = (

@@ -46,9 +46,13 @@ class Camera:
     height: int = 1024
 
     def __post_init__(self) -> None:
-        vals = np.array([self.fx, self.fy, self.u0, self.v0, *self.dist])
-        if not np.all(np.isfinite(vals)):
-            raise ConfigError(f"camera parameters must be finite, got {self}")
+        names = ("fx", "fy", "u0", "v0", "k1", "k2", "k3", "p1", "p2")
+        bad = [k for k in names if not np.isfinite(getattr(self, k))]
+        if bad:
+            raise ConfigError(
+                f"camera parameter {bad[0]}: expected a finite number; got "
+                f"{getattr(self, bad[0])}"
+            )
         if self.fx <= 0 or self.fy <= 0:
             raise ConfigError(
                 f"camera focal lengths must be positive, got {self.fx}, {self.fy}"
@@ -115,7 +119,10 @@ class Camera:
             }
         except (TypeError, ValueError) as exc:
             raise ConfigError(f"{where}: {exc}") from None
-        return cls(**kw)  # type: ignore[arg-type]
+        try:
+            return cls(**kw)  # type: ignore[arg-type]
+        except ConfigError as exc:  # the file's name in front of the check's message
+            raise ConfigError(f"{where}: {exc}") from None
 
     def with_(self, **changes: float) -> Camera:
         return replace(self, **changes)  # type: ignore[arg-type]
