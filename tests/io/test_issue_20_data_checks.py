@@ -91,6 +91,21 @@ def test_issue_20_joint_beyond_limits_is_refused_with_line_column_and_value(tmp_
         read_measurements(f, FR3, allow_out_of_limits=True)
 
 
+def test_issue_20_a_wild_joint_value_is_refused_even_when_asked(tmp_path):
+    """--allow-out-of-limits accepts a robot a little beyond its limits, not 1e300 deg
+    or a column of another quantity (issue 21 audit: the row was rejected as a gross
+    error, exit 0)."""
+    text = (REAL / "fr3_session_a.csv").read_text()
+    for value in ("1e300", "200.0"):  # J4 in [-174.3, -8.7]: 200 deg is within a turn
+        f = _write(tmp_path / "fr3.csv", _edit_cell(text, 9, "j4_deg", value))
+        if value == "200.0":
+            meas, found = read_data(f, FR3, allow_out_of_limits=True)
+            assert _codes(found) == ["out_of_limits"]
+            continue
+        with pytest.raises(DataError, match=r"line 9, column 'j4_deg': 1e\+300 is not"):
+            read_data(f, FR3, allow_out_of_limits=True)
+
+
 def test_issue_20_joint_within_the_one_degree_margin_is_accepted(tmp_path):
     text = (REAL / "fr3_session_a.csv").read_text()
     f = _write(tmp_path / "fr3.csv", _edit_cell(text, 5, "j4_deg", "-8.0"))  # 0.7 deg

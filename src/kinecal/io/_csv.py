@@ -159,6 +159,20 @@ def _limits(
             f"{t.path}: {where} (by more than {slack}): wrong robot, joint zero or units? "
             "Use --allow-out-of-limits (allow_out_of_limits=True) to accept such rows."
         )
+    # Even when asked: a turn beyond a revolute joint's limits (a stroke, and at least
+    # 100 mm, beyond a prismatic one's) is no joint value at all (1e300, a wrong column).
+    far = np.where(robot.prismatic, np.maximum(lim[:, 1] - lim[:, 0], 0.1), 2.0 * np.pi)
+    wild = (q < lim[:, 0] - far) | (q > lim[:, 1] + far)
+    if wild.any():
+        i, k = (int(x) for x in np.argwhere(wild)[0])
+        unit = cols[k].rsplit("_", 1)[1]
+        f = _TO_FILE[unit]
+        raise DataError(
+            f"{t.path}: line {t.lines[i]}, column '{cols[k]}': "
+            f"{t.numbers(cols[k])[i]:.6g} is not a joint value of {robot.name} J{k + 1} "
+            f"(limits [{lim[k, 0] * f:.6g}, {lim[k, 1] * f:.6g}]; even "
+            "--allow-out-of-limits accepts at most a turn, or a stroke, beyond them)."
+        )
     rows = np.flatnonzero(out.any(axis=1))
     per_joint = ", ".join(
         f"J{j + 1} ({int(out[:, j].sum())})"
