@@ -149,6 +149,24 @@ def _read_text(p: Path) -> str:
         raise DataError(f"{p}: not a text (UTF-8) CSV file.") from None
 
 
+def _comma_separated(text: str) -> str:
+    """The text with commas between cells: a file whose header has no comma but
+    semicolons (a spreadsheet in a decimal-comma locale: its commas are decimal
+    points) or tabs is read as well."""
+    first = next(
+        (s for s in text.splitlines() if s.strip() and not s.lstrip().startswith("#")),
+        "",
+    )
+    if "," in first:
+        return text
+    for sep in (";", "\t"):
+        if sep in first:
+            if sep == ";" or "." not in text:
+                text = text.replace(",", ".")  # decimal commas
+            return text.replace(sep, ",")
+    return text
+
+
 def _is_skipped(s: str) -> bool:
     """A comment line (first cell starts with '#') or a line of blank cells."""
     t = s.lstrip()
@@ -165,7 +183,8 @@ def _header(p: Path, cells: list[str], lineno: int) -> list[str]:
 
 def read_table(path: str | Path) -> Table:
     """Read a CSV file with a header; lines whose first cell starts with '#' are
-    comments, lines of blank cells are skipped.
+    comments, lines of blank cells are skipped. Cells are separated by commas, or by
+    semicolons (then a comma is a decimal point) or tabs when the header has no comma.
 
     Raises
     ------
@@ -174,7 +193,7 @@ def read_table(path: str | Path) -> Table:
         row with a different number of values than the header (naming its line).
     """
     p = Path(path)
-    text = _read_text(p)
+    text = _comma_separated(_read_text(p))
     if '"' in text or any(c in text for c in _ODD_BREAKS):
         return _read_quoted(p, text)
     all_lines = text.splitlines()
