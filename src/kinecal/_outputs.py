@@ -25,10 +25,7 @@ transaction before any heavy import. :mod:`kinecal.io` re-exports it.
 from __future__ import annotations
 
 import fnmatch
-import json
 import os
-import secrets
-import shutil
 import signal
 import threading
 from collections.abc import Iterator
@@ -133,7 +130,7 @@ def _sweep(folder: Path) -> None:
         except ValueError:
             continue
         if pid != os.getpid() and not _pid_alive(pid):
-            shutil.rmtree(folder / e, ignore_errors=True)
+            _rmtree(folder / e)
 
 
 def _old_result(final: Path, names: list[str]) -> set[str]:
@@ -141,6 +138,8 @@ def _old_result(final: Path, names: list[str]) -> set[str]:
     what the earlier manifest.json lists under ``files``."""
     listed: list[str] = []
     try:
+        import json
+
         doc = json.loads((final / _MANIFEST).read_text(encoding="utf-8"))
         files = doc.get("files") if isinstance(doc, dict) else None
         if isinstance(files, list):
@@ -200,7 +199,7 @@ class OutputTransaction:
         for s in self.staged:
             if s.final == final:
                 return s.staging
-        tag = f"{_TAG}{os.getpid()}-{secrets.token_hex(4)}"
+        tag = f"{_TAG}{os.getpid()}-{os.urandom(4).hex()}"
         if final.is_dir():
             _sweep(final)
             staging, inside = final / tag, True
@@ -217,7 +216,7 @@ class OutputTransaction:
     def rollback(self) -> None:
         """Remove every staged folder; the targets stay as they were."""
         for s in self.staged:
-            shutil.rmtree(s.staging, ignore_errors=True)
+            _rmtree(s.staging)
         self.staged.clear()
 
     def commit(self) -> list[Path]:
@@ -309,3 +308,11 @@ def end_transaction(tx: OutputTransaction) -> None:
     tx.rollback()
     if tx in _stack():
         _stack().remove(tx)
+
+
+def _rmtree(path: Path) -> None:
+    """Remove a folder and what it holds, quietly (shutil imported only here: every
+    command imports this module, few remove anything)."""
+    import shutil
+
+    shutil.rmtree(path, ignore_errors=True)

@@ -23,7 +23,6 @@ in :mod:`kinecal._cpu`, below both this module and :mod:`kinecal.models`.
 
 from __future__ import annotations
 
-import ctypes
 import os
 import sys
 from collections.abc import Callable, Iterable
@@ -82,6 +81,8 @@ def _openblas_functions(what: str) -> list[Any]:
             )
     except OSError:
         return []
+    import ctypes  # here: every command imports this module, few call this
+
     names = [f"{p}_{what}{s}" for p in _OPENBLAS_PREFIXES for s in _OPENBLAS_SUFFIXES]
     out = []
     for path in paths:
@@ -97,6 +98,8 @@ def _openblas_functions(what: str) -> list[Any]:
 
 def blas_threads() -> list[int]:
     """Threads of every loaded OpenBLAS library (numpy's, scipy's); Linux only."""
+    import ctypes
+
     out = []
     for fn in _openblas_functions("get_num_threads"):
         fn.restype = ctypes.c_int
@@ -107,6 +110,8 @@ def blas_threads() -> list[int]:
 def set_blas_threads(n: int) -> None:
     """Set every loaded OpenBLAS library (numpy's, scipy's) to ``n`` threads; Linux only,
     nothing elsewhere."""
+    import ctypes
+
     for fn in _openblas_functions("set_num_threads"):
         fn.argtypes, fn.restype = [ctypes.c_int], None
         fn(int(n))
