@@ -126,6 +126,7 @@ SHARED_MODULES = {
     "tests/cli/test_fault_inputs.py": "fault-inputs",
     "tests/cli/test_fault_results.py": "fault-results",
     "tests/identification/test_issue_26_auto.py": "poses-300",
+    "tests/test_package_structure.py": "import-graph",
     "tests/slow/test_sensor_end_to_end.py": "slow-sensor",  # calibrated_sensor
     "tests/slow/test_sensor_feeds_identification.py": "slow-sensor",
 }
