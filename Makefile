@@ -11,8 +11,10 @@ PYDIRS := $(wildcard src tests benchmarks examples)
 # One BLAS thread per test process: pytest runs one worker per core, and BLAS threads on
 # top only oversubscribe them (the suite took 142 s with two, 100 s with one, on 2 cores).
 test test-slow: export OPENBLAS_NUM_THREADS ?= 1
-# Bytecode cached (some environments set PYTHONDONTWRITEBYTECODE): every `kinecal` process
-# the tests and benchmarks start would otherwise compile ~100 modules again (0.15-0.3 s).
+# The suite starts ~160 Python processes (the CLI as a user runs it), the benchmarks and
+# the demo more: with byte-code caches each imports kinecal 0.13-0.3 s faster, and pytest
+# keeps its rewritten test modules (3 s per worker). An empty value turns off a
+# PYTHONDONTWRITEBYTECODE set outside (this VM sets it).
 demo test test-slow bench examples: export PYTHONDONTWRITEBYTECODE =
 
 # The compiled model kernel is built by the install (setup.py; optional: skipped without a
@@ -33,10 +35,10 @@ lint: $(STAMP)
 	$(BIN)/mypy
 
 test: lint
-	$(BIN)/python -m pytest -q -n auto -m "not slow"
+	$(BIN)/python -m pytest -q -n auto -m "not slow" --dist loadgroup
 
 test-slow: $(STAMP)
-	$(BIN)/python -m pytest -q -n auto -m slow
+	$(BIN)/python -m pytest -q -n auto -m slow --dist loadgroup
 
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks --out benchmarks/results.json

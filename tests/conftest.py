@@ -8,6 +8,7 @@ import os
 import subprocess
 import sys
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -71,17 +72,112 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(20240416)
 
 
+def kinecal_cli(
+    *args: str, cwd: str | None = None, timeout: float = 600
+) -> subprocess.CompletedProcess[str]:
+    """``kinecal ARGS`` in a subprocess, as a user runs it."""
+    return subprocess.run(
+        [sys.executable, "-m", "kinecal", *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=timeout,
+    )
+
+
 @pytest.fixture
 def run_cli() -> Callable[..., subprocess.CompletedProcess[str]]:
-    def run(
-        *args: str, cwd: str | None = None, timeout: float = 600
-    ) -> subprocess.CompletedProcess[str]:
-        return subprocess.run(
-            [sys.executable, "-m", "kinecal", *args],
-            capture_output=True,
-            text=True,
-            cwd=cwd,
-            timeout=timeout,
-        )
+    return kinecal_cli
 
-    return run
+
+# Work units of `make test` on pytest-xdist workers (--dist loadgroup): one per test, but
+# a module below runs whole on one worker, so its module and session fixtures (0.3-2 s
+# each) are built once, not on each worker; modules of one group share session fixtures.
+# (xdist_group marks would do it per test, but pytest-xdist 3.8 loses them on pytest 9.)
+SHARED_MODULES = {
+    "tests/cli/test_workflow_cli.py": "cli-exp1",  # exp2_files, calibrated_exp1
+    "tests/io/test_issue_19_serialisation.py": "cli-exp1",
+    # exp2_exact, exp1_exact, simulated_exp2 (issue 25 and 20), tmac
+    "tests/identification/test_calibrate.py": "identification",
+    "tests/identification/test_identifiability.py": "identification",
+    "tests/identification/test_issue_25_robust.py": "identification",
+    "tests/identification/test_issue_26_blocks.py": "identification",
+    "tests/identification/test_issue_4_accuracy.py": "identification",
+    "tests/identification/test_lift.py": "identification",
+    "tests/identification/test_pipeline.py": "identification",
+    "tests/identification/test_robustness.py": "identification",
+    "tests/identification/test_select.py": "identification",
+    "tests/identification/test_issue_20_sessions.py": "identification",
+    "tests/compensation/test_compensate.py": "compensation",  # tracker_twin, twin
+    "tests/compensation/test_issue_23_ik.py": "compensation",
+    "tests/compensation/test_issue_23_programs.py": "compensation",
+    "tests/compensation/test_issue_26_chunks.py": "compensation",
+    "tests/fuzz/test_fuzz_csv.py": "fuzz",  # point_data
+    "tests/fuzz/test_fuzz_model.py": "fuzz",
+    "tests/fuzz/test_fuzz_robot.py": "fuzz",
+    "tests/sensor/test_calibration.py": "sensor-boards",
+    "tests/planning/test_plan.py": "planning-twin",
+    "tests/report/test_report_cli.py": "report-result",
+    "tests/report/test_html_report.py": "report-twin",
+    "tests/io/test_issue_20_cli.py": "sensor-model",
+    "tests/io/test_model_file.py": "model-result",
+    "tests/cli/test_plan_cli.py": "plan-files",
+    "tests/cli/test_export_cli.py": "export-models",
+    "tests/cli/test_fault_inputs.py": "fault-inputs",
+    "tests/cli/test_fault_results.py": "fault-results",
+    "tests/identification/test_issue_26_auto.py": "poses-300",
+    "tests/test_package_structure.py": "import-graph",
+    "tests/slow/test_sensor_end_to_end.py": "slow-sensor",  # calibrated_sensor
+    "tests/slow/test_sensor_feeds_identification.py": "slow-sensor",
+}
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object:
+    """With --dist loadgroup, the groups above."""
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadGroupScheduling
+
+    class Scheduling(LoadGroupScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            group = SHARED_MODULES.get(nodeid.split("::", 1)[0])
+            return group if group else super()._split_scope(nodeid)
+
+    return Scheduling(config, log)  # type: ignore[arg-type]
+
+
+# Folders written once by the CLI and read by several tests (they write elsewhere).
+
+
+@pytest.fixture(scope="session")
+def simulated_exp2(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``kinecal simulate --experiment 2`` with the default seed and tracker."""
+    d = tmp_path_factory.mktemp("cli-exp2") / "exp2"
+    res = kinecal_cli("simulate", "--experiment", "2", "--out", str(d), "-q")
+    assert res.returncode == 0, res.stderr
+    return d
+
+
+@pytest.fixture(scope="session")
+def calibrated_exp1(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """``kinecal simulate --experiment 1`` (folder ``exp1``), then ``kinecal calibrate``
+    of its train.csv with its targets.csv, with the report (folder ``cal``)."""
+    root = tmp_path_factory.mktemp("cli-exp1")
+    d, out = root / "exp1", root / "cal"
+    res = kinecal_cli("simulate", "--experiment", "1", "--out", str(d), "-q")
+    assert res.returncode == 0, res.stderr
+    assert (d / "targets.csv").is_file()
+    res = kinecal_cli(
+        "calibrate",
+        str(d / "train.csv"),
+        "--robot",
+        "fanuc-lrmate200id",
+        "--targets",
+        str(d / "targets.csv"),
+        "--out",
+        str(out),
+        "-q",
+    )
+    assert res.returncode == 0, res.stderr
+    return d, out

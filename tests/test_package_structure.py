@@ -7,6 +7,7 @@ inside a function or under ``TYPE_CHECKING`` counts as well.
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 import kinecal
@@ -93,6 +94,7 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return out
 
 
+@functools.cache  # parsed once for the tests below, which only read it
 def _graph() -> dict[str, set[str]]:
     modules = _modules()
     return {name: _imports(name, path, modules) for name, path in modules.items()}

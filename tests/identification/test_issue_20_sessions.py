@@ -192,11 +192,10 @@ def test_issue_20_more_folds_than_poses_is_a_clear_error():
         make_folds(small, 5)
 
 
-def test_issue_20_cv_groups_and_refit_on_the_command_line(run_cli, tmp_path):
-    d = tmp_path / "exp2"
-    assert (
-        run_cli("simulate", "--experiment", "2", "--out", str(d), "-q").returncode == 0
-    )
+def test_issue_20_cv_groups_and_refit_on_the_command_line(
+    run_cli, simulated_exp2, tmp_path
+):
+    d = simulated_exp2  # kinecal simulate --experiment 2
     lines = (d / "train.csv").read_text().splitlines()
     lines = [lines[0] + ",station"] + [
         f"{ln},s{i // 20}" for i, ln in enumerate(lines[1:])

@@ -188,13 +188,12 @@ def test_issue_25_pose_noise_from_the_residuals():
     assert np.median(noise.sigma_rot) == pytest.approx(3e-4, rel=0.15)
 
 
-def test_issue_25_rejected_rows_by_file_line_on_the_command_line(run_cli, tmp_path):
+def test_issue_25_rejected_rows_by_file_line_on_the_command_line(
+    run_cli, simulated_exp2, tmp_path
+):
     import json
 
-    d = tmp_path / "exp2"
-    assert (
-        run_cli("simulate", "--experiment", "2", "--out", str(d), "-q").returncode == 0
-    )
+    d = simulated_exp2  # kinecal simulate --experiment 2
     lines = (d / "train.csv").read_text().splitlines()
     col = lines[0].split(",").index("x_mm")
     moved = [7, 33, 64]  # file lines (the header is line 1)

@@ -10,24 +10,8 @@ import pytest
 import yaml
 
 
-def test_issue_19_model_yaml_report_json_and_html_agree(run_cli, tmp_path):
-    d = tmp_path / "exp1"
-    assert (
-        run_cli("simulate", "--experiment", "1", "--out", str(d), "-q").returncode == 0
-    )
-    out = tmp_path / "cal"
-    res = run_cli(
-        "calibrate",
-        str(d / "train.csv"),
-        "--robot",
-        "fanuc-lrmate200id",
-        "--targets",
-        str(d / "targets.csv"),
-        "--out",
-        str(out),
-        "-q",
-    )
-    assert res.returncode == 0, res.stderr
+def test_issue_19_model_yaml_report_json_and_html_agree(calibrated_exp1):
+    _, out = calibrated_exp1  # simulate --experiment 1, calibrate with --targets
     model = yaml.safe_load((out / "model.yaml").read_text())["parameters"]
     report = {
         p["name"]: p
