@@ -10,9 +10,18 @@ without importing one another.
 from __future__ import annotations
 
 import os
+import queue
+import threading
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
-__all__ = ["available_cpus", "kernel_threads", "set_kernel_threads"]
+__all__ = [
+    "DaemonPool",
+    "available_cpus",
+    "kernel_threads",
+    "set_kernel_threads",
+]
 
 # Threads one kernel evaluation may use: None for one per CPU (counted once, on first use).
 _threads: int | None = None
@@ -63,3 +72,60 @@ def kernel_threads() -> int:
     if _cpus is None:
         _cpus = available_cpus()
     return _cpus
+
+
+class DaemonPool:
+    """Worker threads for the compiled kernel that never hold up the interpreter's exit.
+
+    concurrent.futures' workers are joined when the interpreter exits; after a Ctrl-C a
+    worker was once left waiting on its queue, unwoken, and the interrupted command hung
+    at exit (an interrupted-calibration test, the suite run as a background job). These
+    are daemon threads taking calls from a queue; a caller waits for its own calls
+    (:meth:`Call.result`), so none is in flight when a command ends normally.
+    """
+
+    def __init__(self, size: int, name: str = "kinecal-kernel") -> None:
+        self.size = size
+        self._queue: queue.SimpleQueue[Call | None] = queue.SimpleQueue()
+        for i in range(size):
+            threading.Thread(target=self._work, name=f"{name}-{i}", daemon=True).start()
+
+    def submit(self, fn: Callable[..., Any], *args: Any) -> Call:
+        """Run ``fn(*args)`` on a worker."""
+        call = Call(fn, args)
+        self._queue.put(call)
+        return call
+
+    def shutdown(self) -> None:
+        """Let the workers end once the calls already submitted are done."""
+        for _ in range(self.size):
+            self._queue.put(None)
+
+    def _work(self) -> None:
+        while (call := self._queue.get()) is not None:
+            call.run()
+
+
+class Call:
+    """A call submitted to a :class:`DaemonPool`."""
+
+    def __init__(self, fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
+        self._fn, self._args = fn, args
+        self._done = threading.Event()
+        self._value: Any = None
+        self._error: BaseException | None = None
+
+    def run(self) -> None:
+        try:
+            self._value = self._fn(*self._args)
+        except BaseException as exc:  # handed to the caller
+            self._error = exc
+        finally:
+            self._done.set()
+
+    def result(self) -> Any:
+        """The call's value, once it has run (its exception raised here)."""
+        self._done.wait()
+        if self._error is not None:
+            raise self._error
+        return self._value

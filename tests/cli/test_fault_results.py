@@ -304,6 +304,11 @@ def _big_data(tmp_path: Path, data) -> Path:
     return f
 
 
+def _default_signals() -> None:
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, signal.SIG_DFL)
+
+
 def _interrupt(args: list[str], when: str, sig=signal.SIGINT, timeout=300):
     """Run kinecal, send ``sig`` to its process group when a stderr line holds
     ``when`` (as Ctrl-C does), return (exit code, stderr)."""
@@ -315,6 +320,10 @@ def _interrupt(args: list[str], when: str, sig=signal.SIGINT, timeout=300):
         text=True,
         start_new_session=True,
         env=env,
+        # A suite started as a background job hands its children Ctrl-C ignored (POSIX),
+        # and Python keeps an ignored SIGINT ignored: give the command the default, as a
+        # terminal would.
+        preexec_fn=_default_signals,
     )
     assert p.stderr is not None
     seen = []

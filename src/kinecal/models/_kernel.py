@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from kinecal._cpu import kernel_threads
+from kinecal._cpu import DaemonPool, kernel_threads
 from kinecal.errors import ConfigError, DataError
 from kinecal.models._definition import ModelDefinition
 from kinecal.models._inputs import ModelInputs
@@ -291,13 +291,11 @@ def _thread_count(N: int) -> int:
 def _executor(count: int) -> Any:
     """A pool of at least ``count`` threads (kept for the next evaluation)."""
     global _pool, _pool_size
-    from concurrent.futures import ThreadPoolExecutor
-
     with _pool_lock:
         if _pool is None or _pool_size < count:
             if _pool is not None:
-                _pool.shutdown(wait=False)
-            _pool = ThreadPoolExecutor(count, thread_name_prefix="kinecal-kernel")
+                _pool.shutdown()
+            _pool = DaemonPool(count)
             _pool_size = count
         return _pool
 
