@@ -163,5 +163,8 @@ def thread_map(fn: Callable[[T], R], items: Iterable[T], jobs: int = 0) -> list[
         return [fn(x) for x in todo]
     from concurrent.futures import ThreadPoolExecutor
 
-    with ThreadPoolExecutor(workers) as pool:
+    pool = ThreadPoolExecutor(workers)
+    try:
         return list(pool.map(fn, todo))
+    finally:  # on an error or Ctrl-C the items not started are dropped, not run
+        pool.shutdown(wait=True, cancel_futures=True)

@@ -34,7 +34,8 @@ class _Writer:
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self.pool.shutdown()
+        # on an error or Ctrl-C the images not started are dropped, not rendered
+        self.pool.shutdown(cancel_futures=exc[0] is not None)
 
     def write(self, items: list[tuple[Path, Any]], what: str) -> None:
         """Write ``(path, source)`` items: ``source()`` gives the image."""
