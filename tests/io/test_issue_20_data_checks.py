@@ -99,7 +99,7 @@ def test_issue_20_a_wild_joint_value_is_refused_even_when_asked(tmp_path):
     for value in ("1e300", "200.0"):  # J4 in [-174.3, -8.7]: 200 deg is within a turn
         f = _write(tmp_path / "fr3.csv", _edit_cell(text, 9, "j4_deg", value))
         if value == "200.0":
-            meas, found = read_data(f, FR3, allow_out_of_limits=True)
+            _, found = read_data(f, FR3, allow_out_of_limits=True)
             assert _codes(found) == ["out_of_limits"]
             continue
         with pytest.raises(DataError, match=r"line 9, column 'j4_deg': 1e\+300 is not"):
