@@ -116,3 +116,13 @@ def make_point_data(d: Path) -> dict[str, Path]:
         "model": d / "model.yaml",
         "targets": d / "targets.csv",
     }
+
+
+def failed_with(res: Run, *needles: str, code: int = 2) -> str:
+    """The run failed with ``code`` and one Error line holding every needle; that line."""
+    check_contract(res)
+    assert res.code == code, str(res)
+    last = res.err.strip().splitlines()[-1]
+    for n in needles:
+        assert n in last, str(res)
+    return last

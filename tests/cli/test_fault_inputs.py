@@ -11,7 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.cli_contract import check_contract, make_point_data, no_hang, run_kinecal
+from tests.cli_contract import (
+    failed_with,
+    make_point_data,
+    no_hang,
+    run_kinecal,
+)
 
 ROBOT = "fanuc-lrmate200id"
 
@@ -21,14 +26,7 @@ def data(tmp_path_factory):
     return make_point_data(tmp_path_factory.mktemp("fault-inputs"))
 
 
-def _bad(res, *needles: str, code: int = 2) -> str:
-    """The run failed with ``code`` and one Error line holding every needle."""
-    check_contract(res)
-    assert res.code == code, str(res)
-    last = res.err.strip().splitlines()[-1]
-    for n in needles:
-        assert n in last, str(res)
-    return last
+_bad = failed_with
 
 
 # --- calibrate -------------------------------------------------------------------

@@ -9,19 +9,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.cli_contract import check_contract, run_kinecal
+from tests.cli_contract import failed_with, run_kinecal
 
 ROBOT = "fanuc-lrmate200id"
 JOINTS = [f"j{k}_deg" for k in range(1, 7)]
 
 
-def _bad(res, *needles: str, code: int = 2) -> str:
-    check_contract(res)
-    assert res.code == code, str(res)
-    last = res.err.strip().splitlines()[-1]
-    for n in needles:
-        assert n in last, str(res)
-    return last
+_bad = failed_with
 
 
 def _poses(n: int, seed: int = 0) -> np.ndarray:

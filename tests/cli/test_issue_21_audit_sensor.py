@@ -7,16 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.cli_contract import check_contract, run_kinecal
+from tests.cli_contract import failed_with, run_kinecal
 
-
-def _bad(res, *needles: str, code: int = 2) -> str:
-    check_contract(res)
-    assert res.code == code, str(res)
-    last = res.err.strip().splitlines()[-1]
-    for n in needles:
-        assert n in last, str(res)
-    return last
+_bad = failed_with
 
 
 @pytest.mark.parametrize(
