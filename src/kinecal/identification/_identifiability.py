@@ -165,28 +165,14 @@ def analyse_identifiability(
                 coef, *_ = np.linalg.lstsq(
                     R[:, [order.index(k) for k in kept]], R[:, c], rcond=None
                 )
-                # Express in characteristic units of the columns (undo normalisation).
-                coef = coef * norms[i] / norms[kept]
-                top = np.argsort(-np.abs(coef))[:4]
-                partners = [
-                    (layout.names[kept[t]], float(coef[t]))
-                    for t in top
-                    if abs(coef[t]) > 1e-3 * np.abs(coef).max()
-                ]
+                partners = _partners(layout, coef, norms, i, kept)
             dropped.append(DroppedParameter(layout.names[i], f, partners))
         else:
             kept.append(i)
             if f < weak_tol:
                 weak.append((layout.names[i], f))
     free[kept] = True
-    sv: Float = np.zeros(0)
-    cond = float("nan")
-    if kept:
-        sv = np.asarray(
-            np.linalg.svd(R[:, [order.index(k) for k in kept]], compute_uv=False),
-            np.float64,
-        )
-        cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
+    sv, cond = _spectrum(R[:, [order.index(k) for k in kept]])
     return Identifiability(
         layout.names, candidate, free, fraction, dropped, weak, sv, cond
     )
@@ -246,14 +232,7 @@ def identifiability_from_normal(
                 Rk = R[np.ix_(kept_pos, kept_pos)]
                 # Least squares of column c on the kept ones: Rk^T Rk coef = A_n[kept, c].
                 y = np.linalg.solve(Rk.T, An[kept_pos, c])
-                coef = np.linalg.solve(Rk, y)
-                coef = coef * norms[i] / norms[kept]
-                top = np.argsort(-np.abs(coef))[:4]
-                partners = [
-                    (layout.names[kept[t]], float(coef[t]))
-                    for t in top
-                    if abs(coef[t]) > 1e-3 * np.abs(coef).max()
-                ]
+                partners = _partners(layout, np.linalg.solve(Rk, y), norms, i, kept)
             dropped.append(DroppedParameter(layout.names[i], f, partners))
             continue
         R[c, c] = f
@@ -264,16 +243,34 @@ def identifiability_from_normal(
         if f < weak_tol:
             weak.append((layout.names[i], f))
     free[kept] = True
-    sv: Float = np.zeros(0)
-    cond = float("nan")
-    if kept:
-        sv = np.asarray(
-            np.linalg.svd(R[np.ix_(kept_pos, kept_pos)], compute_uv=False), np.float64
-        )
-        cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
+    sv, cond = _spectrum(R[np.ix_(kept_pos, kept_pos)])
     return Identifiability(
         layout.names, candidate, free, fraction, dropped, weak, sv, cond
     )
+
+
+def _partners(
+    layout: ParameterLayout, coef: np.ndarray, norms: Float, i: int, kept: list[int]
+) -> list[tuple[str, float]]:
+    """The kept columns that explain column ``i`` most (up to four), with their
+    coefficients in the columns' characteristic units (``coef`` is for the normalised
+    columns)."""
+    coef = coef * norms[i] / norms[kept]
+    top = np.argsort(-np.abs(coef))[:4]
+    return [
+        (layout.names[kept[t]], float(coef[t]))
+        for t in top
+        if abs(coef[t]) > 1e-3 * np.abs(coef).max()
+    ]
+
+
+def _spectrum(R_kept: Float) -> tuple[Float, float]:
+    """Singular values of the kept columns' triangular factor and its condition number
+    (none and NaN when no column is kept)."""
+    if R_kept.shape[1] == 0:
+        return np.zeros(0), float("nan")
+    sv = np.asarray(np.linalg.svd(R_kept, compute_uv=False), np.float64)
+    return sv, float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
 
 
 def correlation_from_covariance(cov: Float) -> Float:
