@@ -56,7 +56,7 @@ def test_issue_26_a_folds_newton_step_lands_on_its_optimum(poses_300, label):
     layouts = dict(candidate_specs(ROBOT, poses_300))
     shared = shared_fit(ROBOT, poses_300, layouts["full"], opts)
     fit = fit_candidate(
-        ROBOT, poses_300, layouts[label], 1.0, opts, shared, [(shared.names, shared.x)]
+        ROBOT, poses_300, layouts[label], 1.0, opts, shared, [(shared.layout, shared.x)]
     )
     problem, cm = fit.problem()
     prior = Prior(fit.prior_mean, fit.prior_sigma)

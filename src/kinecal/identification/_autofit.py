@@ -41,13 +41,13 @@ from kinecal.identification._lm import LMOptions, Prior, objective, spd_solve
 from kinecal.identification._measurements import Measurements
 from kinecal.identification._metrics import Metrics, metrics_from_errors
 from kinecal.identification._options import MU0_WARM
-from kinecal.identification._priors import EvidencePriors, build_prior
+from kinecal.identification._priors import EvidencePriors, build_prior, evidence_group
 from kinecal.identification._problem import Problem, State, run_stages
 from kinecal.identification._residuals import Weights
 from kinecal.identification._solve import run_lm
 from kinecal.identification._stages import Identify
 from kinecal.identification._uncertainty import Uncertainty
-from kinecal.models import CalibrationModel, ModelSpec
+from kinecal.models import CalibrationModel, ModelSpec, ParameterLayout
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float
 
@@ -76,7 +76,7 @@ class Shared:
     keep : (N,) bool, the rows not rejected as gross errors.
     sigma, sigma_rot : (N,) the weights' sigmas per row (NaN on rejected rows).
     lm : the solver options of the data term (loss, where it bends, the stop).
-    names, x, x_registered, prior_mean, prior_sigma, free : the largest candidate's
+    layout, x, x_registered, prior_mean, prior_sigma, free : the largest candidate's
         layout, its solution, its registered start, its priors and free parameters.
     R_ref_base, R_ref_cam : the frames' reference rotations.
     prior_factors : the evidence's scale of each group's priors in ``prior_sigma``.
@@ -87,7 +87,7 @@ class Shared:
     sigma: Float
     sigma_rot: Float | None
     lm: LMOptions
-    names: tuple[str, ...]
+    layout: ParameterLayout
     x: Float
     x_registered: Float
     prior_mean: Float
@@ -134,7 +134,7 @@ def shared_fit(
         sigma,
         sigma_rot,
         state.lm,
-        tuple(cm.layout.names),
+        cm.layout,
         state.x,
         state.x_registered,
         prior.mean,
@@ -161,7 +161,7 @@ class CandidateFit:
     free: np.ndarray
     prior_mean: Float
     prior_sigma: Float
-    names: tuple[str, ...] = ()  # the candidate's layout
+    layout: ParameterLayout  # the candidate's
 
     def problem(self) -> tuple[Problem, CalibrationModel]:
         """The candidate's problem and model (:func:`_problem`)."""
@@ -189,10 +189,10 @@ def fit_candidate(
     scale: float,
     options: CalibrationOptions,
     shared: Shared,
-    starts: list[tuple[tuple[str, ...], Float]],
+    starts: list[tuple[ParameterLayout, Float]],
 ) -> CandidateFit:
     """Fit one candidate on the kept rows with the shared weights, from the
-    lowest-objective of ``starts`` (layouts' names and values, transferred by name; the
+    lowest-objective of ``starts`` (layouts and values, transferred by name; the
     registered start too): its own identifiability, the shared priors before their
     evidence scaling and then its own evidence scaling; ``scale`` != 1 widens the
     result's priors that many times and fits again (:func:`rescaled`).
@@ -213,24 +213,23 @@ def fit_candidate(
             shared.free,
             shared.prior_mean,
             shared.prior_sigma,
-            shared.names,
+            shared.layout,
         )
         return fit if scale == 1.0 else rescaled(fit, scale)
     problem, cm = _problem(robot, meas, spec, options, shared)
     lay = cm.layout
-    x_reg = _transfer(lay.names, shared.names, shared.x_registered)
+    x_reg = lay.transfer(shared.x_registered, shared.layout)
     # Priors: those of the largest candidate (adapted to the data) before their
     # evidence scaling, the candidate's own physical ones for terms it lacks (another
     # link model); the candidate's own evidence scales them after its fit.
     base = build_prior(cm, x_reg, replace(options, prior_scale=1.0))
     mean, sigma = base.mean.copy(), base.sigma.copy()
-    idx = {n: i for i, n in enumerate(shared.names)}
     for i, sp in enumerate(lay.specs):
-        j = idx.get(sp.name)
-        if j is not None:
-            key = f"joint:{sp.kind}" if sp.group == "joint" else sp.group
+        if sp.name in shared.layout:
+            j = shared.layout.index(sp.name)
             mean[i] = shared.prior_mean[j]
-            sigma[i] = shared.prior_sigma[j] / shared.prior_factors.get(key, 1.0)
+            factor = shared.prior_factors.get(evidence_group(sp), 1.0)
+            sigma[i] = shared.prior_sigma[j] / factor
     prior = Prior(mean, sigma)
     state = problem.start(shared.keep)
     state = state.but(model=cm, x=x_reg, weights=shared.weights(shared.keep))
@@ -241,7 +240,7 @@ def fit_candidate(
     free = state.free
     w = state.weights
     lm = _warm(shared.lm)
-    candidates = [x_reg] + [_transfer(lay.names, n, v) for n, v in starts]
+    candidates = [x_reg] + [lay.transfer(v, source) for source, v in starts]
     costs = [
         objective(view.evaluations(cm, x, w).r, lm)[0] + _prior_cost(prior, x, free)
         for x in candidates
@@ -264,7 +263,7 @@ def fit_candidate(
         free,
         prior.mean,
         prior.sigma,
-        tuple(lay.names),
+        lay,
     )
     return fit if scale == 1.0 else rescaled(fit, scale)
 
@@ -512,14 +511,6 @@ _STEP_SLACK = 0.5
 def _warm(lm: LMOptions) -> LMOptions:
     """The solver options from a start next to the optimum: little initial damping."""
     return replace(lm, max_iter=max(lm.max_iter, _MAX_ITER), mu0=MU0_WARM)
-
-
-def _transfer(
-    names: tuple[str, ...] | list[str], source: tuple[str, ...], v: Float
-) -> Float:
-    """``v`` (laid out as ``source``) in the layout ``names``; 0 where absent."""
-    idx = {n: i for i, n in enumerate(source)}
-    return np.array([v[idx[n]] if n in idx else 0.0 for n in names])
 
 
 def _active(prior: Prior, free: np.ndarray) -> Prior | None:

@@ -26,10 +26,10 @@ from kinecal.identification._options import (
 )
 from kinecal.identification._problem import Problem, State
 from kinecal.identification._solve import run_lm
-from kinecal.models import CalibrationModel
+from kinecal.models import CalibrationModel, ParamSpec
 from kinecal.typing import Float
 
-__all__ = ["EvidencePriors", "Priors", "build_prior"]
+__all__ = ["EvidencePriors", "Priors", "build_prior", "evidence_group"]
 
 log = logging.getLogger(__name__)
 
@@ -202,12 +202,7 @@ def evidence_prior(
     """
     cm, x, lm = state.model, state.x, state.lm
     fidx = np.flatnonzero(state.free)
-    groups = np.array(
-        [
-            f"joint:{sp.kind}" if sp.group == "joint" else sp.group
-            for sp in (cm.layout.specs[i] for i in fidx)
-        ]
-    )
+    groups = np.array([evidence_group(sp) for sp in (cm.layout.specs[i] for i in fidx)])
     tune = [
         g
         for g in _EVIDENCE_GROUPS
@@ -257,13 +252,15 @@ def evidence_prior(
                     best = (le, f)
             factors[g] = best[1]
     sigma = prior.sigma.copy()
-    all_groups = np.array(
-        [
-            f"joint:{sp.kind}" if sp.group == "joint" else sp.group
-            for sp in cm.layout.specs
-        ]
-    )
+    all_groups = np.array([evidence_group(sp) for sp in cm.layout.specs])
     for g, f in factors.items():
         sel = (all_groups == g) & np.isfinite(sigma)
         sigma[sel] *= f
     return Prior(prior.mean, sigma), factors
+
+
+def evidence_group(spec: ParamSpec) -> str:
+    """The group whose priors the evidence scales together: the joint geometry by kind
+    (``'joint:length'``, ``'joint:angle'``), the others by group (``'ntm'``, ``'load'``,
+    ``'link'``)."""
+    return f"joint:{spec.kind}" if spec.group == "joint" else spec.group

@@ -229,11 +229,11 @@ def select_model(
         for label, spec, scale in runs:
             say("auto", f"{label} (priors x{scale:g})")
             same = fitted.get((label, 1.0))
-            starts = [(shared.names, shared.x)] + [
-                (f.names, f.x) for f in fitted.values() if f.spec != spec
+            starts = [(shared.layout, shared.x)] + [
+                (f.layout, f.x) for f in fitted.values() if f.spec != spec
             ]
             if same is not None:
-                starts.insert(0, (same.names, same.x))
+                starts.insert(0, (same.layout, same.x))
             try:
                 if same is not None and same.spec == spec and scale != 1.0:
                     fit = rescaled(same, scale)  # a variant of a fitted layout
