@@ -317,38 +317,14 @@ def render_calibration_report(
         ),
     ]
     body += _identifiability(ident)
-    rejected = summary.get("rejected_rows", [])
-    if rejected:
-        body.append("<h2>Rejected rows (gross errors, left out of the fit)</h2>")
-        body.append(
-            details(
-                f"all {len(rejected)} rows",
-                table(
-                    ["row (file line)", "error [mm]", "z [-]"],
-                    [
-                        [str(o["row"]), num(o["error_mm"]), ratio(o["z"])]
-                        for o in rejected
-                    ],
-                ),
-                open_=len(rejected) <= 20,
-            )
-        )
-    outliers = summary.get("outliers", [])
-    if outliers:
-        body.append("<h2>Outliers (kept in the data, reported here)</h2>")
-        body.append(
-            details(
-                f"all {len(outliers)} rows",
-                table(
-                    ["row", "error [mm]", "z [-]"],
-                    [
-                        [str(o["row"]), num(o["error_mm"]), ratio(o["z"])]
-                        for o in outliers
-                    ],
-                ),
-                open_=len(outliers) <= 20,
-            )
-        )
+    body += _row_table(
+        summary.get("rejected_rows", []),
+        "Rejected rows (gross errors, left out of the fit)",
+        "row (file line)",
+    )
+    body += _row_table(
+        summary.get("outliers", []), "Outliers (kept in the data, reported here)", "row"
+    )
     body.append("<h2>Figures</h2>")
     body += _figures(summary, poses)
     return page(f"kinecal calibration report: {summary.get('robot')}", "\n".join(body))
@@ -495,3 +471,19 @@ def _jsonable(x: object) -> object:
     if isinstance(x, np.generic):
         return x.item()
     raise TypeError(f"not JSON serialisable: {type(x).__name__}")
+
+
+def _row_table(rows: list[dict[str, Any]], title: str, row_label: str) -> list[str]:
+    """A section listing rows with their error and z (open when 20 or fewer); none for
+    no rows."""
+    if not rows:
+        return []
+    cells = [[str(o["row"]), num(o["error_mm"]), ratio(o["z"])] for o in rows]
+    return [
+        f"<h2>{title}</h2>",
+        details(
+            f"all {len(rows)} rows",
+            table([row_label, "error [mm]", "z [-]"], cells),
+            open_=len(rows) <= 20,
+        ),
+    ]
