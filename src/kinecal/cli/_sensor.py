@@ -17,6 +17,13 @@ _METHOD_HELP = (
     "Stripe extractor: 'ridge' (Hessian ridge detector, any direction) or 'rows' "
     "(the first per-row centroid, near-vertical stripes only; for comparisons)."
 )
+_method_option = click.option(
+    "--method",
+    type=click.Choice(["ridge", "rows"]),
+    default="ridge",
+    show_default=True,
+    help=_METHOD_HELP,
+)
 
 
 @click.group()
@@ -29,13 +36,7 @@ def sensor() -> None:
 @click.option(
     "--out", "out", required=True, type=click.Path(dir_okay=False), help="CENTERS.csv"
 )
-@click.option(
-    "--method",
-    type=click.Choice(["ridge", "rows"]),
-    default="ridge",
-    show_default=True,
-    help=_METHOD_HELP,
-)
+@_method_option
 @click.option(
     "--sigma-px",
     type=float,
@@ -83,13 +84,7 @@ def stripes(
 @click.option(
     "--out", "out", required=True, type=click.Path(dir_okay=False), help="CLOUD.csv"
 )
-@click.option(
-    "--method",
-    type=click.Choice(["ridge", "rows"]),
-    default="ridge",
-    show_default=True,
-    help=_METHOD_HELP,
-)
+@_method_option
 @jobs_option("Threads reading the images and extracting the stripes")
 @click.option("--force", is_flag=True)
 @common_options
