@@ -118,3 +118,46 @@ def test_no_products_no_lift(rng):
         x = cm.nominal.copy()
         r, J = np.zeros((5, 3)), np.zeros((5, 3, cm.size))
         assert lifted_start(cm, x, r, J, np.ones(cm.size, bool), None) is x
+
+
+def test_variable_projection_finds_the_minimum_of_the_bilinear_model(rng):
+    """The manifold step (Eq. T-11) against a general minimiser of the same cost: the
+    lifted quadratic model in ``(x[native], x[lam] x[s])`` plus Gaussian priors."""
+    from scipy.optimize import minimize
+
+    from kinecal.identification._lift import _project
+    from kinecal.identification._lm import Prior
+
+    P = 8
+    native, s_idx = np.arange(6), np.array([6, 7])
+    pairs = [(P + 0, 0, 6), (P + 1, 0, 7), (P + 2, 1, 7)]  # lam 0, 1; s 6, 7
+    scales = rng.uniform(0.5, 2.0, P)
+    x = rng.normal(size=P)
+    sc_l = np.concatenate(
+        [scales[native], [scales[lam] * scales[s] for _, lam, s in pairs]]
+    )
+    z0 = np.concatenate([x[native], [x[lam] * x[s] for _, lam, s in pairs]])
+    B = rng.normal(size=(20, sc_l.size))
+    A, g = B.T @ B, B.T @ rng.normal(size=20)
+    # Priors on some parameters, always on the products' factors: without, the infimum
+    # can lie at infinity (lambda* -> 0, s -> inf), as for a model without them.
+    sigma = np.where(rng.uniform(size=P) < 0.5, rng.uniform(0.5, 3.0, P), np.inf)
+    sigma[[0, 1, 6, 7]] = rng.uniform(0.5, 3.0, 4)
+    pr = Prior(rng.normal(size=P), sigma)
+
+    def cost(xx):
+        zz = np.concatenate([xx[native], [xx[lam] * xx[s] for _, lam, s in pairs]])
+        d = (zz - z0) / sc_l
+        return 0.5 * d @ A @ d + d @ g + pr.cost(xx)
+
+    x1 = x + 0.1 * scales * rng.normal(size=P)
+    got = _project(x, x1, native, s_idx, pairs, scales, A, g, pr, 0.0)
+    ref = minimize(
+        lambda z: cost(x1 + scales * z),
+        np.zeros(P),
+        method="BFGS",
+        options={"gtol": 1e-12, "maxiter": 10_000},
+    )
+    want = x1 + scales * ref.x
+    assert cost(got) <= cost(want) + 1e-9 * abs(cost(want))
+    np.testing.assert_allclose((got - want) / scales, 0.0, atol=1e-5)

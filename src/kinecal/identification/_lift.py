@@ -20,11 +20,9 @@ from __future__ import annotations
 import numpy as np
 
 from kinecal.identification._lm import (
-    LMOptions,
     NormalSource,
     Prior,
     normal_of,
-    solve_lm,
     spd_solve,
 )
 from kinecal.models import CalibrationModel
@@ -121,35 +119,110 @@ def lifted_start(
         lams = x1[[pairs[k][1] for k in ks]]
         if lams @ lams > 0.0:
             x1[i_s] = float(lams @ mu[ks]) / float(lams @ lams)
-    evals, evecs = np.linalg.eigh(A)
-    keep = evals > max(float(evals.max()), 0.0) * 1e-13
-    U = np.sqrt(evals[keep])[:, None] * evecs[:, keep].T  # A = U'U on its range
-    c0 = (evecs[:, keep].T @ g) / np.sqrt(evals[keep])  # so that U'c0 = g
+    s_idx = np.flatnonzero(lifted)
+    tol = 1e-3 * stol * (s0sq if s0sq is not None else 1.0)
+    return _project(x, x1, native, s_idx, pairs, scales, A, g, pr, tol)
 
-    def quadratic(xx: Float, jac: bool) -> tuple[Float, Float | None]:
-        mu_x = np.array([xx[lam] * xx[s] for _, lam, s in pairs])
-        d = (np.concatenate([xx[native], mu_x]) - z0) / sc_l
-        res = (U @ d + c0)[:, None]
-        if not jac:
-            return res, None
-        D = np.zeros((cols.size, P))  # d (lifted, scaled) / d x
-        D[np.arange(native.size), native] = 1.0 / sc_l[: native.size]
-        for k, (_, lam, s) in enumerate(pairs):
-            D[native.size + k, lam] = xx[s] / sc_mu[k]
-            D[native.size + k, s] = xx[lam] / sc_mu[k]
-        return res, (U @ D)[:, None, :]
 
-    fit = solve_lm(
-        quadratic,
-        x1,
-        free,
-        scales,
-        LMOptions(max_iter=200, stol=stol),
-        prior=prior,
-        label="lift",
-        s0sq=s0sq,
-    )
-    return fit.x
+def _project(
+    x: Float,
+    x1: Float,
+    native: np.ndarray,
+    s_idx: np.ndarray,
+    pairs: list[tuple[int, int, int]],
+    scales: Float,
+    A: Float,
+    g: Float,
+    pr: Prior,
+    tol: float,
+) -> Float:
+    """The minimum of the lifted quadratic model ``1/2 dᵀAd + dᵀg`` plus the model's own
+    priors over the ``(lambda*, s)`` manifold, near the link moments of ``x1``.
+
+    ``d`` is the scaled offset from the linearisation point of the lifted coordinates:
+    ``x[native]`` and ``x[lam] x[s]`` of every pair. For fixed link moments ``s`` the
+    model is linear in every other parameter, so those are eliminated exactly (variable
+    projection, Golub & Pereyra 1973, Eq. (T-11)); Newton's method with the exact reduced
+    Hessian then runs on the few ``s`` alone and converges in a few steps, where
+    Levenberg-Marquardt on all parameters crept down the bilinear valley for 40-50
+    (Gauss-Newton drops the valley's curvature, the products' second derivatives).
+    It stops when the next step would lower the cost by at most ``tol``.
+    """
+    n, m, q = native.size, len(pairs), s_idx.size
+    sc_n, sc_s = scales[native], scales[s_idx]
+    pos = {int(i): k for k, i in enumerate(native)}
+    a = np.array([pos[lam] for _, lam, _ in pairs])  # lambda*_j of pair k: u[a[k]]
+    spos = {int(i): k for k, i in enumerate(s_idx)}
+    b = np.array([spos[s] for _, _, s in pairs])  # s of pair k: v[b[k]]
+    lam0 = x[[lam for _, lam, _ in pairs]]
+    mu0 = lam0 * x[[s for _, _, s in pairs]]
+    sc_lam = scales[[lam for _, lam, _ in pairs]]
+    sc_mu = sc_lam * sc_s[b]
+    # Priors in the scaled offsets u = (x[native] - x) / sc, v = (x[s] - x1[s]) / sc.
+    fin_n, fin_s = np.isfinite(pr.sigma[native]), np.isfinite(pr.sigma[s_idx])
+    Pn = np.where(fin_n, (sc_n / pr.sigma[native]) ** 2, 0.0)
+    Ps = np.where(fin_s, (sc_s / pr.sigma[s_idx]) ** 2, 0.0)
+    um = np.where(fin_n, (pr.mean[native] - x[native]) / sc_n, 0.0)
+    vm = np.where(fin_s, (pr.mean[s_idx] - x1[s_idx]) / sc_s, 0.0)
+    Ann, Anm, Amm = A[:n, :n], A[:n, n:], A[n:, n:]
+    rows = np.arange(m)
+
+    def inner(v: Float) -> tuple[float, Float, Float, Float]:
+        """phi(v) = min over u, that u, phi's gradient and its Hessian in v."""
+        s = x1[s_idx] + sc_s * v
+        # d = [u; C u + e0]: the products' rows, linear in u for these s.
+        C = np.zeros((m, n))
+        C[rows, a] = s[b] / sc_s[b]
+        e0 = (lam0 * s[b] - mu0) / sc_mu
+        AC = Anm @ C
+        Luu = Ann + AC + AC.T + C.T @ Amm @ C + np.diag(Pn)
+        rhs = -(g[:n] + C.T @ g[n:] + Anm @ e0 + C.T @ (Amm @ e0)) + Pn * um
+        u = spd_solve(Luu, rhs, rcond=1e-13)
+        d = np.concatenate([u, C @ u + e0])
+        res = A @ d + g  # the gradient of the data part in d
+        lam = lam0 + sc_lam * u[a]
+        Dv = np.zeros((n + m, q))  # d d / d v: only the products' rows
+        Dv[n + rows, b] = lam / sc_lam
+        phi = 0.5 * d @ (A @ d) + d @ g + 0.5 * Pn @ (u - um) ** 2
+        phi += 0.5 * Ps @ (v - vm) ** 2
+        grad = Dv.T @ res + Ps * (v - vm)
+        # Hessian of the joint cost: the v block, and the u-v block with the products'
+        # own second derivative (d^2 d_k / du dv = 1 in these units).
+        Luv = np.concatenate([np.eye(n), C]).T @ (A @ Dv)
+        np.add.at(Luv, (a, b), res[n:])
+        Hvv = Dv.T @ A @ Dv + np.diag(Ps)
+        H = Hvv - Luv.T @ spd_solve(Luu, Luv, rcond=1e-13)  # Eq. (T-11)
+        return float(phi), u, grad, 0.5 * (H + H.T)
+
+    v = np.zeros(q)
+    phi, u, grad, H = inner(v)
+    for _ in range(30):
+        evals, evecs = np.linalg.eigh(H)
+        big = max(float(np.abs(evals).max()), 1e-300)
+        keep = np.abs(evals) > 1e-12 * big
+        if not keep.any():
+            break
+        # Newton's step, with the curvature's sign turned where it is negative (a saddle
+        # is left, not climbed to).
+        c = evecs[:, keep].T @ grad
+        step = -evecs[:, keep] @ (c / np.abs(evals[keep]))
+        pred = -(grad @ step + 0.5 * step @ (H @ step))
+        if not np.isfinite(pred) or pred <= max(tol, 1e-13 * (abs(phi) + 1.0)):
+            break
+        t = 1.0
+        for _ in range(40):  # backtracking (Armijo)
+            trial = inner(v + t * step)
+            if trial[0] <= phi + 1e-4 * t * (grad @ step):
+                break
+            t *= 0.5
+        else:
+            break
+        v = v + t * step
+        phi, u, grad, H = trial
+    out = x.copy()
+    out[native] = x[native] + sc_n * u
+    out[s_idx] = x1[s_idx] + sc_s * v
+    return out
 
 
 def _product_sigma(m1: float, s1: float, m2: float, s2: float) -> float:
