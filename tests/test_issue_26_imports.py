@@ -16,6 +16,7 @@ LAZY = (
     "kinecal",
     "kinecal.identification",
     "kinecal.io",
+    "kinecal.models",
     "kinecal.robot",
     "kinecal.sensor",
 )
@@ -97,3 +98,22 @@ def test_issue_26_the_command_table_is_the_commands_own_help():
             )
         names.add(name)
     assert names == set(cli.list_commands(click.Context(cli)))
+
+
+def test_issue_26_a_calibration_does_not_import_numpy_ma_or_the_ik(tmp_path):
+    """np.median, np.quantile, np.unique and np.isin import numpy.ma on first use (5-10 ms
+    of every command's start); the calibration path uses kinecal._stats instead. Nor does
+    it load the inverse kinematics."""
+    from pathlib import Path
+
+    data = Path(__file__).parent / "data" / "real" / "ur10_mocap.csv"
+    out = tmp_path / "cal"
+    loaded = _modules_after(
+        "from kinecal.cli import main\n"
+        f"args = ['calibrate', {str(data)!r}, '--robot', 'ur10', '--out', {str(out)!r}, "
+        "'--no-report', '-q']\n"
+        "try:\n    main(args)\nexcept SystemExit as e:\n    assert not e.code, e.code"
+    )
+    assert (out / "model.yaml").is_file()
+    assert "kinecal.identification._calibrate" in loaded
+    assert not {"numpy.ma", "kinecal.models._ik_lm"} & loaded

@@ -18,3 +18,16 @@ def test_median_equals_numpy(shape, rng):
 def test_median_of_nothing_is_an_error():
     with pytest.raises(ValueError, match="median of no values"):
         median([])
+
+
+def test_distinct_rows_counts_as_np_unique_does(rng):
+    from kinecal._stats import distinct_rows
+
+    for _ in range(100):
+        n, k = int(rng.integers(0, 40)), int(rng.integers(1, 5))
+        a = rng.integers(0, 3, size=(n, k)).astype(float)
+        assert distinct_rows(a) == np.unique(a, axis=0).shape[0]
+    a = rng.normal(size=(500, 8))
+    assert distinct_rows(np.vstack([a, a[::7]])) == 500
+    with pytest.raises(ValueError, match="2-D"):
+        distinct_rows(np.zeros(3))

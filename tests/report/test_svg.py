@@ -8,9 +8,10 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
+from kinecal._stats import quantiles
 from kinecal.report import _figures as F
 from kinecal.report._format import num, pm, ratio
-from kinecal.report._svg import Figure, colormap, decimate, limits, quantiles, ticks
+from kinecal.report._svg import Figure, colormap, decimate, limits, ticks
 
 NS = "{http://www.w3.org/2000/svg}"
 

@@ -263,13 +263,14 @@ def check_distinct_poses(meas: Any, robot: Any, spec: Any, path: str) -> None:
     pose are one pose): the same rule as for too few rows, on distinct rows."""
     import numpy as np
 
+    from kinecal._stats import distinct_rows
     from kinecal.errors import IdentifiabilityError
     from kinecal.models import CalibrationModel
 
     cols = [meas.q_ctrl, meas.set_index[:, None], meas.marker_index[:, None]]
     if meas.target_index is not None:
         cols.append(meas.target_index[:, None])
-    distinct = int(np.unique(np.hstack(cols), axis=0).shape[0])
+    distinct = distinct_rows(np.hstack(cols))
     if distinct == meas.n:
         return
     size = CalibrationModel(robot, spec).size
@@ -315,6 +316,7 @@ def check_refit_poses(meas: Any, what: tuple[str, ...]) -> None:
     (copies of one pose let the refitted frames absorb every error: an RMS of zero)."""
     import numpy as np
 
+    from kinecal._stats import distinct_rows
     from kinecal.errors import IdentifiabilityError
 
     if not what:
@@ -326,7 +328,7 @@ def check_refit_poses(meas: Any, what: tuple[str, ...]) -> None:
     labels = meas.set_labels or ("",)
     for s, label in enumerate(labels):
         rows = meas.set_index == s
-        distinct = int(np.unique(key[rows], axis=0).shape[0]) if rows.any() else 0
+        distinct = distinct_rows(key[rows])
         if rows.sum() >= 3 and distinct < 3:
             name = f"set {label!r}" if label else "the data"
             raise IdentifiabilityError(

@@ -412,10 +412,11 @@ def _check_distinct(cand: dict[str, Any], n: int, option: str) -> None:
     would be chosen again and again)."""
     import numpy as np
 
+    from kinecal._stats import distinct_rows
     from kinecal.errors import DataError
 
     key = cand["q"] if cand["ti"] is None else np.column_stack([cand["q"], cand["ti"]])
-    distinct = int(np.unique(key, axis=0).shape[0])
+    distinct = distinct_rows(key)
     if distinct < n:
         src = cand["source"]
         where = (

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from kinecal._stats import present
 from kinecal.errors import IdentifiabilityError
 from kinecal.geometry import (
     make_transform,
@@ -265,12 +266,12 @@ def _init_sensor(
         rows = mi == m
         A[rows, :, 12 * m : 12 * m + 9] = kron[rows]
         A[rows, :, 12 * m + 9 : 12 * m + 12] = R_fl[rows]
-    for k in np.unique(key):
+    for k in present(key):
         rows = key == k
         A[rows, :, n_x + 3 * k : n_x + 3 * k + 3] = -np.eye(3)
     b = -o_fl
     used = np.concatenate([np.ones(n_x, bool), np.zeros(n_b, bool)])
-    for k in np.unique(key):
+    for k in present(key):
         used[n_x + 3 * k : n_x + 3 * k + 3] = True
     Au = A.reshape(3 * N, -1)[:, used]
     sol_u, *_ = np.linalg.lstsq(Au, b.reshape(-1), rcond=None)

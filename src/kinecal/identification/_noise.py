@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal._stats import median, present
 from kinecal.identification._diagnostics import Diagnostic
 from kinecal.identification._lm import Prior
 from kinecal.identification._measurements import Measurements
@@ -180,12 +181,12 @@ def _block_groups(
     parts = {kind: np.zeros((S, M, k, k)) for kind, _, _ in kinds}
     cols_of = {kind: cols for kind, cols, _ in kinds}
     cell = meas.set_index * M + meas.marker_index
-    present = np.unique(cell)
+    cells = present(cell)
     for rows, Jb in blk.jacobian_blocks():
         J = Jb[:, :, fidx] * sc
         cb = cell[rows]
         for kind, cols, _ in kinds:
-            for cc in present:
+            for cc in cells:
                 Jg = J[cb == cc][:, cols].reshape(-1, k)
                 if Jg.size:
                     parts[kind][cc // M, cc % M] += Jg.T @ Jg
@@ -193,7 +194,7 @@ def _block_groups(
     def grouped(kind: str, idx: np.ndarray) -> Grouped:
         n_g = int(idx.max()) + 1
         Ns = [np.zeros((k, k)) for _ in range(n_g)]
-        for cc in present:
+        for cc in cells:
             g = int(idx[np.argmax(cell == cc)])  # every row of a cell is in one group
             Ns[g] = Ns[g] + parts[kind][cc // M, cc % M]
         r2 = np.sum(blk.r[:, cols_of[kind]] ** 2, axis=1)
@@ -278,7 +279,7 @@ class NoiseModel:
             lifted=True,
         )
         why = (
-            f"; orientations weighted as {np.degrees(np.median(w.sigma_rot) * best):.3g} "
+            f"; orientations weighted as {np.degrees(median(w.sigma_rot) * best):.3g} "
             f"deg ({best:g}x their noise), which predicts positions best (leave-one-out "
             f"RMS {press[1.0]:.4g} -> {press[best]:.4g} mm)"
         )
@@ -290,9 +291,9 @@ def _noted(state: State, extra: str) -> State:
     noise = state.noise if state.noise is not None else state.weights
     if not state.noise_estimated:
         return state
-    text = f"noise from the residuals (Helmert): positions {np.median(noise.sigma) * 1e3:.3g} mm"
+    text = f"noise from the residuals (Helmert): positions {median(noise.sigma) * 1e3:.3g} mm"
     if noise.sigma_rot is not None:
-        text += f", orientations {np.degrees(np.median(noise.sigma_rot)):.3g} deg"
+        text += f", orientations {np.degrees(median(noise.sigma_rot)):.3g} deg"
     if state.noise_groups:
         text += f" ({', '.join(state.noise_groups)})"
     return state.note(

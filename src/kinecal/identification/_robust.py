@@ -34,6 +34,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal._stats import present, quantiles
 from kinecal.identification._diagnostics import Diagnostic, Outlier
 from kinecal.identification._measurements import Measurements
 from kinecal.identification._options import MU0_WARM
@@ -322,7 +323,7 @@ def residual_structure(
     gathered = 1.0
     if f.any():
         v = V[:, k]
-        lo, hi = np.quantile(v, [1.0 / 3.0, 2.0 / 3.0])
+        lo, hi = quantiles(v, [1.0 / 3.0, 2.0 / 3.0])
         gathered = max(float(np.mean(v[f] >= hi)), float(np.mean(v[f] <= lo)))
     systematic = abs(rho[k]) >= _RHO_SYSTEMATIC and gathered >= _GATHERED
     return Structure(names[k], joints[k], systematic, rho=float(rho[k]))
@@ -530,7 +531,7 @@ def _keep_enough(problem: Problem, reject: np.ndarray) -> np.ndarray:
     meas = problem.meas
     out = reject.copy()
     for idx in (meas.set_index, meas.marker_index):
-        for g in np.unique(idx):
+        for g in present(idx):
             rows = idx == g
             if np.sum(rows & ~out) < 3:
                 out[rows] = False

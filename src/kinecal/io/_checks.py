@@ -27,6 +27,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from kinecal._stats import median, present
 from kinecal.errors import DataError
 from kinecal.geometry import matrix_to_quat_wxyz, quat_wxyz_to_matrix, so3_log
 from kinecal.identification import CalibratedModel, Diagnostic, Measurements
@@ -136,7 +137,7 @@ def _pairs(meas: Measurements) -> tuple[np.ndarray, np.ndarray]:
     """Pairs of rows with the same set and marker: neighbours and half a group apart."""
     group = meas.set_index * len(meas.marker_labels) + meas.marker_index
     a_all, b_all = [], []
-    for g in np.unique(group):
+    for g in present(group):
         idx = np.flatnonzero(group == g)
         for step in {1, max(len(idx) // 2, 1)}:
             a_all.append(idx[:-step])
@@ -162,7 +163,7 @@ def _mismatch_deg(R: np.ndarray, F: np.ndarray, a: np.ndarray, b: np.ndarray) ->
     U, _, Vt = np.linalg.svd(w_nom.T @ w_meas)  # Kabsch without translation
     D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0])
     Q = Vt.T @ D @ U.T  # w_meas ~ Q w_nom
-    return float(np.degrees(np.median(np.linalg.norm(w_meas - w_nom @ Q.T, axis=1))))
+    return float(np.degrees(median(np.linalg.norm(w_meas - w_nom @ Q.T, axis=1))))
 
 
 def quaternion_order(meas: Measurements, robot: RobotDescription) -> Diagnostic | None:
@@ -183,7 +184,8 @@ def quaternion_order(meas: Measurements, robot: RobotDescription) -> Diagnostic 
     a, b = _pairs(meas)
     if a.size < 3:
         return None
-    used, inv = np.unique(np.concatenate([a, b]), return_inverse=True)
+    used = present(np.concatenate([a, b]))
+    inv = np.searchsorted(used, np.concatenate([a, b]))
     a, b = inv[: a.size], inv[a.size :]  # into the rows used
     F = robot.fk_flange(meas.q_ctrl[used])[:, :3, :3]
     R = meas.R_user_cam[used]

@@ -18,9 +18,10 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from kinecal._stats import quantiles
 from kinecal.report._format import e as esc
 from kinecal.report._format import num
-from kinecal.report._svg import COLORS, Figure, colormap, decimate, limits, quantiles
+from kinecal.report._svg import COLORS, Figure, colormap, decimate, limits
 from kinecal.typing import Float
 
 __all__ = [

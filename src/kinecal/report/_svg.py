@@ -30,7 +30,6 @@ __all__ = [
     "colormap",
     "decimate",
     "limits",
-    "quantiles",
     "ticks",
 ]
 
@@ -62,17 +61,6 @@ def colormap(v: ArrayLike, lo: float, hi: float, name: str = "viridis") -> list[
     rgb = np.rint(anchors[k] * (1 - f) + anchors[k + 1] * f).astype(int)
     code = (rgb[..., 0] << 16) | (rgb[..., 1] << 8) | rgb[..., 2]
     return [f"#{c:06x}" for c in np.ravel(code).tolist()]
-
-
-def quantiles(v: ArrayLike, q: Sequence[float]) -> Float:
-    """Linear-interpolation quantiles (np.quantile without its numpy.ma import)."""
-    s = np.sort(np.ravel(np.asarray(v, float)))
-    if s.size == 0:
-        return np.full(len(q), np.nan)
-    pos = np.asarray(q, float) * (s.size - 1)
-    i = np.floor(pos).astype(int)
-    j = np.minimum(i + 1, s.size - 1)
-    return s[i] + (pos - i) * (s[j] - s[i])
 
 
 def decimate(values: ArrayLike, max_points: int = 5000) -> Int:
