@@ -110,3 +110,30 @@ def test_wpr_output_of_zero_pose():
     np.testing.assert_allclose(
         np.degrees(matrix_to_wpr(T[:3, :3]))[1], -90.0, atol=1e-9
     )
+
+
+def test_builtin_json_is_the_yaml_files_parsed():
+    """The commands read the built-in robots from data/builtin.json; after a change to a
+    YAML file, `python -m kinecal.robot._builtin` writes it again."""
+    import json
+
+    from kinecal.robot import _builtin
+
+    stored = json.loads(_builtin._JSON.read_text(encoding="utf-8"))["robots"]
+    assert stored == _builtin.parsed_yaml_documents(), (
+        "robot/data/builtin.json is out of date: run python -m kinecal.robot._builtin"
+    )
+
+
+def test_a_builtin_robot_loads_without_pyyaml():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\nfrom kinecal.robot import load_robot\n"
+        "r = load_robot('fanuc-lrmate200id')\nassert r.n_joints == 6\n"
+        "print('yaml' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "False"

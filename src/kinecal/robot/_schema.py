@@ -30,7 +30,6 @@ from typing import Any
 
 import numpy as np
 
-from kinecal import _yaml as yaml
 from kinecal.errors import ConfigError
 from kinecal.geometry import euler_transform, transform_to_euler
 from kinecal.robot._description import JointSpec, RobotDescription, SelfWeightSpec
@@ -338,6 +337,8 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
 
 def load_robot_file(path: str | Path) -> RobotDescription:
     """Load and validate a robot YAML file (see module docstring for the schema)."""
+    from kinecal import _yaml as yaml
+
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8")
