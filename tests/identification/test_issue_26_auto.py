@@ -16,6 +16,7 @@ from kinecal.identification import (
     select_model,
 )
 from kinecal.identification._autofit import (
+    _every_row,
     _FoldStep,
     fit_candidate,
     shared_fit,
@@ -60,7 +61,7 @@ def test_issue_26_a_folds_newton_step_lands_on_its_optimum(poses_300, label):
     )
     problem, cm = fit.problem()
     prior = Prior(fit.prior_mean, fit.prior_sigma)
-    step = _FoldStep.at(problem, cm, fit, prior)
+    step = _FoldStep.at(problem, cm, fit, prior, *_every_row(problem, cm, fit))
     assert step is not None
     folds = make_folds(poses_300, 5, 0)
     accepted = 0
@@ -72,7 +73,7 @@ def test_issue_26_a_folds_newton_step_lands_on_its_optimum(poses_300, label):
             model=cm, x=fit.x, weights=shared.weights(train)
         )
         view = problem.on(state)
-        x, _ = step.fold(view, state, held, fit.free)
+        x, _, every = step.fold(lambda v=view, s=state: (v, s), held, fit.free)
         if x is None:
             continue  # the fold's LM takes over (tested through the scores)
         accepted += 1
@@ -87,6 +88,11 @@ def test_issue_26_a_folds_newton_step_lands_on_its_optimum(poses_300, label):
         assert c_step - c_lm <= 0.5, (label, c_step, c_lm)
         # The step moved the parameters: the fold's fit is not the candidate's.
         assert not np.allclose(x, fit.x)
+        # Every row's residuals at the step's solution: the training rows' are those
+        # of the training problem.
+        np.testing.assert_allclose(
+            every.r[train], view.evaluations(cm, x, state.weights).r, rtol=1e-12
+        )
     assert accepted >= 3, accepted
 
 

@@ -28,6 +28,7 @@ held-out RMS of every candidate is that of calibrating each fold from nominal to
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -43,7 +44,7 @@ from kinecal.identification._metrics import Metrics, metrics_from_errors
 from kinecal.identification._options import MU0_WARM
 from kinecal.identification._priors import EvidencePriors, build_prior, evidence_group
 from kinecal.identification._problem import Problem, State, run_stages
-from kinecal.identification._residuals import Weights
+from kinecal.identification._residuals import ResidualBlock, Weights
 from kinecal.identification._solve import run_lm
 from kinecal.identification._stages import Identify
 from kinecal.identification._uncertainty import Uncertainty
@@ -306,7 +307,8 @@ def run_folds(
     prior = Prior(fit.prior_mean, fit.prior_sigma)
     held = np.asarray([s.group in ("base", "cam") for s in cm.layout.specs])
     labels = [s.label for s in cm.layout.specs]
-    step = _FoldStep.at(problem, cm, fit, prior)
+    whole, w_all = _every_row(problem, cm, fit)
+    step = _FoldStep.at(problem, cm, fit, prior, whole, w_all)
     scores: list[Score] = []
     for t in test:
         mask = np.zeros(meas.n, bool)
@@ -327,17 +329,23 @@ def run_folds(
                 )
             )
             continue
-        state = problem.start(train).but(
-            model=cm, x=fit.x, weights=shared.weights(train)
-        )
-        view = problem.on(state)
-        x, blk = step.fold(view, state, mask, free) if step else (None, None)
+
+        def training(train: np.ndarray = train) -> tuple[Problem, State]:
+            """The problem and start on the training rows (made only when needed: the
+            LM, or a second Newton step)."""
+            state = problem.start(train).but(
+                model=cm, x=fit.x, weights=shared.weights(train)
+            )
+            return problem.on(state), state
+
+        x, x0, every = step.fold(training, mask, free) if step else (None, None, None)
         if x is None:  # the LM, lifted, from the step (or from the candidate's fit)
+            view, state = training()
             _, res = run_lm(
                 view,
                 state,
                 "auto: fold",
-                fit.x if blk is None else blk,
+                fit.x if x0 is None else x0,
                 free,
                 lm,
                 _active(prior, free),
@@ -345,17 +353,42 @@ def run_folds(
                 lifted=True,
             )
             x = res.x
-        ev = view.evaluations(cm, x, state.weights)
-        trained = metrics_from_errors(ev.raw_position, ev.raw_rotation)
-        status = ["estimated" if f else "unidentifiable" for f in fit.free]
-        cal = CalibratedModel(
-            cm, x, np.full(cm.size, np.nan), status, problem.reference_payload_kg
-        )
-        test_meas = meas.subset(mask)
-        if by_set:
-            test_meas = _relabel_sets(test_meas)
-        scores.append((trained, evaluate(cal, test_meas, refit_user=by_set).metrics))
+        if every is None:  # every row at the fold's solution: both sides' errors
+            every = whole.evaluations(cm, x, w_all)
+        e_p, e_r = every.raw_position, every.raw_rotation
+        trained = metrics_from_errors(e_p[train], None if e_r is None else e_r[train])
+        if by_set:  # a held-out set: its user frame refitted first
+            status = ["estimated" if f else "unidentifiable" for f in fit.free]
+            cal = CalibratedModel(
+                cm, x, np.full(cm.size, np.nan), status, problem.reference_payload_kg
+            )
+            test_meas = _relabel_sets(meas.subset(mask))
+            held_out = evaluate(cal, test_meas, refit_user=True).metrics
+        else:
+            held_out = metrics_from_errors(
+                e_p[mask], None if e_r is None else e_r[mask]
+            )
+        scores.append((trained, held_out))
     return scores
+
+
+def _every_row(
+    problem: Problem, cm: CalibrationModel, fit: CandidateFit
+) -> tuple[Problem, Weights]:
+    """The candidate's problem on every row, the rejected ones too (a held-out set has
+    them), and its weights (1 on the rejected rows, whose whitened residuals are not
+    used): one evaluation there at a fold's solution gives the training cost and both
+    sides' errors."""
+    shared = fit.shared
+    w_all = Weights(
+        np.where(shared.keep, shared.sigma, 1.0),
+        None
+        if shared.sigma_rot is None
+        else np.where(shared.keep, shared.sigma_rot, 1.0),
+    )
+    every = np.ones(fit.meas.n, bool)
+    state = problem.start(every).but(model=cm, x=fit.x, weights=w_all)
+    return problem.on(state), w_all
 
 
 class _FoldStep:
@@ -374,9 +407,12 @@ class _FoldStep:
         J: Float,
         r: Float,
         keep: np.ndarray,
+        whole: Problem,
+        w_all: Weights,
     ) -> None:
         P = cm.size
         self.cm, self.x, self.prior = cm, fit.x, prior
+        self.keep, self.whole, self.w_all = keep, whole, w_all
         self.cols = np.flatnonzero(fit.free)
         self.s = cm.layout.scales[self.cols]
         c = r.shape[1]
@@ -404,10 +440,17 @@ class _FoldStep:
 
     @classmethod
     def at(
-        cls, problem: Problem, cm: CalibrationModel, fit: CandidateFit, prior: Prior
+        cls,
+        problem: Problem,
+        cm: CalibrationModel,
+        fit: CandidateFit,
+        prior: Prior,
+        whole: Problem,
+        w_all: Weights,
     ) -> _FoldStep | None:
         """The step's factors at the candidate's fit (None for a robust loss, or large
-        data whose Jacobian is not held: the folds take the LM)."""
+        data whose Jacobian is not held: the folds take the LM). ``whole``: the problem
+        on every row with weights ``w_all``, where a step is checked."""
         if fit.shared.lm.loss != "linear":
             return None
         keep = fit.shared.keep
@@ -419,16 +462,21 @@ class _FoldStep:
         )
         if blk.J is None:
             return None
-        return cls(cm, fit, prior, blk.J, blk.r, keep)
+        return cls(cm, fit, prior, blk.J, blk.r, keep, whole, w_all)
 
     def fold(
-        self, view: Problem, state: State, held_out: np.ndarray, free: np.ndarray
-    ) -> tuple[Float | None, Float | None]:
-        """``(x, None)``: the fold's solution; ``(None, x0)``: Newton did not settle,
-        the LM goes on from ``x0`` (None: from the candidate's fit)."""
+        self,
+        training: Callable[[], tuple[Problem, State]],
+        held_out: np.ndarray,
+        free: np.ndarray,
+    ) -> tuple[Float | None, Float | None, ResidualBlock | None]:
+        """``(x, None, every)``: the fold's solution and every row's residuals there;
+        ``(None, x0, None)``: Newton did not settle, the LM goes on from ``x0`` (None:
+        from the candidate's fit). ``training()``: the problem on the training rows."""
         rows = self.pos[held_out & (self.pos >= 0)]
         train = np.ones(self.r.shape[0], bool)
         train[rows] = False
+        train_all = self.keep & ~held_out  # the same rows, among every row
         use = free[self.cols]
         # The training rows' Hessian and gradient: every row's less the held-out ones'.
         Jh, rh = self.J[rows], self.r[rows]
@@ -442,32 +490,33 @@ class _FoldStep:
         cost = 0.5 * float(np.sum(self.r[train] ** 2)) + self.prior.cost(x)
         for it in range(_NEWTON_STEPS):
             if it:  # Hessian and gradient at the new point, on the training rows
+                view, state = training()
                 blk = view.evaluations(
                     self.cm, x, state.weights, jacobian=True, products=True
                 )
                 if blk.J is None:
-                    return None, x
+                    return None, x, None
                 H, g = self._hessian(blk.J, blk.r)
             A = H[np.ix_(use, use)]
             A[np.diag_indices_from(A)] += self.P[use]
             gu = g[use] + self._prior_gradient(x)[use]
             d = -spd_solve(A, gu, rcond=1e-14)  # Eq. (T-10)
             if not np.all(np.isfinite(d)):
-                return None, x if it else None
+                return None, x if it else None, None
             predicted = -(gu @ d + 0.5 * d @ A @ d)
             x1 = x.copy()
             x1[self.cols[use]] += d * self.s[use]
-            r1 = view.evaluations(self.cm, x1, state.weights).r
-            cost1 = 0.5 * float(np.sum(r1**2)) + self.prior.cost(x1)
+            every = self.whole.evaluations(self.cm, x1, self.w_all)
+            cost1 = 0.5 * float(np.sum(every.r[train_all] ** 2)) + self.prior.cost(x1)
             as_predicted = (
                 abs((cost - cost1) - predicted) <= 0.1 * abs(predicted) + _STEP_SLACK
             )
             if as_predicted:  # the quadratic model holds: x1 is its optimum
-                return x1, None
+                return x1, None, every
             if cost1 >= cost:
-                return None, x if it else None
+                return None, x if it else None, None
             x, cost = x1, cost1
-        return None, x
+        return None, x, None
 
     def _hessian(self, J: Float, r: Float) -> tuple[Float, Float]:
         """Gauss-Newton Hessian with the link pairs' exact terms, and the gradient, of

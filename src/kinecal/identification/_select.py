@@ -178,7 +178,7 @@ def select_model(
     options: CalibrationOptions | None = None,
     k: int = 5,
     seed: int = 0,
-    prior_scales: tuple[float, ...] = (0.3, 1.0, 3.0),
+    prior_scales: tuple[float, ...] | None = None,
     hayati: tuple[int, ...] = (),
     ntm_joints: tuple[int, ...] | None = None,
     progress: object | None = None,
@@ -189,7 +189,11 @@ def select_model(
     """Choose a model by k-fold cross-validation and the one-standard-error rule.
 
     Each layout is cross-validated with priors at strength 1; the best layout is then
-    tried with its priors scaled by ``prior_scales`` (sigma times the scale). ``jobs`` > 1
+    tried with its priors scaled by ``prior_scales`` (sigma times the scale). By default
+    (None) that is 0.3 and 3 only when the priors are not scaled by their evidence
+    (``options.adapt_priors`` off): the evidence already sets each group's strength, in
+    finer steps and per group, and the two variants cost a fifth of the selection while
+    they cross-validate alike (2000 twin poses: held-out RMS equal to 1e-5 mm). ``jobs`` > 1
     runs the folds in that many worker processes (the same result). The folds are those
     of :func:`~kinecal.identification.make_folds` (sets, poses or ``groups``).
 
@@ -286,6 +290,8 @@ def select_model(
             "measure more poses or give a fixed --model."
         )
     best = min(cands, key=lambda c: c.cv_rms_mm)
+    if prior_scales is None:
+        prior_scales = (1.0,) if opts.adapt_priors else (0.3, 1.0, 3.0)
     if opts.priors != "none":  # the best layout with other prior strengths
         run([(best.label, best.spec, s) for s in prior_scales if s != 1.0])
     best = min(cands, key=lambda c: c.cv_rms_mm)
