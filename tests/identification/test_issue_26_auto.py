@@ -96,6 +96,54 @@ def test_issue_26_a_folds_newton_step_lands_on_its_optimum(poses_300, label):
     assert accepted >= 3, accepted
 
 
+def test_issue_26_an_overshooting_fold_step_is_damped(poses_300, monkeypatch):
+    """A Newton step that overshoots (here made 30 times too long) raises the training
+    cost: a damped step on the same normal equations takes its place and the Newton
+    steps go on from there, to the optimum a Levenberg-Marquardt run reaches."""
+    import kinecal.identification._autofit as autofit
+
+    opts = CalibrationOptions()
+    layouts = dict(candidate_specs(ROBOT, poses_300))
+    shared = shared_fit(ROBOT, poses_300, layouts["full"], opts)
+    fit = fit_candidate(
+        ROBOT,
+        poses_300,
+        layouts["full"],
+        1.0,
+        opts,
+        shared,
+        [(shared.layout, shared.x)],
+    )
+    problem, cm = fit.problem()
+    prior = Prior(fit.prior_mean, fit.prior_sigma)
+    step = _FoldStep.at(problem, cm, fit, prior, *_every_row(problem, cm, fit))
+    held = np.zeros(poses_300.n, bool)
+    held[make_folds(poses_300, 5, 0).test[0]] = True
+    train = shared.keep & ~held
+    state = problem.start(train).but(model=cm, x=fit.x, weights=shared.weights(train))
+    view = problem.on(state)
+    calls = []
+    plain = autofit.spd_solve
+
+    def overshoot(A, b, rcond=None):
+        calls.append(1)
+        d = plain(A, b, rcond=rcond)
+        return 30.0 * d if len(calls) == 1 else d  # the first (Newton) step only
+
+    monkeypatch.setattr(autofit, "spd_solve", overshoot)
+    x, _, _ = step.fold(lambda: (view, state), held, fit.free)
+    monkeypatch.undo()
+    assert len(calls) > 2 and x is not None  # damped, then Newton again
+    lm = replace(shared.lm, max_iter=200, stol=1e-8)
+    _, res = run_lm(view, state, "check", fit.x, fit.free, lm, prior, lifted=True)
+    c_step, c_lm = (
+        0.5 * float(np.sum(view.evaluations(cm, v, state.weights).r ** 2))
+        + prior.cost(v)
+        for v in (x, res.x)
+    )
+    assert c_step - c_lm <= 0.5, (c_step, c_lm)
+
+
 def test_issue_26_auto_runs_in_worker_processes_alike(poses_300, one_blas_thread):
     a = select_model(ROBOT, poses_300.subset(np.arange(120)), k=4, jobs=1)
     b = select_model(ROBOT, poses_300.subset(np.arange(120)), k=4, jobs=2)

@@ -513,10 +513,39 @@ class _FoldStep:
             )
             if as_predicted:  # the quadratic model holds: x1 is its optimum
                 return x1, None, every
-            if cost1 >= cost:
-                return None, x if it else None, None
+            if cost1 >= cost:  # too long a step along a weakly determined direction
+                damped = self._damped(A, gu, use, x, cost, train_all)
+                if damped is None:
+                    return None, x if it else None, None
+                x1, cost1 = damped
             x, cost = x1, cost1
         return None, x, None
+
+    def _damped(
+        self,
+        A: Float,
+        g: Float,
+        use: np.ndarray,
+        x: Float,
+        cost: float,
+        train_all: np.ndarray,
+    ) -> tuple[Float, float] | None:
+        """A Levenberg-Marquardt step on the same normal equations (damping 1e-3 to 10
+        of their diagonal): the point and its cost, or None when none lowers the cost.
+        A fold whose full step overshoots (3 of 40 on 2000 twin poses) then goes on with
+        Newton steps instead of a whole LM run."""
+        diag = np.diag(A).copy()
+        for mu in (1e-3, 1e-2, 1e-1, 1.0, 10.0):
+            d = -spd_solve(A + mu * np.diag(diag), g, rcond=1e-14)
+            if not np.all(np.isfinite(d)):
+                return None
+            x1 = x.copy()
+            x1[self.cols[use]] += d * self.s[use]
+            r1 = self.whole.evaluations(self.cm, x1, self.w_all).r[train_all]
+            cost1 = 0.5 * float(np.sum(r1**2)) + self.prior.cost(x1)
+            if cost1 < cost:
+                return x1, cost1
+        return None
 
     def _hessian(self, J: Float, r: Float) -> tuple[Float, Float]:
         """Gauss-Newton Hessian with the link pairs' exact terms, and the gradient, of
