@@ -29,7 +29,7 @@ held-out RMS of every candidate is that of calibrating each fold from nominal to
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -163,10 +163,29 @@ class CandidateFit:
     prior_mean: Float
     prior_sigma: Float
     layout: ParameterLayout  # the candidate's
+    # The fit's own problem, model and weights, kept in this process (not sent to a
+    # worker): its evaluations hold the Jacobian at ``x`` the folds start from.
+    made: tuple[Problem, CalibrationModel, Weights] | None = field(
+        default=None, compare=False, repr=False
+    )
 
     def problem(self) -> tuple[Problem, CalibrationModel]:
         """The candidate's problem and model (:func:`_problem`)."""
+        if self.made is not None:
+            return self.made[0], self.made[1]
         return _problem(self.robot, self.meas, self.spec, self.options, self.shared)
+
+    def weights(self) -> Weights:
+        """The weights of the kept rows, those the fit was made with."""
+        if self.made is not None:
+            return self.made[2]
+        return self.shared.weights(self.shared.keep)
+
+    def __getstate__(self) -> dict[str, object]:
+        return {**self.__dict__, "made": None}
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        self.__dict__.update(state)
 
 
 def _problem(
@@ -265,6 +284,7 @@ def fit_candidate(
         prior.mean,
         prior.sigma,
         lay,
+        (problem, cm, state.weights),
     )
     return fit if scale == 1.0 else rescaled(fit, scale)
 
@@ -454,9 +474,8 @@ class _FoldStep:
         if fit.shared.lm.loss != "linear":
             return None
         keep = fit.shared.keep
-        state = problem.start(keep).but(
-            model=cm, x=fit.x, weights=fit.shared.weights(keep)
-        )
+        state = problem.start(keep).but(model=cm, x=fit.x, weights=fit.weights())
+        # (the fit's own evaluations: the Jacobian at its solution, when kept there)
         blk = problem.on(state).evaluations(
             cm, fit.x, state.weights, jacobian=True, products=True
         )

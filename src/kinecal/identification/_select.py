@@ -230,6 +230,9 @@ def select_model(
         """Fit the runs on the kept rows, then cross-validate them (the folds of each
         run in a worker process when ``jobs`` > 1)."""
         tasks: list[tuple[Run, CandidateFit | ValueError]] = []
+        done_here: list[
+            list[Score]
+        ] = []  # serial: each run's folds right after its fit
         for label, spec, scale in runs:
             say("auto", f"{label} (priors x{scale:g})")
             same = fitted.get((label, 1.0))
@@ -243,13 +246,19 @@ def select_model(
                     fit = rescaled(same, scale)  # a variant of a fitted layout
                 else:
                     fit = fit_candidate(robot, meas, spec, scale, opts, shared, starts)
+                if jobs <= 1:  # while the fit's own evaluations are at hand
+                    done_here.append(
+                        _folds_of((fit, folds.test, folds.always_train, folds.by_set))
+                    )
+                fit = replace(fit, made=None)  # (its Jacobians need not stay)
                 fitted.setdefault((label, scale), fit)
                 tasks.append(((label, spec, scale), fit))
             except IdentifiabilityError as exc:  # too few poses for this candidate
                 tasks.append(((label, spec, scale), exc))
         fits = [f for _, f in tasks if isinstance(f, CandidateFit)]
         per_run = iter(
-            parallel_map(
+            done_here
+            or parallel_map(
                 _folds_of,
                 [(f, folds.test, folds.always_train, folds.by_set) for f in fits],
                 jobs,
