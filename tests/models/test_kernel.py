@@ -297,3 +297,24 @@ def test_a_kernel_built_from_other_source_is_not_used():
     assert r.stdout.startswith(
         "False kinecal's compiled model kernel (stale.so) does not"
     )
+
+
+def test_the_packed_tables_of_one_point_serve_only_their_own_model(rng, monkeypatch):
+    """The kernel keeps the real tables of the last point packed. A copy of the model
+    with other reference rotations shares the kernel's tables: at the same parameters it
+    must not get the first model's frames, and a point changed in place is packed anew."""
+    monkeypatch.setenv("KINECAL_KERNEL", "c")
+    from kinecal.geometry import euler_zyx_to_matrix
+
+    cm = CalibrationModel(FANUC, ModelSpec.preset("full"))
+    other = cm.with_references(euler_zyx_to_matrix(np.array([[0.3, 0.2, -0.1]])))
+    inp = _inputs(FANUC, rng, 50)
+    p = cm.nominal.copy()
+    a = cm.evaluate(p, inp).p_user.copy()
+    b = other.evaluate(p, inp).p_user.copy()  # same p, same tables: another model
+    assert np.abs(a - b).max() > 1e-3
+    p[cm.layout.index("base.x")] += 0.01  # the same array, changed in place
+    c = cm.evaluate(p, inp).p_user
+    np.testing.assert_allclose(c - a, np.tile([0.01, 0.0, 0.0], (50, 1)), atol=1e-12)
+    monkeypatch.setenv("KINECAL_KERNEL", "numpy")
+    np.testing.assert_allclose(other.evaluate(cm.nominal, inp).p_user, b, atol=1e-12)

@@ -82,6 +82,20 @@ def euler_axes(R_ref: Float, rwp: Float) -> Float:
     return np.stack([R_ref[:, 2], (R_ref @ Rz)[:, 1], (R_ref @ Rzy)[:, 0]], axis=1)
 
 
+def _frame_axes(R_ref: Float, rwp: Float) -> Float:
+    """:func:`euler_axes` of K frames at once: ``R_ref`` (K, 3, 3), ``rwp`` (K, 3)."""
+    r, w = rwp[:, 0], rwp[:, 1]
+    cr, sr, cw, sw = np.cos(r), np.sin(r), np.cos(w), np.sin(w)
+    # The y axis of Rz(r) and the x axis of Rz(r) Ry(w), turned by R_ref.
+    e_w = np.stack([-sr, cr, np.zeros_like(r)], axis=1)
+    e_p = np.stack([cr * cw, sr * cw, -sw], axis=1)
+    out = np.empty((len(rwp), 3, 3))
+    out[:, :, 0] = R_ref[:, :, 2]
+    out[:, :, 1] = np.einsum("kij,kj->ki", R_ref, e_w)
+    out[:, :, 2] = np.einsum("kij,kj->ki", R_ref, e_p)
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class ModelDefinition:
     """A calibration model's parameters and the index tables its evaluators read.
@@ -435,17 +449,11 @@ class ModelDefinition:
 
     def base_axes(self, params: Float) -> Float:
         """:func:`euler_axes` of every user frame, (S, 3, 3)."""
-        v = params[self.base_idx]
-        return np.stack(
-            [euler_axes(self.R_ref_base[s], v[s, 3:]) for s in range(len(v))]
-        )
+        return _frame_axes(self.R_ref_base, params[self.base_idx][:, 3:])
 
     def cam_axes(self, params: Float) -> Float:
         """:func:`euler_axes` of every cam frame, (M, 3, 3) (with the cam rotation)."""
-        v = params[self.cam_idx]
-        return np.stack(
-            [euler_axes(self.R_ref_cam[m], v[m, 3:]) for m in range(len(v))]
-        )
+        return _frame_axes(self.R_ref_cam, params[self.cam_idx][:, 3:])
 
     # ------------------------------------------------------------------ poses alone
     def coupled(self, inputs: ModelInputs) -> tuple[Float, Float, Float]:

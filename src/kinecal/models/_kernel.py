@@ -29,7 +29,7 @@ import os
 import threading
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -114,6 +114,13 @@ class KernelTables:
     link: slice
     ntm: slice
     x_sign: float
+    # The real tables of the last parameters packed: a solver evaluates the Jacobian at
+    # the point it evaluated the residuals at just before (half of its evaluations).
+    # (Models that share these tables, with other reference rotations, have their own
+    # definition: it is part of the key.)
+    last: list[tuple[ModelDefinition, bytes, np.ndarray]] = field(
+        default_factory=list, compare=False
+    )
 
 
 def tables(defn: ModelDefinition) -> KernelTables | None:
@@ -231,6 +238,18 @@ def _pack(
     ints = static.ints.copy()
     for name, value in (("c", c), ("K", K), ("jacobian", int(jacobian))):
         ints[_FIELDS.index(name)] = value
+    key = np.asarray(p, np.float64).tobytes()
+    last = static.last[:1]  # (another thread may replace it meanwhile)
+    if last and last[0][0] is defn and last[0][1] == key:
+        return ints, last[0][2]
+    reals = _reals(static, defn, p)
+    reals.setflags(write=False)
+    static.last[:] = [(defn, key, reals)]
+    return ints, reals
+
+
+def _reals(static: KernelTables, defn: ModelDefinition, p: Float) -> np.ndarray:
+    """The kernel's real tables for parameters ``p``."""
 
     rows = defn.rows(p)  # (n, 5): offset, d, a, alpha, beta (Eq. 10)
     row_table = np.column_stack(
@@ -271,7 +290,7 @@ def _pack(
         p[static.ntm],
         np.array([static.x_sign]),
     )
-    return ints, np.concatenate([np.ravel(t) for t in reals])
+    return np.concatenate([np.ravel(t) for t in reals])
 
 
 # Threads of one evaluation: up to kinecal._cpu.kernel_threads() (one per CPU, 1 in worker
