@@ -15,12 +15,8 @@ from kinecal.identification import (
     make_folds,
     select_model,
 )
-from kinecal.identification._autofit import (
-    _every_row,
-    _FoldStep,
-    fit_candidate,
-    shared_fit,
-)
+from kinecal.identification._autofit import fit_candidate, shared_fit
+from kinecal.identification._autofolds import _every_row, _FoldStep
 from kinecal.identification._lm import Prior
 from kinecal.identification._solve import run_lm
 from kinecal.robot import load_robot
@@ -100,7 +96,7 @@ def test_issue_26_an_overshooting_fold_step_is_damped(poses_300, monkeypatch):
     """A Newton step that overshoots (here made 30 times too long) raises the training
     cost: a damped step on the same normal equations takes its place and the Newton
     steps go on from there, to the optimum a Levenberg-Marquardt run reaches."""
-    import kinecal.identification._autofit as autofit
+    import kinecal.identification._autofolds as autofit
 
     opts = CalibrationOptions()
     layouts = dict(candidate_specs(ROBOT, poses_300))

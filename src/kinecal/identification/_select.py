@@ -25,9 +25,9 @@ from kinecal.identification._autofit import (
     Score,
     fit_candidate,
     rescaled,
-    run_folds,
     shared_fit,
 )
+from kinecal.identification._autofolds import run_folds
 from kinecal.identification._calibrate import CalibrationOptions, spec_for
 from kinecal.identification._crossval import CrossValidation, make_folds
 from kinecal.identification._measurements import Measurements
