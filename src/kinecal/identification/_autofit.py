@@ -256,7 +256,8 @@ def fit_candidate(
     free = state.free
     w = state.weights
     lm = _warm(shared.lm)
-    candidates = [x_reg] + [lay.transfer(v, source) for source, v in starts]
+    # (the registered start only without a fit: a fitted one is far closer)
+    candidates = [lay.transfer(v, source) for source, v in starts] or [x_reg]
     costs = [
         objective(view.evaluations(cm, x, w).r, lm)[0] + _prior_cost(prior, x, free)
         for x in candidates

@@ -8,6 +8,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from kinecal._stats import present as used
 from kinecal.errors import IdentifiabilityError
 from kinecal.identification._autofit import CandidateFit, Score, _active, _warm
 from kinecal.identification._calibrated import CalibratedModel
@@ -45,8 +46,8 @@ def run_folds(
         mask &= ~always_train
         train = shared.keep & ~mask
         # Frames of sets and markers without a training row are held.
-        present = {meas.set_labels[i] for i in np.unique(meas.set_index[train])}
-        present |= {meas.marker_labels[i] for i in np.unique(meas.marker_index[train])}
+        present = {meas.set_labels[i] for i in used(meas.set_index[train])}
+        present |= {meas.marker_labels[i] for i in used(meas.marker_index[train])}
         free = fit.free & ~(held & np.array([lb not in present for lb in labels]))
         c, n_train = meas.components, int(train.sum())
         if n_train * c <= cm.size:  # as a calibration on these rows would refuse
