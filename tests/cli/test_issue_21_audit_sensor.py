@@ -46,6 +46,36 @@ def test_issue_21_audit_camera_found_in_too_few_images_names_the_folder(
     assert "calibrate_camera" not in last
 
 
+def test_planes_chessboard_found_in_too_few_views_names_the_folder(capsys, tmp_path):
+    """calibrate-planes: the folder of the views the board was not found in (the
+    --chessboard folder, or the target poses' folder), and the board looked for."""
+    from kinecal.io import write_image
+
+    blank = np.full((40, 50), 90, np.uint8)
+    views, poses = tmp_path / "views", tmp_path / "poses"
+    write_image(views / "view_00.png", blank)
+    for k in range(3):
+        write_image(poses / f"pose_{k}" / "board.png", blank)
+        write_image(poses / f"pose_{k}" / "plane_000.png", blank)
+    out = tmp_path / "s.yaml"
+    res = run_kinecal(
+        capsys, "sensor", "calibrate-planes", poses, "--chessboard", views,
+        "--out", out, "-q", "--jobs", "1",
+    )  # fmt: skip
+    _bad(res, str(views), "found in 0 of 1 camera views", "--board 10x7")
+    cam = tmp_path / "cam.yaml"
+    cam.write_text(
+        "camera: {width: 50, height: 40, fx: 100.0, fy: 100.0, u0: 25.0, v0: 20.0,"
+        " k1: 0.0, k2: 0.0, k3: 0.0, p1: 0.0, p2: 0.0}\n"
+    )
+    res = run_kinecal(
+        capsys, "sensor", "calibrate-planes", poses, "--camera", cam,
+        "--out", out, "-q", "--jobs", "1",
+    )  # fmt: skip
+    _bad(res, str(poses), "found at 0 of 3 target poses", "--board 10x7")
+    assert not out.exists()
+
+
 def test_issue_21_audit_stripes_tiny_image_and_sigma(capsys, tmp_path):
     from kinecal.io import write_image
 

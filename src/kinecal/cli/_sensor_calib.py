@@ -340,18 +340,22 @@ def calibrate_planes_cmd(
     # Images are read when searched or extracted, on the worker threads, and dropped.
     cb: list[Path | None] = [*cb_files]
     pb: list[Path | None] = [*boards]
-    res = calibrate_sensor(
-        _LazyImages(cb, read_image),
-        tgt,
-        _LazyImages(pb, read_image),
-        [_LazyImages([s.get(i) for i in range(m)], read_image) for s in sets],
-        n_planes=m,
-        camera=cam,
-        model=model,
-        k3=k3,
-        detector=detector,
-        jobs=jobs,
-    )
+    try:
+        res = calibrate_sensor(
+            _LazyImages(cb, read_image),
+            tgt,
+            _LazyImages(pb, read_image),
+            [_LazyImages([s.get(i) for i in range(m)], read_image) for s in sets],
+            n_planes=m,
+            camera=cam,
+            model=model,
+            k3=k3,
+            detector=detector,
+            jobs=jobs,
+        )
+    except DataError as exc:  # which folder, and which board was looked for
+        where = chessboard if "camera views" in str(exc) else folder
+        raise DataError(f"{where}: {exc} (--board {board})") from None
     for k in sorted(set(range(len(pose_dirs))) - set(res.plane_poses)):
         click.echo(
             f"warning: {boards[k]}: chessboard not found; pose skipped", err=True
