@@ -4,6 +4,8 @@ record, messages without the file. In-process, on one small kinematic calibratio
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -98,6 +100,29 @@ def test_issue_21_audit_unclosed_fanuc_position(cal, capsys, tmp_path):
     )
     _bad(res, "audit.ls", "line 5", "P[99] is not closed", "line 6")
     assert not out.exists()
+
+
+def test_compensate_out_named_for_another_kind_is_refused(cal, capsys, tmp_path):
+    """A FANUC program in, --out c.csv: the program was written under a CSV's name."""
+    import shutil
+
+    data = Path(__file__).resolve().parents[1] / "data" / "programs"
+    prog = tmp_path / "pick.ls"
+    shutil.copy(data / "pick_demo.ls", prog)
+    m = cal / "model.yaml"
+    for out, needles in (
+        ("c.csv", ["--out", "c.csv", "fanuc-ls program", "as .ls"]),
+        ("c.script", ["--out", "c.script", "fanuc-ls program", "as .ls"]),
+    ):
+        res = run_kinecal(
+            capsys, "compensate", prog, "--model", m, "--out", tmp_path / out, "-q"
+        )
+        _bad(res, *needles, code=2)
+        assert not (tmp_path / out).exists()
+    res = run_kinecal(
+        capsys, "compensate", prog, "--model", m, "--out", tmp_path / "c.ls", "-q"
+    )
+    assert res.code == 0, str(res)
 
 
 def _urdf(tmp_path, joints: str):
