@@ -154,6 +154,7 @@ def _circle(n=200, noise=0.0, rng=None):
     ("name", "match"),
     [
         ("collinear", "on a line"),
+        ("one point", "all 300 points are the same point"),
         ("circle", "on a plane"),
         ("coplanar", "on a plane"),
         ("noisy circle", "plane within their noise"),
@@ -166,6 +167,7 @@ def test_issue_21_degenerate_clouds_are_refused(name, match):
     rng = np.random.default_rng(3)
     P = {
         "collinear": np.outer(np.linspace(0, 1, 300), [1.0, 2.0, 3.0]) * 1e-2,
+        "one point": np.tile([0.011, -0.007, 0.13], (300, 1)),
         "circle": _circle(),
         "coplanar": np.column_stack(
             [rng.uniform(-0.01, 0.01, (500, 2)), np.full(500, 0.12)]

@@ -294,6 +294,11 @@ def _check_shape(Q: Float) -> None:
     """Refuse clouds on a line or a plane (exactly: to 1e-7 of their extent, the
     resolution of the scatter matrix's eigenvalues)."""
     s = _spread(Q)
+    if not s[0] > 1e-12 * float(np.abs(Q).max()):  # every point the same (to rounding)
+        raise DataError(
+            f"all {Q.shape[1]} points are the same point: a sphere is not determined; "
+            "expected points spread over a sphere cap"
+        )
     if s[1] <= 1e-7 * s[0]:
         raise DataError(
             "the points lie on a line: a sphere is not determined; expected points "
