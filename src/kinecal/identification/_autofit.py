@@ -12,7 +12,8 @@ rejection decided on all rows is.
 Each candidate is then fitted on the kept rows with those weights, from the best of the
 fits before it (:func:`fit_candidate`: the largest candidate's, or a smaller one's,
 transferred by parameter name; the lowest objective wins), with its own identifiability
-and its own evidence scaling of the priors; other prior strengths (only without the
+and its own evidence scaling of the priors (its folds fit with them, from that fit);
+other prior strengths (only without the
 evidence scaling) refit the best layout from its solution (:func:`rescaled`). Each
 fold's training rows are fitted from the candidate's solution (:mod:`._autofolds`): a
 Newton step with the normal equations of every kept row less the held-out rows' (Eq.
@@ -268,7 +269,7 @@ def fit_candidate(
     # the optimum the LM crawls along that valley; the lifted start solves it.
     state = state.but(prior=prior, lm=lm)
     _, res = run_lm(view, state, label, x0, free, lm, _active(prior, free), lifted=True)
-    state = EvidencePriors()(view, state.but(x=res.x))
+    state = EvidencePriors(refit=False)(view, state.but(x=res.x))
     prior = state.prior or prior
     fit = CandidateFit(
         robot,

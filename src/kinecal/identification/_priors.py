@@ -167,6 +167,9 @@ class EvidencePriors:
     when a scale changed, fit again with them (every free parameter)."""
 
     name: str = "stage 3: all (evidence priors)"
+    # False: only the scaled priors, the parameters as they are (``--model auto``'s
+    # folds then fit with them from there).
+    refit: bool = True
 
     def __call__(self, problem: Problem, state: State) -> State:
         prior = state.active_prior()
@@ -175,7 +178,7 @@ class EvidencePriors:
         lm3 = replace(state.lm, max_iter=max(state.lm.max_iter, 200))
         prior, chosen = evidence_prior(problem, state, prior)
         state = state.but(prior=prior, prior_factors=chosen)
-        if any(f != 1.0 for f in chosen.values()):
+        if self.refit and any(f != 1.0 for f in chosen.values()):
             log.info("prior scales from the evidence: %s", chosen)
             state, res = run_lm(
                 problem, state, self.name, state.x, state.free, lm3, prior, lifted=True
