@@ -13,9 +13,9 @@ Each candidate is then fitted on the kept rows with those weights, from the best
 fits before it (:func:`fit_candidate`: the largest candidate's, or a smaller one's,
 transferred by parameter name; the lowest objective wins), with its own identifiability
 and its own evidence scaling of the priors (its folds fit with them, from that fit);
-other prior strengths (only without the
-evidence scaling) refit the best layout from its solution (:func:`rescaled`). Each
-fold's training rows are fitted from the candidate's solution (:mod:`._autofolds`): a
+other prior strengths (only without the evidence scaling) refit the best layout from
+its solution (:func:`rescaled`). Each fold's training rows are fitted from the
+candidate's solution (:mod:`._autofolds`): a
 Newton step with the normal equations of every kept row less the held-out rows' (Eq.
 (T-10)), kept when the training cost falls as its quadratic model says, otherwise up to
 two more (a step that raises the cost damped first) and then the lifted

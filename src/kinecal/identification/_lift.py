@@ -56,10 +56,10 @@ def lifted_start(
     free : (P,) bool, the estimated parameters.
     prior : Prior or None
     row_weights : (N,) square roots of robust row weights, or None.
-    stol, s0sq : the statistical stop of the small bilinear fit at the end
-        (:class:`LMOptions`) and the data's variance of unit weight it compares with:
-        the start need not be closer to that fit's optimum than the stage's own LM
-        would resolve. 0 (default): to convergence.
+    stol, s0sq : the stage's statistical stop (:class:`~._lm.LMOptions`) and the data's
+        variance of unit weight: the small bilinear problem at the end stops when its
+        next step would lower the cost by less than ``1e-3 stol s0sq``, far below what
+        the stage's own LM resolves. 0 (default): to round-off.
 
     Returns
     -------

@@ -230,9 +230,8 @@ def select_model(
         """Fit the runs on the kept rows, then cross-validate them (the folds of each
         run in a worker process when ``jobs`` > 1)."""
         tasks: list[tuple[Run, CandidateFit | ValueError]] = []
-        done_here: list[
-            list[Score]
-        ] = []  # serial: each run's folds right after its fit
+        # Serially, each run's folds right after its fit.
+        done_here: list[list[Score]] = []
         for label, spec, scale in runs:
             say("auto", f"{label} (priors x{scale:g})")
             same = fitted.get((label, 1.0))
