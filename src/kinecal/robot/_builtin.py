@@ -42,7 +42,12 @@ def _documents() -> dict[str, Any]:
 
 @cache
 def _load_builtin(name: str) -> RobotDescription:
-    return robot_from_dict(_documents()[name], source=name)
+    doc = _documents().get(name)
+    if doc is None:  # a YAML file newer than builtin.json: read it
+        from kinecal import _yaml as yaml
+
+        doc = yaml.load((_DATA / f"{name}.yaml").read_text(encoding="utf-8"))
+    return robot_from_dict(doc, source=name)
 
 
 def parsed_yaml_documents() -> dict[str, Any]:
