@@ -9,13 +9,13 @@ model (the weights) and the priors with their widths after the evidence scaling.
 are the hyperparameters of the comparison: a handful of numbers from every row, as a
 rejection decided on all rows is.
 
-Each candidate is then fitted on the kept rows with those weights, from the best of the
-fits before it (:func:`fit_candidate`: the largest candidate's, or a smaller one's,
-transferred by parameter name; the lowest objective wins), with its own identifiability
-and its own evidence scaling of the priors (its folds fit with them, from that fit);
-other prior strengths (only without the evidence scaling) refit the best layout from
-its solution (:func:`rescaled`). Each fold's training rows are fitted from the
-candidate's solution (:mod:`._autofolds`): a
+Each candidate then starts on the kept rows with those weights from the best of the
+points before it (:func:`fit_candidate`: the largest candidate's solution or another
+candidate's point, transferred by parameter name; the lowest objective wins; the lifted
+start where it has link terms), with its own identifiability and its own evidence
+scaling of the priors; it is not fitted on every row itself. Other prior strengths (only
+without the evidence scaling) refit the best layout from its point (:func:`rescaled`).
+Each fold's training rows are fitted from the candidate's point (:mod:`._autofolds`): a
 Newton step with the normal equations of every kept row less the held-out rows' (Eq.
 (T-10)), kept when the training cost falls as its quadratic model says, otherwise up to
 two more (a step that raises the cost damped first) and then the lifted
@@ -43,7 +43,7 @@ from kinecal.identification._options import MU0_WARM
 from kinecal.identification._priors import EvidencePriors, build_prior, evidence_group
 from kinecal.identification._problem import Problem, run_stages
 from kinecal.identification._residuals import Weights
-from kinecal.identification._solve import run_lm
+from kinecal.identification._solve import _lift, run_lm
 from kinecal.identification._stages import Identify
 from kinecal.identification._uncertainty import Uncertainty
 from kinecal.models import CalibrationModel, ModelSpec, ParameterLayout
@@ -147,8 +147,9 @@ def shared_fit(
 
 @dataclass(frozen=True)
 class CandidateFit:
-    """A candidate fitted on the kept rows, and what its folds need (sent to a worker
-    process: everything in it can be pickled)."""
+    """A candidate's point on the kept rows (:func:`fit_candidate`; fitted only for the
+    largest candidate and the prior-strength variants), and what its folds need (sent
+    to a worker process: everything in it can be pickled)."""
 
     robot: RobotDescription
     meas: Measurements
@@ -208,11 +209,12 @@ def fit_candidate(
     shared: Shared,
     starts: list[tuple[ParameterLayout, Float]],
 ) -> CandidateFit:
-    """Fit one candidate on the kept rows with the shared weights, from the
-    lowest-objective of ``starts`` (layouts and values, transferred by name; the
-    registered start too): its own identifiability, the shared priors before their
-    evidence scaling and then its own evidence scaling; ``scale`` != 1 widens the
-    result's priors that many times and fits again (:func:`rescaled`).
+    """One candidate's point on the kept rows with the shared weights, where its folds
+    start: the lowest-objective of ``starts`` (layouts and values, transferred by name;
+    the registered start only without any), lifted where the candidate has link terms;
+    its own identifiability, the shared priors before their evidence scaling and its
+    own evidence scaling there. ``scale`` != 1 widens the priors that many times and
+    fits (:func:`rescaled`). The largest candidate's point is its calibration.
 
     Raises
     ------
@@ -257,19 +259,23 @@ def fit_candidate(
     free = state.free
     w = state.weights
     lm = _warm(shared.lm)
-    # (the registered start only without a fit: a fitted one is far closer)
-    candidates = [lay.transfer(v, source) for source, v in starts] or [x_reg]
+    # The lowest-objective start (each distinct one once; the registered start only
+    # without a fit: a fitted one is far closer).
+    unique = {x.tobytes(): x for x in (lay.transfer(v, source) for source, v in starts)}
+    candidates = list(unique.values()) or [x_reg]
     costs = [
         objective(view.evaluations(cm, x, w).r, lm)[0] + _prior_cost(prior, x, free)
         for x in candidates
     ]
     x0 = candidates[int(np.argmin(costs))]
-    label = f"auto: {spec.name}"
-    # The link moments enter as products with the compliances: from a start beside
-    # the optimum the LM crawls along that valley; the lifted start solves it.
+    # The candidate is not fitted here: its folds' Newton steps fit it (Eq. (T-10)), from
+    # this start. Where it has link terms the start is the lifted one: the link moments
+    # enter as products with the compliances, and from a start without them the folds
+    # would crawl along that valley.
     state = state.but(prior=prior, lm=lm)
-    _, res = run_lm(view, state, label, x0, free, lm, _active(prior, free), lifted=True)
-    state = EvidencePriors(refit=False)(view, state.but(x=res.x))
+    if any(free[a] and free[b] for a, b in cm.link_products):
+        x0 = _lift(view, cm, x0, free, lm, w, _active(prior, free))
+    state = EvidencePriors(refit=False)(view, state.but(x=x0))
     prior = state.prior or prior
     fit = CandidateFit(
         robot,

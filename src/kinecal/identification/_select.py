@@ -199,8 +199,8 @@ def select_model(
 
     Work is shared (:mod:`._autofit`): one calibration of the largest candidate on
     every row decides the gross errors, the weights and the priors' widths for all;
-    each candidate is fitted on the kept rows from the best fit before it, and each of
-    its folds from that fit (the folds' fits go to the worker processes).
+    each candidate starts on the kept rows from the best point before it, and each of
+    its folds is fitted from there (the folds' fits go to the worker processes).
     """
     opts = options or CalibrationOptions()
     say = progress if callable(progress) else (lambda stage, detail: None)
