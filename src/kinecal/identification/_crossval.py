@@ -141,7 +141,8 @@ def make_folds(
         )
     # Units in the order they first appear, so data whose rows are all different poses
     # fold exactly as rows do.
-    first = np.array([np.flatnonzero(g == u)[0] for u in units])
+    labels, first_row = np.unique(g, return_index=True)  # (a loop over the units
+    first = first_row[np.searchsorted(labels, units)]  # was quadratic in the rows)
     units = units[np.argsort(first)]
     perm = np.random.default_rng(seed).permutation(units.size)
     test = [
