@@ -145,8 +145,11 @@ class _FoldStep:
         self.keep, self.whole, self.w_all = keep, whole, w_all
         self.cols = np.flatnonzero(fit.free)
         self.s = cm.layout.scales[self.cols]
-        c = r.shape[1]
-        self.J = (J[:, :, self.cols] * self.s).reshape(-1, c, self.cols.size)
+        # Parameter-major (k, c, N) as the model gives them: products over all rows
+        # without a copy, and the held-out rows gathered contiguously (np.take).
+        Jt = J.transpose(2, 1, 0)  # (P', c, N)
+        self.Jt = Jt[self.cols] * self.s[:, None, None]
+        self.rt = np.ascontiguousarray(r.T)  # (c, N)
         # The link terms are bilinear (lambda*_j s_k, Eq. 24-26): the cost's exact
         # Hessian adds, for each free pair, sum(r * d2r / dlambda ds), and d2r / dlambda
         # ds is the pair's product column (to first order in the deflection).
@@ -158,12 +161,11 @@ class _FoldStep:
         ]
         self.pairs = np.array([(i, j) for _, i, j in pairs], np.intp).reshape(-1, 2)
         self.pair_index = np.array([k for k, _, _ in pairs], np.intp)
-        self.Jp = J[:, :, P + self.pair_index]
+        self.Jpt = Jt[P + self.pair_index]
         self.pair_scale = self.s[self.pairs[:, 0]] * self.s[self.pairs[:, 1]]
         self.r = r
-        self.A = _gram(self.J)
-        self.g = _flat(self.J).T @ r.ravel()
-        self.t = (_flat(self.Jp).T @ r.ravel()) * self.pair_scale
+        self.A, self.g = _normal(self.Jt, self.rt)
+        self.t = _flat(self.Jpt) @ self.rt.ravel() * self.pair_scale
         self.P = prior.precision[self.cols] * self.s**2
         self.pos = np.full(keep.size, -1)
         self.pos[keep] = np.arange(int(keep.sum()))
@@ -208,11 +210,12 @@ class _FoldStep:
         train_all = self.keep & ~held_out  # the same rows, among every row
         use = free[self.cols]
         # The training rows' Hessian and gradient: every row's less the held-out ones'.
-        Jh, rh = self.J[rows], self.r[rows]
-        H = self.A - _gram(Jh)
-        g = self.g - _flat(Jh).T @ rh.ravel()
+        rh = np.take(self.rt, rows, axis=1)
+        A_h, g_h = _normal(np.take(self.Jt, rows, axis=2), rh)
+        H, g = self.A - A_h, self.g - g_h
         if self.pairs.size:
-            t = self.t - (_flat(self.Jp[rows]).T @ rh.ravel()) * self.pair_scale
+            t_h = _flat(np.take(self.Jpt, rows, axis=2)) @ rh.ravel()
+            t = self.t - t_h * self.pair_scale
             H[self.pairs[:, 0], self.pairs[:, 1]] += t
             H[self.pairs[:, 1], self.pairs[:, 0]] += t
         x = self.x
@@ -279,14 +282,15 @@ class _FoldStep:
     def _hessian(self, J: Float, r: Float) -> tuple[Float, Float]:
         """Gauss-Newton Hessian with the link pairs' exact terms, and the gradient, of
         the data rows ``J``, ``r`` (scaled coordinates)."""
-        Js = J[:, :, self.cols] * self.s
-        H = _gram(Js)
+        Jt = J.transpose(2, 1, 0)  # (P', c, N)
+        rt = np.ascontiguousarray(r.T)
+        H, g = _normal(Jt[self.cols] * self.s[:, None, None], rt)
         if self.pairs.size:
-            Jp = J[:, :, self.cm.size + self.pair_index]
-            t = (_flat(Jp).T @ r.ravel()) * self.pair_scale
+            t = _flat(Jt[self.cm.size + self.pair_index]) @ rt.ravel()
+            t *= self.pair_scale
             H[self.pairs[:, 0], self.pairs[:, 1]] += t
             H[self.pairs[:, 1], self.pairs[:, 0]] += t
-        return H, _flat(Js).T @ r.ravel()
+        return H, g
 
     def _prior_gradient(self, x: Float) -> Float:
         """The prior's gradient at ``x`` over the free columns (scaled coordinates)."""
@@ -295,15 +299,16 @@ class _FoldStep:
         return dev * self.prior.precision[c] * self.s
 
 
-def _flat(J: Float) -> Float:
-    """(N, c, P) as (N c, P)."""
-    return J.reshape(J.shape[0] * J.shape[1], J.shape[2])
+def _flat(Jt: Float) -> Float:
+    """A parameter-major Jacobian (k, c, N) as (k, c N) (no copy when contiguous)."""
+    return Jt.reshape(Jt.shape[0], Jt.shape[1] * Jt.shape[2])
 
 
-def _gram(J: Float) -> Float:
-    """``J^T J`` of an (N, c, P) Jacobian (BLAS)."""
-    f = _flat(J)
-    return f.T @ f
+def _normal(Jt: Float, rt: Float) -> tuple[Float, Float]:
+    """``Jᵀ J`` and ``Jᵀ r`` of a parameter-major Jacobian (k, c, N) and residuals
+    (c, N) (BLAS)."""
+    f = _flat(Jt)
+    return f @ f.T, f @ rt.ravel()
 
 
 # Newton steps a fold may take before the LM takes over.
