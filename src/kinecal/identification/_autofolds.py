@@ -236,6 +236,8 @@ class _FoldStep:
             if not np.all(np.isfinite(d)):
                 return None, x if it else None, None
             predicted = -(gu @ d + 0.5 * d @ A @ d)
+            if it and predicted <= _STEP_SLACK:  # converged at x, which a step reached
+                return x, None, self.whole.evaluations(self.cm, x, self.w_all)
             x1 = x.copy()
             x1[self.cols[use]] += d * self.s[use]
             every = self.whole.evaluations(self.cm, x1, self.w_all)
