@@ -179,3 +179,31 @@ def test_sequential_plan_adds_poses_to_a_calibration(run_cli, twin_files, tmp_pa
         "--candidates", str(twin_files / "cand.csv"), "--out", str(tmp_path / "x.csv"),
     )  # fmt: skip
     assert res.returncode == 2 and "--add N" in res.stderr
+
+
+def test_sequential_plan_checks_the_measurements_of_its_data(
+    run_cli, twin_files, tmp_path
+):
+    """--data with measurement columns is read as measurements (a text cell in z_mm was
+    accepted: only the joints were read); a file of joints alone is still a pose list."""
+    model = twin_files / "cal" / "model.yaml"
+    lines = (twin_files / "first.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    z = head.index("z_mm")
+    row = lines[3].split(",")
+    row[z] = "abc"
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join([lines[0], *lines[1:3], ",".join(row), *lines[4:]]) + "\n")
+    base = ["plan", "--model", str(model), "--add", "4", "--candidates"]
+    base += [str(twin_files / "cand.csv"), "-q"]
+    res = run_cli(*base, "--data", str(bad), "--out", str(tmp_path / "a.csv"))
+    assert res.returncode != 0 and not (tmp_path / "a.csv").exists()
+    last = res.stderr.strip().splitlines()[-1]
+    assert "bad.csv" in last and "line 4" in last and "z_mm" in last, res.stderr
+    joints = tmp_path / "joints.csv"
+    jcols = [i for i, h in enumerate(head) if h.endswith("_deg") and h[0] == "j"]
+    joints.write_text(
+        "\n".join(",".join(r.split(",")[i] for i in jcols) for r in lines) + "\n"
+    )
+    res = run_cli(*base, "--data", str(joints), "--out", str(tmp_path / "b.csv"))
+    assert res.returncode == 0, res.stderr

@@ -464,9 +464,19 @@ def _run(kw: dict[str, Any], say: Progress) -> None:
         files[kw["save_candidates"]] = "\n".join(lines) + "\n"
     measured = measured_ti = None
     if cal is not None and kw["data_path"]:
-        _, _, measured, measured_ti = _read_poses(
+        table, _, measured, measured_ti = _read_poses(
             kw["data_path"], robot, labels, bool(kw["allow_out_of_limits"])
         )
+        if {"x_mm", "xc_mm"} & set(table.header):  # measurements: checked as such
+            from kinecal.io import read_measurements
+
+            read_measurements(
+                kw["data_path"],
+                robot,
+                env["targets"],
+                allow_out_of_limits=bool(kw["allow_out_of_limits"]),
+                check=False,
+            )
     n = kw["poses"] or kw["add_n"]
     if n > cand["q"].shape[0]:
         raise click.BadParameter(
