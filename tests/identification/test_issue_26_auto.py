@@ -151,3 +151,27 @@ def test_issue_26_auto_on_too_few_poses_is_a_clear_identifiability_error(poses_3
 
     with pytest.raises(IdentifiabilityError, match="measure more poses"):
         select_model(ROBOT, poses_300.subset(np.arange(11)), k=5)
+
+
+def test_issue_26_the_chosen_largest_candidate_is_its_shared_calibration(poses_300):
+    """When the largest candidate wins, the command's calibration of the choice is the
+    selection's shared calibration, finished: the same numbers as calibrating it anew,
+    under the chosen name; with other options, or another choice, there is none."""
+    from dataclasses import replace as dc_replace
+
+    from kinecal.identification import calibrate
+
+    opts = CalibrationOptions()
+    sel = select_model(ROBOT, poses_300, k=5, options=opts)
+    assert sel.spec.name == "auto:full"  # the twin's link and transmission terms
+    got = sel.calibration(opts)
+    assert got is not None
+    ref = calibrate(ROBOT, poses_300, sel.spec, opts)
+    assert got.calibrated.info["model"] == ref.calibrated.info["model"] == "auto:full"
+    np.testing.assert_array_equal(got.params, ref.params)
+    np.testing.assert_array_equal(got.std, ref.std)
+    assert got.calibrated.status == ref.calibrated.status
+    assert [d.code for d in got.diagnostics] == [d.code for d in ref.diagnostics]
+    assert sel.calibration(dc_replace(opts, prior_scale=2.0)) is None
+    small = dc_replace(sel, spec=candidate_specs(ROBOT, poses_300)[0][1])
+    assert small.calibration(opts) is None

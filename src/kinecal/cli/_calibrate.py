@@ -222,6 +222,7 @@ def calibrate(
             f"series needs one); its revolute joints: {', '.join(map(str, revolute))}.",
             param_hint="--ntm-joints",
         )
+    sel = None
     if model_name == "auto":
         from kinecal.identification import select_model
 
@@ -250,7 +251,11 @@ def calibrate(
             robot, meas, model_name, hayati=hay, ntm_joints=nj, ntm_order=ntm_order
         )
     check_distinct_poses(meas, robot, spec, data)
-    result = run_calibration(robot, meas, spec, opts, progress=say)
+    # --model auto: when the largest candidate won, its calibration on every row is
+    # the selection's shared one (finished), not run again.
+    result = (sel.calibration(opts) if sel is not None else None) or (
+        run_calibration(robot, meas, spec, opts, progress=say)
+    )
     if opts.priors != "none" and meas.n <= _NOMINAL_CHECK_ROWS:
         # A wrong nominal robot (or units): the residual of the nominal robot far above
         # the calibrated noise, and priors holding parameters the data reject (one more

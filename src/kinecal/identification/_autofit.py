@@ -30,18 +30,23 @@ held-out RMS of every candidate is that of calibrating each fold from nominal to
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from kinecal.identification._calibrate import CalibrationOptions, default_stages
+from kinecal.identification._calibrate import (
+    CalibrationOptions,
+    CalibrationResult,
+    default_stages,
+)
 from kinecal.identification._diagnose import Diagnose
 from kinecal.identification._lm import LMOptions, Prior, objective
 from kinecal.identification._measurements import Measurements
 from kinecal.identification._metrics import Metrics
 from kinecal.identification._options import MU0_WARM
 from kinecal.identification._priors import EvidencePriors, build_prior, evidence_group
-from kinecal.identification._problem import Problem, run_stages
+from kinecal.identification._problem import Problem, State, run_stages
 from kinecal.identification._residuals import Weights
 from kinecal.identification._solve import _lift, run_lm
 from kinecal.identification._stages import Identify
@@ -55,6 +60,7 @@ __all__ = [
     "Shared",
     "fit_candidate",
     "rescaled",
+    "shared_calibration",
     "shared_fit",
 ]
 
@@ -95,6 +101,17 @@ class Shared:
     R_ref_cam: Float
     prior_factors: dict[str, float]
     spec: ModelSpec | None = None  # the largest candidate's layout
+    # Its calibration's problem and final state, kept in this process (not sent to a
+    # worker): when the largest candidate is chosen, the calibration of the choice.
+    made: tuple[Problem, State, float] | None = field(
+        default=None, compare=False, repr=False
+    )
+
+    def __getstate__(self) -> dict[str, object]:
+        return {**self.__dict__, "made": None}
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        self.__dict__.update(state)
 
     def weights(self, rows: np.ndarray) -> Weights:
         """The weights of the rows ``rows`` (a mask over every row)."""
@@ -111,6 +128,7 @@ def shared_fit(
 ) -> Shared:
     """Calibrate ``spec`` on every row (rejection included, no uncertainty) and keep
     what the candidates share."""
+    t0 = time.perf_counter()
     problem = Problem.make(robot, meas, spec, options)
     stages = [
         s for s in default_stages(options) if not isinstance(s, (Uncertainty, Diagnose))
@@ -142,6 +160,26 @@ def shared_fit(
         cm.R_ref_cam,
         dict(state.prior_factors),
         spec,
+        (problem, state, time.perf_counter() - t0),
+    )
+
+
+def shared_calibration(shared: Shared, spec: ModelSpec) -> CalibrationResult | None:
+    """The calibration of ``spec`` (the largest candidate, under another name) from the
+    shared fit: its last stages (uncertainty, diagnosis) on the shared state, what
+    :func:`~kinecal.identification.calibrate` of ``spec`` with the same options would
+    compute from the start. None when the shared fit is not at hand (a worker
+    process) or ``spec`` is another layout."""
+    if shared.made is None or shared.spec is None:
+        return None
+    if replace(spec, name=shared.spec.name) != shared.spec:
+        return None
+    problem, state, seconds = shared.made
+    t0 = time.perf_counter()
+    state = state.but(model=state.model.with_spec(spec))  # the chosen name
+    state = run_stages(problem, state, (Uncertainty(), Diagnose()))
+    return CalibrationResult.from_state(
+        problem, state, seconds + time.perf_counter() - t0
     )
 
 

@@ -23,12 +23,18 @@ from kinecal.identification._autofit import (
     CandidateFit,
     Run,
     Score,
+    Shared,
     fit_candidate,
     rescaled,
+    shared_calibration,
     shared_fit,
 )
 from kinecal.identification._autofolds import run_folds
-from kinecal.identification._calibrate import CalibrationOptions, spec_for
+from kinecal.identification._calibrate import (
+    CalibrationOptions,
+    CalibrationResult,
+    spec_for,
+)
 from kinecal.identification._crossval import CrossValidation, make_folds
 from kinecal.identification._measurements import Measurements
 from kinecal.models import ModelSpec
@@ -61,6 +67,19 @@ class Selection:
     candidates: list[Candidate] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     folds: int = 0
+    shared: Shared | None = field(default=None, repr=False, compare=False)
+
+    def calibration(self, options: CalibrationOptions) -> CalibrationResult | None:
+        """The calibration of the choice with ``options`` when the largest candidate at
+        prior strength 1 won and the selection ran with the same options (its shared
+        calibration, finished: the same numbers as
+        :func:`~kinecal.identification.calibrate`); None otherwise."""
+        if self.shared is None or self.prior_scale != 1.0:
+            return None
+        made = self.shared.made
+        if made is None or made[0].options != options:
+            return None
+        return shared_calibration(self.shared, self.spec)
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -321,4 +340,4 @@ def select_model(
                 "the extra terms fit noise."
             )
     spec = replace(chosen.spec, name=f"auto:{chosen.label}")
-    return Selection(spec, chosen.prior_scale, cands, warnings, n_folds)
+    return Selection(spec, chosen.prior_scale, cands, warnings, n_folds, shared)
