@@ -28,7 +28,6 @@ from kinecal._stats import median
 from kinecal.errors import IdentifiabilityError
 from kinecal.identification._diagnostics import Diagnostic, StageLog
 from kinecal.identification._identifiability import (
-    analyse_identifiability,
     identifiability_from_normal,
 )
 from kinecal.identification._lm import LMOptions, spd_solve
@@ -143,16 +142,10 @@ class Identify:
         )
         tol = {"drop_tol": opts.drop_tol, "weak_tol": opts.weak_tol}
         every = np.ones(cm.size, bool)
-        if blk.J is not None:
-            ident = analyse_identifiability(
-                blk.J.transpose(2, 1, 0).reshape(cm.size, -1).T,  # (m, P), no copy
-                cm.layout,
-                every,
-                **tol,
-            )
-        else:  # large data: from the normal matrix, summed by blocks of poses
-            A, _ = blk.normal(np.arange(cm.size), np.ones(cm.size))
-            ident = identifiability_from_normal(A, cm.layout, every, **tol)
+        # From the normal matrix: of the held Jacobian, or summed by blocks of poses
+        # for large data (the analysis is the same either way).
+        A, _ = blk.normal(np.arange(cm.size), np.ones(cm.size))
+        ident = identifiability_from_normal(A, cm.layout, every, **tol)
         found = _few_targets(problem, cm)
         specs = cm.layout.specs
         lost = tuple(
