@@ -106,6 +106,7 @@ def _plain(x: Any) -> Any:
 _MAX_MM = 1e6  # lengths beyond 1 km are typing errors (and break the numerics)
 _CANDIDATES = ("kinematic", "ntm", "rfcm", "full", "load", "load+link")
 _NAMES = (*_CANDIDATES, "custom", "truth")
+_MAX_LABEL = 80
 _SPEC_KEYS = {
     "name",
     "cam_rotation",
@@ -130,6 +131,20 @@ _TOP_KEYS = {
     "frames_mm_deg",
     "info",
 }
+
+
+def _model_name_ok(name: Any) -> bool:
+    """A model's name is a label (the terms are the other keys of the section): one of
+    :data:`_NAMES`, or ``auto:`` and the label of the candidate ``--model auto`` chose
+    (any one-line printable text: the candidates' labels depend on the robot)."""
+    if not isinstance(name, str):
+        return False
+    if name in _NAMES:
+        return True
+    label = name[5:] if name.startswith("auto:") else ""
+    return (
+        0 < len(label) <= _MAX_LABEL and label.isprintable() and label.strip() == label
+    )
 
 
 def _bool(s: dict[str, Any], key: str, default: bool | None, where: str) -> bool:
@@ -171,13 +186,10 @@ def _spec(s: Any, n_joints: int, where: str) -> ModelSpec:
             f"{where}: unknown key {unknown[0]!r} (allowed: {', '.join(sorted(_SPEC_KEYS))})."
         )
     name = s.get("name", "custom")
-    base = name[5:] if isinstance(name, str) and name.startswith("auto:") else name
-    if not isinstance(name, str) or base not in (
-        _CANDIDATES if base != name else _NAMES
-    ):
+    if not _model_name_ok(name):
         raise ConfigError(
             f"{where}.name: unknown model {name!r}; expected one of {', '.join(_NAMES)} "
-            "(or auto:<candidate>)."
+            "(or auto:<candidate label>)."
         )
     order = s.get("ntm_order", 2)
     if not isinstance(order, int) or isinstance(order, bool) or not 1 <= order <= 8:
