@@ -269,6 +269,8 @@ def test_too_few_poses_is_a_clear_error(run_cli, exp2_files, tmp_path):
         str(f),
         "--robot",
         "fanuc-lrmate200id",
+        "--model",
+        "full",
         "--out",
         str(tmp_path / "o"),
     )
@@ -276,6 +278,18 @@ def test_too_few_poses_is_a_clear_error(run_cli, exp2_files, tmp_path):
     assert (
         "10 poses give 30 residuals" in res.stderr and "measure at least" in res.stderr
     )
+    # The default (auto) cross-validates: it says how many poses its folds need.
+    res = run_cli(
+        "calibrate",
+        str(f),
+        "--robot",
+        "fanuc-lrmate200id",
+        "--out",
+        str(tmp_path / "a"),
+    )
+    assert res.returncode == 2
+    assert "expected at least 13 poses" in res.stderr and "fixed --model" in res.stderr
+    assert "Traceback" not in res.stderr
 
 
 def test_demo_runs_both_experiments(run_cli, tmp_path):

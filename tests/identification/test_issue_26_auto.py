@@ -31,15 +31,17 @@ def poses_300():
     return e.test.subset(np.random.default_rng(3).permutation(e.test.n)[:300])
 
 
-def test_issue_26_auto_scores_are_those_of_calibrations_fold_by_fold(poses_300):
+@pytest.mark.parametrize("scheme", ["random", "region"])
+def test_issue_26_auto_scores_are_those_of_calibrations_fold_by_fold(poses_300, scheme):
     """Every fold calibrated from nominal kinematics (registration, priors and their
     evidence, three stages: cross_validate) against the shared hyperparameters and the
-    warm fold fits of select_model: the same held-out RMS within 3 %."""
-    sel = select_model(ROBOT, poses_300, k=5, prior_scales=(1.0,))
+    warm fold fits of select_model: the same held-out RMS within 3 %, on random folds
+    and on whole regions of the workspace."""
+    sel = select_model(ROBOT, poses_300, k=5, prior_scales=(1.0,), scheme=scheme)
     scored = {c.label: c for c in sel.candidates}
     for label in ("kinematic", "load", "full"):
         spec = scored[label].spec
-        exact = cross_validate(ROBOT, poses_300, spec, k=5)
+        exact = cross_validate(ROBOT, poses_300, spec, k=5, scheme=scheme)
         got = scored[label].cv_rms_mm
         assert got == pytest.approx(exact.rms_mm, rel=0.03), (label, got, exact.rms_mm)
 

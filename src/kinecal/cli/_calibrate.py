@@ -52,10 +52,11 @@ def _options_from(loss: str, priors: str, stage2: str):
     "--model",
     "model_name",
     type=click.Choice(MODEL_CHOICES),
-    default="full",
+    default="auto",
     show_default=True,
-    help="kinematic (paper MDH), ntm, rfcm, full (paper 'Ours'), or auto (chosen by "
-    "cross-validation).",
+    help="kinematic (paper MDH), ntm, rfcm, full (paper 'Ours'), or auto: the terms "
+    "the data support, chosen by cross-validation over whole regions of the workspace "
+    "(whole sessions when DATA has several sets), physical terms before Fourier series.",
 )
 @click.option(
     "--out",
@@ -177,7 +178,6 @@ def calibrate(
     """
     from kinecal._parallel import available_cpus
     from kinecal.cli import EXIT_NOT_CONVERGED
-    from kinecal.errors import CalibError
     from kinecal.identification import calibrate as run_calibration
     from kinecal.identification import spec_for
     from kinecal.io import (
@@ -228,7 +228,7 @@ def calibrate(
 
         smallest = spec_for(robot, meas, "kinematic")
         check_distinct_poses(meas, robot, smallest, data)
-        check_auto_folds(meas, robot, smallest)
+        check_auto_folds(meas, robot, smallest, k=cv_folds or 5)
         say("auto", "cross-validating candidate models")
         sel = select_model(
             robot,
@@ -240,6 +240,7 @@ def calibrate(
             jobs=jobs,
             groups=groups,
             group_name=cv_groups or "group",
+            k=cv_folds or 5,
         )
         spec = sel.spec
         opts = replace(opts, prior_scale=sel.prior_scale)
@@ -265,41 +266,12 @@ def calibrate(
 
         say("check", "the nominal robot and the priors against the data")
         result.diagnostics.extend(nominal_check(result, robot, meas, options=opts))
+    held = None
     if cv_folds:
-        from kinecal.identification import cross_validate_many
-
-        say("cv", f"{cv_folds}-fold cross-validation: nominal and model")
-        cvs = cross_validate_many(
-            robot,
-            meas,
-            [("nominal", opts), (spec, opts)],
-            k=cv_folds,
-            jobs=jobs,
-            groups=groups,
-            group_name=cv_groups or "group",
+        held = _held_out(
+            robot, meas, spec, opts, cv_folds, groups, cv_groups, sel, jobs, say
         )
-        cv_rows = {}
-        for label, cv in zip(("nominal", "model"), cvs):
-            if isinstance(cv, CalibError):
-                raise type(cv)(f"--cv {cv_folds}: a fold's calibration failed: {cv}")
-            if isinstance(cv, ValueError):
-                raise cv
-            cv_rows[label] = {
-                "rms_mm": cv.rms_mm,
-                "se_mm": cv.rms_se_mm,
-                "rms_xyz_mm": _pooled_xyz(cv.folds),
-                "fold_rms_mm": [f.rms_mm for f in cv.folds],
-                "train_rms_mm": [f.rms_mm for f in cv.train],
-            }
-        first = next(cv for cv in cvs if not isinstance(cv, ValueError))
-        extra["cross_validation"] = {
-            "folds": cv_folds,
-            "unit": first.unit,
-            "notes": list(first.notes),
-            **cv_rows,
-        }
-        for note in first.notes:
-            click.echo(f"warning   {note}", err=True)
+        extra["cross_validation"] = held.as_dict()
     say("write", "model.yaml, report.json, residuals.csv, manifest.json")
     summary = calibration_summary(result, extra=extra)
     save_model(out / "model.yaml", result.calibrated, force=True)
@@ -348,13 +320,15 @@ def calibrate(
     click.echo(
         f"after     RMS {a.rms_mm:.4f} mm  max {a.max_mm:.4f} mm  (calibration data)"
     )
-    if cv_folds:
-        cvd = extra["cross_validation"]
-        assert isinstance(cvd, dict)
-        click.echo(
-            f"held-out  RMS {cvd['model']['rms_mm']:.4f} ± {cvd['model']['se_mm']:.4f} mm "
-            f"({cv_folds}-fold CV; nominal {cvd['nominal']['rms_mm']:.4f} mm)"
-        )
+    if held is not None:
+        for fig in held.figures:
+            click.echo(
+                f"held-out  RMS {fig.model.rms_mm:.4f} ± {fig.model.rms_se_mm:.4f} mm "
+                f"{fig.name} ({len(fig.folds.test)}-fold CV by {fig.folds.unit}; "
+                f"nominal {fig.nominal.rms_mm:.4f} mm)"
+            )
+        for note in held.notes:
+            click.echo(f"note      {note}")
     for line in result.identifiability.summary()[1:]:
         click.echo(f"note      {line}")
     for w in result.warnings:
@@ -364,13 +338,33 @@ def calibrate(
         sys.exit(EXIT_NOT_CONVERGED)
 
 
-def _pooled_xyz(folds) -> list[float]:
-    """Held-out RMS along x, y, z pooled over the folds [mm]."""
-    n = sum(f.n for f in folds)
-    return [
-        (sum(f.n * f.rms_xyz_mm[a] ** 2 for f in folds) / max(n, 1)) ** 0.5
-        for a in range(3)
-    ]
+def _held_out(robot, meas, spec, opts, k, groups, group_name, sel, jobs, say):
+    """``--cv K``: the in-session and the new-region (or new-session) figures, by the
+    cross-validation path of ``--model auto``; a fold that cannot be fitted is an error
+    of the data."""
+    from kinecal.errors import CalibError
+    from kinecal.identification import held_out_accuracy
+
+    say("cv", f"{k}-fold cross-validation: nominal and model, random poses and regions")
+    try:
+        held = held_out_accuracy(
+            robot,
+            meas,
+            spec,
+            k,
+            options=opts,
+            groups=groups,
+            group_name=group_name or "group",
+            selection=sel,
+            jobs=jobs,
+            progress=say,
+        )
+    except CalibError as exc:
+        raise type(exc)(f"--cv {k}: a fold's calibration failed: {exc}") from exc
+    notes = dict.fromkeys(n for fig in held.figures for n in fig.folds.notes)
+    for note in notes:
+        click.echo(f"warning   {note}", err=True)
+    return held
 
 
 def _group_labels(data: str, column: str, rows: Any) -> Any:

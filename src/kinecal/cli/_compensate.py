@@ -238,6 +238,14 @@ def _diagnostic_columns(res):
     return list(zip(_DIAG_HEADER, values))
 
 
+def _warn_extrapolation(cal, q, rows, source: str) -> None:
+    """Targets outside the joint ranges the model was calibrated on (a warning)."""
+    from kinecal.io import extrapolation
+
+    found = extrapolation(cal, q, rows, source, what="targets")
+    echo_diagnostics([] if found is None else [found])
+
+
 def _csv(cal, targets: str, tol_mm: float, scale, allow_out_of_limits: bool):
     import numpy as np
 
@@ -248,6 +256,7 @@ def _csv(cal, targets: str, tol_mm: float, scale, allow_out_of_limits: bool):
         targets, cal.model.robot, allow_out_of_limits=allow_out_of_limits
     )
     echo_diagnostics(tg.diagnostics)
+    _warn_extrapolation(cal, tg.q_seed, tg.table.lines, targets)
     check_positions(tg.p, tg.table.lines, targets, "x_mm, y_mm, z_mm")
     spec = cal.model.spec
     set_index = _map_labels(tg.set_labels, tg.set_index, spec.sets, targets, "set")
@@ -302,6 +311,7 @@ def _program(cal, path: str, fmt: str, tol_mm: float, scale, decimals):
     prog = read_program(path, fmt)
     q_prog = program_joints(prog, robot)
     N = q_prog.shape[0]
+    _warn_extrapolation(cal, q_prog, range(1, N + 1), f"{path} (targets in order)")
     p_t, R_t = program_targets(cal, q_prog)
     ls = None if scale is None else np.full(N, scale)
     res = run_compensation(

@@ -23,6 +23,8 @@ if TYPE_CHECKING:
         cross_validate_many,
         kfold_indices,
         make_folds,
+        pose_features,
+        region_labels,
         train_test_split,
     )
     from kinecal.identification._diagnose import Diagnose
@@ -33,6 +35,11 @@ if TYPE_CHECKING:
         refit,
         refit_diagnosed,
         registered_model,
+    )
+    from kinecal.identification._heldout import (
+        HeldOutAccuracy,
+        HeldOutFigure,
+        held_out_accuracy,
     )
     from kinecal.identification._identifiability import (
         DroppedParameter,
@@ -74,6 +81,7 @@ if TYPE_CHECKING:
         Candidate,
         Selection,
         candidate_specs,
+        cross_validate_models,
         select_model,
     )
     from kinecal.identification._stages import (
@@ -104,6 +112,8 @@ __all__ = [
     "EvidencePriors",
     "Folds",
     "FullStage",
+    "HeldOutAccuracy",
+    "HeldOutFigure",
     "Identifiability",
     "Identify",
     "KinematicStage",
@@ -134,8 +144,10 @@ __all__ = [
     "correlation_from_covariance",
     "cross_validate",
     "cross_validate_many",
+    "cross_validate_models",
     "default_stages",
     "evaluate",
+    "held_out_accuracy",
     "initial_frames",
     "initial_registration",
     "kfold_indices",
@@ -143,9 +155,11 @@ __all__ = [
     "metrics_from_errors",
     "nominal_check",
     "normal_equations",
+    "pose_features",
     "priority_order",
     "refit",
     "refit_diagnosed",
+    "region_labels",
     "register",
     "registered_model",
     "residuals",
@@ -178,6 +192,8 @@ __getattr__, __dir__ = _lazy.exports(
             "cross_validate_many",
             "kfold_indices",
             "make_folds",
+            "pose_features",
+            "region_labels",
             "train_test_split",
         ),
         "_diagnose": ("Diagnose",),
@@ -194,6 +210,7 @@ __getattr__, __dir__ = _lazy.exports(
             "refit_diagnosed",
             "registered_model",
         ),
+        "_heldout": ("HeldOutAccuracy", "HeldOutFigure", "held_out_accuracy"),
         "_identifiability": (
             "DroppedParameter",
             "Identifiability",
@@ -251,6 +268,7 @@ __getattr__, __dir__ = _lazy.exports(
             "Candidate",
             "Selection",
             "candidate_specs",
+            "cross_validate_models",
             "select_model",
         ),
         "_stages": (

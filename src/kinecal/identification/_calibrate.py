@@ -198,6 +198,7 @@ class CalibrationResult:
                 "kind": meas.kind,
                 "n": meas.n,
                 "model": cm.spec.name,
+                "calibrated_joint_range": _joint_range(meas, problem.robot),
                 **(
                     {"rejected_rows": [o.row for o in state.rejected]}
                     if state.rejected
@@ -253,3 +254,14 @@ class CalibrationResult:
 
     def correlation(self) -> Float:
         return correlation_from_covariance(self.covariance)
+
+
+def _joint_range(meas: Measurements, robot: RobotDescription) -> list[list[float]]:
+    """The joint ranges of the calibration data as a model file keeps them: ``[lo, hi]``
+    per joint in deg (mm for prismatic joints); evaluate and compensate warn beyond them
+    (:func:`kinecal.io.extrapolation`)."""
+    scale = np.where(robot.prismatic, 1e3, 180.0 / np.pi)
+    lo, hi = meas.q_ctrl.min(axis=0) * scale, meas.q_ctrl.max(axis=0) * scale
+    return [
+        [round(float(a), 6), round(float(b), 6)] for a, b in zip(lo, hi, strict=True)
+    ]

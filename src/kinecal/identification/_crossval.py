@@ -8,6 +8,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from kinecal._parallel import parallel_map
+from kinecal._stats import present
 from kinecal.errors import DataError
 from kinecal.identification._calibrate import CalibrationOptions, calibrate
 from kinecal.identification._calibrated import CalibratedModel
@@ -15,7 +16,8 @@ from kinecal.identification._evaluate import evaluate, registered_model
 from kinecal.identification._measurements import Measurements
 from kinecal.identification._metrics import Metrics
 from kinecal.models import ModelSpec
-from kinecal.robot import RobotDescription
+from kinecal.robot import RobotDescription, dh_transforms
+from kinecal.typing import Float
 
 __all__ = [
     "ComparisonRow",
@@ -26,6 +28,8 @@ __all__ = [
     "cross_validate_many",
     "kfold_indices",
     "make_folds",
+    "pose_features",
+    "region_labels",
     "train_test_split",
 ]
 
@@ -55,7 +59,8 @@ class Folds:
     Attributes
     ----------
     test : test-row indices of every fold.
-    unit : what a fold holds whole: 'set' (sessions), 'pose' (rows measured at the same
+    unit : what a fold holds whole: 'set' (sessions), 'region' (a region of joint space:
+        what a new part of the workspace sees), 'pose' (rows measured at the same
         joints), 'row' or the name of the user's grouping column.
     always_train : (N,) bool, rows in the training data of every fold (markers with
         fewer rows than folds: a held-out row of theirs would have no tool offset).
@@ -76,10 +81,90 @@ def _pose_groups(meas: Measurements) -> np.ndarray:
     """Group of every row: rows of one set measured at the same joint values (several
     markers seen at one pose) share one; numbered by first appearance."""
     key = np.column_stack([meas.set_index, np.round(meas.q_ctrl, 9)])
-    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    n = key.shape[0]
+    if n == 0:
+        return np.zeros(0, np.intp)
+    # Equal rows by a lexicographic sort (np.unique(axis=0) imports numpy.ma).
+    order = np.lexsort(key.T[::-1])
+    s = key[order]
+    new = np.ones(n, bool)
+    new[1:] = np.any(s[1:] != s[:-1], axis=1)
+    inverse = np.empty(n, np.intp)
+    inverse[order] = np.cumsum(new) - 1
+    first = _first_rows(inverse)
     rank = np.empty(first.size, np.intp)
     rank[np.argsort(first)] = np.arange(first.size)
-    return rank[inverse.reshape(-1)]
+    return rank[inverse]
+
+
+def _first_rows(labels: np.ndarray) -> np.ndarray:
+    """The first row of every label 0..max (N for a label that does not occur)."""
+    n = labels.size
+    first = np.full(int(labels.max()) + 1 if n else 0, n, np.intp)
+    np.minimum.at(first, labels, np.arange(n))
+    return first
+
+
+def _member(values: np.ndarray, of: np.ndarray) -> np.ndarray:
+    """``np.isin`` for non-negative integer labels (without numpy.ma)."""
+    lut = np.zeros(max(int(values.max(initial=0)), int(of.max(initial=0))) + 1, bool)
+    lut[of] = True
+    return lut[values]
+
+
+def region_labels(x: np.ndarray, k: int) -> np.ndarray:
+    """A region (0..k-1) for every row of features ``x`` (N, m): k regions of about
+    equal size, each a slab cut across the direction the rows spread most in (recursive
+    bisection along the first principal axis, as a k-d tree does). Deterministic; equal
+    rows share a region when they fall on one side of every cut."""
+    x = np.asarray(x, float)
+    out = np.zeros(x.shape[0], np.intp)
+
+    def split(idx: np.ndarray, first: int, m: int) -> None:
+        if m <= 1 or idx.size == 0:
+            out[idx] = first
+            return
+        c = x[idx] - x[idx].mean(axis=0)
+        if c.shape[1] == 0 or not np.any(c):
+            proj = np.zeros(idx.size)
+        else:
+            v = np.linalg.svd(c, full_matrices=False)[2][0]
+            proj = c @ (v if v[np.argmax(np.abs(v))] > 0 else -v)
+        order = idx[np.argsort(proj, kind="stable")]
+        m1 = m // 2
+        n1 = round(idx.size * m1 / m)
+        split(order[:n1], first, m1)
+        split(order[n1:], first + m1, m - m1)
+
+    split(np.arange(x.shape[0]), 0, k)
+    return out
+
+
+def pose_features(q_ctrl: np.ndarray, robot: RobotDescription | None = None) -> Float:
+    """Where a pose is, as features for :func:`region_labels`: the nominal positions of
+    the robot's joint frames and flange [m] (N, 3 (n + 1)), so the regions are parts of
+    the workspace and arm configurations, weighted by how far each joint moves the arm
+    (a wrist roll hardly); without ``robot`` the joint values, standardised."""
+    q = np.asarray(q_ctrl, float)
+    if robot is None:
+        spread = q.std(axis=0)
+        moving = spread > 1e-12
+        return (q[:, moving] - q[:, moving].mean(axis=0)) / spread[moving]
+    ch = robot.dh_chain()
+    theta = robot.theta_from_ctrl(q)
+    rot = np.where(ch.prismatic, ch.theta_offset, ch.theta_offset + theta)
+    dd = np.where(ch.prismatic, ch.d + theta, ch.d)
+    A = dh_transforms(rot, dd, ch.a, ch.alpha)  # (N, n, 4, 4)
+    T = np.broadcast_to(ch.T_base_0, (q.shape[0], 4, 4)).copy()
+    out = [T[:, :3, 3]]
+    for i in range(robot.n_joints):  # loop over joints, not poses
+        T = T @ A[:, i]
+        out.append(T[:, :3, 3])
+    out.append((T @ ch.T_n_flange)[:, :3, 3])
+    return np.concatenate(out, axis=1)
+
+
+SCHEMES = ("random", "region", "pose")
 
 
 def make_folds(
@@ -89,13 +174,21 @@ def make_folds(
     *,
     groups: np.ndarray | None = None,
     group_name: str = "group",
+    scheme: str = "random",
+    robot: RobotDescription | None = None,
 ) -> Folds:
     """k folds that never split what belongs together.
 
     Several sets: the folds are whole sets (their user frames are refitted when held
-    out). Otherwise whole groups: the user's ``groups`` (one label per row) or, by
-    default, poses (rows measured at the same joint values, as several reflectors of one
-    pose). Rows of a marker with fewer rows than folds stay in every training set.
+    out): what a new session sees. Otherwise whole groups: the user's ``groups`` (one
+    label per row); with ``scheme='region'`` whole regions of joint space
+    (:func:`region_labels` of :func:`pose_features`, of ``robot`` when given: each fold
+    holds out a part of the workspace the training poses do not cover, as a new task
+    would); by default (``'random'``) poses drawn at
+    random (rows measured at the same joint values, as several reflectors of one pose,
+    stay together): what new poses in the calibrated workspace see; ``'pose'`` is that
+    even with several sets (all sets in every training set: the in-session figure).
+    Rows of a marker with fewer rows than folds stay in every training set.
 
     Raises
     ------
@@ -104,17 +197,19 @@ def make_folds(
     """
     if k < 2:
         raise DataError(f"{meas.source}: cross-validation needs k >= 2 folds; got {k}.")
+    if scheme not in SCHEMES:
+        raise ValueError(f"scheme must be one of {SCHEMES}; got {scheme!r}.")
     n = meas.n
     always = np.zeros(n, bool)
     notes: list[str] = []
-    if len(meas.set_labels) > 1 and groups is None:
-        sets = np.unique(meas.set_index)
+    if len(meas.set_labels) > 1 and groups is None and scheme != "pose":
+        sets = present(meas.set_index)
         if sets.size < 2:
             raise DataError(f"{meas.source}: one set only; cannot fold by set.")
         k = min(k, sets.size)
         order = np.random.default_rng(seed).permutation(sets)
         test = [
-            np.flatnonzero(np.isin(meas.set_index, chunk))
+            np.flatnonzero(_member(meas.set_index, chunk))
             for chunk in np.array_split(order, k)
         ]
         return Folds(test, "set", always)
@@ -129,11 +224,13 @@ def make_folds(
         )
     if groups is None:
         unit, g = "pose", _pose_groups(meas)
+        if scheme == "region":
+            return _region_folds(meas, k, g, always, notes, robot)
     else:
         unit = group_name
         _, g = np.unique(np.asarray(groups).astype(str), return_inverse=True)
         g = g.reshape(-1)
-    units = np.unique(g[~always])
+    units = present(g[~always])
     if units.size < k:
         raise DataError(
             f"{meas.source}: {k}-fold cross-validation needs at least {k} "
@@ -141,12 +238,11 @@ def make_folds(
         )
     # Units in the order they first appear, so data whose rows are all different poses
     # fold exactly as rows do.
-    labels, first_row = np.unique(g, return_index=True)  # (a loop over the units
-    first = first_row[np.searchsorted(labels, units)]  # was quadratic in the rows)
+    first = _first_rows(g)[units]
     units = units[np.argsort(first)]
     perm = np.random.default_rng(seed).permutation(units.size)
     test = [
-        np.sort(np.flatnonzero(np.isin(g, units[chunk]) & ~always))
+        np.sort(np.flatnonzero(_member(g, units[chunk]) & ~always))
         for chunk in np.array_split(perm, k)
     ]
     if unit == "pose" and units.size < n - int(always.sum()):
@@ -154,6 +250,30 @@ def make_folds(
             f"{n} rows at {units.size} poses: rows of one pose fall in the same fold."
         )
     return Folds(test, unit, always, tuple(notes))
+
+
+def _region_folds(
+    meas: Measurements,
+    k: int,
+    g: np.ndarray,
+    always: np.ndarray,
+    notes: list[str],
+    robot: RobotDescription | None,
+) -> Folds:
+    """Folds of whole regions of joint space (poses kept whole; see make_folds)."""
+    units = present(g[~always])
+    if units.size < k:
+        raise DataError(
+            f"{meas.source}: {k}-fold cross-validation needs at least {k} poses to "
+            f"hold out; the data have {units.size}."
+        )
+    first = _first_rows(np.where(always, g.max() + 1, g))[units]  # a row of every pose
+    region = region_labels(pose_features(meas.q_ctrl[first], robot), k)
+    of_unit = np.full(int(g.max()) + 1, -1, np.intp)
+    of_unit[units] = region
+    fold = of_unit[g]
+    test = [np.flatnonzero((fold == i) & ~always) for i in range(k)]
+    return Folds(test, "region", always, tuple(notes))
 
 
 def kfold_indices(
@@ -197,12 +317,15 @@ def cross_validate(
     jobs: int = 1,
     groups: np.ndarray | None = None,
     group_name: str = "group",
+    scheme: str = "random",
 ) -> CrossValidation:
     """k-fold cross-validation (folds of :func:`make_folds`): with several sets the folds
     are whole sets and the user frame of a held-out set is refitted (a new set-up), as
     ``evaluate --refit user``; otherwise whole poses, or whole ``groups``.
 
-    ``model='nominal'`` scores the nominal kinematics with fitted frames (the baseline).
+    ``scheme='region'`` holds out whole regions of the workspace instead of random
+    poses (see :func:`make_folds`). ``model='nominal'`` scores the nominal kinematics
+    with fitted frames (the baseline).
     ``jobs`` > 1 calibrates the folds in that many worker processes
     (:func:`kinecal._parallel.parallel_map`); the result is the same.
     """
@@ -215,6 +338,7 @@ def cross_validate(
         jobs=jobs,
         groups=groups,
         group_name=group_name,
+        scheme=scheme,
     )
     if isinstance(out, ValueError):
         raise out
@@ -231,6 +355,7 @@ def cross_validate_many(
     jobs: int = 1,
     groups: np.ndarray | None = None,
     group_name: str = "group",
+    scheme: str = "random",
 ) -> list[CrossValidation | ValueError]:
     """:func:`cross_validate` of several (model, options) runs on the same folds.
 
@@ -238,7 +363,9 @@ def cross_validate_many(
     whose calibration fails on some fold (too few poses for the model, say) gives the
     error of its first failing fold instead of a result.
     """
-    folds = make_folds(meas, k, seed, groups=groups, group_name=group_name)
+    folds = make_folds(
+        meas, k, seed, groups=groups, group_name=group_name, scheme=scheme, robot=robot
+    )
     tasks = [
         _Fold(robot, meas, model, options, test_idx, folds.by_set)
         for model, options in runs
@@ -300,7 +427,7 @@ def _run_fold(f: _Fold) -> tuple[Metrics, Metrics] | ValueError:
 
 def _relabel_sets(meas: Measurements) -> Measurements:
     """Keep only the set labels that occur (after a split)."""
-    used = np.unique(meas.set_index)
+    used = present(meas.set_index)
     remap = -np.ones(len(meas.set_labels), np.intp)
     remap[used] = np.arange(used.size)
     return replace(

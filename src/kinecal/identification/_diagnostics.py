@@ -45,6 +45,8 @@ CODES: dict[str, str] = {
     "changes: some parameters cannot be separated",
     "positions_only": "the data carry more than the model uses: only positions are "
     "compared",
+    "extrapolation": "poses outside the joint ranges the model was calibrated on "
+    "(rows: file lines; parameters: the joints)",
     # Checks of a calibration against its nominal robot (identification._nominal_check).
     "nominal_mismatch": "the nominal robot with fitted frames leaves errors far beyond "
     "the calibrated ones and parameters far from nominal: a wrong nominal table or units",

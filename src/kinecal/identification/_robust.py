@@ -214,9 +214,10 @@ def compliance_score(
     )
     assert blk.J is not None
     names = full.layout.names
-    present = np.isin(names, state.model.layout.names)
-    groups = np.array([sp.group for sp in full.layout.specs])
-    extra = ~present & np.isin(groups, ("ntm", "load"))
+    own = set(state.model.layout.names)  # (np.isin of strings imports numpy.ma)
+    present = np.array([n in own for n in names], bool)
+    groups = [sp.group for sp in full.layout.specs]
+    extra = ~present & np.array([g in ("ntm", "load") for g in groups], bool)
     specs = full.layout.specs
     col_joint = [sp.joint or 0 for sp in specs] + [
         specs[a].joint or 0 for a, _ in full.link_products

@@ -2,11 +2,14 @@
 
 Candidates run from the kinematic model to the full one (NTM per joint group and order,
 payload compliance, link weight), each with the physical priors at a few strengths. Every
-candidate is scored by k-fold cross-validation (whole sessions per fold when there are
-several; their user frames are refitted, as for a new set-up). The choice follows the
-one-standard-error rule: the smallest model whose validation RMS is within one standard
-error of the best, the error taken on the paired per-fold differences (the folds are the
-same for every candidate). The table behind the choice goes into the report.
+candidate is scored by k-fold cross-validation that imitates a new session: whole sessions
+per fold when there are several (their user frames are refitted, as for a new set-up),
+else whole regions of the workspace. The choice follows the one-standard-error rule:
+among the models whose validation RMS is within one standard error of the best (the error
+taken on the paired per-fold differences: the folds are the same for every candidate),
+the one with the fewest transmission (Fourier) terms, then the smallest. The table behind
+the choice goes into the report. ``--cv`` scores by the same path
+(:func:`cross_validate_models`): the same folds give the same figures.
 """
 
 from __future__ import annotations
@@ -35,12 +38,18 @@ from kinecal.identification._calibrate import (
     CalibrationResult,
     spec_for,
 )
-from kinecal.identification._crossval import CrossValidation, make_folds
+from kinecal.identification._crossval import CrossValidation, Folds, make_folds
 from kinecal.identification._measurements import Measurements
-from kinecal.models import ModelSpec
+from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import RobotDescription
 
-__all__ = ["Candidate", "Selection", "candidate_specs", "select_model"]
+__all__ = [
+    "Candidate",
+    "Selection",
+    "candidate_specs",
+    "cross_validate_models",
+    "select_model",
+]
 
 
 @dataclass
@@ -56,6 +65,7 @@ class Candidate:
     train_rms_mm: float
     chosen: bool = False
     fold_rms_mm: tuple[float, ...] = ()
+    cv: CrossValidation | None = field(default=None, repr=False, compare=False)
 
 
 @dataclass
@@ -68,6 +78,26 @@ class Selection:
     warnings: list[str] = field(default_factory=list)
     folds: int = 0
     shared: Shared | None = field(default=None, repr=False, compare=False)
+    unit: str = "pose"  # what the folds held whole (see Folds)
+    fold_sets: Folds | None = field(default=None, repr=False, compare=False)
+    scorer: _Scorer | None = field(default=None, repr=False, compare=False)
+
+    def chosen_cv(self, folds: Folds) -> CrossValidation | ValueError:
+        """The chosen candidate's cross-validation on ``folds``: the table's own figures
+        when the selection ran on the same folds, else its fit scored on them by the
+        same path (an error of a fold that cannot determine it)."""
+        chosen = next(c for c in self.candidates if c.chosen)
+        if (
+            chosen.cv is not None
+            and self.fold_sets is not None
+            and _same_folds(self.fold_sets, folds)
+        ):
+            return chosen.cv
+        if self.scorer is None:
+            raise ValueError("the selection's fits are not at hand (a copy of it)")
+        run = (chosen.label, chosen.spec, chosen.prior_scale)
+        (got,) = self.scorer.score([run], folds)
+        return got.result
 
     def calibration(self, options: CalibrationOptions) -> CalibrationResult | None:
         """The calibration of the choice with ``options`` when the largest candidate at
@@ -86,6 +116,7 @@ class Selection:
             "chosen": self.spec.name,
             "prior_scale": self.prior_scale,
             "folds": self.folds,
+            "fold_unit": self.unit,
             "rule": "smallest model within one standard error (paired over folds), or "
             "1 %, of the best validation RMS",
             "candidates": [
@@ -102,6 +133,15 @@ class Selection:
             ],
             "warnings": self.warnings,
         }
+
+
+def _same_folds(a: Folds, b: Folds) -> bool:
+    return (
+        a.unit == b.unit
+        and len(a.test) == len(b.test)
+        and all(np.array_equal(x, y) for x, y in zip(a.test, b.test, strict=True))
+        and np.array_equal(a.always_train, b.always_train)
+    )
 
 
 def candidate_specs(
@@ -160,14 +200,9 @@ def candidate_specs(
     return out
 
 
-def _folds_of(
-    task: tuple[CandidateFit, list[np.ndarray], np.ndarray, bool],
-) -> list[Score]:
-    return run_folds(*task)
-
-
 def _within_one_se(c: Candidate, best: Candidate) -> bool:
-    """One-standard-error rule on the paired fold differences.
+    """One-standard-error rule on the paired fold differences (with a factor
+    :data:`_SE_FACTOR`).
 
     All candidates share the folds, so the fold-to-fold spread (which pose happened to be
     in which fold) is common to them; the standard error of the per-fold *differences*
@@ -180,14 +215,189 @@ def _within_one_se(c: Candidate, best: Candidate) -> bool:
     a, b = np.asarray(c.fold_rms_mm), np.asarray(best.fold_rms_mm)
     if a.size != b.size or a.size < 2:
         se = best.cv_se_mm if np.isfinite(best.cv_se_mm) else 0.0
-        return c.cv_rms_mm <= best.cv_rms_mm + max(se, margin)
+        return c.cv_rms_mm <= best.cv_rms_mm + max(_SE_FACTOR * se, margin)
     d = a - b
     se_d = float(d.std(ddof=1) / np.sqrt(d.size))
-    return c.cv_rms_mm - best.cv_rms_mm <= max(se_d, margin)
+    return c.cv_rms_mm - best.cv_rms_mm <= max(_SE_FACTOR * se_d, margin)
 
 
 # A larger model must predict at least this much better (relative RMS) to be chosen.
 _PRACTICAL = 0.01
+
+# How many standard errors of the paired fold differences a larger model must gain.
+_SE_FACTOR = float(__import__("os").environ.get("KC_SEF", "1"))
+
+
+class _Scorer:
+    """The one cross-validation path of ``--model auto`` and ``--cv``: candidates fitted
+    on the kept rows from the shared fit, then scored fold by fold (the same folds give
+    the same figures, whichever command asks)."""
+
+    def __init__(
+        self,
+        robot: RobotDescription,
+        meas: Measurements,
+        opts: CalibrationOptions,
+        shared: Shared,
+        jobs: int = 1,
+        say: Any = None,
+    ) -> None:
+        self.robot, self.meas, self.opts, self.shared = robot, meas, opts, shared
+        self.jobs = jobs
+        self.say = say or (lambda stage, detail: None)
+        self.fitted: dict[tuple[str, float], CandidateFit] = {}
+
+    def fit(self, label: str, spec: ModelSpec, scale: float) -> CandidateFit:
+        """The candidate's fit on the kept rows (from the best point fitted before it).
+
+        Raises
+        ------
+        IdentifiabilityError
+            Too few rows for the candidate.
+        """
+        key = (label, scale)
+        if key in self.fitted:
+            return self.fitted[key]
+        same = self.fitted.get((label, 1.0))
+        starts = [(self.shared.layout, self.shared.x)] + [
+            (f.layout, f.x) for f in self.fitted.values() if f.spec != spec
+        ]
+        if same is not None:
+            starts.insert(0, (same.layout, same.x))
+        if same is not None and same.spec == spec and scale != 1.0:
+            fit = rescaled(same, scale)  # a variant of a fitted layout
+        else:
+            fit = fit_candidate(
+                self.robot, self.meas, spec, scale, self.opts, self.shared, starts
+            )
+        self.fitted[key] = fit
+        return fit
+
+    def score(self, runs: list[Run], folds: Folds) -> list[_Scored]:
+        """Fit the runs, then cross-validate them on ``folds`` (each run's folds in a
+        worker process when ``jobs`` > 1): per run its fit and cross-validation, or the
+        error that stopped it."""
+        tasks: list[tuple[Run, CandidateFit | ValueError]] = []
+        done_here: list[list[Score]] = []
+        for label, spec, scale in runs:
+            self.say("auto", f"{label} (priors x{scale:g})")
+            try:
+                fit = self.fit(label, spec, scale)
+            except IdentifiabilityError as exc:  # too few poses for this candidate
+                tasks.append(((label, spec, scale), exc))
+                continue
+            if self.jobs <= 1:  # while the fit's own evaluations are at hand
+                done_here.append(_folds_of((fit, folds)))
+            fit = replace(fit, made=None)  # (its Jacobians need not stay)
+            self.fitted[(label, scale)] = fit
+            tasks.append(((label, spec, scale), fit))
+        fits = [f for _, f in tasks if isinstance(f, CandidateFit)]
+        per_run = iter(
+            done_here or parallel_map(_folds_of, [(f, folds) for f in fits], self.jobs)
+        )
+        out: list[_Scored] = []
+        for run, got in tasks:
+            if isinstance(got, ValueError):
+                out.append(_Scored(run, error=got))
+                continue
+            scores = next(per_run)
+            failed = next((s for s in scores if isinstance(s, ValueError)), None)
+            if failed is not None:  # too few poses for this candidate in a fold
+                self.say("auto", f"{run[0]} (priors x{run[2]:g}) skipped: {failed}")
+                out.append(_Scored(run, error=failed))
+                continue
+            cv = CrossValidation(run[1].name, unit=folds.unit, notes=folds.notes)
+            for tr, te in scores:  # type: ignore[misc]
+                cv.train.append(tr)
+                cv.folds.append(te)
+            out.append(_Scored(run, cv=cv))
+        return out
+
+
+@dataclass(frozen=True)
+class _Scored:
+    """A run's cross-validation, or the error that stopped it."""
+
+    run: Run
+    cv: CrossValidation | None = None
+    error: ValueError | None = None
+
+    @property
+    def result(self) -> CrossValidation | ValueError:
+        assert self.cv is not None or self.error is not None
+        return self.cv if self.cv is not None else self.error  # type: ignore[return-value]
+
+
+def _folds_of(task: tuple[CandidateFit, Folds]) -> list[Score]:
+    fit, folds = task
+    return run_folds(fit, folds.test, folds.always_train, folds.by_set)
+
+
+def _candidate(robot: RobotDescription, run: Run, cv: CrossValidation) -> Candidate:
+    from kinecal.models import CalibrationModel
+
+    label, spec, scale = run
+    train = float(np.sqrt(np.mean([m.rms_mm**2 for m in cv.train])))
+    return Candidate(
+        label,
+        spec,
+        scale,
+        CalibrationModel(robot, spec).size,
+        cv.rms_mm,
+        cv.rms_se_mm,
+        train,
+        fold_rms_mm=tuple(f.rms_mm for f in cv.folds),
+        cv=cv,
+    )
+
+
+def _shared_of(
+    robot: RobotDescription,
+    meas: Measurements,
+    layouts: list[tuple[str, ModelSpec]],
+    opts: CalibrationOptions,
+    say: Any,
+    n_folds: int,
+) -> Shared:
+    """The shared fit: the largest of ``layouts`` the data can determine."""
+    for label, spec in reversed(layouts):
+        say("auto", f"{label}: on every row (gross errors, weights, priors)")
+        try:
+            return shared_fit(robot, meas, spec, opts)
+        except IdentifiabilityError as exc:
+            say("auto", f"{label} skipped: {exc}")
+    raise IdentifiabilityError(
+        f"{meas.source}: no candidate model could be cross-validated: {meas.n} "
+        f"poses in {n_folds} folds leave too few for even the kinematic model; "
+        "measure more poses or give a fixed --model."
+    )
+
+
+def cross_validate_models(
+    robot: RobotDescription,
+    meas: Measurements,
+    models: list[tuple[str, ModelSpec]],
+    folds: list[Folds],
+    *,
+    options: CalibrationOptions | None = None,
+    jobs: int = 1,
+    progress: object | None = None,
+) -> list[CrossValidation | ValueError]:
+    """Cross-validate (label, layout) pairs on each of ``folds`` by the path of
+    :func:`select_model` (what ``--cv`` reports): the hyperparameters (gross errors,
+    weights, priors' widths) of a shared fit of the largest of ``models``, each model
+    fitted on the kept rows and every fold fitted from there. Per folds and model (in
+    that order) its cross-validation, or the error that stopped it."""
+    opts = options or CalibrationOptions()
+    say = progress if callable(progress) else (lambda stage, detail: None)
+    ordered = sorted(models, key=lambda m: CalibrationModel(robot, m[1]).size)
+    shared = _shared_of(robot, meas, ordered, opts, say, len(folds[0].test))
+    scorer = _Scorer(robot, meas, opts, shared, jobs, say)
+    out: list[CrossValidation | ValueError] = []
+    for f in folds:
+        for got in scorer.score([(label, spec, 1.0) for label, spec in models], f):
+            out.append(got.result)
+    return out
 
 
 def select_model(
@@ -204,17 +414,21 @@ def select_model(
     jobs: int = 1,
     groups: np.ndarray | None = None,
     group_name: str = "group",
+    scheme: str = "region",
 ) -> Selection:
     """Choose a model by k-fold cross-validation and the one-standard-error rule.
 
-    Each layout is cross-validated with priors at strength 1; the best layout is then
-    tried with its priors scaled by ``prior_scales`` (sigma times the scale). By default
-    (None) that is 0.3 and 3 only when the priors are not scaled by their evidence
-    (``options.adapt_priors`` off): the evidence already sets each group's strength, in
-    finer steps and per group, and the two variants cost a fifth of the selection while
-    they cross-validate alike (2000 twin poses: held-out RMS equal to 1e-5 mm). ``jobs`` > 1
-    runs the folds in that many worker processes (the same result). The folds are those
-    of :func:`~kinecal.identification.make_folds` (sets, poses or ``groups``).
+    The folds (:func:`~kinecal.identification.make_folds`) imitate what a calibration
+    is used for: whole sessions when the data have several sets, else whole regions of
+    the workspace (``scheme='region'``, the default; ``'random'``: poses drawn at
+    random), or the user's ``groups``. Each layout is cross-validated with priors at
+    strength 1; the best layout is then tried with its priors scaled by
+    ``prior_scales`` (by default 0.3 and 3 only when the priors are not scaled by their
+    evidence). Among the candidates within one standard error of the best, the one with
+    the fewest free transmission (Fourier) terms wins, then the smallest: terms with a
+    physical cause (gravity, payload) are preferred to series fitted to one pose
+    distribution when the folds cannot tell them apart. ``jobs`` > 1 runs the folds in
+    that many worker processes (the same result).
 
     Work is shared (:mod:`._autofit`): one calibration of the largest candidate on
     every row decides the gross errors, the weights and the priors' widths for all;
@@ -223,109 +437,70 @@ def select_model(
     """
     opts = options or CalibrationOptions()
     say = progress if callable(progress) else (lambda stage, detail: None)
-    cands: list[Candidate] = []
-    folds = make_folds(meas, k, seed, groups=groups, group_name=group_name)
-    n_folds = len(folds.test)
-    from kinecal.models import CalibrationModel
-
+    folds = make_folds(
+        meas, k, seed, groups=groups, group_name=group_name, scheme=scheme, robot=robot
+    )
     layouts = candidate_specs(robot, meas, hayati=hayati, ntm_joints=ntm_joints)
-    shared = None
-    for label, spec in reversed(layouts):  # the largest one the data can determine
-        say("auto", f"{label}: on every row (gross errors, weights, priors)")
-        try:
-            shared = shared_fit(robot, meas, spec, opts)
-            break
-        except IdentifiabilityError as exc:
-            say("auto", f"{label} skipped: {exc}")
-    if shared is None:
-        raise IdentifiabilityError(
-            f"{meas.source}: no candidate model could be cross-validated: {meas.n} "
-            f"poses in {n_folds} folds leave too few for even the kinematic model; "
-            "measure more poses or give a fixed --model."
-        )
-    fitted: dict[tuple[str, float], CandidateFit] = {}
+    shared = _shared_of(robot, meas, layouts, opts, say, len(folds.test))
+    scorer = _Scorer(robot, meas, opts, shared, jobs, say)
+    cands: list[Candidate] = []
 
     def run(runs: list[Run]) -> None:
-        """Fit the runs on the kept rows, then cross-validate them (the folds of each
-        run in a worker process when ``jobs`` > 1)."""
-        tasks: list[tuple[Run, CandidateFit | ValueError]] = []
-        # Serially, each run's folds right after its fit.
-        done_here: list[list[Score]] = []
-        for label, spec, scale in runs:
-            say("auto", f"{label} (priors x{scale:g})")
-            same = fitted.get((label, 1.0))
-            starts = [(shared.layout, shared.x)] + [
-                (f.layout, f.x) for f in fitted.values() if f.spec != spec
-            ]
-            if same is not None:
-                starts.insert(0, (same.layout, same.x))
-            try:
-                if same is not None and same.spec == spec and scale != 1.0:
-                    fit = rescaled(same, scale)  # a variant of a fitted layout
-                else:
-                    fit = fit_candidate(robot, meas, spec, scale, opts, shared, starts)
-                if jobs <= 1:  # while the fit's own evaluations are at hand
-                    done_here.append(
-                        _folds_of((fit, folds.test, folds.always_train, folds.by_set))
-                    )
-                fit = replace(fit, made=None)  # (its Jacobians need not stay)
-                fitted.setdefault((label, scale), fit)
-                tasks.append(((label, spec, scale), fit))
-            except IdentifiabilityError as exc:  # too few poses for this candidate
-                tasks.append(((label, spec, scale), exc))
-        fits = [f for _, f in tasks if isinstance(f, CandidateFit)]
-        per_run = iter(
-            done_here
-            or parallel_map(
-                _folds_of,
-                [(f, folds.test, folds.always_train, folds.by_set) for f in fits],
-                jobs,
-            )
-        )
-        for (label, spec, scale), done in tasks:
-            scores: list[Score] = (
-                [done] * n_folds if isinstance(done, ValueError) else next(per_run)
-            )
-            failed = next((s for s in scores if isinstance(s, ValueError)), None)
-            if failed is not None:  # too few poses for this candidate in a fold
-                say("auto", f"{label} (priors x{scale:g}) skipped: {failed}")
-                continue
-            cv = CrossValidation(spec.name, unit=folds.unit, notes=folds.notes)
-            for tr, te in scores:  # type: ignore[misc]
-                cv.train.append(tr)
-                cv.folds.append(te)
-            train = float(np.sqrt(np.mean([m.rms_mm**2 for m in cv.train])))
-            say("auto", f"{label} (priors x{scale:g}): held-out RMS {cv.rms_mm:.4f} mm")
-            cands.append(
-                Candidate(
-                    label,
-                    spec,
-                    scale,
-                    CalibrationModel(robot, spec).size,
-                    cv.rms_mm,
-                    cv.rms_se_mm,
-                    train,
-                    fold_rms_mm=tuple(f.rms_mm for f in cv.folds),
+        for got in scorer.score(runs, folds):
+            if got.cv is not None:
+                label, _, scale = got.run
+                say(
+                    "auto",
+                    f"{label} (priors x{scale:g}): held-out RMS {got.cv.rms_mm:.4f} mm",
                 )
-            )
+                cands.append(_candidate(robot, got.run, got.cv))
 
     run([(label, spec, 1.0) for label, spec in layouts])
     if not cands:
         raise IdentifiabilityError(
             f"{meas.source}: no candidate model could be cross-validated: {meas.n} "
-            f"poses in {n_folds} folds leave too few for even the kinematic model; "
-            "measure more poses or give a fixed --model."
+            f"poses in {len(folds.test)} folds leave too few for even the kinematic "
+            "model; measure more poses or give a fixed --model."
         )
     best = min(cands, key=lambda c: c.cv_rms_mm)
     if prior_scales is None:
         prior_scales = (1.0,) if opts.adapt_priors else (0.3, 1.0, 3.0)
     if opts.priors != "none":  # the best layout with other prior strengths
         run([(best.label, best.spec, s) for s in prior_scales if s != 1.0])
+    chosen = _choose(cands)
+    spec = replace(chosen.spec, name=f"auto:{chosen.label}")
+    sel = Selection(
+        spec, chosen.prior_scale, cands, _warnings(cands), len(folds.test), shared
+    )
+    sel.unit, sel.fold_sets, sel.scorer = folds.unit, folds, scorer
+    return sel
+
+
+def _choose(cands: list[Candidate]) -> Candidate:
+    """The one-standard-error rule, physical terms first (see :func:`select_model`)."""
     best = min(cands, key=lambda c: c.cv_rms_mm)
     eligible = [c for c in cands if _within_one_se(c, best)]
-    # Smallest model; among equal sizes the strongest priors (the simplest fit).
-    chosen = min(eligible, key=lambda c: (c.size, -1.0 / c.prior_scale, c.cv_rms_mm))
+    # Fewest Fourier terms, then the smallest model; among equal sizes the strongest
+    # priors (the simplest fit).
+    chosen = min(
+        eligible,
+        key=lambda c: (
+            _fourier_terms(c.spec),
+            c.size,
+            -1.0 / c.prior_scale,
+            c.cv_rms_mm,
+        ),
+    )
     chosen.chosen = True
+    return chosen
+
+
+def _fourier_terms(spec: ModelSpec) -> int:
+    """How many transmission-error (Fourier) terms a layout has, Eq. (16)."""
+    return 2 * len(spec.ntm_joints) * spec.ntm_order if spec.ntm_order else 0
+
+
+def _warnings(cands: list[Candidate]) -> list[str]:
     warnings = []
     ordered = sorted(
         {c.label: c for c in cands if c.prior_scale == 1.0}.values(),
@@ -339,5 +514,4 @@ def select_model(
                 f"while validation error rises ({a.cv_rms_mm:.4f} -> {b.cv_rms_mm:.4f} mm): "
                 "the extra terms fit noise."
             )
-    spec = replace(chosen.spec, name=f"auto:{chosen.label}")
-    return Selection(spec, chosen.prior_scale, cands, warnings, n_folds, shared)
+    return warnings

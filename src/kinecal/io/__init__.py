@@ -95,6 +95,7 @@ __all__ = [
     "data_diagnostics",
     "detect_program_format",
     "end_transaction",
+    "extrapolation",
     "file_sha256",
     "image_files",
     "joint_column_names",
@@ -148,6 +149,7 @@ __getattr__, __dir__ = _lazy.exports(
         "_checks": (
             "DataWarning",
             "check_data_for_model",
+            "extrapolation",
             "data_diagnostics",
         ),
         "_csv": (

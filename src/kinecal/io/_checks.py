@@ -37,6 +37,7 @@ __all__ = [
     "DataWarning",
     "check_data_for_model",
     "data_diagnostics",
+    "extrapolation",
     "near_miss",
 ]
 
@@ -314,6 +315,8 @@ def check_data_for_model(
         "sensor": "sensor data (target, xc_mm, yc_mm, zc_mm)",
     }
     if meas.kind == kind or {meas.kind, kind} == {"point", "pose"}:
+        outside = extrapolation(cal, meas.q_ctrl, meas.rows, meas.source)
+        found = [] if outside is None else [outside]
         if meas.kind == "pose" and not cal.model.spec.cam_rotation:
             note = Diagnostic(
                 "positions_only",
@@ -322,8 +325,9 @@ def check_data_for_model(
                 "are compared.",
                 stage=_STAGE,
             )
-            return replace(meas, kind="point", R_user_cam=None, sigma_rot=None), [note]
-        return meas, []
+            meas = replace(meas, kind="point", R_user_cam=None, sigma_rot=None)
+            return meas, [note, *found]
+        return meas, found
     if meas.kind == "sensor" and not cal.model.spec.cam_rotation:
         why = "the model has no sensor orientation to map the measured points"
     elif meas.kind == "sensor":
@@ -333,6 +337,63 @@ def check_data_for_model(
     raise DataError(
         f"{meas.source}: {what[meas.kind]}, but the model was calibrated on "
         f"{what[str(kind)]}: {why}; evaluate it on data of the same kind."
+    )
+
+
+# A joint value this far outside the calibrated range (a fraction of its span, at least
+# 1 deg or 1 mm) is an extrapolation.
+_RANGE_SLACK = 0.02
+
+
+def extrapolation(
+    cal: CalibratedModel,
+    q_ctrl: np.ndarray,
+    rows: Iterable[int],
+    source: str,
+    what: str = "poses",
+) -> Diagnostic | None:
+    """``extrapolation``: rows whose joint values lie outside the joint ranges the model
+    was calibrated on (its file's ``info: calibrated_joint_range``); the model's
+    prediction there is an extrapolation and can be far off. None when every row is
+    inside, or the model file does not say its ranges."""
+    robot = cal.model.robot
+    got = cal.info.get("calibrated_joint_range")
+    n = robot.n_joints
+    try:
+        rng = np.asarray(got, dtype=float)
+    except (TypeError, ValueError):
+        return None
+    if got is None or rng.shape != (n, 2) or not np.all(np.isfinite(rng)):
+        return None
+    scale = np.where(robot.prismatic, 1e3, 180.0 / np.pi)
+    q = np.asarray(q_ctrl, float) * scale
+    slack = np.maximum(_RANGE_SLACK * (rng[:, 1] - rng[:, 0]), 1.0)
+    low, high = q < rng[:, 0] - slack, q > rng[:, 1] + slack
+    out = low | high
+    bad = np.flatnonzero(out.any(axis=1))
+    if bad.size == 0:
+        return None
+    row_of = list(rows)
+    names = robot.joint_names
+    unit = ["mm" if p else "deg" for p in robot.prismatic]
+    parts = []
+    for i in bad[:8]:
+        j = int(np.flatnonzero(out[i])[0])
+        parts.append(
+            f"row {row_of[i]} {names[j]} {q[i, j]:.1f} {unit[j]} (calibrated "
+            f"{rng[j, 0]:.1f} .. {rng[j, 1]:.1f})"
+        )
+    more = f" and {bad.size - 8} more" if bad.size > 8 else ""
+    joints = sorted({names[j] for j in np.flatnonzero(out.any(axis=0))})
+    return Diagnostic(
+        "extrapolation",
+        f"{source}: {bad.size} of {q.shape[0]} {what} lie outside the joint ranges the "
+        f"model was calibrated on ({', '.join(joints)}): {'; '.join(parts)}{more}. Its "
+        "predictions there extrapolate and can be far off; calibrate with poses that "
+        "cover them.",
+        parameters=tuple(joints),
+        rows=tuple(int(row_of[i]) for i in bad),
+        stage=_STAGE,
     )
 
 
