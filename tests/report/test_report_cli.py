@@ -83,9 +83,13 @@ def test_issue_26_held_out_accuracy_in_the_report(result_dir):
         cv["model"]["rms_mm"] ** 2, rel=1e-9
     )
     html = (out / "report.html").read_text()
-    assert "held-out, 3-fold cross-validation: this model" in html
-    assert "Cross-validation (3 folds)" in html
-    assert "held-out (cross-validation)" in html  # in the per-axis RMS figure
+    # Issue 31: the in-session and the new-region figures, named apart.
+    assert set(cv["figures"]) == {"in-session", "new region"}
+    for name in ("in-session", "new region"):
+        assert f"held-out, 3-fold cross-validation, {name}: this model" in html
+        assert f"Cross-validation, {name} (3 folds)" in html
+        assert f"held-out ({name})" in html  # in the per-axis RMS figure
+    assert "second session" in html  # one session: what it cannot tell
 
 
 def test_issue_26_report_needs_no_matplotlib(result_dir, tmp_path):

@@ -224,8 +224,13 @@ def _within_one_se(c: Candidate, best: Candidate) -> bool:
 # A larger model must predict at least this much better (relative RMS) to be chosen.
 _PRACTICAL = 0.01
 
-# How many standard errors of the paired fold differences a larger model must gain.
-_SE_FACTOR = float(__import__("os").environ.get("KC_SEF", "1"))
+# How many standard errors of the paired fold differences a larger model must gain: 1.5
+# rather than the textbook 1 (issue 31: on the shipped TIAGo set, 5-fold with the
+# selection inside every fold, 1 chose a compliance or transmission model in 3 of 5 folds
+# and cost 7 % against the kinematic model, 1.5 in 2 folds and 1.7 %; 2 chose the
+# kinematic model in every fold there but fell to 1.19x the best fixed model on the
+# region-shift twin, where 1.5 stays within 1.1x).
+_SE_FACTOR = 1.5
 
 
 class _Scorer:

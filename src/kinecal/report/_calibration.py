@@ -64,18 +64,19 @@ def _accuracy_table(summary: Mapping[str, Any]) -> str:
     cv = summary.get("cross_validation")
     if cv:
         k = cv.get("folds")
-        add(
-            f"held-out, {k}-fold cross-validation: nominal",
-            summary["before"].get("n"),
-            cv["nominal"],
-            cv["nominal"].get("se_mm"),
-        )
-        add(
-            f"held-out, {k}-fold cross-validation: this model",
-            summary["before"].get("n"),
-            cv["model"],
-            cv["model"].get("se_mm"),
-        )
+        for name, fig in _cv_figures(cv):
+            add(
+                f"held-out, {k}-fold cross-validation, {name}: nominal",
+                summary["before"].get("n"),
+                fig["nominal"],
+                fig["nominal"].get("se_mm"),
+            )
+            add(
+                f"held-out, {k}-fold cross-validation, {name}: this model",
+                summary["before"].get("n"),
+                fig["model"],
+                fig["model"].get("se_mm"),
+            )
     sel = summary.get("model_selection")
     if sel:
         for c in sel.get("candidates", []):
@@ -93,11 +94,30 @@ def _accuracy_table(summary: Mapping[str, Any]) -> str:
     return table(head, rows)
 
 
+_FOLD_WORDS = {
+    "in-session": "poses drawn at random from the calibrated workspace: what new poses "
+    "among the measured ones see",
+    "new region": "whole regions of the workspace held out: what a new task in another "
+    "part of the workspace sees",
+    "new session": "whole sessions (sets) held out, their user frames refitted: what the "
+    "next set-up sees",
+}
+
+
+def _cv_figures(cv: Mapping[str, Any]) -> list[tuple[str, Mapping[str, Any]]]:
+    """The named figures of report.json's cross_validation (a file of an earlier
+    release has one, at the top)."""
+    figs = cv.get("figures")
+    if isinstance(figs, Mapping) and figs:
+        return [(str(k), v) for k, v in figs.items() if isinstance(v, Mapping)]
+    return [(str(cv.get("unit") or "folds"), cv)]
+
+
 def _heldout_section(summary: Mapping[str, Any]) -> list[str]:
     out = []
     cv = summary.get("cross_validation")
-    if cv:
-        nom, mod = cv["nominal"], cv["model"]
+    for name, fig in _cv_figures(cv) if cv else []:
+        nom, mod = fig["nominal"], fig["model"]
         folds = mod.get("fold_rms_mm") or []
         rows = [
             [str(i + 1), num(a), num(b), num(c)]
@@ -110,9 +130,9 @@ def _heldout_section(summary: Mapping[str, Any]) -> list[str]:
             )
         ]
         out += [
-            f"<h2>Cross-validation ({cv.get('folds')} folds)</h2>",
-            "<p>Each fold is calibrated on the other poses and scored on its own "
-            "(whole sessions per fold when the data have several sets).</p>",
+            f"<h2>Cross-validation, {e(name)} ({len(folds)} folds)</h2>",
+            "<p>Each fold is calibrated on the other poses and scored on its own: "
+            f"{e(_FOLD_WORDS.get(name, 'folds of ' + name))}.</p>",
             table(
                 [
                     "fold",
@@ -123,6 +143,8 @@ def _heldout_section(summary: Mapping[str, Any]) -> list[str]:
                 rows,
             ),
         ]
+    for line in (cv or {}).get("advice") or []:
+        out.append(f"<p><strong>Note.</strong> {e(line)}</p>")
     sel = summary.get("model_selection")
     if sel:
         rows, cls = [], []
@@ -357,8 +379,9 @@ def _figures(summary: Mapping[str, Any], poses: PoseErrors | None) -> list[str]:
         "after": summary["after"].get("rms_xyz_mm"),
     }
     cv = summary.get("cross_validation")
-    if cv and cv["model"].get("rms_xyz_mm"):
-        rms["held-out (cross-validation)"] = cv["model"]["rms_xyz_mm"]
+    for name, fig in _cv_figures(cv) if cv else []:
+        if fig["model"].get("rms_xyz_mm"):
+            rms[f"held-out ({name})"] = fig["model"]["rms_xyz_mm"]
     rms = {k: v for k, v in rms.items() if v}
     if rms:
         out.append(
