@@ -31,3 +31,16 @@ def test_distinct_rows_counts_as_np_unique_does(rng):
     assert distinct_rows(np.vstack([a, a[::7]])) == 500
     with pytest.raises(ValueError, match="2-D"):
         distinct_rows(np.zeros(3))
+
+
+def test_row_groups_number_equal_rows_by_first_appearance():
+    from kinecal._stats import row_groups
+
+    rng = np.random.default_rng(3)
+    a = rng.integers(0, 4, size=(200, 3)).astype(float)
+    got = row_groups(a)
+    _, first, inv = np.unique(a, axis=0, return_index=True, return_inverse=True)
+    rank = np.empty(first.size, np.intp)
+    rank[np.argsort(first)] = np.arange(first.size)
+    assert np.array_equal(got, rank[inv.reshape(-1)])
+    assert row_groups(np.zeros((0, 3))).size == 0

@@ -12,7 +12,7 @@ import numpy as np
 
 from kinecal.typing import ArrayLike, Float, Int
 
-__all__ = ["distinct_rows", "median", "present", "quantiles"]
+__all__ = ["distinct_rows", "median", "present", "quantiles", "row_groups"]
 
 
 def median(values: ArrayLike) -> float:
@@ -41,6 +41,27 @@ def distinct_rows(rows: ArrayLike) -> int:
         return int(a.shape[0])
     s = a[np.lexsort(a.T[::-1])]
     return 1 + int(np.count_nonzero(np.any(s[1:] != s[:-1], axis=1)))
+
+
+def row_groups(rows: ArrayLike) -> Int:
+    """A label per row of a 2-D array, equal rows sharing one, numbered 0, 1, ... by
+    first appearance (``np.unique(rows, axis=0, return_inverse=True)`` renumbered,
+    without numpy.ma)."""
+    a = np.asarray(rows)
+    n = a.shape[0]
+    if n == 0:
+        return np.zeros(0, np.intp)
+    order = np.lexsort(a.T[::-1])
+    s = a[order]
+    new = np.ones(n, bool)
+    new[1:] = np.any(s[1:] != s[:-1], axis=1)
+    inverse = np.empty(n, np.intp)
+    inverse[order] = np.cumsum(new) - 1
+    first = np.full(int(inverse.max()) + 1, n, np.intp)
+    np.minimum.at(first, inverse, np.arange(n))
+    rank = np.empty(first.size, np.intp)
+    rank[np.argsort(first)] = np.arange(first.size)
+    return rank[inverse]
 
 
 def quantiles(v: ArrayLike, q: Sequence[float]) -> Float:

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from kinecal._parallel import parallel_map
-from kinecal._stats import present
+from kinecal._stats import present, row_groups
 from kinecal.errors import DataError
 from kinecal.identification._calibrate import CalibrationOptions, calibrate
 from kinecal.identification._calibrated import CalibratedModel
@@ -80,21 +80,7 @@ class Folds:
 def _pose_groups(meas: Measurements) -> np.ndarray:
     """Group of every row: rows of one set measured at the same joint values (several
     markers seen at one pose) share one; numbered by first appearance."""
-    key = np.column_stack([meas.set_index, np.round(meas.q_ctrl, 9)])
-    n = key.shape[0]
-    if n == 0:
-        return np.zeros(0, np.intp)
-    # Equal rows by a lexicographic sort (np.unique(axis=0) imports numpy.ma).
-    order = np.lexsort(key.T[::-1])
-    s = key[order]
-    new = np.ones(n, bool)
-    new[1:] = np.any(s[1:] != s[:-1], axis=1)
-    inverse = np.empty(n, np.intp)
-    inverse[order] = np.cumsum(new) - 1
-    first = _first_rows(inverse)
-    rank = np.empty(first.size, np.intp)
-    rank[np.argsort(first)] = np.arange(first.size)
-    return rank[inverse]
+    return row_groups(np.column_stack([meas.set_index, np.round(meas.q_ctrl, 9)]))
 
 
 def _first_rows(labels: np.ndarray) -> np.ndarray:
