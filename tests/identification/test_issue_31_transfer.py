@@ -52,7 +52,7 @@ def _region_shift(seed: int):
     return robot, train, replace(test, p=test.p @ R.T + [0.2, -0.3, 0.05])
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4, 5])
 def test_default_transfers_to_another_region_and_set_up(seed):
     """The default (auto) within 1.1x of the best fixed model's error on the other
     region with user and tool frames refitted."""
@@ -92,7 +92,7 @@ REAL_SETS = {
 @pytest.mark.parametrize("name", sorted(REAL_SETS))
 def test_default_on_the_shipped_real_sets_five_fold(name):
     """5-fold, the selection inside every fold: the default within 2 % of the better of
-    the kinematic and the full model (TIAGo: 4.347 against kinematic 4.276 mm; UR10e
+    the kinematic and the full model (TIAGo: 4.332 against kinematic 4.276 mm; UR10e
     equal to kinematic, FR3 better than both)."""
     f, rb = REAL_SETS[name]
     robot = load_robot(rb)
@@ -106,8 +106,8 @@ def test_default_on_the_shipped_real_sets_five_fold(name):
 @pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(REAL_SETS))
 def test_default_on_the_shipped_real_sets_leave_one_out(name):
-    """Leave one pose out (the selection inside every fold): within 5 % of the better
-    of kinematic and full (TIAGo 4.363 against kinematic 4.186 mm, FR3 1.168 against
+    """Leave one pose out (the selection inside every fold): within 2 % of the better
+    of kinematic and full (TIAGo 4.217 against kinematic 4.186 mm, FR3 1.168 against
     full 1.153, UR10e equal to kinematic)."""
     f, rb = REAL_SETS[name]
     robot = load_robot(rb)
@@ -118,4 +118,4 @@ def test_default_on_the_shipped_real_sets_leave_one_out(name):
     got = _nested(robot, meas, poses)
     kin = cross_validate(robot, meas, "kinematic", k=poses).rms_mm
     full = cross_validate(robot, meas, "full", k=poses).rms_mm
-    assert got <= 1.05 * min(kin, full), (got, kin, full)
+    assert got <= 1.02 * min(kin, full), (got, kin, full)

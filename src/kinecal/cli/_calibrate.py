@@ -56,7 +56,7 @@ def _options_from(loss: str, priors: str, stage2: str):
     show_default=True,
     help="kinematic (paper MDH), ntm, rfcm, full (paper 'Ours'), or auto: the terms "
     "the data support, chosen by cross-validation over whole regions of the workspace "
-    "(whole sessions when DATA has several sets), physical terms before Fourier series.",
+    "(whole sessions when DATA has several sets).",
 )
 @click.option(
     "--out",
