@@ -164,3 +164,16 @@ def test_extrapolation_names_rows_and_joints(poses_200):
         cal, info={k: v for k, v in cal.info.items() if k != "calibrated_joint_range"}
     )
     assert extrapolation(old, test.q_ctrl, test.rows, "test") is None
+
+
+def test_cv_of_a_fixed_model_equals_autos_table_row(poses_200):
+    """Issue 31's two disagreeing figures: `--model full --cv K` and `--model auto`'s
+    table row for full are one computation on the same folds."""
+    sel = select_model(ROBOT, poses_200, k=4)
+    row = next(c for c in sel.candidates if c.label == "full" and c.prior_scale == 1.0)
+    spec = calibrate(
+        ROBOT, poses_200.subset(np.arange(60)), "full"
+    ).calibrated.model.spec
+    assert spec == row.spec
+    held = held_out_accuracy(ROBOT, poses_200, spec, 4)
+    assert held.transfer.model.rms_mm == pytest.approx(row.cv_rms_mm, rel=1e-9)
