@@ -48,7 +48,7 @@ from kinecal.identification._options import MU0_WARM
 from kinecal.identification._priors import EvidencePriors, build_prior, evidence_group
 from kinecal.identification._problem import Problem, State, run_stages
 from kinecal.identification._residuals import Weights
-from kinecal.identification._solve import _lift, run_lm
+from kinecal.identification._solve import lift_kept, run_lm
 from kinecal.identification._stages import Identify
 from kinecal.identification._uncertainty import Uncertainty
 from kinecal.models import CalibrationModel, ModelSpec, ParameterLayout
@@ -58,10 +58,12 @@ from kinecal.typing import Float
 __all__ = [
     "CandidateFit",
     "Shared",
+    "active_prior",
     "fit_candidate",
     "rescaled",
     "shared_calibration",
     "shared_fit",
+    "warm_options",
 ]
 
 Run = tuple[str, ModelSpec, float]  # label, layout, prior scale
@@ -296,7 +298,7 @@ def fit_candidate(
     state = Identify()(view, state)
     free = state.free
     w = state.weights
-    lm = _warm(shared.lm)
+    lm = warm_options(shared.lm)
     # The lowest-objective start (each distinct one once; the registered start only
     # without a fit: a fitted one is far closer).
     unique = {x.tobytes(): x for x in (lay.transfer(v, source) for source, v in starts)}
@@ -312,7 +314,7 @@ def fit_candidate(
     # would crawl along that valley.
     state = state.but(prior=prior, lm=lm)
     if any(free[a] and free[b] for a, b in cm.link_products):
-        x0 = _lift(view, cm, x0, free, lm, w, _active(prior, free))
+        x0 = lift_kept(view, cm, x0, free, lm, w, active_prior(prior, free))
     state = EvidencePriors(refit=False)(view, state.but(x=x0))
     prior = state.prior or prior
     fit = CandidateFit(
@@ -338,7 +340,7 @@ def rescaled(fit: CandidateFit, scale: float) -> CandidateFit:
     keep = fit.shared.keep
     sigma = np.where(problem.frames, fit.prior_sigma, fit.prior_sigma * scale)
     prior = Prior(fit.prior_mean, sigma)
-    lm = _warm(fit.shared.lm)
+    lm = warm_options(fit.shared.lm)
     state = problem.start(keep).but(
         model=cm, x=fit.x, weights=fit.shared.weights(keep), lm=lm, free=fit.free
     )
@@ -350,21 +352,21 @@ def rescaled(fit: CandidateFit, scale: float) -> CandidateFit:
         fit.x,
         fit.free,
         lm,
-        _active(prior, fit.free),
+        active_prior(prior, fit.free),
         lifted=True,
     )
     return replace(fit, x=res.x, prior_sigma=sigma)
 
 
-def _warm(lm: LMOptions) -> LMOptions:
+def warm_options(lm: LMOptions) -> LMOptions:
     """The solver options from a start next to the optimum: little initial damping."""
     return replace(lm, max_iter=max(lm.max_iter, _MAX_ITER), mu0=MU0_WARM)
 
 
-def _active(prior: Prior, free: np.ndarray) -> Prior | None:
+def active_prior(prior: Prior, free: np.ndarray) -> Prior | None:
     """The prior, or None when it holds none of the free parameters."""
     return prior if np.any(np.isfinite(prior.sigma) & free) else None
 
 
 def _prior_cost(prior: Prior, x: Float, free: np.ndarray) -> float:
-    return prior.cost(x) if _active(prior, free) is not None else 0.0
+    return prior.cost(x) if active_prior(prior, free) is not None else 0.0

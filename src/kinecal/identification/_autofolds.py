@@ -10,7 +10,12 @@ import numpy as np
 
 from kinecal._stats import present as used
 from kinecal.errors import IdentifiabilityError
-from kinecal.identification._autofit import CandidateFit, Score, _active, _warm
+from kinecal.identification._autofit import (
+    CandidateFit,
+    Score,
+    active_prior,
+    warm_options,
+)
 from kinecal.identification._calibrated import CalibratedModel
 from kinecal.identification._evaluate import evaluate
 from kinecal.identification._lm import Prior, spd_solve
@@ -29,11 +34,11 @@ def run_folds(
 ) -> list[Score]:
     """The training and held-out metrics of the candidate in every fold (a
     ``ValueError`` for a fold whose training rows cannot determine it)."""
-    from kinecal.identification._crossval import _relabel_sets
+    from kinecal.identification._crossval import relabel_sets
 
     problem, cm = fit.problem()
     meas, shared = fit.meas, fit.shared
-    lm = _warm(shared.lm)
+    lm = warm_options(shared.lm)
     prior = Prior(fit.prior_mean, fit.prior_sigma)
     held = np.asarray([s.group in ("base", "cam") for s in cm.layout.specs])
     labels = [s.label for s in cm.layout.specs]
@@ -78,7 +83,7 @@ def run_folds(
                 fit.x if x0 is None else x0,
                 free,
                 lm,
-                _active(prior, free),
+                active_prior(prior, free),
                 required=False,
                 lifted=True,
             )
@@ -92,7 +97,7 @@ def run_folds(
             cal = CalibratedModel(
                 cm, x, np.full(cm.size, np.nan), status, problem.reference_payload_kg
             )
-            test_meas = _relabel_sets(meas.subset(mask))
+            test_meas = relabel_sets(meas.subset(mask))
             held_out = evaluate(cal, test_meas, refit_user=True).metrics
         else:
             held_out = metrics_from_errors(

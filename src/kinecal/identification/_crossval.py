@@ -30,6 +30,7 @@ __all__ = [
     "make_folds",
     "pose_features",
     "region_labels",
+    "relabel_sets",
     "train_test_split",
 ]
 
@@ -395,8 +396,8 @@ def _run_fold(f: _Fold) -> tuple[Metrics, Metrics] | ValueError:
     mask[f.test_idx] = True
     train, test = f.meas.subset(~mask), f.meas.subset(mask)
     if f.by_set:
-        train = _relabel_sets(train)
-        test = _relabel_sets(test)
+        train = relabel_sets(train)
+        test = relabel_sets(test)
     nominal = isinstance(f.model, str) and f.model == "nominal"
     try:
         res = calibrate(f.robot, train, "kinematic" if nominal else f.model, f.options)
@@ -411,7 +412,7 @@ def _run_fold(f: _Fold) -> tuple[Metrics, Metrics] | ValueError:
     ).metrics
 
 
-def _relabel_sets(meas: Measurements) -> Measurements:
+def relabel_sets(meas: Measurements) -> Measurements:
     """Keep only the set labels that occur (after a split)."""
     used = present(meas.set_index)
     remap = -np.ones(len(meas.set_labels), np.intp)

@@ -31,7 +31,7 @@ from kinecal.identification._residuals import Weights
 from kinecal.models import CalibrationModel
 from kinecal.typing import Float
 
-__all__ = ["run_lm"]
+__all__ = ["lift_kept", "run_lm"]
 
 log = logging.getLogger(__name__)
 
@@ -69,7 +69,7 @@ def run_lm(
     problem.progress(name, f"{int(free.sum())} parameters")
     t0 = time.perf_counter()
     if lifted:
-        x0 = _lift(problem, cm, x0, free, lm, w, prior)
+        x0 = lift_kept(problem, cm, x0, free, lm, w, prior)
         lm = replace(lm, mu0=MU0_WARM)
 
     def fun(x: Float, jac: bool) -> tuple[Float, Float | NormalSource | None]:
@@ -121,7 +121,7 @@ def run_lm(
     return out, res
 
 
-def _lift(
+def lift_kept(
     problem: Problem,
     cm: CalibrationModel,
     x0: Float,
