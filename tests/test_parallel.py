@@ -93,3 +93,76 @@ def test_a_kinecal_command_runs_with_one_blas_thread():
     )
     line = [ln for ln in out.stdout.splitlines() if ln.startswith("threads")]
     assert line and set(line[0].split()[1:]) == {"1"}, out.stdout + out.stderr
+
+
+def _blas_during_calibration(threads_seen: list[list[int]]) -> object:
+    """A stage that records the BLAS thread counts while calibrate() runs it."""
+
+    def stage(problem: object, state: object) -> object:
+        threads_seen.append(blas_threads())
+        return state
+
+    return stage
+
+
+def test_calibrate_runs_on_one_blas_thread_and_restores_the_callers_setting():
+    """A library user who set 2 BLAS threads: calibrate() runs its stages on one (the
+    small matrices gain nothing from more, and they fight over a busy machine), and the
+    user's 2 are back afterwards, also when a stage raises."""
+    import numpy  # noqa: F401
+    import scipy.linalg  # noqa: F401
+
+    from kinecal.identification import calibrate, default_stages
+    from kinecal.simulation import LaserTracker, experiment2
+
+    before = blas_threads()
+    assert before, "no BLAS library found"
+    e = experiment2(0, tracker=LaserTracker(5e-6, 0.0))
+    seen: list[list[int]] = []
+    set_blas_threads(2)
+    try:
+        if set(blas_threads()) != {2}:
+            pytest.skip("the BLAS caps its threads at 1 here")
+        stages = (*default_stages()[:2], _blas_during_calibration(seen))
+        calibrate(e.truth.robot, e.train, "kinematic", stages=stages)
+        assert seen and set(seen[0]) == {1}
+        assert set(blas_threads()) == {2}  # the caller's setting, restored
+
+        def fail(problem: object, state: object) -> object:
+            raise RuntimeError("a stage failed")
+
+        with pytest.raises(RuntimeError, match="a stage failed"):
+            calibrate(e.truth.robot, e.train, "kinematic", stages=(fail,))
+        assert set(blas_threads()) == {2}
+    finally:
+        set_blas_threads(before[0])
+
+
+def test_one_blas_thread_nests_and_restores_each_library():
+    """Nested blocks: only the outermost sets and restores; each library gets its own
+    count back (numpy's and scipy's OpenBLAS set apart here)."""
+    import numpy  # noqa: F401
+    import scipy.linalg  # noqa: F401
+
+    from kinecal._blas import _blas_controller, one_blas_thread
+
+    ctrl = _blas_controller()
+    if ctrl is None or len(ctrl.lib_controllers) < 1:
+        pytest.skip("no BLAS found by threadpoolctl")
+    libs = ctrl.lib_controllers
+    before = [lib.num_threads for lib in libs]
+    try:
+        for k, lib in enumerate(libs):
+            lib.set_num_threads(2 + k % 2)
+        wanted = blas_threads()
+        if wanted != [2 + k % 2 for k in range(len(libs))]:
+            pytest.skip("the BLAS caps its threads here")
+        with one_blas_thread():
+            assert set(blas_threads()) == {1}
+            with one_blas_thread():
+                assert set(blas_threads()) == {1}
+            assert set(blas_threads()) == {1}  # the inner block left it
+        assert blas_threads() == wanted
+    finally:
+        for lib, n in zip(libs, before):
+            lib.set_num_threads(n)

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kinecal._blas import one_blas_thread
 from kinecal.identification._blocks import reporting
 from kinecal.identification._calibrated import CalibratedModel
 from kinecal.identification._diagnose import Diagnose
@@ -86,6 +87,7 @@ def default_stages(options: CalibrationOptions | None = None) -> tuple[Stage, ..
     )
 
 
+@one_blas_thread()
 def calibrate(
     robot: RobotDescription,
     meas: Measurements,

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from kinecal._blas import one_blas_thread
 from kinecal._parallel import parallel_map
 from kinecal.errors import DataError
 from kinecal.identification._calibrate import CalibrationOptions, calibrate
@@ -186,6 +187,7 @@ class CrossValidation:
         return float(v.std(ddof=1) / np.sqrt(v.size)) if v.size > 1 else float("nan")
 
 
+@one_blas_thread()
 def cross_validate(
     robot: RobotDescription,
     meas: Measurements,
@@ -221,6 +223,7 @@ def cross_validate(
     return out
 
 
+@one_blas_thread()
 def cross_validate_many(
     robot: RobotDescription,
     meas: Measurements,
@@ -324,6 +327,7 @@ class ComparisonRow:
     result: object | None = None  # the CalibrationResult (None for the nominal row)
 
 
+@one_blas_thread()
 def compare_models(
     robot: RobotDescription,
     train: Measurements,

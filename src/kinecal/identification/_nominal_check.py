@@ -29,6 +29,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from kinecal._blas import one_blas_thread
 from kinecal.identification._calibrate import (
     CalibrationResult,
     build_prior,
@@ -89,6 +90,7 @@ def _without_geometry_priors(
     return calibrate(robot, data, result.model.spec, free, stages=stages)
 
 
+@one_blas_thread()
 def nominal_check(
     result: CalibrationResult,
     robot: RobotDescription,
