@@ -7,7 +7,7 @@ import json
 import os
 
 import numpy as np
-from benchmarks.__main__ import _median_time, _model_code
+from benchmarks._common import _median_time, _model_code
 
 from kinecal.identification import Weights, calibrate, residuals
 from kinecal.io import measurements_to_csv
