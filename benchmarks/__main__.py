@@ -88,7 +88,21 @@ def main(argv: list[str] | None = None) -> int:
         help="only the issue-26 rows (large data, --model auto, start-up), merged into "
         "--out",
     )
+    ap.add_argument(
+        "--issue36",
+        action="store_true",
+        help="only the issue-36 rows (the command against one-thread scipy on two data "
+        "sets, passes, per-pass floor, BLAS threads, imports); --out default "
+        "benchmarks/issue36.json",
+    )
     args = ap.parse_args(argv)
+    if args.issue36:
+        from benchmarks._issue36 import main as issue36
+
+        out = (
+            "benchmarks/issue36.json" if args.out == ap.get_default("out") else args.out
+        )
+        return issue36(out, args.quick)
     if args.stripes:
         from benchmarks._stripes import main as stripes_main
 
