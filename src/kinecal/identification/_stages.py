@@ -171,7 +171,8 @@ class Identify:
                 f"{meas.source}: {meas.n} poses ({problem.n_residuals} residuals) cannot "
                 f"determine {int(ident.free.sum())} parameters."
             )
-        return state.but(free=ident.free, identifiability=ident).note(*found)
+        out = state.but(free=ident.free, identifiability=ident).note(*found)
+        return out.but(identified=out)
 
 
 def _few_targets(problem: Problem, cm: CalibrationModel) -> list[Diagnostic]:
