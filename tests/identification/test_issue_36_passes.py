@@ -54,6 +54,44 @@ def test_the_nominal_check_fit_from_the_shared_state_is_the_same(exp2_exact):
     assert shared.calibrated.status == fresh.calibrated.status
     assert [d.code for d in shared.diagnostics] == [d.code for d in fresh.diagnostics]
     assert n_shared < n_fresh
+    # From the calibration's solution: the same fit on clean data (its s0 within 1e-4),
+    # in at most 3 Jacobian passes.
+    screen, n_screen = _jacobians(
+        lambda: _without_geometry_priors(res, robot, meas, opts, from_fit=True)
+    )
+    assert screen is not None and n_screen <= 3 < n_shared
+    assert abs(screen.sigma0 / fresh.sigma0 - 1) < 1e-4
+    assert _without_geometry_priors(alone, robot, meas, opts, from_fit=True) is None
+
+
+def test_the_nominal_check_screens_from_the_fit_and_reports_from_nominal():
+    """The UR10e poses on the CB table: the screen from the fit sees the priors holding
+    the fit back, so the findings come from the fit from nominal, with its numbers (the
+    fit from the solution ends in another minimum there); on the right table the screen
+    answers alone."""
+    from pathlib import Path
+
+    from kinecal.identification import nominal_check
+    from kinecal.io import read_measurements
+    from kinecal.robot import load_robot
+
+    data = Path(__file__).resolve().parents[1] / "data" / "real" / "ur10_mocap.csv"
+    robot = load_robot("ur10")
+    meas = read_measurements(data, load_robot("ur10e"))
+    res = calibrate(robot, meas, "full")
+    found, n = _jacobians(lambda: nominal_check(res, robot, meas))
+    nominal = _without_geometry_priors(
+        dataclasses.replace(res, identified=None), robot, meas, CalibrationOptions()
+    )
+    assert nominal is not None
+    held = next(d for d in found if d.code == "priors_held")
+    assert f"{res.sigma0 / nominal.sigma0:.2f}x" in held.message
+    assert f"RMS {nominal.metrics_after.rms_mm:.4g} mm" in held.message
+    right = load_robot("ur10e")
+    res_e = calibrate(right, meas, "full")
+    found_e, n_e = _jacobians(lambda: nominal_check(res_e, right, meas))
+    assert not [d for d in found_e if d.code in ("priors_held", "nominal_mismatch")]
+    assert n_e < n
 
 
 def test_the_rejection_probe_from_the_shared_state_is_the_same(exp2_exact):
