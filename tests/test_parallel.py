@@ -166,3 +166,32 @@ def test_one_blas_thread_nests_and_restores_each_library():
     finally:
         for lib, n in zip(libs, before):
             lib.set_num_threads(n)
+
+
+def test_an_in_process_command_runs_on_one_blas_thread(monkeypatch, capsys):
+    """kinecal.cli.main called where numpy is already loaded (a test, a notebook): the
+    command's environment variable comes too late, so the command runs inside
+    one_blas_thread and the caller's count is back afterwards."""
+    import click
+    import numpy  # noqa: F401
+
+    from kinecal.cli import main
+
+    seen: list[list[int]] = []
+    echo = click.echo
+
+    def spy(*args: object, **kw: object) -> None:
+        seen.append(blas_threads())
+        echo(*args, **kw)
+
+    before = blas_threads()
+    set_blas_threads(2)
+    try:
+        if set(blas_threads()) != {2}:
+            pytest.skip("the BLAS caps its threads at 1 here")
+        monkeypatch.setattr(click, "echo", spy)
+        assert main(["robots"]) == 0
+        assert seen and all(set(s) == {1} for s in seen)
+        assert set(blas_threads()) == {2}
+    finally:
+        set_blas_threads(before[0])
