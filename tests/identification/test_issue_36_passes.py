@@ -14,7 +14,8 @@ import numpy as np
 from kinecal.identification import CalibrationOptions, calibrate, default_stages
 from kinecal.identification._nominal_check import _without_geometry_priors
 from kinecal.identification._problem import Problem, run_stages
-from kinecal.identification._robust import RobustRejection, _probe, row_z
+from kinecal.identification._robust import RobustRejection, row_z
+from kinecal.identification._stages import run_shared
 from kinecal.models import pass_counts
 
 
@@ -103,9 +104,9 @@ def test_the_rejection_probe_from_the_shared_state_is_the_same(exp2_exact):
     state = run_stages(problem, problem.start(), stages[:2])
     rejection = next(s for s in stages if isinstance(s, RobustRejection))
     rob = problem.with_options(dataclasses.replace(problem.options, loss="huber"))
-    shared, n_shared = _jacobians(lambda: _probe(rob, state, rejection.probe))
+    shared, n_shared = _jacobians(lambda: run_shared(rob, state, rejection.probe))
     fresh, n_fresh = _jacobians(
-        lambda: _probe(rob, state.but(identified=None), rejection.probe)
+        lambda: run_shared(rob, state.but(identified=None), rejection.probe)
     )
     np.testing.assert_array_equal(shared.x, fresh.x)
     np.testing.assert_array_equal(row_z(rob, shared)[0], row_z(rob, fresh)[0])

@@ -42,7 +42,7 @@ from kinecal.identification._press import loo_position_errors, rms_mm
 from kinecal.identification._problem import Problem, Stage, State, run_stages
 from kinecal.identification._residuals import Weights, residuals
 from kinecal.identification._solve import run_lm
-from kinecal.identification._stages import Identify, Register, robust_sigma
+from kinecal.identification._stages import robust_sigma, run_shared
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.typing import Float
 
@@ -391,7 +391,7 @@ class RobustRejection:
         rob_problem = root.with_options(
             replace(opts, loss=opts.loss if opts.loss != "linear" else "huber")
         )
-        rob = _probe(rob_problem, state, self.probe or self.fit)
+        rob = run_shared(rob_problem, state, self.probe or self.fit)
         z, _, _ = row_z(rob_problem, rob)
         suspect = _largest(z > limit, z, _MAX_SUSPECT * n)
         for _ in range(_MAX_ROUNDS):
@@ -429,23 +429,6 @@ class RobustRejection:
         if current.active is None or current.active.all():
             return current.note(*found)
         return _report(root, current, found, self.name)
-
-
-def _probe(problem: Problem, state: State, stages: tuple[Stage, ...]) -> State:
-    """The probe's stages on every row; when they begin with the registration and the
-    identifiability analysis, which depend on neither the loss nor the priors, from the
-    fit's own state after them (:attr:`State.identified`, when made on every row): the
-    same numbers, three Jacobian passes fewer."""
-    start = state.identified
-    if (
-        start is not None
-        and start.active is None
-        and len(stages) >= 2
-        and isinstance(stages[0], Register)
-        and isinstance(stages[1], Identify)
-    ):
-        return run_stages(problem, start, stages[2:])
-    return run_stages(problem, problem.start(), stages)
 
 
 def _test_fit(root: Problem, current: State, rows: np.ndarray) -> State:
