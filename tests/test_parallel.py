@@ -195,3 +195,29 @@ def test_an_in_process_command_runs_on_one_blas_thread(monkeypatch, capsys):
         assert set(blas_threads()) == {2}
     finally:
         set_blas_threads(before[0])
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="OpenBLAS threads")
+def test_the_command_pins_one_thread_at_start_unless_the_user_set_more():
+    """Where the command asked every BLAS for one thread before numpy loaded, the
+    library's limit has nothing to do (threadpoolctl is not even imported); where the
+    user's environment asked for two, the limit still applies inside and restores."""
+    code = (
+        "import sys; from kinecal._parallel import single_thread_blas as s; s()\n"
+        "import numpy, scipy.linalg\n"
+        "from kinecal._blas import one_blas_thread, blas_threads\n"
+        "with one_blas_thread():\n"
+        "    loaded = 'threadpoolctl' in sys.modules\n"
+        "    inside = blas_threads() if loaded else []\n"
+        "print(loaded, inside, blas_threads())"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True
+    )
+    assert out.stdout.startswith("False [] [1, 1]"), out.stdout + out.stderr
+    env["OPENBLAS_NUM_THREADS"] = "2"
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True
+    )
+    assert out.stdout.strip() == "True [1, 1] [2, 2]", out.stdout + out.stderr

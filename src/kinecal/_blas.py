@@ -34,6 +34,16 @@ _BLAS_MODULES = ("numpy", "scipy.linalg")
 _lock = threading.Lock()
 _depth = 0
 _before: list[int] = []
+# Set by pin_at_start(): every BLAS of this process was asked for one thread before it
+# loaded (the kinecal command), so one_blas_thread has nothing to do and need not even
+# list the libraries (threadpoolctl's import and its listing cost ~8 ms of a command).
+_pinned = False
+
+
+def pin_at_start() -> None:
+    """Record that every BLAS thread variable said 1 before numpy loaded."""
+    global _pinned
+    _pinned = True
 
 
 def _blas_controller() -> Any:
@@ -62,6 +72,8 @@ def blas_threads() -> list[int]:
 
 def set_blas_threads(n: int) -> None:
     """Set every loaded BLAS library (numpy's, scipy's) to ``n`` threads."""
+    global _pinned
+    _pinned = _pinned and int(n) == 1
     ctrl = _blas_controller()
     if ctrl is not None:
         for lib in ctrl.lib_controllers:
@@ -83,7 +95,7 @@ class one_blas_thread(ContextDecorator):
         global _depth, _before
         with _lock:
             if _depth == 0:
-                _before = blas_threads()
+                _before = [] if _pinned else blas_threads()
                 if any(n != 1 for n in _before):
                     set_blas_threads(1)
             _depth += 1

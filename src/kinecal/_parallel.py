@@ -29,7 +29,12 @@ import sys
 from collections.abc import Callable, Iterable
 from typing import TypeVar
 
-from kinecal._blas import blas_threads, one_blas_thread, set_blas_threads
+from kinecal._blas import (
+    blas_threads,
+    one_blas_thread,
+    pin_at_start,
+    set_blas_threads,
+)
 from kinecal._cpu import available_cpus, set_kernel_threads
 
 # multiprocessing and concurrent.futures are imported where used: the kinecal command
@@ -67,6 +72,8 @@ def single_thread_blas() -> bool:
         return False
     for var in _BLAS_THREAD_VARS:
         os.environ.setdefault(var, "1")
+    if all(os.environ[var] == "1" for var in _BLAS_THREAD_VARS):
+        pin_at_start()  # the library's own limit (one_blas_thread) has nothing to do
     return True
 
 
