@@ -9,63 +9,24 @@ update (zeta = 0.005). Not part of ``make test``.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import os
-import platform
 import resource
-import statistics
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-
-class Seconds(float):
-    """A median wall time that also carries the best of the repeats (``.best``)."""
-
-    best: float
-
-
-def _median_time(fn: Callable[[], Any], repeat: int) -> tuple[Seconds, Any]:
-    times, out = [], None
-    for _ in range(repeat):
-        t = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t)
-    med = Seconds(statistics.median(times))
-    med.best = min(times)
-    return med, out
-
-
-def _process_env() -> dict[str, str]:
-    """Environment of the whole-process runs: Python's bytecode cache on (as installed;
-    some shells set PYTHONDONTWRITEBYTECODE, which recompiles every module each run)."""
-    env = dict(os.environ)
-    env.pop("PYTHONDONTWRITEBYTECODE", None)
-    return env
-
-
-@contextlib.contextmanager
-def _model_code(code: str) -> Iterator[None]:
-    """Evaluate the models with ``code`` ('c' or 'numpy', KINECAL_KERNEL) inside."""
-    before = os.environ.get("KINECAL_KERNEL")
-    os.environ["KINECAL_KERNEL"] = code
-    try:
-        yield
-    finally:
-        if before is None:
-            del os.environ["KINECAL_KERNEL"]
-        else:
-            os.environ["KINECAL_KERNEL"] = before
-
-
-def _run(cmd: list[str]) -> None:
-    subprocess.run(cmd, check=True, capture_output=True, env=_process_env())
+from benchmarks._common import (
+    _machine,
+    _median_time,
+    _model_code,
+    _process_env,
+    _run,
+)
 
 
 def _jacobian_instructions(
@@ -109,23 +70,6 @@ def _jacobian_instructions(
     return (counts[1] - counts[0]) / 4
 
 
-def _machine() -> dict[str, Any]:
-    info: dict[str, Any] = {
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-        "platform": platform.platform(),
-        "cpus": os.cpu_count(),
-    }
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                info["cpu"] = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return info
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks")
     ap.add_argument("--out", default="benchmarks/results.json")
@@ -144,7 +88,26 @@ def main(argv: list[str] | None = None) -> int:
         help="only the issue-26 rows (large data, --model auto, start-up), merged into "
         "--out",
     )
+    ap.add_argument(
+        "--issue36",
+        action="store_true",
+        help="only the issue-36 rows (the command against one-thread scipy on two data "
+        "sets, passes, per-pass floor, BLAS threads, imports); --out default "
+        "benchmarks/issue36.json",
+    )
+    ap.add_argument(
+        "--large",
+        action="store_true",
+        help="with --issue36: only the row of 1e6 poses from CSV (minutes), merged in",
+    )
     args = ap.parse_args(argv)
+    if args.issue36:
+        from benchmarks._issue36 import main as issue36
+
+        out = (
+            "benchmarks/issue36.json" if args.out == ap.get_default("out") else args.out
+        )
+        return issue36(out, args.quick, args.large)
     if args.stripes:
         from benchmarks._stripes import main as stripes_main
 

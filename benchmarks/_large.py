@@ -111,7 +111,7 @@ def whole_commands(
     """``kinecal calibrate --model auto`` against ``--model full`` as whole processes
     with their default reports (what a user waits for), run in turn: wall and CPU
     seconds and their ratios pair by pair (medians)."""
-    from benchmarks.__main__ import _run
+    from benchmarks._common import _run
     from kinecal.io import measurements_to_csv
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -156,7 +156,7 @@ def issue26(path: str) -> int:
     calibrations of 1e5 and 1e6 poses in fresh processes, ``--model auto`` against one
     calibration on 2000 poses (CPU time: the VM is shared), and the start-up of
     ``kinecal --help`` and ``kinecal fk``."""
-    from benchmarks.__main__ import _machine, _run
+    from benchmarks._common import _machine, _run
     from kinecal._parallel import available_cpus
     from kinecal.identification import calibrate, select_model
     from kinecal.simulation import LaserTracker, experiment2

@@ -187,7 +187,7 @@ def run(
             centre_error_um=[e * 1e6 for e in errs],
         )
     # 5. the sphere fit, 50k points, clean and with the support plate; BLAS at 1 and 2
-    from benchmarks.__main__ import _median_time
+    from benchmarks._common import _median_time
 
     rng = np.random.default_rng(0)
     dd = rng.normal(size=(50_000, 3))

@@ -7,7 +7,8 @@ import json
 import os
 
 import numpy as np
-from benchmarks.__main__ import _median_time, _model_code
+import pytest
+from benchmarks._common import _median_time, _model_code
 
 from kinecal.identification import Weights, calibrate, residuals
 from kinecal.io import measurements_to_csv
@@ -74,3 +75,22 @@ def test_the_instruction_count_helper_evaluates_the_model(tmp_path):
         load_scale=np.ones(20),
     )
     assert _instructions.main([str(path), "2"]) == 0
+
+
+def test_the_issue_36_helpers():
+    """The import-time parser sums self times by top package; the JᵀJ floor counts one
+    triangle of the symmetric product."""
+    from benchmarks._issue36 import import_times, jtj_floor_seconds
+
+    text = (
+        "import time: self [us] | cumulative | imported package\n"
+        "import time:      1000 |       1000 |   numpy._core\n"
+        "import time:       500 |       1500 | numpy\n"
+        "import time:      2000 |       2000 | kinecal.models._spec\n"
+        "import time:       300 |        300 | json\n"
+        "not an import line\n"
+    )
+    t = import_times(text)
+    assert t["numpy"] == pytest.approx(1.5e-3) and t["kinecal"] == pytest.approx(2e-3)
+    assert t["total"] == pytest.approx(3.8e-3) and t["yaml"] == 0.0
+    assert jtj_floor_seconds(6000, 50, 1e9) == pytest.approx(6000 * 50 * 51 / 1e9)

@@ -17,6 +17,7 @@ LAZY = (
     "kinecal.identification",
     "kinecal.io",
     "kinecal.models",
+    "kinecal.report",
     "kinecal.robot",
     "kinecal.sensor",
 )
@@ -117,3 +118,27 @@ def test_issue_26_a_calibration_does_not_import_numpy_ma_or_the_ik(tmp_path):
     assert (out / "model.yaml").is_file()
     assert "kinecal.identification._calibrate" in loaded
     assert not {"numpy.ma", "kinecal.models._ik_lm"} & loaded
+
+
+def test_issue_36_calibrate_without_the_report_imports_no_figures(tmp_path):
+    """``kinecal calibrate --no-report`` writes model.yaml, report.json and
+    residuals.csv: the figures, the HTML and the SVG code are not imported."""
+    from kinecal.io import measurements_to_csv
+    from kinecal.simulation import LaserTracker, experiment2
+
+    e = experiment2(5, n_train=60, n_side=4, tracker=LaserTracker(5e-6, 0.0))
+    csv = tmp_path / "poses.csv"
+    csv.write_text(measurements_to_csv(e.train, e.truth.robot))
+    argv = ["calibrate", str(csv), "--robot", e.truth.robot.name, "--model"]
+    argv += ["kinematic", "--out", str(tmp_path / "o"), "-q", "--no-report"]
+    loaded = _modules_after(f"from kinecal.cli import main\nassert main({argv!r}) == 0")
+    assert "kinecal.report._poses" in loaded and "kinecal.report._summary" in loaded
+    assert (
+        not {
+            "kinecal.report._calibration",
+            "kinecal.report._figures",
+            "kinecal.report._html",
+            "kinecal.report._svg",
+        }
+        & loaded
+    )

@@ -93,3 +93,142 @@ def test_a_kinecal_command_runs_with_one_blas_thread():
     )
     line = [ln for ln in out.stdout.splitlines() if ln.startswith("threads")]
     assert line and set(line[0].split()[1:]) == {"1"}, out.stdout + out.stderr
+
+
+def _blas_during_calibration(threads_seen: list[list[int]]) -> object:
+    """A stage that records the BLAS thread counts while calibrate() runs it."""
+
+    def stage(problem: object, state: object) -> object:
+        threads_seen.append(blas_threads())
+        return state
+
+    return stage
+
+
+def test_calibrate_runs_on_one_blas_thread_and_restores_the_callers_setting():
+    """A library user who set 2 BLAS threads: calibrate() runs its stages on one (the
+    small matrices gain nothing from more, and they fight over a busy machine), and the
+    user's 2 are back afterwards, also when a stage raises."""
+    import numpy  # noqa: F401
+    import scipy.linalg  # noqa: F401
+
+    from kinecal.identification import calibrate, default_stages
+    from kinecal.simulation import LaserTracker, experiment2
+
+    before = blas_threads()
+    assert before, "no BLAS library found"
+    e = experiment2(0, tracker=LaserTracker(5e-6, 0.0))
+    seen: list[list[int]] = []
+    set_blas_threads(2)
+    try:
+        if set(blas_threads()) != {2}:
+            pytest.skip("the BLAS caps its threads at 1 here")
+        stages = (*default_stages()[:2], _blas_during_calibration(seen))
+        calibrate(e.truth.robot, e.train, "kinematic", stages=stages)
+        assert seen and set(seen[0]) == {1}
+        assert set(blas_threads()) == {2}  # the caller's setting, restored
+
+        def fail(problem: object, state: object) -> object:
+            raise RuntimeError("a stage failed")
+
+        with pytest.raises(RuntimeError, match="a stage failed"):
+            calibrate(e.truth.robot, e.train, "kinematic", stages=(fail,))
+        assert set(blas_threads()) == {2}
+    finally:
+        set_blas_threads(before[0])
+
+
+def test_one_blas_thread_nests_and_restores_each_library():
+    """Nested blocks: only the outermost sets and restores; each library gets its own
+    count back (numpy's and scipy's OpenBLAS set apart here)."""
+    import numpy  # noqa: F401
+    import scipy.linalg  # noqa: F401
+
+    from kinecal._blas import _blas_controller, one_blas_thread
+
+    ctrl = _blas_controller()
+    if ctrl is None or len(ctrl.lib_controllers) < 1:
+        pytest.skip("no BLAS found by threadpoolctl")
+    libs = ctrl.lib_controllers
+    before = [lib.num_threads for lib in libs]
+    try:
+        for k, lib in enumerate(libs):
+            lib.set_num_threads(2 + k % 2)
+        wanted = blas_threads()
+        if wanted != [2 + k % 2 for k in range(len(libs))]:
+            pytest.skip("the BLAS caps its threads here")
+        with one_blas_thread():
+            assert set(blas_threads()) == {1}
+            with one_blas_thread():
+                assert set(blas_threads()) == {1}
+            assert set(blas_threads()) == {1}  # the inner block left it
+        assert blas_threads() == wanted
+    finally:
+        for lib, n in zip(libs, before):
+            lib.set_num_threads(n)
+
+
+def test_an_in_process_command_runs_on_one_blas_thread(monkeypatch, capsys):
+    """kinecal.cli.main called where numpy is already loaded (a test, a notebook): the
+    command's environment variable comes too late, so the command runs inside
+    one_blas_thread and the caller's count is back afterwards."""
+    import click
+    import numpy  # noqa: F401
+
+    from kinecal.cli import main
+
+    seen: list[list[int]] = []
+    echo = click.echo
+
+    def spy(*args: object, **kw: object) -> None:
+        seen.append(blas_threads())
+        echo(*args, **kw)
+
+    before = blas_threads()
+    set_blas_threads(2)
+    try:
+        if set(blas_threads()) != {2}:
+            pytest.skip("the BLAS caps its threads at 1 here")
+        monkeypatch.setattr(click, "echo", spy)
+        assert main(["robots"]) == 0
+        assert seen and all(set(s) == {1} for s in seen)
+        assert set(blas_threads()) == {2}
+    finally:
+        set_blas_threads(before[0])
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="OpenBLAS threads")
+def test_the_command_pins_one_thread_at_start_unless_the_user_set_more():
+    """Where the command asked every BLAS for one thread before numpy loaded, the
+    library's limit has nothing to do (threadpoolctl is not even imported); where the
+    user's environment asked for two, the limit still applies inside and restores."""
+    code = (
+        "import sys; from kinecal._parallel import single_thread_blas as s; s()\n"
+        "import numpy, scipy.linalg\n"
+        "from kinecal._blas import one_blas_thread, blas_threads\n"
+        "with one_blas_thread():\n"
+        "    loaded = 'threadpoolctl' in sys.modules\n"
+        "    inside = blas_threads() if loaded else []\n"
+        "import json; print(json.dumps([loaded, inside, blas_threads()]))"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True
+    )
+    loaded, inside, after = _three(out)
+    assert not loaded and inside == [] and after and set(after) == {1}
+    env["OPENBLAS_NUM_THREADS"] = "2"
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True
+    )
+    loaded, inside, after = _three(out)
+    if set(after) != {2}:
+        pytest.skip("the BLAS caps its threads at 1 here")
+    assert loaded and inside and set(inside) == {1}
+
+
+def _three(out: subprocess.CompletedProcess[str]) -> list:
+    import json
+
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout.splitlines()[-1])

@@ -13,9 +13,10 @@ same time). With
 worker processes on every core it oversubscribes them: 20 fold calibrations on 2 workers
 took 0.66x the serial time with two BLAS threads each, and ran 2.2x faster with one. So
 every worker sets the OpenBLAS libraries it has loaded (numpy's and scipy's, as the PyPI
-wheels ship them) to one thread, and the ``kinecal`` command asks for one BLAS thread from
-the start (:func:`single_thread_blas`). Another BLAS (MKL, Accelerate) keeps its own
-setting in the workers: set its thread count to 1 before numpy is imported.
+wheels ship them, and any other BLAS threadpoolctl knows) to one thread, and the ``kinecal``
+command asks for one BLAS thread from the start (:func:`single_thread_blas`). In a library
+user's process the entry points limit the threads themselves while they run
+(:class:`kinecal._blas.one_blas_thread`).
 
 The CPU count (:func:`available_cpus`) and the compiled model kernel's thread setting live
 in :mod:`kinecal._cpu`, below both this module and :mod:`kinecal.models`.
@@ -26,8 +27,14 @@ from __future__ import annotations
 import os
 import sys
 from collections.abc import Callable, Iterable
-from typing import Any, TypeVar
+from typing import TypeVar
 
+from kinecal._blas import (
+    blas_threads,
+    one_blas_thread,
+    pin_at_start,
+    set_blas_threads,
+)
 from kinecal._cpu import available_cpus, set_kernel_threads
 
 # multiprocessing and concurrent.futures are imported where used: the kinecal command
@@ -36,6 +43,7 @@ from kinecal._cpu import available_cpus, set_kernel_threads
 __all__ = [
     "available_cpus",
     "blas_threads",
+    "one_blas_thread",
     "parallel_map",
     "set_blas_threads",
     "single_thread_blas",
@@ -64,61 +72,13 @@ def single_thread_blas() -> bool:
         return False
     for var in _BLAS_THREAD_VARS:
         os.environ.setdefault(var, "1")
+    if all(os.environ[var] == "1" for var in _BLAS_THREAD_VARS):
+        pin_at_start()  # the library's own limit (one_blas_thread) has nothing to do
     return True
 
 
-_OPENBLAS_PREFIXES = ("scipy_openblas", "openblas")
-_OPENBLAS_SUFFIXES = ("64_", "")
-
-
-def _openblas_functions(what: str) -> list[Any]:
-    """``<prefix>_{what}<suffix>`` of every OpenBLAS library loaded in this process (found
-    in /proc/self/maps, so Linux only); [] where there is none."""
-    try:
-        with open("/proc/self/maps") as fh:
-            paths = sorted(
-                {ln.split()[-1] for ln in fh if "openblas" in ln.lower() and "/" in ln}
-            )
-    except OSError:
-        return []
-    import ctypes  # here: every command imports this module, few call this
-
-    names = [f"{p}_{what}{s}" for p in _OPENBLAS_PREFIXES for s in _OPENBLAS_SUFFIXES]
-    out = []
-    for path in paths:
-        try:
-            lib = ctypes.CDLL(path)  # the library already loaded: the same instance
-        except OSError:
-            continue
-        fn = next((f for f in (getattr(lib, n, None) for n in names) if f), None)
-        if fn is not None:
-            out.append(fn)
-    return out
-
-
-def blas_threads() -> list[int]:
-    """Threads of every loaded OpenBLAS library (numpy's, scipy's); Linux only."""
-    import ctypes
-
-    out = []
-    for fn in _openblas_functions("get_num_threads"):
-        fn.restype = ctypes.c_int
-        out.append(int(fn()))
-    return out
-
-
-def set_blas_threads(n: int) -> None:
-    """Set every loaded OpenBLAS library (numpy's, scipy's) to ``n`` threads; Linux only,
-    nothing elsewhere."""
-    import ctypes
-
-    for fn in _openblas_functions("set_num_threads"):
-        fn.argtypes, fn.restype = [ctypes.c_int], None
-        fn(int(n))
-
-
 def _one_blas_thread() -> None:
-    """Worker initializer: one thread for every loaded OpenBLAS and for the compiled
+    """Worker initializer: one thread for every loaded BLAS and for the compiled
     model kernel (the workers already use every core)."""
     set_blas_threads(1)
     set_kernel_threads(1)

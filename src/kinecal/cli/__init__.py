@@ -149,8 +149,12 @@ def main(argv: list[str] | None = None) -> int:
 
     Runs the command inside an output transaction (result folders are moved into place
     only if it succeeds), turns every exception into one ``Error:`` line and an exit
-    code, and shows Python warnings as one ``warning:`` line each.
+    code, and shows Python warnings as one ``warning:`` line each. Called in a process
+    that has already loaded numpy (too late for the command's one-BLAS-thread
+    environment), it runs the command on one BLAS thread and restores the caller's.
     """
+    import contextlib
+
     from kinecal._outputs import begin_transaction, end_transaction
     from kinecal.cli._errors import (
         RESULT_CODES,
@@ -165,7 +169,13 @@ def main(argv: list[str] | None = None) -> int:
     failure: BaseException | None = None
     code = 0
     try:
-        with one_line_warnings(), handled_signals():
+        if "numpy" in sys.modules:
+            from kinecal._blas import one_blas_thread
+
+            blas: contextlib.AbstractContextManager[object] = one_blas_thread()
+        else:
+            blas = contextlib.nullcontext()
+        with one_line_warnings(), handled_signals(), blas:
             try:
                 rv = cli.main(args=argv, prog_name="kinecal", standalone_mode=False)
                 code = rv if isinstance(rv, int) else 0

@@ -181,7 +181,7 @@ def calibrate(
     from kinecal.identification import calibrate as run_calibration
     from kinecal.identification import spec_for
     from kinecal.io import (
-        atomic_write_text,
+        atomic_write_bytes,
         prepare_output_dir,
         save_model,
         write_json,
@@ -276,8 +276,10 @@ def calibrate(
     summary = calibration_summary(result, extra=extra)
     save_model(out / "model.yaml", result.calibrated, force=True)
     write_json(out / "report.json", summary, force=True)
-    atomic_write_text(
-        out / RESIDUALS_CSV, pose_errors(result, meas).to_csv(), force=True
+    # In blocks of rows: a large file's text is never held whole.
+    blocks = pose_errors(result, meas).csv_blocks()
+    atomic_write_bytes(
+        out / RESIDUALS_CSV, (b.encode("utf-8") for b in blocks), force=True
     )
     written = ["model.yaml", "report.json", RESIDUALS_CSV, "manifest.json"]
     written += ["report.html"] if report else []

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinecal._blas import one_blas_thread
 from kinecal.errors import DataError
 from kinecal.identification import CalibratedModel
 from kinecal.models import ModelInputs, solve_ik_lm
@@ -82,6 +83,7 @@ class CompensationResult:
         return self.q_ctrl - self.q_program
 
 
+@one_blas_thread()
 def compensate(
     calibrated: CalibratedModel,
     p_target: ArrayLike,

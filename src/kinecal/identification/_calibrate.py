@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kinecal._blas import one_blas_thread
 from kinecal.identification._blocks import reporting
 from kinecal.identification._calibrated import CalibratedModel
 from kinecal.identification._diagnose import Diagnose
@@ -86,6 +87,7 @@ def default_stages(options: CalibrationOptions | None = None) -> tuple[Stage, ..
     )
 
 
+@one_blas_thread()
 def calibrate(
     robot: RobotDescription,
     meas: Measurements,
@@ -94,6 +96,7 @@ def calibrate(
     *,
     stages: Sequence[Stage] | None = None,
     progress: object | None = None,
+    start: State | None = None,
 ) -> CalibrationResult:
     """Identify a model from measurements, starting from nominal kinematics alone.
 
@@ -105,6 +108,9 @@ def calibrate(
     options : CalibrationOptions
     stages : the stages to run, default :func:`default_stages`
     progress : callable ``progress(stage: str, detail: str)``, optional
+    start : the state to run ``stages`` from (default: the nominal start), e.g. another
+        calibration's ``identified`` state on the same data with the stages after
+        :class:`Identify`
 
     Returns
     -------
@@ -123,7 +129,7 @@ def calibrate(
     recipe = default_stages(problem.options) if stages is None else stages
     # Passes over large data and other long loops report too.
     with reporting(problem.progress.rows, problem.progress.beat):
-        state = run_stages(problem, problem.start(), recipe)
+        state = run_stages(problem, problem.start() if start is None else start, recipe)
         problem.progress("result", "errors before and after")
         return CalibrationResult.from_state(
             problem, state, time.perf_counter() - t_start
@@ -151,6 +157,9 @@ class CalibrationResult:
     sigma0 : a-posteriori standard deviation of unit weight.
     prior_factors : scale applied to each group's default prior by maximum evidence
         (transmission 'ntm', payload 'load', link weight 'link'); empty if not tuned.
+    identified : the state after registration and the identifiability analysis on the
+        rows of the final fit (:attr:`State.identified`), for fits with other options that
+        start from it (``calibrate(..., start=)``); None when the stages had none.
     """
 
     calibrated: CalibratedModel
@@ -169,6 +178,7 @@ class CalibrationResult:
     seconds: float
     prior: Prior | None = None
     prior_factors: dict[str, float] = field(default_factory=dict)
+    identified: State | None = field(default=None, repr=False)
 
     @classmethod
     def from_state(
@@ -229,6 +239,7 @@ class CalibrationResult:
             seconds=seconds,
             prior=state.active_prior(),
             prior_factors=dict(state.prior_factors),
+            identified=state.identified,
         )
 
     @property

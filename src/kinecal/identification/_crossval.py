@@ -7,6 +7,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from kinecal._blas import one_blas_thread
 from kinecal._parallel import parallel_map
 from kinecal._stats import present, row_groups
 from kinecal.errors import DataError
@@ -293,6 +294,7 @@ class CrossValidation:
         return float(v.std(ddof=1) / np.sqrt(v.size)) if v.size > 1 else float("nan")
 
 
+@one_blas_thread()
 def cross_validate(
     robot: RobotDescription,
     meas: Measurements,
@@ -332,6 +334,7 @@ def cross_validate(
     return out
 
 
+@one_blas_thread()
 def cross_validate_many(
     robot: RobotDescription,
     meas: Measurements,
@@ -438,6 +441,7 @@ class ComparisonRow:
     result: object | None = None  # the CalibrationResult (None for the nominal row)
 
 
+@one_blas_thread()
 def compare_models(
     robot: RobotDescription,
     train: Measurements,

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from kinecal._blas import one_blas_thread
 from kinecal.identification._calibrate import (
     CalibrationResult,
 )
@@ -38,6 +39,7 @@ class Evaluation:
     diagnostics: list[Diagnostic] = field(default_factory=list)  # of the refit
 
 
+@one_blas_thread()
 def refit(
     calibrated: CalibratedModel,
     meas: Measurements,
@@ -69,6 +71,7 @@ def refit(
     return cal
 
 
+@one_blas_thread()
 def refit_diagnosed(
     calibrated: CalibratedModel,
     meas: Measurements,
@@ -135,6 +138,7 @@ def refit_diagnosed(
 REFIT_GROUPS = {"user": "base", "tool": "cam", "marker": "marker"}
 
 
+@one_blas_thread()
 def evaluate(
     calibrated: CalibratedModel,
     meas: Measurements,

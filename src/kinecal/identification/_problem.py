@@ -362,6 +362,11 @@ class State:
     rejected : the rows excluded as gross errors, with their errors and z.
     outliers : rows improbable under the fitted noise (after :class:`Diagnose`).
     stages, diagnostics : the log of every solver run and every finding.
+    identified : the state right after registration and the identifiability analysis
+        (:class:`~kinecal.identification._stages.Identify`) on the same rows, or None.
+        Neither depends on the loss or the priors, so fits with other options on these
+        rows (the rejection's robust probe, the nominal check) start from it instead of
+        computing it again (issue 36).
     """
 
     model: CalibrationModel
@@ -384,6 +389,7 @@ class State:
     outliers: tuple[Outlier, ...] = ()
     stages: tuple[StageLog, ...] = ()
     diagnostics: tuple[Diagnostic, ...] = ()
+    identified: State | None = field(default=None, repr=False)
 
     def but(self, **changes: object) -> State:
         """A copy with some fields changed."""

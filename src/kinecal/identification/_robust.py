@@ -42,7 +42,7 @@ from kinecal.identification._press import loo_position_errors, rms_mm
 from kinecal.identification._problem import Problem, Stage, State, run_stages
 from kinecal.identification._residuals import Weights, residuals
 from kinecal.identification._solve import run_lm
-from kinecal.identification._stages import robust_sigma
+from kinecal.identification._stages import robust_sigma, run_shared
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.typing import Float
 
@@ -392,7 +392,7 @@ class RobustRejection:
         rob_problem = root.with_options(
             replace(opts, loss=opts.loss if opts.loss != "linear" else "huber")
         )
-        rob = run_stages(rob_problem, rob_problem.start(), self.probe or self.fit)
+        rob = run_shared(rob_problem, state, self.probe or self.fit)
         z, _, _ = row_z(rob_problem, rob)
         suspect = _largest(z > limit, z, _MAX_SUSPECT * n)
         for _ in range(_MAX_ROUNDS):

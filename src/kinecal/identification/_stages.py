@@ -20,6 +20,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -33,7 +34,7 @@ from kinecal.identification._identifiability import (
 from kinecal.identification._lm import LMOptions, spd_solve
 from kinecal.identification._noise import estimate_noise
 from kinecal.identification._options import MU0_WARM, STOL
-from kinecal.identification._problem import Problem, State
+from kinecal.identification._problem import Problem, Stage, State, run_stages
 from kinecal.identification._registration import initial_registration
 from kinecal.identification._residuals import Weights, residuals
 from kinecal.identification._solve import run_lm
@@ -47,6 +48,7 @@ __all__ = [
     "Register",
     "TransmissionStage",
     "robust_sigma",
+    "run_shared",
 ]
 
 # Stage 3 re-estimates the noise and refits until no sigma moves by more than 20 %
@@ -171,7 +173,8 @@ class Identify:
                 f"{meas.source}: {meas.n} poses ({problem.n_residuals} residuals) cannot "
                 f"determine {int(ident.free.sum())} parameters."
             )
-        return state.but(free=ident.free, identifiability=ident).note(*found)
+        out = state.but(free=ident.free, identifiability=ident).note(*found)
+        return out.but(identified=out)
 
 
 def _few_targets(problem: Problem, cm: CalibrationModel) -> list[Diagnostic]:
@@ -357,3 +360,21 @@ def _noise_moved(a: Weights, b: Weights) -> float:
     if a.sigma_rot is not None and b.sigma_rot is not None:
         moved = np.maximum(moved, np.abs(np.log(b.sigma_rot / a.sigma_rot)))
     return float(moved.max())
+
+
+def run_shared(problem: Problem, state: State, stages: Sequence[Stage]) -> State:
+    """``stages`` on every row of ``problem``; when they begin with :class:`Register` and
+    :class:`Identify`, which depend on neither the loss nor the priors, from ``state``'s
+    own state after them (:attr:`State.identified`, when made on every row): the same
+    numbers without computing them again (the rejection's robust probe: three Jacobian
+    passes fewer)."""
+    start = state.identified
+    if (
+        start is not None
+        and start.active is None
+        and len(stages) >= 2
+        and isinstance(stages[0], Register)
+        and isinstance(stages[1], Identify)
+    ):
+        return run_stages(problem, start, stages[2:])
+    return run_stages(problem, problem.start(), stages)

@@ -13,7 +13,7 @@ import hashlib
 import json
 import os
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -52,9 +52,16 @@ def atomic_write_text(path: str | Path, text: str, *, force: bool = False) -> Pa
 
 
 def atomic_write_bytes(
-    path: str | Path, data: bytes, *, force: bool = False, sync: bool = True
+    path: str | Path,
+    data: bytes | Iterable[bytes],
+    *,
+    force: bool = False,
+    sync: bool = True,
 ) -> Path:
     """Write ``data`` to ``path`` through a temporary file and an atomic rename.
+
+    ``data`` may come in pieces (an iterable of bytes, written in turn): a large file
+    need not be held whole.
 
     The file gets the mode of a new file (:func:`new_file_mode`). A failure (full disk,
     no permission) leaves ``path`` as it was and removes the temporary file.
@@ -83,7 +90,8 @@ def atomic_write_bytes(
     try:
         with os.fdopen(fd, "wb") as f:
             os.fchmod(f.fileno(), new_file_mode())
-            f.write(data)
+            for piece in (data,) if isinstance(data, bytes) else data:
+                f.write(piece)
             f.flush()
             if sync:
                 os.fsync(f.fileno())

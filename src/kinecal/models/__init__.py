@@ -27,6 +27,7 @@ if TYPE_CHECKING:
         ForwardState,
         ModelOutput,
         kernel_name,
+        pass_counts,
     )
     from kinecal.models._spec import PRESETS, ModelSpec, parallel_pairs
 
@@ -52,6 +53,7 @@ __all__ = [
     "ntm_basis",
     "ntm_names",
     "parallel_pairs",
+    "pass_counts",
     "set_kernel_threads",
     "solve_ik",
     "solve_ik_lm",
@@ -69,7 +71,13 @@ __getattr__, __dir__ = _lazy.exports(
         "_inputs": ("ModelInputs",),
         "_kernel": ("compiled_kernel_available",),
         "_layout": ("KINDS", "ParameterLayout", "ParamKind", "ParamSpec"),
-        "_model": ("CalibrationModel", "ForwardState", "ModelOutput", "kernel_name"),
+        "_model": (
+            "CalibrationModel",
+            "ForwardState",
+            "ModelOutput",
+            "kernel_name",
+            "pass_counts",
+        ),
         "_spec": ("PRESETS", "ModelSpec", "parallel_pairs"),
     },
 )

@@ -38,7 +38,20 @@ __all__ = [
     "ModelInputs",
     "ModelOutput",
     "kernel_name",
+    "pass_counts",
 ]
+
+# Evaluations of every model in this process (worker processes count their own): "forward"
+# without a Jacobian, "jacobian" with one, and "jacobian_entries" the poses x columns of
+# those Jacobians (their work, as models and row subsets differ in size). For benchmarks
+# and tests of how many passes over the data a calibration takes (issue 36).
+_PASSES = {"forward": 0, "jacobian": 0, "jacobian_entries": 0}
+
+
+def pass_counts() -> dict[str, int]:
+    """How many model evaluations this process has run so far (see ``_PASSES``); the
+    difference of two calls counts the passes of what ran between them."""
+    return dict(_PASSES)
 
 
 @dataclass(frozen=True)
@@ -234,6 +247,12 @@ class CalibrationModel:
                 f"q_ctrl must have shape (N, {self.n_joints}) for {self.robot.name}; got {q.shape}."
             )
         defn = self.definition
+        if jacobian:
+            _PASSES["jacobian"] += 1
+            cols = self.size + (len(self.link_products) if products else 0)
+            _PASSES["jacobian_entries"] += q.shape[0] * cols
+        else:
+            _PASSES["forward"] += 1
         static = _kernel.active_tables(defn, self._kernel_tables)
         if static is not None:  # the compiled kernel (see kinecal.models._kernel)
             p_user, R_uc_c, J, theta_c = _kernel.evaluate(

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kinecal._blas import one_blas_thread
 from kinecal.models import CalibrationModel, ModelInputs
 from kinecal.planning._design import DesignProblem, design_problem
 from kinecal.planning._exchange import Selection, select_poses
@@ -69,6 +70,7 @@ class Plan:
     warnings: list[str] = field(default_factory=list)
 
 
+@one_blas_thread()
 def plan_poses(
     model: CalibrationModel,
     params: Float,

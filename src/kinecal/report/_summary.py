@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from kinecal._stats import median
 from kinecal._version import __version__
-from kinecal.identification import CalibrationResult, ComparisonRow, Metrics
+
+if TYPE_CHECKING:  # annotations only: a calibration's summary needs no cross-validation
+    from kinecal.identification import CalibrationResult, ComparisonRow, Metrics
 
 __all__ = ["calibration_summary", "comparison_table", "format_table", "parameter_table"]
 

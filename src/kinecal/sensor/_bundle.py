@@ -22,13 +22,11 @@ pose and at most one plane).
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from kinecal._parallel import blas_threads, set_blas_threads
+from kinecal._blas import one_blas_thread
 from kinecal.errors import DataError
 from kinecal.geometry import skew, so3_exp
 from kinecal.sensor._camera import INTRINSICS, Camera
@@ -308,20 +306,6 @@ def _solve(
     return st, max_iter, False
 
 
-@contextmanager
-def _one_blas_thread() -> Iterator[None]:
-    """OpenBLAS on one thread inside (restored after): the normal matrices are a few
-    hundred wide, where BLAS threads gain nothing and fight over a busy machine."""
-    before = blas_threads()
-    if before:
-        set_blas_threads(1)
-    try:
-        yield
-    finally:
-        if before:
-            set_blas_threads(max(before))
-
-
 def bundle_adjust(
     camera: Camera,
     T_cam_board: Float,
@@ -354,7 +338,7 @@ def bundle_adjust(
 
     The dense algebra runs with one BLAS thread.
     """
-    with _one_blas_thread():
+    with one_blas_thread():
         return _bundle_adjust(
             camera,
             T_cam_board,
