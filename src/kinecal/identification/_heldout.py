@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from kinecal._blas import one_blas_thread
 from kinecal.identification._calibrate import CalibrationOptions
 from kinecal.identification._crossval import (
     CrossValidation,
@@ -122,6 +123,7 @@ def _cv_dict(cv: CrossValidation) -> dict[str, Any]:
     }
 
 
+@one_blas_thread()
 def held_out_accuracy(
     robot: RobotDescription,
     meas: Measurements,

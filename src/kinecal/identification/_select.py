@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from kinecal._blas import one_blas_thread
 from kinecal._parallel import parallel_map
 from kinecal.errors import IdentifiabilityError
 from kinecal.identification._autofit import (
@@ -381,6 +382,7 @@ def _shared_of(
     )
 
 
+@one_blas_thread()
 def cross_validate_models(
     robot: RobotDescription,
     meas: Measurements,
@@ -408,6 +410,7 @@ def cross_validate_models(
     return out
 
 
+@one_blas_thread()
 def select_model(
     robot: RobotDescription,
     meas: Measurements,
