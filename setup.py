@@ -11,6 +11,7 @@ tagged ``cp311-abi3`` and serves every CPython from 3.11 on.
 
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
 
@@ -41,6 +42,12 @@ class BuildExt(build_ext):
             super().build_extension(ext)
         except Exception as exc:  # no compiler, no Python headers, a compile error
             reason = " ".join(str(exc).split()) or type(exc).__name__
+            # A compiler that ran and failed: its name and status, not its whole line.
+            ran = re.match(
+                r"Command '\['([^']*)'.*(returned non-zero exit status \d+)", reason
+            )
+            if ran:
+                reason = f"the C compiler {ran[1]} {ran[2]}"
             note.parent.mkdir(parents=True, exist_ok=True)
             note.write_text(f"{reason}\n", encoding="utf-8")
             bar = "*" * 78
