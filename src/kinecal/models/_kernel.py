@@ -147,10 +147,11 @@ def _warn_not_built() -> None:
     _warned = True
     from kinecal._version import __version__
 
-    cache = os.environ.get("XDG_CACHE_HOME") or os.path.join(Path.home(), ".cache")
+    cache = Path(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"))
     tag = zlib.crc32(str(Path(__file__).resolve().parent).encode())
-    marker = Path(cache, "kinecal", f"kernel-not-built-{__version__}-{tag:08x}")
-    if marker.exists():
+    marker = cache / "kinecal" / f"kernel-not-built-{__version__}-{tag:08x}"
+    home = cache.is_absolute()  # without a home folder: a warning in every process
+    if home and marker.exists():
         return
     _, why = kernel_status()
     warnings.warn(
@@ -159,11 +160,12 @@ def _warn_not_built() -> None:
         UserWarning,
         stacklevel=3,
     )
-    try:
-        marker.parent.mkdir(parents=True, exist_ok=True)
-        marker.touch()
-    except OSError:
-        pass
+    if home:
+        try:
+            marker.parent.mkdir(parents=True, exist_ok=True)
+            marker.touch()
+        except OSError:
+            pass
 
 
 def _mode() -> str:
