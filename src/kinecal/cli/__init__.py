@@ -133,7 +133,7 @@ def _print_version(ctx: click.Context, param: click.Parameter, value: bool) -> N
     with the reason."""
     if not value or ctx.resilient_parsing:
         return
-    from kinecal.models._kernel import kernel_status
+    from kinecal.models import kernel_status
 
     code, why = kernel_status()
     click.echo(f"kinecal {__version__}\nmodel code: {code}: {why}")
