@@ -45,3 +45,39 @@ numpydoc_xref_param_type = False
 html_theme = "alabaster"
 html_title = f"kinecal {__version__}"
 html_static_path: list[str] = []
+
+
+# Autosummary's one-line summaries end at the first full stop; the docstrings cite the
+# paper as "Eq. 21", "Sec. 4", "Fig. 6", which are not sentence ends.
+try:
+    import sphinx.ext.autosummary as _autosummary
+
+    _autosummary.WELL_KNOWN_ABBREVIATIONS = (
+        *_autosummary.WELL_KNOWN_ABBREVIATIONS,
+        *("Eq.", "Eqs.", "Sec.", "Fig.", "Figs.", "cf."),
+    )
+except (ImportError, AttributeError):  # another Sphinx: summaries cut at those stops
+    pass
+
+
+def _constant_docstring(app, what, name, obj, options, lines):
+    """A public constant (an int, a tuple, a dict) has no docstring of its own: show its
+    value where it is short, not the docstring of its type."""
+    import inspect
+
+    if inspect.isclass(obj) or inspect.isroutine(obj) or inspect.ismodule(obj):
+        return
+    own = " ".join((inspect.getdoc(type(obj)) or "").split())
+    if " ".join(" ".join(lines).split()) not in ("", own):
+        return
+    lines.clear()
+    value = repr(obj)
+    if len(value) <= 100:
+        lines.append(f"Constant: ``{value}``.")
+    else:
+        lines.append(f"Constant ({type(obj).__name__} of {len(obj)} entries).")
+
+
+def setup(app):
+    # Before numpydoc (priority 500), which rewrites the docstring.
+    app.connect("autodoc-process-docstring", _constant_docstring, priority=100)
