@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 # Python trees checked by ruff (only those present in this checkout).
 PYDIRS := $(wildcard src tests benchmarks examples)
 
-.PHONY: demo test test-slow lint bench examples clean format
+.PHONY: demo test test-slow lint bench examples clean format docs
 
 # One BLAS thread per test process: pytest runs one worker per core, and BLAS threads on
 # top only oversubscribe them (the suite took 142 s with two, 100 s with one, on 2 cores).
@@ -23,7 +23,7 @@ $(STAMP): pyproject.toml setup.py src/kinecal/models/_ckernel.c
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "kinecal needs Python >= 3.11"'
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[all,dev,reference]"
+	$(BIN)/python -m pip install --quiet -e ".[all,dev,reference,docs]"
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -40,6 +40,12 @@ test: lint
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -n auto -m slow --dist loadgroup
 
+# The documentation site (Sphinx; pages in docs/, the API reference from the docstrings),
+# built from scratch with warnings as errors: docs/_build/html/index.html.
+docs: $(STAMP)
+	rm -rf docs/_build
+	$(BIN)/python -m sphinx -b html -W --keep-going -q docs docs/_build/html
+
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks --out benchmarks/results.json
 
@@ -52,4 +58,4 @@ format: $(STAMP)
 	$(BIN)/ruff check --fix $(PYDIRS)
 
 clean:
-	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache demo-results examples/out
+	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache demo-results examples/out docs/_build

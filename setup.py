@@ -1,16 +1,30 @@
 """Build of kinecal's optional compiled model kernel (the project is in pyproject.toml).
 
 The extension is optional: without a C compiler the build goes on without it, and the
-model runs its numpy code (kinecal.models._kernel).
+model runs its numpy code (kinecal.models._kernel). The build then says so in a banner
+and leaves the reason in ``kinecal/models/_ckernel_build.txt``, which ``kinecal
+--version`` and the one-time warning of kinecal.models._kernel quote.
+
+The kernel uses only the stable ABI of Python 3.11 (``Py_LIMITED_API``), so the wheel is
+tagged ``cp311-abi3`` and serves every CPython from 3.11 on.
 """
+
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
 
 from setuptools import Extension, setup
 from setuptools.command.build_ext import build_ext
 
+NOTE = Path("kinecal", "models", "_ckernel_build.txt")
+
 
 class BuildExt(build_ext):
     """GCC and Clang: no fused multiply-adds, so that every build rounds alike (ARM64
-    compilers contract a * b + c by default)."""
+    compilers contract a * b + c by default). A failed build of the kernel is reported
+    in a banner and a note installed with the package."""
 
     def build_extensions(self) -> None:
         if self.compiler.compiler_type == "unix":
@@ -18,14 +32,49 @@ class BuildExt(build_ext):
                 ext.extra_compile_args = [*ext.extra_compile_args, "-ffp-contract=off"]
         super().build_extensions()
 
+    def _note(self) -> Path:
+        root = Path("src") if self.inplace else Path(self.build_lib)
+        return root / NOTE
+
+    def build_extension(self, ext: Extension) -> None:
+        note = self._note()
+        try:
+            super().build_extension(ext)
+        except Exception as exc:  # no compiler, no Python headers, a compile error
+            reason = " ".join(str(exc).split()) or type(exc).__name__
+            # A compiler that ran and failed: its name and status, not its whole line.
+            ran = re.match(
+                r"Command '\['([^']*)'.*(returned non-zero exit status \d+)", reason
+            )
+            if ran:
+                reason = f"the C compiler {ran[1]} {ran[2]}"
+            note.parent.mkdir(parents=True, exist_ok=True)
+            note.write_text(f"{reason}\n", encoding="utf-8")
+            bar = "*" * 78
+            print(
+                f"\n{bar}\nWARNING: kinecal's compiled model kernel was not built:\n"
+                f"  {reason}\nkinecal works without it (numpy code, 2-4x slower). "
+                "Install a C compiler\n(gcc, clang or MSVC) and reinstall kinecal to "
+                f"build it.\n{bar}\n",
+                file=sys.stderr,
+                flush=True,
+            )
+            if not ext.optional:
+                raise
+        else:
+            note.unlink(missing_ok=True)
+
 
 setup(
     ext_modules=[
         Extension(
             "kinecal.models._ckernel",
             ["src/kinecal/models/_ckernel.c"],
+            define_macros=[("Py_LIMITED_API", "0x030B0000")],
+            py_limited_api=True,
             optional=True,
         )
     ],
     cmdclass={"build_ext": BuildExt},
+    options={"bdist_wheel": {"py_limited_api": "cp311"}},
 )

@@ -21,8 +21,7 @@ import numpy as np
 
 from _realdata import DATA, cv_table, print_table, save, to_kinecal_csv
 from kinecal.geometry import rpy_to_matrix
-from kinecal.identification import Measurements, calibrate
-from kinecal.identification._nominal_check import nominal_check
+from kinecal.identification import Measurements, calibrate, nominal_check
 from kinecal.io import save_model
 from kinecal.robot import load_robot
 

@@ -128,8 +128,27 @@ class _LazyGroup(click.Group):
             formatter.write_dl(rows)
 
 
+def _print_version(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+    """``--version``: the version, and the model code in use (compiled kernel or numpy)
+    with the reason."""
+    if not value or ctx.resilient_parsing:
+        return
+    from kinecal.models import kernel_status
+
+    code, why = kernel_status()
+    click.echo(f"kinecal {__version__}\nmodel code: {code}: {why}")
+    ctx.exit()
+
+
 @click.group(cls=_LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(__version__, prog_name="kinecal")
+@click.option(
+    "--version",
+    is_flag=True,
+    expose_value=False,
+    is_eager=True,
+    callback=_print_version,
+    help="Show the version and the model code in use (compiled kernel or numpy), then exit.",
+)
 def cli() -> None:
     """kinecal: calibrate robots and robotic vision systems.
 

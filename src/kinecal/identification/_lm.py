@@ -487,7 +487,7 @@ def solve_fixed_step(
     Returns
     -------
     x : (P,) final parameters
-    costs : list of 1/2 |r|^2 per iteration
+    costs : list of ``|r|^2 / 2`` per iteration
     """
     x = np.array(x0, dtype=np.float64)
     fidx = np.flatnonzero(np.asarray(free, dtype=bool))

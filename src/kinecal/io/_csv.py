@@ -483,7 +483,7 @@ def read_compensation_targets(
     path: str | Path, robot: RobotDescription, *, allow_out_of_limits: bool = False
 ) -> CompensationTargets:
     """Read a TARGETS.csv for ``kinecal compensate``: ``x_mm, y_mm, z_mm`` (user frame),
-    optional ``qw, qx, qy, qz``, the seed joints ``j1_deg .. jN_deg``, optional ``set`` and
+    optional ``qw, qx, qy, qz``, the seed joints ``j1_deg``-``jN_deg``, optional ``set`` and
     ``marker``. Seeds beyond the joint limits are refused unless ``allow_out_of_limits``
     (then ``diagnostics`` says so)."""
     t = read_table(path)

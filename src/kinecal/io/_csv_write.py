@@ -24,7 +24,7 @@ __all__ = [
 
 
 def joint_column_names(robot: RobotDescription) -> list[str]:
-    """``j1_deg .. jN_deg`` (``jK_mm`` for prismatic joints)."""
+    """The joint columns ``j1_deg``-``jN_deg`` (``jK_mm`` for prismatic joints)."""
     return [
         f"j{k + 1}_{'mm' if j.kind == 'prismatic' else 'deg'}"
         for k, j in enumerate(robot.joints)

@@ -20,7 +20,7 @@ if TYPE_CHECKING:
     from kinecal.models._ik import IKResult, solve_ik
     from kinecal.models._ik_lm import solve_ik_lm
     from kinecal.models._inputs import ModelInputs
-    from kinecal.models._kernel import compiled_kernel_available
+    from kinecal.models._kernel import compiled_kernel_available, kernel_status
     from kinecal.models._layout import KINDS, ParameterLayout, ParamKind, ParamSpec
     from kinecal.models._model import (
         CalibrationModel,
@@ -48,6 +48,7 @@ __all__ = [
     "chain_frames",
     "compiled_kernel_available",
     "kernel_name",
+    "kernel_status",
     "link_torque_basis",
     "load_torques",
     "ntm_basis",
@@ -69,7 +70,7 @@ __getattr__, __dir__ = _lazy.exports(
         "_ik": ("IKResult", "solve_ik"),
         "_ik_lm": ("solve_ik_lm",),
         "_inputs": ("ModelInputs",),
-        "_kernel": ("compiled_kernel_available",),
+        "_kernel": ("compiled_kernel_available", "kernel_status"),
         "_layout": ("KINDS", "ParameterLayout", "ParamKind", "ParamSpec"),
         "_model": (
             "CalibrationModel",

@@ -28,7 +28,13 @@
  *
  * The function releases the interpreter lock, so callers may run disjoint pose ranges
  * [k0, k1) on several threads.
+ *
+ * Only the stable ABI of Python 3.11 is used (Py_LIMITED_API; setup.py sets it too), so
+ * one build (a wheel tagged abi3) serves every CPython from 3.11 on.
  */
+#ifndef Py_LIMITED_API
+#define Py_LIMITED_API 0x030B0000
+#endif
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
@@ -1044,7 +1050,11 @@ PyMODINIT_FUNC PyInit__ckernel(void)
             Py_DECREF(mod);
             return NULL;
         }
-        PyTuple_SET_ITEM(fields, i, name);
+        if (PyTuple_SetItem(fields, i, name) < 0) { /* steals name, even on failure */
+            Py_DECREF(fields);
+            Py_DECREF(mod);
+            return NULL;
+        }
     }
     if (PyModule_AddObject(mod, "FIELDS", fields) < 0) {
         Py_DECREF(fields);

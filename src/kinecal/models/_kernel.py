@@ -28,8 +28,10 @@ import itertools
 import os
 import threading
 import warnings
+import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -61,11 +63,17 @@ _FIELDS = (
 )
 
 _ckernel: Any
+# Why the compiled kernel is not used (None: it is), for kernel_status().
+_missing: str | None = None
 try:
     _ckernel = importlib.import_module("kinecal.models._ckernel")
-except ImportError:  # built without a C compiler: the numpy code runs
+except ImportError as exc:  # built without a C compiler: the numpy code runs
     _ckernel = None
+    _missing = f"the compiled kernel is not built ({exc})"
 if _ckernel is not None and tuple(_ckernel.FIELDS) != _FIELDS:
+    _missing = (
+        "the compiled kernel is a build of other source (rebuild: pip install -e .)"
+    )
     warnings.warn(
         f"kinecal's compiled model kernel ({_ckernel.__file__}) does not match this "
         "version of kinecal (rebuild it: pip install -e . or make); the numpy code runs.",
@@ -74,7 +82,13 @@ if _ckernel is not None and tuple(_ckernel.FIELDS) != _FIELDS:
     )
     _ckernel = None
 
-__all__ = ["KernelTables", "active_tables", "compiled_kernel_available", "tables"]
+__all__ = [
+    "KernelTables",
+    "active_tables",
+    "compiled_kernel_available",
+    "kernel_status",
+    "tables",
+]
 
 _MODES = ("auto", "c", "numpy")
 # Kinds of a link product's torque basis value (the link_T column it reads); see
@@ -86,6 +100,72 @@ _XHAT, _UHAT, _MASS, _MOMENT = range(4)
 def compiled_kernel_available() -> bool:
     """Whether the compiled kernel was built with this installation."""
     return _ckernel is not None
+
+
+def _build_note() -> str | None:
+    """The reason the build left when it could not compile the kernel (setup.py), if
+    any: e.g. no C compiler at install."""
+    note = Path(__file__).with_name("_ckernel_build.txt")
+    try:
+        text = " ".join(note.read_text(encoding="utf-8").split())
+    except OSError:
+        return None
+    return text[:300] or None
+
+
+def kernel_status() -> tuple[str, str]:
+    """The model code in use, ``'compiled kernel'`` or ``'numpy'``, and why (one line).
+
+    ``KINECAL_KERNEL`` decides first; otherwise the compiled kernel runs where it was
+    built with this installation (models with prismatic joints always run the numpy
+    code). Used by ``kinecal --version``.
+    """
+    mode = os.environ.get("KINECAL_KERNEL", "auto").strip().lower() or "auto"
+    if mode == "numpy":
+        return "numpy", "KINECAL_KERNEL=numpy is set"
+    if _ckernel is not None:
+        where = Path(_ckernel.__file__).name
+        return "compiled kernel", (
+            f"built with this installation ({where}; numpy code for models with "
+            "prismatic joints)"
+        )
+    note = _build_note()
+    why = f"the build could not compile it: {note}" if note else _missing or ""
+    return "numpy", f"{why}; install a C compiler and reinstall kinecal to build it"
+
+
+_warned = False
+
+
+def _warn_not_built() -> None:
+    """Warn, once per installation (a marker in the user's cache folder) or else once
+    per process, that the numpy code runs because the kernel was not built."""
+    global _warned
+    chosen = os.environ.get("KINECAL_KERNEL", "").strip().lower()
+    if _warned or _ckernel is not None or chosen == "numpy":
+        return
+    _warned = True
+    from kinecal._version import __version__
+
+    cache = Path(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"))
+    tag = zlib.crc32(str(Path(__file__).resolve().parent).encode())
+    marker = cache / "kinecal" / f"kernel-not-built-{__version__}-{tag:08x}"
+    home = cache.is_absolute()  # without a home folder: a warning in every process
+    if home and marker.exists():
+        return
+    _, why = kernel_status()
+    warnings.warn(
+        f"kinecal runs its numpy model code, 2-4x slower than the compiled kernel: {why} "
+        "(this warning is shown once; KINECAL_KERNEL=numpy silences it).",
+        UserWarning,
+        stacklevel=3,
+    )
+    if home:
+        try:
+            marker.parent.mkdir(parents=True, exist_ok=True)
+            marker.touch()
+        except OSError:
+            pass
 
 
 def _mode() -> str:
@@ -126,7 +206,10 @@ class KernelTables:
 def tables(defn: ModelDefinition) -> KernelTables | None:
     """The model's tables, or None where the kernel is not built or does not apply
     (computed once per model)."""
-    if _ckernel is None or defn.prismatic.any():
+    if _ckernel is None:
+        _warn_not_built()
+        return None
+    if defn.prismatic.any():
         return None
     spec = defn.spec
     n, S, M = defn.n_joints, len(spec.sets), len(spec.markers)
