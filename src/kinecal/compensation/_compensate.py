@@ -31,6 +31,9 @@ STATUS = ("ok", "unreachable", "joint_limit")
 # hundred numbers a target; 1e6 targets took 2.7 GB at once). Every target is solved
 # on its own, so the chunks give the same numbers.
 CHUNK = 50_000
+# The most orientation a pose target gives up for the least joint motion [rad]: next to a
+# singular pose a sub-millimetre correction turns the tool by a few hundredths of a degree.
+_RELAX_MAX = float(np.radians(0.1))
 _ROW_FIELDS = (
     "q_ctrl",
     "q_program",
@@ -39,6 +42,7 @@ _ROW_FIELDS = (
     "status",
     "limit_joint",
     "cond",
+    "relaxed",
 )
 
 
@@ -61,6 +65,9 @@ class CompensationResult:
     cond : (N,) condition number of the task Jacobian at the solution (position rows for
         point targets).
     iterations : int, the most iterations any target needed.
+    relaxed : (N,) bool, pose targets met in position only, with the least joint motion
+        (a wrist or shoulder singularity: meeting the orientation exactly would swing
+        joints far for a tiny turn; ``rotation_error`` says how far the tool is turned).
     """
 
     q_ctrl: Float
@@ -71,6 +78,7 @@ class CompensationResult:
     limit_joint: np.ndarray
     cond: Float
     iterations: int
+    relaxed: np.ndarray | None = None
 
     @property
     def ok(self) -> np.ndarray:
@@ -94,6 +102,7 @@ def compensate(
     tol: float = 1e-6,
     tol_rotation: float = 1e-6,
     max_iter: int = 50,
+    least_motion_deg: float | None = 1.0,
 ) -> CompensationResult:
     """Controller angles that put the calibrated tool point on each target.
 
@@ -109,6 +118,10 @@ def compensate(
     tol, tol_rotation : a row is 'ok' when the model error is below these [m, rad]
         (orientation only for pose targets).
     max_iter : iterations of the damped least-squares phase of the IK.
+    least_motion_deg : pose targets that move a joint by more than this [deg], or that
+        are not met, are solved again as point targets keeping the wanted orientation
+        where it is well conditioned (a controller's handling of singular poses): taken
+        when that meets the position with less joint motion (``relaxed``). None: off.
 
     Raises
     ------
@@ -146,12 +159,17 @@ def compensate(
                     tol=tol,
                     tol_rotation=tol_rotation,
                     max_iter=max_iter,
+                    least_motion_deg=least_motion_deg,
                 )
             )
         joined = {
             f: np.concatenate([getattr(r, f) for r in parts]) for f in _ROW_FIELDS
         }
-        return CompensationResult(**joined, iterations=max(r.iterations for r in parts))
+        return CompensationResult(
+            **{k: v for k, v in joined.items() if k != "relaxed"},
+            iterations=max(r.iterations for r in parts),
+            relaxed=joined["relaxed"],
+        )
     res = solve_ik_lm(
         model,
         calibrated.params,
@@ -167,9 +185,16 @@ def compensate(
     )
     assert res.cond is not None
     pose = R_target is not None
+    relaxed = np.zeros(p.shape[0], bool)
+    if pose and least_motion_deg is not None:
+        res, relaxed = _least_motion(
+            model, calibrated.params, res, p, q0, R_target,
+            set_index, marker_index, ls, tol, tol_rotation, max_iter,
+            np.radians(least_motion_deg),
+        )  # fmt: skip
     ok = (res.position_error <= tol) & res.within_limits
     if pose:
-        ok &= res.rotation_error <= tol_rotation
+        ok &= (res.rotation_error <= tol_rotation) | relaxed
     status = np.where(ok, "ok", "unreachable").astype(object)
     limit_joint = np.full(ok.shape, -1)
     bad = np.flatnonzero(~ok)
@@ -210,7 +235,48 @@ def compensate(
         limit_joint,
         res.cond,
         res.iterations,
+        relaxed,
     )
+
+
+def _least_motion(
+    model, params, res, p, q0, R_target, set_index, marker_index, ls, tol,
+    tol_rotation, max_iter, dq_max,
+):  # fmt: skip
+    """Pose rows not met or moving a joint by more than ``dq_max`` [rad], solved again as
+    point targets that keep the orientation where it is well conditioned; a row takes the
+    new solution when it meets the position within the limits with less joint motion."""
+    from dataclasses import replace
+
+    motion = np.abs(res.q_ctrl - q0).max(axis=1)
+    met = (res.position_error <= tol) & (res.rotation_error <= tol_rotation)
+    met &= res.within_limits
+    rows = np.flatnonzero(~met | (motion > dq_max))
+    relaxed = np.zeros(p.shape[0], bool)
+    if rows.size == 0:
+        return res, relaxed
+
+    def cut(v):
+        return None if v is None else np.asarray(v)[rows]
+
+    again = solve_ik_lm(
+        model, params, p[rows], q0[rows], R_target=np.asarray(R_target)[rows],
+        point_only=True, set_index=cut(set_index), marker_index=cut(marker_index),
+        load_scale=cut(ls), tol_position=min(tol, 1e-11),
+        tol_rotation=min(tol_rotation, 1e-10), max_iter=max_iter,
+    )  # fmt: skip
+    new_motion = np.abs(again.q_ctrl - q0[rows]).max(axis=1)
+    take = (again.position_error <= tol) & again.within_limits
+    take &= (new_motion < motion[rows]) | ~met[rows]
+    take &= again.rotation_error <= _RELAX_MAX  # a tiny turn given up, not a target
+    sel = rows[take]
+    fields = {}
+    for f in ("q_ctrl", "position_error", "rotation_error", "within_limits", "cond"):
+        a = getattr(res, f).copy()
+        a[sel] = getattr(again, f)[take]
+        fields[f] = a
+    relaxed[sel] = again.rotation_error[take] > tol_rotation  # the orientation given up
+    return replace(res, **fields), relaxed
 
 
 def program_targets(
