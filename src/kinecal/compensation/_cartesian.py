@@ -37,6 +37,7 @@ __all__ = [
     "branch_solutions",
     "calibrated_flange",
     "compensate_poses",
+    "nearest_solutions",
     "nominal_flange",
 ]
 
@@ -150,12 +151,9 @@ def branch_solutions(
     N, n = T_rb_flange.shape[0], model.n_joints
     starts = _starts(cal, N_STARTS)
     p, R = _cam_targets(cal, T_rb_flange)
-    x_nom = kinematic_params(cal)
-    joints = model.layout.group_indices("joint")
-    x_nom[joints] = model.nominal[joints]
     res = solve_ik_lm(
         model,
-        x_nom,
+        _nominal_params(cal),
         np.repeat(p, N_STARTS, axis=0),
         np.tile(starts, (N, 1)),
         R_target=np.repeat(R, N_STARTS, axis=0),
@@ -176,6 +174,31 @@ def branch_solutions(
         if cand.shape[0]:
             q_out[i] = cand[np.argmin(np.linalg.norm(cand, axis=1))]
     return q_out, np.isfinite(q_out).all(axis=1)
+
+
+def _nominal_params(cal: CalibratedModel) -> Float:
+    x = kinematic_params(cal)
+    joints = cal.model.layout.group_indices("joint")
+    x[joints] = cal.model.nominal[joints]
+    return x
+
+
+def nearest_solutions(
+    cal: CalibratedModel, T_rb_flange: Pose, q_near: Float, *, tol: float = 1e-9
+) -> tuple[Float, np.ndarray]:
+    """The nominal IK solution of each flange pose reached from ``q_near`` (N, n), as a
+    controller without configuration flags takes the one nearest the current joints.
+
+    Returns q (N, n) (NaN where not found) and found (N,) bool."""
+    p, R = _cam_targets(cal, T_rb_flange)
+    res = solve_ik_lm(
+        cal.model, _nominal_params(cal), p, q_near, R_target=R,
+        tol_position=1e-11, tol_rotation=1e-10, max_iter=80,
+    )  # fmt: skip
+    found = (
+        (res.position_error <= tol) & (res.rotation_error <= tol) & res.within_limits
+    )
+    return np.where(found[:, None], res.q_ctrl, np.nan), found
 
 
 def _with_wrist_flips(
@@ -218,32 +241,53 @@ def _joint_frames(cal: CalibratedModel, q: Float) -> Pose:
     return np.stack(out, axis=1)
 
 
+def _stretch_sign(cal: CalibratedModel) -> float:
+    """The sign of the elbow bend just past the stretched arm, J3 increasing (J2 = 0 and
+    the other joints zero): the stretched arm is where the wrist centre is furthest from
+    the J2 axis."""
+    n = cal.model.n_joints
+    grid = np.linspace(-np.pi, np.pi, 721)
+    q = np.zeros((grid.size, n))
+    q[:, 2] = grid
+    F = _joint_frames(cal, q)
+    reach = np.linalg.norm(F[:, 4, :3, 3] - F[:, 1, :3, 3], axis=1)
+    q_past = np.zeros((1, n))
+    q_past[0, 2] = grid[np.argmax(reach)] + 0.3
+    return float(np.sign(_bend(_joint_frames(cal, q_past)))[0])
+
+
+def _bend(F: Pose) -> Float:
+    o1, o2, z1, wc = F[:, 1, :3, 3], F[:, 2, :3, 3], F[:, 1, :3, 2], F[:, 4, :3, 3]
+    return np.sum(np.cross(o2 - o1, wc - o2) * z1, axis=1)
+
+
 def arm_features(cal: CalibratedModel, q_ctrl: Float) -> dict[str, np.ndarray]:
-    """Configuration features of 6-axis arms with a spherical wrist (M,) each:
+    """Configuration features of 6-axis arms with a spherical wrist (M,) bool each:
 
     * ``front``: the wrist centre (origin after row 4) lies in front of the joint-1 axis,
-      in the frame that turns with joint 1 (x > 0); KUKA's basic area, FANUC 'T';
-    * ``elbow``: the elbow bends to the same side as at the zero pose (FANUC 'U');
+      in the frame that turns with joint 1 (x > 0);
+    * ``elbow``: the elbow bends to the same side as at the zero pose;
+    * ``past_stretch``: the elbow bends to the side J3 reaches past the stretched arm;
     * ``wrist_neg``: J5 < 0.
     """
     q = np.atleast_2d(np.asarray(q_ctrl, np.float64))
-    F = _joint_frames(cal, np.vstack([np.zeros(q.shape[1]), q]))
-    o0, z0 = F[:, 0, :3, 3], F[:, 0, :3, 2]
-    wc = F[:, 4, :3, 3]
-    theta1 = cal.model.robot.theta_from_ctrl(np.vstack([np.zeros(q.shape[1]), q]))[:, 0]
+    qq = np.vstack([np.zeros(q.shape[1]), q])
+    F = _joint_frames(cal, qq)
+    o0, z0, wc = F[:, 0, :3, 3], F[:, 0, :3, 2], F[:, 4, :3, 3]
+    theta1 = cal.model.robot.theta_from_ctrl(qq)[:, 0]
     ex = np.broadcast_to(F[0, 0, :3, 0], o0.shape)
     # e_x of the base turned with joint 1 about its axis (Rodrigues).
     c, s = np.cos(theta1)[:, None], np.sin(theta1)[:, None]
-    u = (
-        ex * c
-        + np.cross(z0, ex) * s
-        + z0 * np.sum(z0 * ex, axis=1, keepdims=True) * (1 - c)
-    )
+    dot = np.sum(z0 * ex, axis=1, keepdims=True)
+    u = ex * c + np.cross(z0, ex) * s + z0 * dot * (1 - c)
     front = np.sum((wc - o0) * u, axis=1) > 0
-    o1, o2, z1 = F[:, 1, :3, 3], F[:, 2, :3, 3], F[:, 1, :3, 2]
-    bend = np.sum(np.cross(o2 - o1, wc - o2) * z1, axis=1)
-    elbow = np.sign(bend[1:]) == np.sign(bend[0])
-    return {"front": front[1:], "elbow": elbow, "wrist_neg": q[:, 4] < 0}
+    bend = np.sign(_bend(F))
+    return {
+        "front": front[1:],
+        "elbow": bend[1:] == bend[0],
+        "past_stretch": bend[1:] == _stretch_sign(cal),
+        "wrist_neg": q[:, 4] < 0,
+    }
 
 
 def compensate_poses(

@@ -192,6 +192,7 @@ def compensate(
             set_index, marker_index, ls, tol, tol_rotation, max_iter,
             np.radians(least_motion_deg),
         )  # fmt: skip
+        assert res.cond is not None
     ok = (res.position_error <= tol) & res.within_limits
     if pose:
         ok &= (res.rotation_error <= tol_rotation) | relaxed
@@ -226,6 +227,7 @@ def compensate(
         blame = reached & (outside.max(axis=1) > 0)
         limit_joint[bad[blame]] = np.argmax(outside[blame], axis=1)
         status[bad[blame]] = "joint_limit"
+    assert res.cond is not None
     return CompensationResult(
         res.q_ctrl,
         q0.copy(),

@@ -253,16 +253,18 @@ def _rapid_pose(text: str, at: int) -> tuple[Pose, int]:
     return point_pose("rapid", tuple(v)), text.find("]", q_at)
 
 
-def rapid_frames(text: str) -> dict[str, Pose | str]:
-    """tooldata and wobjdata of a RAPID text: name -> the tool in the flange frame or the
-    object frame in the world frame (4, 4) [m], or why it cannot be used (str)."""
-    out: dict[str, Pose | str] = {}
+def rapid_frames(text: str) -> tuple[dict[str, Pose | str], dict[str, Pose | str]]:
+    """tooldata and wobjdata of a RAPID text: ({tool name: the tool in the flange frame},
+    {wobj name: the object frame in the world frame}) (4, 4) [m], or why it cannot be
+    used (str)."""
+    tools: dict[str, Pose | str] = {}
+    wobjs: dict[str, Pose | str] = {}
     pat = r"\b(tooldata|wobjdata)\s+(\w+)\s*:=\s*\[\s*(TRUE|FALSE)\s*,"
     for m in re.finditer(pat, text, re.I):
         kind, name, hold = m.group(1).lower(), m.group(2), m.group(3).upper()
         if kind == "tooldata":
             T, _ = _rapid_pose(text, m.end())
-            out[name] = T if hold == "TRUE" else "a stationary tool (robhold FALSE)"
+            tools[name] = T if hold == "TRUE" else "a stationary tool (robhold FALSE)"
             continue
         head = re.match(
             r"\s*(TRUE|FALSE)\s*,\s*\"([^\"]*)\"\s*,", text[m.end() :], re.I
@@ -274,8 +276,8 @@ def rapid_frames(text: str) -> dict[str, Pose | str]:
         of, _ = _rapid_pose(text, end + 1)
         why = "held by the robot (robhold TRUE)" if hold == "TRUE" else ""
         why = why or ("moved by a mechanical unit" if head.group(2) else "")
-        out[name] = why or uf @ of
-    return out
+        wobjs[name] = why or uf @ of
+    return tools, wobjs
 
 
 def _rapid(text: str) -> list[CartesianPoint]:
