@@ -261,3 +261,92 @@ def test_frame_algebra_is_the_nominal_fk_for_nominal_parameters(tracker_twin, rn
     np.testing.assert_allclose(
         calibrated_flange(nominal, q), cal.model.robot.fk_flange(q), atol=1e-12
     )
+
+
+def _krl_joints(q_deg):
+    lines = ["DEFDAT HOMES"]
+    for i, q in enumerate(q_deg):
+        vals = ",".join(f"A{k + 1} {v:.4f}" for k, v in enumerate(q))
+        lines.append(f"DECL E6AXIS XHOME{i}={{{vals},E1 0.0}}")
+    return "\n".join([*lines, "ENDDAT", ""])
+
+
+def test_issue_34_wrist_singular_joint_targets_least_motion(
+    tracker_twin, model_file, run_cli, tmp_path, rng
+):
+    """HOME (J5 = 0) and J4 = J5 = 0 points: corrected with sub-degree joint motion, not
+    refused, a warning naming the turn given up; an ordinary point moves nothing far."""
+    cal = tracker_twin.calibrated
+    q_deg = np.array(
+        [[0, 0, 0, 0, 0, 0], [10, 20, -10, 0, 0, 30], [-20, 30, -20, 0, 0.02, 0],
+         [15, 25, -15, 40, -60, 10]], float,
+    )  # fmt: skip
+    src, out = tmp_path / "homes.dat", tmp_path / "c.dat"
+    src.write_text(_krl_joints(q_deg))
+    res = run_cli(
+        "compensate", str(src), "--model", str(model_file), "--out", str(out),
+        "--report", str(tmp_path / "r.csv"), "--json",
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    rows = [r.split(",") for r in (tmp_path / "r.csv").read_text().splitlines()]
+    head = rows[0]
+    dq = np.array([float(r[head.index("dq_max_deg")]) for r in rows[1:]])
+    err = np.array([float(r[head.index("err_mm")]) for r in rows[1:]])
+    rot = np.array([float(r[head.index("rot_err_deg")]) for r in rows[1:]])
+    assert [r[-1] for r in rows[1:]] == ["ok"] * 4
+    n = 6
+    q0 = np.array([[float(v) for v in r[2 : 2 + n]] for r in rows[1:]])
+    q1 = np.array([[float(v) for v in r[2 + n : 2 + 2 * n]] for r in rows[1:]])
+    # No J4/J6 swing for a sub-millimetre correction: the singular rows move their joints
+    # as little as the ordinary one (the calibrated joint offsets, about half a degree).
+    assert dq.max() < 1.0, dq
+    assert np.abs(q1 - q0)[:3, [3, 5]].max() < 1.0
+    # Without the least-motion rule the exact orientation is not met (the issue's
+    # exit 4) or costs a wrist swing.
+    from kinecal.compensation import compensate, program_targets
+
+    qr = np.radians(q0[:3])
+    p_t, R_t = program_targets(cal, qr)
+    exact = compensate(cal, p_t, qr, R_target=R_t, least_motion_deg=None)
+    swing = np.degrees(np.abs(exact.joint_change)).max(axis=1)
+    assert ((exact.status != "ok") | (swing > 2.0)).any(), (exact.status, swing)
+    assert err.max() < 1e-3  # the position is met
+    assert rot[:3].max() < 0.1 and rot[3] < 1e-6  # a tiny turn given up, where singular
+    assert res.stderr.count("next to a singular pose") >= 2
+    # The joint-motion warning: every correction moves more than 0.001 deg.
+    res = run_cli(
+        "compensate", str(src), "--model", str(model_file), "--out",
+        str(tmp_path / "c2.dat"), "--warn-dq-deg", "0.001",
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    assert res.stderr.count("(more than --warn-dq-deg 0.001)") == 4
+
+
+def test_issue_34_cartesian_target_at_a_straight_wrist(
+    tracker_twin, model_file, run_cli, tmp_path
+):
+    """A Cartesian target taught at J5 = 0.01 deg: reached within 0.01 mm in position with
+    no joint moving more than a degree (the calibrated offsets are about half a degree)."""
+    cal = tracker_twin.calibrated
+    q = np.radians(
+        [[5.0, 15.0, -20.0, 0.0, -0.01, 20.0], [5.0, 15.0, -20.0, 30, -45, 20]]
+    )
+    T_tg = _targets(cal, q)
+    src, out = tmp_path / "w.ls", tmp_path / "cw.ls"
+    three = np.concatenate([q, q[:1]])  # the third names UF 3: left
+    src.write_bytes(_fanuc(cal, three, _targets(cal, three)).encode())
+    res = run_cli(
+        "compensate", str(src), "--model", str(model_file), "--out", str(out),
+        "--report", str(tmp_path / "r.csv"), "--decimals", "6", *FRAME_ARGS["fanuc-ls"](),
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    rows = [r.split(",") for r in (tmp_path / "r.csv").read_text().splitlines()]
+    head = rows[0]
+    assert [r[-1] for r in rows[1:]] == ["ok", "ok", "left"]
+    dq = [float(r[head.index("dq_max_deg")]) for r in rows[1:3]]
+    assert max(dq) < 1.0, dq  # the calibrated joint offsets, no wrist swing
+    vals, _ = _written_targets("fanuc-ls", out.read_text())
+    F = T_UF @ _read_pose("fanuc-ls", vals[0]) @ np.linalg.inv(T_TOOL)
+    q_ctrl = _controller(cal.model.robot, F, q[0])
+    got = calibrated_flange(cal, q_ctrl[None])[0] @ T_TOOL
+    assert np.linalg.norm(got[:3, 3] - (T_UF @ T_tg[0])[:3, 3]) * 1e3 < 0.01

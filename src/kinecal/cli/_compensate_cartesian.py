@@ -214,8 +214,9 @@ def cartesian_run(cal, prog, q_joint, uframes, utools, scale, tol_mm, decimals):
         return run
     ls = None if scale is None else np.full(rows.size, scale)
     pc = compensate_poses(
-        cal, F_want[rows], seeds[rows], load_scale=ls, tol=tol_mm * 1e-3
-    )
+        cal, F_want[rows], seeds[rows], T_flange_tool=T_tool[rows], load_scale=ls,
+        tol=tol_mm * 1e-3,
+    )  # fmt: skip
     run.res = pc.result
     status[rows] = pc.result.status
     q_new[rows] = pc.result.q_ctrl

@@ -295,11 +295,26 @@ def compensate_poses(
     T_rb_flange: Pose,
     q_seed: Float,
     *,
+    T_flange_tool: Pose | None = None,
     load_scale: Float | None = None,
     tol: float = 1e-6,
 ) -> PoseCompensation:
     """Corrected flange poses for wanted ones (N, 4, 4), each solved on the calibrated
-    model from ``q_seed`` (N, n), the taught configuration (see the module docstring)."""
-    p, R = _cam_targets(cal, np.asarray(T_rb_flange, np.float64))
-    res = compensate(cal, p, q_seed, R_target=R, load_scale=load_scale, tol=tol)
+    model from ``q_seed`` (N, n), the taught configuration (see the module docstring).
+
+    A target next to a singular pose may be met with the least joint motion, giving up a
+    tiny turn (``result.relaxed``); then the tool point ``T_flange_tool`` (N, 4, 4)
+    (default: the flange) is the point held on the target, not the model's cam point.
+    """
+    T_want = np.asarray(T_rb_flange, np.float64)
+    N = T_want.shape[0]
+    p, R = _cam_targets(cal, T_want)
+    tool = np.tile(np.eye(4), (N, 1, 1)) if T_flange_tool is None else T_flange_tool
+    _, T_last_cam, T_last_flange = _frames(cal)
+    # The tool point in the cam frame, and where it must be: the IK holds it there.
+    r = (transform_inv(T_last_cam) @ T_last_flange @ tool)[:, :3, 3]
+    p_tool = p + np.einsum("nij,nj->ni", R, r)
+    res = compensate(
+        cal, p_tool, q_seed, R_target=R, load_scale=load_scale, tol=tol, p_cam=r
+    )
     return PoseCompensation(nominal_flange(cal, res.q_ctrl), res)

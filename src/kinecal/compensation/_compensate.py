@@ -103,6 +103,7 @@ def compensate(
     tol_rotation: float = 1e-6,
     max_iter: int = 50,
     least_motion_deg: float | None = 1.0,
+    p_cam: ArrayLike | None = None,
 ) -> CompensationResult:
     """Controller angles that put the calibrated tool point on each target.
 
@@ -122,6 +123,8 @@ def compensate(
         are not met, are solved again as point targets keeping the wanted orientation
         where it is well conditioned (a controller's handling of singular poses): taken
         when that meets the position with less joint motion (``relaxed``). None: off.
+    p_cam : (N, 3), optional the point of the cam frame put on ``p_target`` (a tool
+        point; default the cam origin) [m].
 
     Raises
     ------
@@ -160,6 +163,7 @@ def compensate(
                     tol_rotation=tol_rotation,
                     max_iter=max_iter,
                     least_motion_deg=least_motion_deg,
+                    p_cam=cut(p_cam),
                 )
             )
         joined = {
@@ -182,6 +186,7 @@ def compensate(
         tol_position=min(tol, 1e-11),
         tol_rotation=min(tol_rotation, 1e-10),
         max_iter=max_iter,
+        p_cam=p_cam,
     )
     assert res.cond is not None
     pose = R_target is not None
@@ -190,7 +195,7 @@ def compensate(
         res, relaxed = _least_motion(
             model, calibrated.params, res, p, q0, R_target,
             set_index, marker_index, ls, tol, tol_rotation, max_iter,
-            np.radians(least_motion_deg),
+            np.radians(least_motion_deg), p_cam,
         )  # fmt: skip
         assert res.cond is not None
     ok = (res.position_error <= tol) & res.within_limits
@@ -215,6 +220,7 @@ def compensate(
             else np.asarray(marker_index)[bad],
             load_scale=None if ls is None else ls[bad],
             limits=np.tile([-np.inf, np.inf], (n, 1)),
+            p_cam=None if p_cam is None else np.asarray(p_cam)[bad],
             tol_position=min(tol, 1e-11),
             tol_rotation=min(tol_rotation, 1e-10),
             max_iter=max_iter,
@@ -243,7 +249,7 @@ def compensate(
 
 def _least_motion(
     model, params, res, p, q0, R_target, set_index, marker_index, ls, tol,
-    tol_rotation, max_iter, dq_max,
+    tol_rotation, max_iter, dq_max, p_cam=None,
 ):  # fmt: skip
     """Pose rows not met or moving a joint by more than ``dq_max`` [rad], solved again as
     point targets that keep the orientation where it is well conditioned; a row takes the
@@ -264,7 +270,7 @@ def _least_motion(
     again = solve_ik_lm(
         model, params, p[rows], q0[rows], R_target=np.asarray(R_target)[rows],
         point_only=True, set_index=cut(set_index), marker_index=cut(marker_index),
-        load_scale=cut(ls), tol_position=min(tol, 1e-11),
+        load_scale=cut(ls), p_cam=cut(p_cam), tol_position=min(tol, 1e-11),
         tol_rotation=min(tol_rotation, 1e-10), max_iter=max_iter,
     )  # fmt: skip
     new_motion = np.abs(again.q_ctrl - q0[rows]).max(axis=1)
