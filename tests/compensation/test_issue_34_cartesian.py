@@ -350,3 +350,112 @@ def test_issue_34_cartesian_target_at_a_straight_wrist(
     q_ctrl = _controller(cal.model.robot, F, q[0])
     got = calibrated_flange(cal, q_ctrl[None])[0] @ T_TOOL
     assert np.linalg.norm(got[:3, 3] - (T_UF @ T_tg[0])[:3, 3]) * 1e3 < 0.01
+
+
+@pytest.mark.parametrize(
+    ("fmt", "old", "new", "message"),
+    [
+        ("fanuc-ls", "CONFIG : '", "CONFIG : 'X", r"cart.ls: line 6: P\[1\] CONFIG 'X"),
+        (
+            "fanuc-ls",
+            "W = ",
+            "Q = ",
+            r"cart.ls: line 4: P\[1\] has no 'W = <number> deg'",
+        ),
+        ("krl", ",B ", ",Q ", r"cart.dat: line 2: a Cartesian aggregate without B"),
+        ("rapid", "],[0", "],[", r"cart.mod: line \d+: robtarget p0: expected \[\[x"),
+    ],
+)
+def test_issue_34_malformed_cartesian_targets_name_file_and_line(
+    tracker_twin, model_file, run_cli, tmp_path, fmt, old, new, message
+):
+    cal = tracker_twin.calibrated
+    q = _taught(np.random.default_rng(3), 2)
+    writer, ext = WRITERS[fmt]
+    text = writer(cal, q, _targets(cal, q))
+    if fmt == "rapid":  # the confdata of the first robtarget loses a number
+        at = text.index("CONST robtarget p0")
+        cut = text.index("],[", text.index("],[", at) + 3)
+        text = text[:cut] + "],[" + text[cut + 5 :]
+    else:
+        text = text.replace(old, new, 1)
+    src = tmp_path / f"cart{ext}"
+    src.write_bytes(text.encode())
+    res = run_cli(
+        "compensate", str(src), "--model", str(model_file), "--out",
+        str(tmp_path / f"o{ext}"), *FRAME_ARGS[fmt](),
+    )  # fmt: skip
+    assert res.returncode != 0
+    assert re.search(message, res.stderr), res.stderr
+    assert "Traceback" not in res.stderr
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--uframe", "1=1,2,3"], r"--uframe '1=1,2,3': expected ID=v,v,v,v,v,v"),
+        (["--utool", "1=1,2,3,4,5,nan"], r"--utool '1=1,2,3,4,5,nan': expected"),
+    ],
+)
+def test_issue_34_bad_frame_options(
+    tracker_twin, model_file, run_cli, tmp_path, args, message
+):
+    cal = tracker_twin.calibrated
+    q = _taught(np.random.default_rng(3), 2)
+    src = tmp_path / "cart.ls"
+    src.write_bytes(_fanuc(cal, q, _targets(cal, q)).encode())
+    res = run_cli(
+        "compensate", str(src), "--model", str(model_file), "--out",
+        str(tmp_path / "o.ls"), *args,
+    )  # fmt: skip
+    assert res.returncode != 0 and re.search(message, res.stderr), res.stderr
+    assert not (tmp_path / "o.ls").exists()
+
+
+def test_issue_34_frames_file_and_unreachable_targets_counted(
+    tracker_twin, model_file, run_cli, tmp_path
+):
+    """Frames from a YAML file; targets taught at J5's limits cannot all be reached by
+    the calibrated robot (exit 4, nothing written; with --allow-unreachable written and
+    flagged); a target 3 m away has no nominal solution: left, with the reason."""
+    cal = tracker_twin.calibrated
+    lim = cal.model.robot.limits
+    q = _taught(np.random.default_rng(5), 5)
+    q[2, 4] = lim[4, 0] + 1e-7  # taught at J5's limit: the nominal robot reaches it
+    T_tg = _targets(cal, q)
+    # Target 2: the calibrated robot needs J5 0.05 deg beyond a limit where the nominal
+    # one is inside (the first pose of the candidates where that holds).
+    for cand in _taught(np.random.default_rng(6), 40):
+        side = 1 if cand[4] > 0 else 0
+        cand[4] = lim[4, side] + np.radians(0.05) * (1 if side else -1)
+        F = calibrated_flange(cal, cand[None])[0]
+        q_nom = _controller(cal.model.robot, F, cand)
+        if lim[4, 0] + 1e-4 < q_nom[4] < lim[4, 1] - 1e-4:
+            break
+    else:
+        raise AssertionError("no candidate")
+    q[1] = q_nom
+    T_tg[1] = np.linalg.inv(T_UF) @ F @ T_TOOL
+    T_tg[3, :3, 3] += [3.0, 0.0, 0.0]
+    src = tmp_path / "cart.dat"
+    src.write_text(_krl(cal, q, T_tg))
+    uf = ", ".join(f"{x:.9f}" for x in _numbers("krl", T_UF))
+    tl = ", ".join(f"{x:.9f}" for x in _numbers("krl", T_TOOL))
+    frames = tmp_path / "frames.yaml"
+    frames.write_text(f"uframe:\n  1: [{uf}]\nutool:\n  2: [{tl}]\n")
+    args = ["--model", str(model_file), "--frames", str(frames), "--json"]
+    res = run_cli("compensate", str(src), "--out", str(tmp_path / "o.dat"), *args)
+    assert res.returncode == 4, res.stderr
+    assert not (tmp_path / "o.dat").exists()
+    res = run_cli(
+        "compensate", str(src), "--out", str(tmp_path / "o.dat"), *args,
+        "--allow-unreachable",
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    summary = json.loads(res.stdout.strip().splitlines()[-1])
+    assert summary["n"] == 5 and summary["left"] == 1
+    assert summary["unreachable"] >= 1 and summary["ok"] == 4 - summary["unreachable"]
+    assert "line 8 (XP4): left as written: no nominal joint solution" in res.stderr
+    vals, _ = _written_targets("krl", (tmp_path / "o.dat").read_text())
+    vals0, _ = _written_targets("krl", src.read_text())
+    assert vals[3] == vals0[3] and vals[0] != vals0[0]

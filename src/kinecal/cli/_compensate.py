@@ -446,7 +446,7 @@ def _program(cal, path: str, fmt: str, tol_mm: float, scale, decimals, frames):
     err_c, rot_c = written_errors(cal, run, text, prog.format, scale)
     res = _joined(res_j, run, robot.n_joints)
     names = [pt.name for pt in prog.points] + [
-        f"{pt.name} (Cartesian)" for pt in run.points
+        f"{pt.name}, Cartesian" for pt in run.points
     ]
     lines_ = [pt.line for pt in prog.points] + [pt.line for pt in run.points]
     q_w_all = np.vstack([q_w, np.nan_to_num(run.q_new)])

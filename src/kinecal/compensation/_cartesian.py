@@ -123,7 +123,7 @@ def _turn_variants(cal: CalibratedModel, q: Float) -> Float:
             out + s * _TWO_PI * np.eye(robot.n_joints)[j] for s in (-2, -1, 1, 2)
         ]
         out = np.concatenate([out, *shifted])
-    inside = np.all((out >= lim[:, 0] - 1e-9) & (out <= lim[:, 1] + 1e-9), axis=1)
+    inside = np.all((out >= lim[:, 0] - 1e-6) & (out <= lim[:, 1] + 1e-6), axis=1)
     return out[inside]
 
 
@@ -151,6 +151,7 @@ def branch_solutions(
     N, n = T_rb_flange.shape[0], model.n_joints
     starts = _starts(cal, N_STARTS)
     p, R = _cam_targets(cal, T_rb_flange)
+    lim = model.robot.limits + np.array([-1e-6, 1e-6])  # a target taught at a limit
     res = solve_ik_lm(
         model,
         _nominal_params(cal),
@@ -160,6 +161,7 @@ def branch_solutions(
         tol_position=1e-11,
         tol_rotation=1e-10,
         max_iter=80,
+        limits=lim,
     )
     good = (res.position_error <= tol) & (res.rotation_error <= tol) & res.within_limits
     q_all = res.q_ctrl.reshape(N, N_STARTS, n)
@@ -219,7 +221,7 @@ def _with_wrist_flips(
     dR = np.abs(Tf[..., :3, :3] - T[:, None, :3, :3]).max(axis=(-2, -1))
     lim = cal.model.robot.limits
     ok = good & (dp <= 1e-3 * tol + 1e-9) & (dR <= 1e-8)
-    ok &= np.all((flip >= lim[:, 0]) & (flip <= lim[:, 1]), axis=-1)
+    ok &= np.all((flip >= lim[:, 0] - 1e-6) & (flip <= lim[:, 1] + 1e-6), axis=-1)
     return np.concatenate([q, flip], axis=1), np.concatenate([good, ok], axis=1)
 
 

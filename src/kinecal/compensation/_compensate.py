@@ -34,6 +34,9 @@ CHUNK = 50_000
 # The most orientation a pose target gives up for the least joint motion [rad]: next to a
 # singular pose a sub-millimetre correction turns the tool by a few hundredths of a degree.
 _RELAX_MAX = float(np.radians(0.1))
+# The condition number of the pose task (1 rad as 0.5 m) above which a pose is next to a
+# singular one; the IK leaves out directions below 2 % of the largest (50).
+_SINGULAR_COND = 20.0
 _ROW_FIELDS = (
     "q_ctrl",
     "q_program",
@@ -259,7 +262,9 @@ def _least_motion(
     motion = np.abs(res.q_ctrl - q0).max(axis=1)
     met = (res.position_error <= tol) & (res.rotation_error <= tol_rotation)
     met &= res.within_limits
-    rows = np.flatnonzero(~met | (motion > dq_max))
+    # Only next to a singular pose: elsewhere a target not met is out of reach or beyond
+    # a limit, and giving up orientation there would hide it.
+    rows = np.flatnonzero((~met | (motion > dq_max)) & (res.cond > _SINGULAR_COND))
     relaxed = np.zeros(p.shape[0], bool)
     if rows.size == 0:
         return res, relaxed

@@ -136,7 +136,8 @@ def _fanuc(text: str) -> list[CartesianPoint]:
             m = re.search(rf"\b{key}\s*=(\s*{_NUM})\s*{unit}", seg)
             if m is None:
                 raise DataError(
-                    f"line {_line(text, at)}: {name} has no '{key} = <number> {unit}'; "
+                    f"line {_line(text, pos.end() + rec.start(1))}: {name} has no "
+                    f"'{key} = <number> {unit}'; "
                     "expected X, Y, Z [mm] and W, P, R [deg]."
                 )
             spans.append((at + m.start(1), at + m.end(1)))
@@ -147,7 +148,7 @@ def _fanuc(text: str) -> list[CartesianPoint]:
                 f"line {_line(text, at)}: {name} lacks 'UF : u, UT : t' or "
                 "CONFIG : '...'; expected both in a Cartesian position."
             )
-        config = _fanuc_config(text, at, name, cfg.group(1))
+        config = _fanuc_config(text, at + cfg.start(), name, cfg.group(1))
         out.append(
             _make(text, name, spans, config=config, frame=frames.group(1),
                   tool=frames.group(2))
