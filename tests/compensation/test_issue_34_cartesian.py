@@ -90,7 +90,7 @@ def _read_pose(fmt, v):
 
 def _fanuc(cal, q, T_tg):
     flags = encode_config(cal, "fanuc-ls", q)
-    out = ["/PROG  CART", "/MN", "/POS"]
+    out = ["/PROG  CART", "/MN", "   1:L PR[5:home] 100mm/sec FINE    ;", "/POS"]
     for i, (T, f) in enumerate(zip(T_tg, flags)):
         x, y, z, w, p, r = _numbers("fanuc-ls", T)
         uf = 3 if i == len(T_tg) - 1 else 1  # the last one names a frame not given
@@ -223,21 +223,21 @@ def test_issue_34_cartesian_targets_reached_through_the_nominal_controller(
     )  # fmt: skip
     assert res.returncode == 0, res.stderr
     summary = json.loads(res.stdout.strip().splitlines()[-1])
-    n_left = 1 if fmt == "fanuc-ls" else 0  # FANUC's last target names UF 3: not given
-    assert summary["n"] == 10 and summary["left"] == n_left
-    assert summary["ok"] == 10 - n_left and summary["unreachable"] == 0
-    assert (
-        "10 Cartesian targets: " + f"{10 - n_left} corrected, {n_left} left"
-        in res.stderr
-    )
+    # FANUC: the last target names UF 3, not given, and PR[5] is the controller's.
+    n_left, n = (2, 11) if fmt == "fanuc-ls" else (0, 10)
+    n_ok = n - n_left
+    assert summary["n"] == n and summary["left"] == n_left
+    assert summary["ok"] == n_ok and summary["unreachable"] == 0
+    assert f"{n} Cartesian targets: {n_ok} corrected, {n_left} left" in res.stderr
     if n_left:
         assert "user frame 3 not given (--uframe 3=" in res.stderr
+        assert "line 3 (PR[5:home]): left as written: a position register" in res.stderr
     text = out.read_text()
     vals, flags = _written_targets(fmt, text)
     _, flags0 = _written_targets(fmt, src.read_text())
     assert flags == flags0 and len(vals) == 10  # the configuration kept
     errs, moved = [], []
-    for i in range(10 - n_left):
+    for i in range(n_ok):
         T_new = _read_pose(fmt, vals[i])
         F = T_uf @ T_new @ np.linalg.inv(T_TOOL)
         q_ctrl = _controller(robot, F, q[i])
@@ -342,8 +342,8 @@ def test_issue_34_cartesian_target_at_a_straight_wrist(
     assert res.returncode == 0, res.stderr
     rows = [r.split(",") for r in (tmp_path / "r.csv").read_text().splitlines()]
     head = rows[0]
-    assert [r[-1] for r in rows[1:]] == ["ok", "ok", "left"]
-    dq = [float(r[head.index("dq_max_deg")]) for r in rows[1:3]]
+    assert [r[-1] for r in rows[1:]] == ["left", "ok", "ok", "left"]  # PR[5] first
+    dq = [float(r[head.index("dq_max_deg")]) for r in rows[2:4]]
     assert max(dq) < 1.0, dq  # the calibrated joint offsets, no wrist swing
     vals, _ = _written_targets("fanuc-ls", out.read_text())
     F = T_UF @ _read_pose("fanuc-ls", vals[0]) @ np.linalg.inv(T_TOOL)
@@ -355,12 +355,12 @@ def test_issue_34_cartesian_target_at_a_straight_wrist(
 @pytest.mark.parametrize(
     ("fmt", "old", "new", "message"),
     [
-        ("fanuc-ls", "CONFIG : '", "CONFIG : 'X", r"cart.ls: line 6: P\[1\] CONFIG 'X"),
+        ("fanuc-ls", "CONFIG : '", "CONFIG : 'X", r"cart.ls: line 7: P\[1\] CONFIG 'X"),
         (
             "fanuc-ls",
             "W = ",
             "Q = ",
-            r"cart.ls: line 4: P\[1\] has no 'W = <number> deg'",
+            r"cart.ls: line 5: P\[1\] has no 'W = <number> deg'",
         ),
         ("krl", ",B ", ",Q ", r"cart.dat: line 2: a Cartesian aggregate without B"),
         ("rapid", "],[0", "],[", r"cart.mod: line \d+: robtarget p0: expected \[\[x"),

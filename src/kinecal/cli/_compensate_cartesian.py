@@ -201,7 +201,9 @@ def cartesian_run(cal, prog, q_joint, uframes, utools, scale, tol_mm, decimals):
         raise DataError(f"{prog.path}: {exc}") from None
     N, n = len(pts), robot.n_joints
     T_uf, T_tool, why = _frames(prog, pts, uframes, utools)
-    T_target = np.array([point_pose(fmt, p.values) for p in pts]).reshape(N, 4, 4)
+    T_target = np.array(
+        [point_pose(fmt, p.values) if p.values else np.eye(4) for p in pts]
+    ).reshape(N, 4, 4)
     T_tcp = T_uf @ T_target
     F_want = T_tcp @ transform_inv(T_tool) if N else T_tcp
     near = _near_joints(prog, pts, robot, q_joint)

@@ -118,10 +118,24 @@ def _fanuc_config(text: str, at: int, name: str, cfg: str) -> tuple:
     return (*letters, *t)
 
 
+def _fanuc_registers(text: str) -> list[CartesianPoint]:
+    """Motion instructions to position registers ``PR[n]``: their values live in the
+    controller, not in the program; counted and left."""
+    out = []
+    pat = r"^\s*\d+\s*:\s*[JLCA]\s+(PR\[[^\]]*\])"
+    for m in re.finditer(pat, text, re.M):
+        why = "a position register: its value is in the controller, not in the program"
+        at = m.start(1)
+        out.append(CartesianPoint(m.group(1), _line(text, at), ((at, at),), (), (),
+                                  None, "", "", why_not=why))  # fmt: skip
+    return out
+
+
 def _fanuc(text: str) -> list[CartesianPoint]:
     pos = re.search(r"^/POS\b", text, re.M)
+    registers = _fanuc_registers(text)
     if pos is None:
-        return []
+        return registers
     end = re.search(r"^/END\b", text[pos.end() :], re.M)
     stop = pos.end() + end.start() if end else len(text)
     out = []
@@ -153,7 +167,7 @@ def _fanuc(text: str) -> list[CartesianPoint]:
             _make(text, name, spans, config=config, frame=frames.group(1),
                   tool=frames.group(2))
         )  # fmt: skip
-    return out
+    return registers + out
 
 
 # ------------------------------------------------------------------ KRL
@@ -416,7 +430,7 @@ def cartesian_edits(
     (URScript ``_q`` companions: ``q_new`` (N, n) [rad]); rows with NaN are kept."""
     edits = []
     for k, pt in enumerate(points):
-        if not np.isfinite(poses[k]).all():
+        if not pt.values or not np.isfinite(poses[k]).all():
             continue
         nums = _numbers(fmt, poses[k], pt.values)
         for j, (a, b) in enumerate(pt.spans):

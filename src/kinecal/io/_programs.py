@@ -21,8 +21,8 @@ krl         KUKA KRL ``.src/.dat``     ``{A1 x, A2 x, ...}`` aggregates (AXIS,  
 
 Prismatic joints are in mm in every format but URScript (metres). Cartesian targets
 (FANUC ``X = .. mm``, URScript ``p[...]``, RAPID ``robtarget``, KRL ``{X .., A ..}``
-frames) are left as they are and counted; compensating them needs the controller's user
-and tool frames, which kinecal does not know.
+frames) are read by :mod:`kinecal.io._cartesian_programs`; here they are only counted
+(``Program.skipped``).
 """
 
 from __future__ import annotations
