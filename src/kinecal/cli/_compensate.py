@@ -130,7 +130,11 @@ def compensate(
     branch). A position-only target keeps the seed's tool orientation wherever the pose
     is not nearly singular. A program file (FANUC .ls, URScript, ABB RAPID, KUKA KRL):
     each joint target is moved so that the real robot takes the flange pose the nominal
-    robot has at the programmed joints; the rest of the program is kept byte for byte.
+    robot has at the programmed joints; each Cartesian target (in its user and tool
+    frames: --uframe/--utool/--frames) becomes the pose the nominal controller must be
+    commanded for the real robot to reach it, configuration flags kept; every target is
+    counted (corrected, left and why, unreachable); the rest of the program is kept byte
+    for byte.
     Unreachable or out-of-limit rows are listed, and the command exits with code 4
     unless --allow-unreachable.
     """

@@ -39,6 +39,7 @@ __all__ = [
     "compensate_poses",
     "nearest_solutions",
     "nominal_flange",
+    "stretch_sign",
 ]
 
 # Starting points of the nominal multi-start IK per target (deterministic).
@@ -243,7 +244,7 @@ def _joint_frames(cal: CalibratedModel, q: Float) -> Pose:
     return np.stack(out, axis=1)
 
 
-def _stretch_sign(cal: CalibratedModel) -> float:
+def stretch_sign(cal: CalibratedModel) -> float:
     """The sign of the elbow bend just past the stretched arm, J3 increasing (J2 = 0 and
     the other joints zero): the stretched arm is where the wrist centre is furthest from
     the J2 axis."""
@@ -263,7 +264,9 @@ def _bend(F: Pose) -> Float:
     return np.sum(np.cross(o2 - o1, wc - o2) * z1, axis=1)
 
 
-def arm_features(cal: CalibratedModel, q_ctrl: Float) -> dict[str, np.ndarray]:
+def arm_features(
+    cal: CalibratedModel, q_ctrl: Float, stretch: float | None = None
+) -> dict[str, np.ndarray]:
     """Configuration features of 6-axis arms with a spherical wrist (M,) bool each:
 
     * ``front``: the wrist centre (origin after row 4) lies in front of the joint-1 axis,
@@ -287,7 +290,7 @@ def arm_features(cal: CalibratedModel, q_ctrl: Float) -> dict[str, np.ndarray]:
     return {
         "front": front[1:],
         "elbow": bend[1:] == bend[0],
-        "past_stretch": bend[1:] == _stretch_sign(cal),
+        "past_stretch": bend[1:] == (stretch_sign(cal) if stretch is None else stretch),
         "wrist_neg": q[:, 4] < 0,
     }
 

@@ -35,7 +35,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from kinecal.compensation._cartesian import arm_features
+from kinecal.compensation._cartesian import arm_features, stretch_sign
 from kinecal.identification import CalibratedModel
 from kinecal.typing import Float
 
@@ -48,12 +48,15 @@ def _turn(x: Float) -> np.ndarray:
     return np.floor((x + np.pi) / (2 * np.pi)).astype(int)
 
 
-def encode_config(cal: CalibratedModel, fmt: str, q_ctrl: Float) -> list[tuple]:
-    """The configuration flags of joint vectors (M, n) as a program writes them."""
+def encode_config(
+    cal: CalibratedModel, fmt: str, q_ctrl: Float, stretch: float | None = None
+) -> list[tuple]:
+    """The configuration flags of joint vectors (M, n) as a program writes them
+    (``stretch``: :func:`stretch_sign`, computed when not given)."""
     q = np.atleast_2d(np.asarray(q_ctrl, np.float64))
     if q.shape[1] != 6:
         raise ValueError("configuration flags are defined for 6-axis arms.")
-    f = arm_features(cal, q)
+    f = arm_features(cal, q, stretch)
     out: list[tuple] = []
     for k in range(q.shape[0]):
         front, elbow, wneg = (
@@ -95,8 +98,10 @@ def config_accept(
 ) -> Callable[[int, Float], np.ndarray]:
     """``accept(i, q) -> (M,) bool``: which joint vectors have target i's flags."""
 
+    stretch = stretch_sign(cal)
+
     def accept(i: int, q: Float) -> np.ndarray:
-        enc = encode_config(cal, fmt, q)
+        enc = encode_config(cal, fmt, q, stretch)
         return np.array([_same(fmt, e, configs[i]) for e in enc], bool)
 
     return accept
