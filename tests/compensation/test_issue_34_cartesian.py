@@ -459,3 +459,31 @@ def test_issue_34_frames_file_and_unreachable_targets_counted(
     vals, _ = _written_targets("krl", (tmp_path / "o.dat").read_text())
     vals0, _ = _written_targets("krl", src.read_text())
     assert vals[3] == vals0[3] and vals[0] != vals0[0]
+
+
+def test_issue_34_flags_pick_one_solution_of_eight(tracker_twin):
+    """The flags of a pose's joints select those joints again among the pose's nominal
+    solutions (front/back, elbow, wrist flip, turns), in the three flagged formats; the
+    LR Mate's standard pose reads N U T (tool down, J5 = -90 deg)."""
+    from kinecal.compensation._cartesian import branch_solutions
+    from kinecal.compensation._configs import config_accept
+
+    cal = tracker_twin.calibrated
+    robot = cal.model.robot
+    q = _taught(np.random.default_rng(8), 12)
+    q[:4, 0] += np.radians(100.0) * np.sign(q[:4, 0])  # far round J1
+    q[4:8, 3] = np.radians([150.0, -150.0, 170.0, -170.0])  # J4 by the half turn
+    q[8:, 5] = np.radians([200.0, -200.0, 300.0, -300.0])  # J6 past a half turn
+    q = np.clip(q, robot.limits[:, 0], robot.limits[:, 1])
+    F = robot.fk_flange(q)
+    for fmt in ("fanuc-ls", "krl", "rapid"):
+        flags = encode_config(cal, fmt, q)
+        got, found = branch_solutions(cal, F, config_accept(cal, fmt, flags))
+        assert found.all(), fmt
+        np.testing.assert_allclose(got, q, atol=1e-6, err_msg=fmt)
+    assert encode_config(cal, "fanuc-ls", np.radians([[0, 0, 0, 0, -90, 0]]))[0] == (
+        "N", "U", "T", 0, 0, 0,
+    )  # fmt: skip
+    assert (
+        encode_config(cal, "fanuc-ls", np.radians([[0, 0, 0, 0, -90, 200]]))[0][5] == 1
+    )
