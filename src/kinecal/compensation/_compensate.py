@@ -208,34 +208,12 @@ def compensate(
     limit_joint = np.full(ok.shape, -1)
     bad = np.flatnonzero(~ok)
     if bad.size:
-        # Beyond the limits or out of reach? Solve the failed rows again without limits:
-        # where that meets the target, the joint furthest outside its limit is to blame.
-        free = solve_ik_lm(
-            model,
-            calibrated.params,
-            p[bad],
-            res.q_ctrl[bad],
-            R_target=None if R_target is None else np.asarray(R_target)[bad],
-            point_only=R_target is None,
-            set_index=None if set_index is None else np.asarray(set_index)[bad],
-            marker_index=None
-            if marker_index is None
-            else np.asarray(marker_index)[bad],
-            load_scale=None if ls is None else ls[bad],
-            limits=np.tile([-np.inf, np.inf], (n, 1)),
-            p_cam=None if p_cam is None else np.asarray(p_cam)[bad],
-            tol_position=min(tol, 1e-11),
-            tol_rotation=min(tol_rotation, 1e-10),
-            max_iter=max_iter,
-        )
-        lim = model.robot.limits
-        outside = np.maximum(lim[:, 0] - free.q_ctrl, free.q_ctrl - lim[:, 1])
-        reached = free.position_error <= tol
-        if pose:
-            reached &= free.rotation_error <= tol_rotation
-        blame = reached & (outside.max(axis=1) > 0)
-        limit_joint[bad[blame]] = np.argmax(outside[blame], axis=1)
-        status[bad[blame]] = "joint_limit"
+        blamed, joint = _blame_limits(
+            model, calibrated.params, res, p, bad, R_target, set_index,
+            marker_index, ls, p_cam, tol, tol_rotation, max_iter,
+        )  # fmt: skip
+        limit_joint[bad[blamed]] = joint
+        status[bad[blamed]] = "joint_limit"
     assert res.cond is not None
     return CompensationResult(
         res.q_ctrl,
@@ -248,6 +226,34 @@ def compensate(
         res.iterations,
         relaxed,
     )
+
+
+def _blame_limits(
+    model, params, res, p, bad, R_target, set_index, marker_index, ls, p_cam, tol,
+    tol_rotation, max_iter,
+):  # fmt: skip
+    """Beyond the limits or out of reach? The failed rows ``bad`` solved again without
+    limits: where that meets the target, the joint furthest outside its limit is to
+    blame. Returns (blamed (B,) bool over ``bad``, their 0-based joints)."""
+
+    def cut(v):
+        return None if v is None else np.asarray(v)[bad]
+
+    free = solve_ik_lm(
+        model, params, p[bad], res.q_ctrl[bad], R_target=cut(R_target),
+        point_only=R_target is None, set_index=cut(set_index),
+        marker_index=cut(marker_index), load_scale=cut(ls),
+        limits=np.tile([-np.inf, np.inf], (model.n_joints, 1)), p_cam=cut(p_cam),
+        tol_position=min(tol, 1e-11), tol_rotation=min(tol_rotation, 1e-10),
+        max_iter=max_iter,
+    )  # fmt: skip
+    lim = model.robot.limits
+    outside = np.maximum(lim[:, 0] - free.q_ctrl, free.q_ctrl - lim[:, 1])
+    reached = free.position_error <= tol
+    if R_target is not None:
+        reached &= free.rotation_error <= tol_rotation
+    blame = reached & (outside.max(axis=1) > 0)
+    return blame, np.argmax(outside[blame], axis=1)
 
 
 def _least_motion(
