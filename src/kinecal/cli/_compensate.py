@@ -170,17 +170,7 @@ def compensate(
         res, rows = _program(cal, targets, fmt, tol_mm, scale, decimals, frames)
     _warn_motion(targets, res, rows, warn_dq_deg)
     bad = [i for i, s in enumerate(res.status) if s not in ("ok", "left")]
-    for i in bad[:50]:
-        joint = ""
-        if res.limit_joint[i] >= 0:
-            joint = f" (J{res.limit_joint[i] + 1} beyond its limit)"
-        click.echo(
-            f"{targets}: {rows.where[i]}: {res.status[i]}{joint}: predicted error "
-            f"{res.error[i] * 1e3:.4f} mm",
-            err=True,
-        )
-    if len(bad) > 50:
-        click.echo(f"... and {len(bad) - 50} more rows", err=True)
+    _echo_bad(targets, res, rows, bad)
     ok = res.status == "ok"
     summary = {
         "n": len(res.status),
@@ -211,6 +201,21 @@ def compensate(
             f"error {summary['max_err_mm'] or 0:.6f} mm; wrote {out_path}"
             + (f" and {report_path}" if report_path and fmt != "csv" else "")
         )
+
+
+def _echo_bad(path, res, rows, bad):
+    """The unreachable or out-of-limit rows on stderr (the first 50)."""
+    for i in bad[:50]:
+        joint = ""
+        if res.limit_joint[i] >= 0:
+            joint = f" (J{res.limit_joint[i] + 1} beyond its limit)"
+        click.echo(
+            f"{path}: {rows.where[i]}: {res.status[i]}{joint}: predicted error "
+            f"{res.error[i] * 1e3:.4f} mm",
+            err=True,
+        )
+    if len(bad) > 50:
+        click.echo(f"... and {len(bad) - 50} more rows", err=True)
 
 
 def _frames(fmt, uframes, utools, frames_path):

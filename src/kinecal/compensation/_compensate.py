@@ -16,6 +16,7 @@ predicted residual, the condition number of the task there and the joint change.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -146,37 +147,15 @@ def compensate(
         raise DataError("p_target and q_seed must be finite.")
     ls = None if load_scale is None else np.asarray(load_scale, np.float64).reshape(-1)
     if p.shape[0] > CHUNK:  # large programs by chunks of targets: memory stays small
-        parts = []
-        for lo in range(0, p.shape[0], CHUNK):
-            rows = slice(lo, lo + CHUNK)
-
-            def cut(v: ArrayLike | None, rows: slice = rows) -> np.ndarray | None:
-                return None if v is None else np.asarray(v)[rows]
-
-            parts.append(
-                compensate(
-                    calibrated,
-                    p[rows],
-                    q0[rows],
-                    R_target=cut(R_target),
-                    set_index=cut(set_index),
-                    marker_index=cut(marker_index),
-                    load_scale=cut(ls),
-                    tol=tol,
-                    tol_rotation=tol_rotation,
-                    max_iter=max_iter,
-                    least_motion_deg=least_motion_deg,
-                    p_cam=cut(p_cam),
-                )
-            )
-        joined = {
-            f: np.concatenate([getattr(r, f) for r in parts]) for f in _ROW_FIELDS
-        }
-        return CompensationResult(
-            **{k: v for k, v in joined.items() if k != "relaxed"},
-            iterations=max(r.iterations for r in parts),
-            relaxed=joined["relaxed"],
-        )
+        kw = dict(
+            R_target=R_target, set_index=set_index, marker_index=marker_index,
+            load_scale=ls, p_cam=p_cam,
+        )  # fmt: skip
+        fixed = dict(
+            tol=tol, tol_rotation=tol_rotation, max_iter=max_iter,
+            least_motion_deg=least_motion_deg,
+        )  # fmt: skip
+        return _by_chunks(calibrated, p, q0, kw, fixed)
     res = solve_ik_lm(
         model,
         calibrated.params,
@@ -225,6 +204,29 @@ def compensate(
         res.cond,
         res.iterations,
         relaxed,
+    )
+
+
+def _by_chunks(
+    calibrated: CalibratedModel,
+    p: Float,
+    q0: Float,
+    per_row: dict[str, Any],
+    fixed: dict[str, Any],
+) -> CompensationResult:
+    """:func:`compensate` by chunks of :data:`CHUNK` targets, joined."""
+    parts = []
+    for lo in range(0, p.shape[0], CHUNK):
+        rows = slice(lo, lo + CHUNK)
+        cut: dict[str, Any] = {
+            k: None if v is None else np.asarray(v)[rows] for k, v in per_row.items()
+        }
+        parts.append(compensate(calibrated, p[rows], q0[rows], **cut, **fixed))
+    joined = {f: np.concatenate([getattr(r, f) for r in parts]) for f in _ROW_FIELDS}
+    return CompensationResult(
+        **{k: v for k, v in joined.items() if k != "relaxed"},
+        iterations=max(r.iterations for r in parts),
+        relaxed=joined["relaxed"],
     )
 
 

@@ -241,8 +241,7 @@ def solve_ik_lm(
         ``R_target`` is omitted, False where it is given.
     set_index, marker_index, load_scale : (N,) per-target model inputs (see ModelInputs).
     limits : (n, 2) controller joint limits [rad, m]; default the robot's.
-    p_cam : (N, 3), optional point in the cam frame put on ``p_target`` [m] (a tool
-        point); default the cam origin.
+    p_cam : (N, 3), optional the point of the cam frame put on ``p_target`` [m].
     tol_position, tol_rotation : the task is met below these [m], [rad].
     max_iter : iterations of the damped least-squares phase.
     polish_iter : iterations of the Newton polish with the exact Jacobian.
@@ -280,7 +279,7 @@ def solve_ik_lm(
         marker_index,
         load_scale,
         length,
-        None if p_cam is None else np.asarray(p_cam, np.float64).reshape(N, 3),
+        p_cam if p_cam is None else np.asarray(p_cam, np.float64).reshape(N, 3),
     )
     errors = None
     if R_target is None:  # the seed's orientation
