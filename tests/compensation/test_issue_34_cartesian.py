@@ -487,3 +487,39 @@ def test_issue_34_flags_pick_one_solution_of_eight(tracker_twin):
     assert (
         encode_config(cal, "fanuc-ls", np.radians([[0, 0, 0, 0, -90, 200]]))[0][5] == 1
     )
+
+
+def test_issue_34_urscript_pose_after_a_joint_move(
+    tracker_twin, model_file, run_cli, tmp_path
+):
+    """``movel(p[...])`` with no waypoint joints starts from the movej before it, as the
+    controller does; a pose before any joint move is left, with the reason."""
+    cal = tracker_twin.calibrated
+    q = _taught(np.random.default_rng(11), 3)
+    T = cal.model.robot.fk_flange(q + np.radians(2.0)) @ T_TOOL  # 2 deg from the movej
+    tcp = ", ".join(f"{x:.9f}" for x in _numbers("urscript", T_TOOL))
+
+    def pose(k):
+        return ", ".join(f"{x:.9f}" for x in _numbers("urscript", T[k]))
+
+    lines = ["def p():", f"  set_tcp(p[{tcp}])", f"  movel(p[{pose(2)}], a=1, v=0.1)"]
+    for k in range(2):
+        lines.append(f"  movej([{', '.join(f'{v:.6f}' for v in q[k])}], a=1, v=0.5)")
+        lines.append(f"  movel(p[{pose(k)}], a=1, v=0.1)")
+    src, out = tmp_path / "p.script", tmp_path / "c.script"
+    src.write_text("\n".join([*lines, "end", ""]))
+    res = run_cli(
+        "compensate", str(src), "--model", str(model_file), "--out", str(out), "--json"
+    )
+    assert res.returncode == 0, res.stderr
+    summary = json.loads(res.stdout.strip().splitlines()[-1])
+    assert summary["n"] == 5 and summary["ok"] == 4 and summary["left"] == 1
+    assert (
+        "line 3 (movel): left as written: no configuration and no earlier" in res.stderr
+    )
+    new = re.findall(r"movel\(p\[([^\]]*)\]", out.read_text())
+    for k in range(2):
+        T_new = _read_pose("urscript", [float(v) for v in new[k + 1].split(",")])
+        q_ctrl = _controller(cal.model.robot, T_new @ np.linalg.inv(T_TOOL), q[k])
+        got = calibrated_flange(cal, q_ctrl[None])[0] @ T_TOOL
+        assert np.linalg.norm(got[:3, 3] - T[k][:3, 3]) * 1e3 < 0.01
