@@ -240,7 +240,9 @@ def _rapid_uses(text: str) -> dict[str, set[tuple[str, str]]]:
     instructions that use it."""
     uses: dict[str, set[tuple[str, str]]] = {}
     for m in re.finditer(r"\b(Move(?:L|J|C|LDO|JDO))\b([^;]*);", text, re.I):
-        args = [a.strip() for a in re.split(r",(?![^\[]*\])", m.group(2))]
+        # Commas inside [..] (an inline target) or (..) (Offs(p10, 0, 0, 50)) do not
+        # separate arguments.
+        args = [a.strip() for a in re.split(r",(?![^\[(]*[\])])", m.group(2))]
         n_targets = 2 if m.group(1).upper() == "MOVEC" else 1
         if len(args) < n_targets + 3:
             continue
