@@ -443,6 +443,18 @@ def test_issue_34_frames_file_and_unreachable_targets_counted(
     tl = ", ".join(f"{x:.9f}" for x in _numbers("krl", T_TOOL))
     frames = tmp_path / "frames.yaml"
     frames.write_text(f"uframe:\n  1: [{uf}]\nutool:\n  2: [{tl}]\n")
+    # The controller's own $config.dat gives the same frames.
+    body = lambda v: ",".join(f"{k} {x:.9f}" for k, x in zip("XYZABC", v))  # noqa: E731
+    config = tmp_path / "$config.dat"
+    config.write_text(
+        "DEFDAT  $CONFIG\nDECL FRAME BASE_DATA[1]={" + body(_numbers("krl", T_UF))
+        + "}\nTOOL_DATA[2]={" + body(_numbers("krl", T_TOOL)) + "}\nENDDAT\n"
+    )  # fmt: skip
+    via_config = run_cli(
+        "compensate", str(src), "--out", str(tmp_path / "v.dat"), "--model",
+        str(model_file), "--frames", str(config), "--allow-unreachable",
+    )  # fmt: skip
+    assert via_config.returncode == 0, via_config.stderr
     args = ["--model", str(model_file), "--frames", str(frames), "--json"]
     res = run_cli("compensate", str(src), "--out", str(tmp_path / "o.dat"), *args)
     assert res.returncode == 4, res.stderr
@@ -459,6 +471,7 @@ def test_issue_34_frames_file_and_unreachable_targets_counted(
     vals, _ = _written_targets("krl", (tmp_path / "o.dat").read_text())
     vals0, _ = _written_targets("krl", src.read_text())
     assert vals[3] == vals0[3] and vals[0] != vals0[0]
+    assert (tmp_path / "v.dat").read_text() == (tmp_path / "o.dat").read_text()
 
 
 def test_issue_34_flags_pick_one_solution_of_eight(tracker_twin):

@@ -91,7 +91,8 @@ _FORMATS = ("csv", "fanuc-ls", "urscript", "rapid", "krl")
     "frames_path",
     type=click.Path(dir_okay=False),
     help="Program files: a YAML file of the controller's frames, {uframe: {ID: [...]}, "
-    "utool: {ID: [...]}} (numbers as for --uframe).",
+    "utool: {ID: [...]}} (numbers as for --uframe); for KRL also the controller's "
+    "$config.dat (BASE_DATA[n], TOOL_DATA[n]).",
 )
 @click.option(
     "--warn-dq-deg",

@@ -47,9 +47,43 @@ def parse_frames(
     return out
 
 
+def _krl_config_frames(path: str, text: str) -> tuple[dict, dict]:
+    """``BASE_DATA[n]={X .., .., C ..}`` and ``TOOL_DATA[n]=..`` of a KUKA
+    ``$config.dat`` -> (uframes, utools)."""
+    import re
+
+    from kinecal.io._cartesian_programs import point_pose
+
+    out: tuple[dict, dict] = ({}, {})
+    num = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+    pat = r"\b(BASE|TOOL)_DATA\s*\[\s*(\d+)\s*\]\s*=\s*\{([^{}]*)\}"
+    for m in re.finditer(pat, text, re.I):
+        vals = []
+        for key in "XYZABC":
+            k = re.search(rf"(?<![\w$]){key}\s+({num})", m.group(3))
+            if k is None:
+                line = text.count("\n", 0, m.start()) + 1
+                raise DataError(f"{path}: line {line}: {m.group(1)}_DATA[{m.group(2)}] "
+                                f"has no {key}; expected X, Y, Z [mm], A, B, C [deg].")  # fmt: skip
+            vals.append(float(k.group(1)))
+        out[m.group(1).upper() == "TOOL"][m.group(2)] = point_pose("krl", tuple(vals))
+    return out
+
+
 def load_frames_file(path: str, fmt: str) -> tuple[dict, dict]:
-    """A YAML file ``{uframe: {ID: [..]}, utool: {ID: [..]}}`` -> (uframes, utools)."""
+    """A YAML file ``{uframe: {ID: [..]}, utool: {ID: [..]}}``, or for KRL the
+    controller's ``$config.dat`` (``BASE_DATA[n]``, ``TOOL_DATA[n]``) -> (uframes,
+    utools)."""
     import yaml
+
+    if fmt == "krl" and Path(path).suffix.lower() == ".dat":
+        try:
+            text = Path(path).read_bytes().decode("utf-8", errors="replace")
+        except OSError as exc:
+            raise DataError(
+                f"{path}: cannot read the frames file ({exc.strerror})."
+            ) from None
+        return _krl_config_frames(path, text)
 
     try:
         doc = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
