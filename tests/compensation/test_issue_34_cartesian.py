@@ -536,3 +536,29 @@ def test_issue_34_urscript_pose_after_a_joint_move(
         q_ctrl = _controller(cal.model.robot, T_new @ np.linalg.inv(T_TOOL), q[k])
         got = calibrated_flange(cal, q_ctrl[None])[0] @ T_TOOL
         assert np.linalg.norm(got[:3, 3] - T[k][:3, 3]) * 1e3 < 0.01
+
+
+def test_issue_34_readers_find_the_active_frames():
+    """KRL: the BASE/TOOL set last before a target ($BASE = BASE_DATA[n], BAS(#TOOL, n));
+    RAPID: the tool of a move whose other arguments hold commas (Offs(..))."""
+    from kinecal.io._cartesian_programs import read_cartesian
+
+    krl = (
+        "DEF x()\n$BASE = BASE_DATA[3]\nBAS(#TOOL, 2)\n"
+        "LIN {X 100, Y 0, Z 500, A 0, B 90, C 0}\n$TOOL=TOOL_DATA[4]\n"
+        "PTP {POS: X 100, Y 0, Z 500, A 0, B 90, C 0, S 2, T 3}\nEND\n"
+    )
+    got = [(c.line, c.frame, c.tool, c.config) for c in read_cartesian(krl, "krl")]
+    assert got == [(4, "3", "2", None), (6, "3", "4", (2, 3))]
+    rapid = (
+        "CONST robtarget p10:=[[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+        "MoveL Offs(p10, 0, 0, 50), v100, fine, tA\\WObj:=w1;\n"
+        "MoveL p10, v100, z10, tGrip\\WObj:=w1;\n"
+    )
+    (pt,) = read_cartesian(rapid, "rapid")
+    assert (pt.tool, pt.frame, pt.config, pt.why_not) == (
+        "tGrip",
+        "w1",
+        (0, 0, 0, 0),
+        "",
+    )

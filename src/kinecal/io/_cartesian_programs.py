@@ -187,6 +187,16 @@ def _krl_fdat(text: str) -> dict[str, tuple[str, str, str]]:
     return out
 
 
+def _krl_active(text: str, pos: int, which: str) -> str:
+    """The BASE_DATA / TOOL_DATA number set last before ``pos`` (``$BASE =
+    BASE_DATA[n]`` or ``BAS(#BASE, n)``), '0' for none."""
+    pat = rf"\${which}\s*=\s*{which}_DATA\s*\[\s*(\d+)\s*\]|\bBAS\s*\(\s*#{which}\s*,\s*(\d+)"
+    last = None
+    for m in re.finditer(pat, text[:pos], re.I):
+        last = m.group(1) or m.group(2)
+    return last or "0"
+
+
 def _krl(text: str) -> list[CartesianPoint]:
     fdat = _krl_fdat(text)
     out = []
@@ -213,7 +223,11 @@ def _krl(text: str) -> list[CartesianPoint]:
             continue  # a frame of the controller, not a target
         decl = re.search(r"(\w+)\s*=\s*$", head)
         name = decl.group(1) if decl else "POS"
-        base, tool, ipo = fdat.get(name[1:].upper(), ("0", "0", "BASE"))
+        active = (
+            _krl_active(text, m.start(), "BASE"),
+            _krl_active(text, m.start(), "TOOL"),
+        )
+        base, tool, ipo = fdat.get(name[1:].upper(), (*active, "BASE"))
         why = (
             ""
             if ipo == "BASE"
