@@ -562,3 +562,43 @@ def test_issue_34_readers_find_the_active_frames():
         (0, 0, 0, 0),
         "",
     )
+
+
+@pytest.mark.parametrize("fmt", ["fanuc-ls", "krl"])
+def test_issue_34_correction_across_j5_zero_rewrites_the_flags(
+    tracker_twin, model_file, run_cli, tmp_path, fmt
+):
+    """Taught at J5 = +0.01 deg, the calibrated robot needs J5 on the other side of 0:
+    the target is corrected, its flags name the new side (a warning says so), and the
+    controller reading them reaches the taught pose within 0.01 mm."""
+    cal = tracker_twin.calibrated
+    q = np.radians(
+        [[5.0, 15.0, -20.0, 0.0, 0.01, 20.0], [5.0, 15.0, -20.0, 30, 45, 20]]
+    )
+    writer, ext = WRITERS[fmt]
+    T_tg = _targets(cal, q)
+    src, out = tmp_path / f"x{ext}", tmp_path / f"c{ext}"
+    src.write_bytes(
+        writer(
+            cal, np.concatenate([q, q[:1]]), np.concatenate([T_tg, T_tg[:1]])
+        ).encode()
+    )
+    res = run_cli(
+        "compensate", str(src), "--model", str(model_file), "--out", str(out),
+        "--decimals", "6", "--json", *FRAME_ARGS[fmt](),
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    assert "the correction crosses a configuration boundary" in res.stderr
+    vals, flags = _written_targets(fmt, out.read_text())
+    _, flags0 = _written_targets(fmt, src.read_text())
+    assert flags[0] != flags0[0] and flags[1] == flags0[1]
+    F = T_UF @ _read_pose(fmt, vals[0]) @ np.linalg.inv(T_TOOL)
+    q_ctrl = _controller(cal.model.robot, F, q[0] - [0, 0, 0, 0, np.radians(0.5), 0])
+    assert q_ctrl[4] < 0  # the side the flags now name
+    if fmt == "fanuc-ls":  # F (J5 >= 0) -> N
+        assert flags0[0][0] == "F" and flags[0][0] == "N"
+    else:  # T bit 4: A5 < 0
+        t0, t1 = (int(f.split("T ")[1]) for f in (flags0[0], flags[0]))
+        assert not t0 & 16 and t1 & 16
+    got = calibrated_flange(cal, q_ctrl[None])[0] @ T_TOOL
+    assert np.linalg.norm(got[:3, 3] - (T_UF @ T_tg[0])[:3, 3]) * 1e3 < 0.01

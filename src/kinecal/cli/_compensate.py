@@ -512,6 +512,9 @@ def _echo_cartesian(path, run, err_c, rot_c):
             f"{path}: line {pt.line} ({pt.name}): left as written: {run.why[k]}",
             err=True,
         )
+    for k, note in run.notes:
+        pt = run.points[k]
+        click.echo(f"warning   {path}: line {pt.line} ({pt.name}): {note}", err=True)
     ok = st == "ok"
     worst = np.nanmax(err_c[ok]) * 1e3 if ok.any() else 0.0
     worst_r = np.degrees(np.nanmax(rot_c[ok])) if ok.any() else 0.0

@@ -118,8 +118,10 @@ class CartesianRun:
     T_tool: np.ndarray
     T_tcp: np.ndarray  # (N, 4, 4) the taught tool poses in the base frame
     edits: list = field(default_factory=list)
+    notes: list = field(default_factory=list)  # (target index, message)
     res: object = None
     rows: np.ndarray = field(default_factory=lambda: np.zeros(0, np.intp))
+    fmt: str = ""
 
 
 def _frames(prog, pts, uframes, utools):
@@ -216,11 +218,38 @@ def _seeds(cal, fmt, pts, F_want, near, why):
     return seeds
 
 
+def _crossed_flags(cal, run, q_ctrl):
+    """New configuration flags (per target, None: kept) where the corrected joints
+    cross a configuration boundary (next to J5 = 0 or the stretched arm): the
+    controller must be told the branch the correction is on; noted for the screen."""
+    from kinecal.compensation._configs import encode_config, same_config
+
+    pts, rows = run.points, run.rows
+    out: list = [None] * len(run.points)
+    flagged = [i for i, k in enumerate(rows) if pts[k].config is not None]
+    if not flagged:
+        return out
+    fmt = run.fmt
+    same = same_config(
+        cal, fmt, q_ctrl[flagged], [pts[rows[i]].config for i in flagged]
+    )
+    for i in np.asarray(flagged, int)[~same]:
+        k = rows[i]
+        new = encode_config(cal, fmt, q_ctrl[i][None])[0]
+        if fmt == "krl":  # S bit 2 (A5) in the file's own sense, flipped with A5
+            old = pts[k].config
+            flip = (run.q_seed[k, 4] < 0) != (q_ctrl[i, 4] < 0)
+            new = ((new[0] & 3) | ((old[0] & 4) ^ (4 if flip else 0)), new[1])
+        out[k] = new
+        run.notes.append((k, f"configuration written as {new} (was {pts[k].config}): "
+                             "the correction crosses a configuration boundary"))  # fmt: skip
+    return out
+
+
 def cartesian_run(cal, prog, q_joint, uframes, utools, scale, tol_mm, decimals):
     """Correct the Cartesian targets of ``prog``; joint targets ``q_joint`` (N_j, n)
     [rad] give the starting joints of targets without flags."""
     from kinecal.compensation._cartesian import compensate_poses
-    from kinecal.compensation._configs import same_config
     from kinecal.geometry import transform_inv
     from kinecal.io._cartesian_programs import (
         cartesian_edits,
@@ -246,6 +275,7 @@ def cartesian_run(cal, prog, q_joint, uframes, utools, scale, tol_mm, decimals):
     q_new = np.full((N, n), np.nan)
     rows = np.array([k for k in range(N) if not why[k]], np.intp)
     run = CartesianRun(pts, status, why, seeds, q_new, T_uf, T_tool, T_tcp, rows=rows)
+    run.fmt = fmt
     if rows.size == 0:
         return run
     ls = None if scale is None else np.full(rows.size, scale)
@@ -256,21 +286,15 @@ def cartesian_run(cal, prog, q_joint, uframes, utools, scale, tol_mm, decimals):
     run.res = pc.result
     status[rows] = pc.result.status
     q_new[rows] = pc.result.q_ctrl
-    flagged = [i for i, k in enumerate(rows) if pts[k].config is not None]
-    if flagged:
-        same = same_config(cal, fmt, pc.result.q_ctrl[flagged],
-                           [pts[rows[i]].config for i in flagged])  # fmt: skip
-        for i in np.asarray(flagged)[~same]:
-            status[rows[i]] = "left"
-            why[rows[i]] = (
-                "the correction crosses a configuration boundary (flags differ)"
-            )
+    new_configs = _crossed_flags(cal, run, pc.result.q_ctrl)
     ok = rows[status[rows] == "ok"]
     T_new = np.full((N, 4, 4), np.nan)
     T_corr = np.full((N, 4, 4), np.nan)
     T_corr[rows] = pc.T_corrected
     T_new[ok] = transform_inv(T_uf[ok]) @ T_corr[ok] @ T_tool[ok]
-    run.edits = cartesian_edits(prog.text, fmt, pts, T_new, q_new, decimals=decimals)
+    run.edits = cartesian_edits(
+        prog.text, fmt, pts, T_new, q_new, decimals=decimals, configs=new_configs
+    )
     run.status = status
     return run
 

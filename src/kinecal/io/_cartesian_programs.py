@@ -68,6 +68,8 @@ class CartesianPoint:
     frame, tool : the user / tool frame it names (FANUC UF/UT numbers, KRL BASE_NO /
         TOOL_NO, RAPID wobj / tool names, URScript the TCP pose text or '').
     q_spans : URScript Polyscope ``Name_q`` joints (spans), else empty.
+    config_spans : where the configuration is written (FANUC: the CONFIG text inside the
+        quotes; KRL: S, T; RAPID: cf1, cf4, cf6, cfx).
     q_values : those joints [rad].
     why_not : why it cannot be corrected ('' when it can).
     """
@@ -83,6 +85,7 @@ class CartesianPoint:
     q_spans: tuple[tuple[int, int], ...] = ()
     q_values: tuple[float, ...] = ()
     why_not: str = ""
+    config_spans: tuple[tuple[int, int], ...] = ()
 
 
 def _line(text: str, pos: int) -> int:
@@ -165,7 +168,8 @@ def _fanuc(text: str) -> list[CartesianPoint]:
         config = _fanuc_config(text, at + cfg.start(), name, cfg.group(1))
         out.append(
             _make(text, name, spans, config=config, frame=frames.group(1),
-                  tool=frames.group(2))
+                  tool=frames.group(2),
+                  config_spans=((at + cfg.start(1), at + cfg.end(1)),))
         )  # fmt: skip
     return registers + out
 
@@ -233,9 +237,16 @@ def _krl(text: str) -> list[CartesianPoint]:
             if ipo == "BASE"
             else f"IPO_FRAME #{ipo} (an external TCP) is not handled"
         )
+        cfg_spans: tuple[tuple[int, int], ...] = ()
+        if s and t:
+            cfg_spans = (
+                (at + s.start(1), at + s.end(1)),
+                (at + t.start(1), at + t.end(1)),
+            )
         out.append(
-            _make(text, name, spans, config=config, frame=base, tool=tool, why_not=why)
-        )
+            _make(text, name, spans, config=config, frame=base, tool=tool, why_not=why,
+                  config_spans=cfg_spans)
+        )  # fmt: skip
     return out
 
 
@@ -341,6 +352,7 @@ def _rapid(text: str) -> list[CartesianPoint]:
         tool, wobj = next(iter(used)) if len(used) == 1 else ("", "")
         out.append(
             _make(text, name, trans + quat, config=config, frame=wobj, tool=tool,
+                  config_spans=tuple(conf),
                   why_not=why)
         )  # fmt: skip
     return out
@@ -433,6 +445,15 @@ def _fmt(value: float, dec: int, old: str) -> str:
     return s
 
 
+def _config_edits(
+    fmt: str, pt: CartesianPoint, cfg: tuple
+) -> list[tuple[int, int, str]]:
+    if fmt == "fanuc-ls":
+        a, b = pt.config_spans[0]
+        return [(a, b, f"{cfg[0]} {cfg[1]} {cfg[2]}, {cfg[3]}, {cfg[4]}, {cfg[5]}")]
+    return [(a, b, str(v)) for (a, b), v in zip(pt.config_spans, cfg)]
+
+
 def cartesian_edits(
     text: str,
     fmt: str,
@@ -441,13 +462,18 @@ def cartesian_edits(
     q_new: Float | None = None,
     *,
     decimals: int | None = None,
+    configs: list[tuple | None] | None = None,
 ) -> list[tuple[int, int, str]]:
     """Text edits (start, end, new) writing ``poses`` (N, 4, 4) [m] into the targets,
-    (URScript ``_q`` companions: ``q_new`` (N, n) [rad]); rows with NaN are kept."""
+    (URScript ``_q`` companions: ``q_new`` (N, n) [rad]; new configuration flags where
+    ``configs`` has them); rows with NaN are kept."""
     edits = []
     for k, pt in enumerate(points):
         if not pt.values or not np.isfinite(poses[k]).all():
             continue
+        new_cfg = None if configs is None else configs[k]
+        if new_cfg is not None and pt.config_spans:
+            edits += _config_edits(fmt, pt, new_cfg)
         nums = _numbers(fmt, poses[k], pt.values)
         for j, (a, b) in enumerate(pt.spans):
             dec = (
