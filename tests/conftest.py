@@ -112,6 +112,8 @@ SHARED_MODULES = {
     "tests/compensation/test_issue_23_ik.py": "compensation",
     "tests/compensation/test_issue_23_programs.py": "compensation",
     "tests/compensation/test_issue_26_chunks.py": "compensation",
+    "tests/compensation/test_issue_34_cartesian.py": "compensation",
+    "tests/compensation/test_issue_34_singular.py": "compensation",
     "tests/fuzz/test_fuzz_csv.py": "fuzz",  # point_data
     "tests/fuzz/test_fuzz_model.py": "fuzz",
     "tests/fuzz/test_fuzz_robot.py": "fuzz",

@@ -120,9 +120,10 @@ def test_rows_kept_and_bytes_that_are_not_utf8(tmp_path, rng):
 
 def test_bad_programs_name_file_and_line(tmp_path):
     p = tmp_path / "empty.script"
-    p.write_text("def f():\n  movel(p[0.1, 0.2, 0.3, 0, 0, 0])\nend\n")
+    p.write_text("def f():\n  sleep(1.0)\nend\n")  # a pose alone is a target now
     with pytest.raises(
-        DataError, match=r"empty.script: no joint target found \(urscript\)"
+        DataError,
+        match=r"empty.script: no joint or Cartesian target found \(urscript\)",
     ):
         read_program(p)
     p = tmp_path / "five.script"

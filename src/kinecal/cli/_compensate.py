@@ -69,6 +69,38 @@ _FORMATS = ("csv", "fanuc-ls", "urscript", "rapid", "krl")
     help="Write the file even if some rows are unreachable (they are flagged; in a "
     "program they keep their joints).",
 )
+@click.option(
+    "--uframe",
+    "uframes",
+    multiple=True,
+    metavar="ID=x,y,z,a,b,c",
+    help="Program files: a user frame the Cartesian targets name (FANUC UF, KRL BASE_NO, "
+    "RAPID wobj), in the program's units and angles (FANUC W,P,R; KRL A,B,C; RAPID "
+    "x,y,z,q1..q4). Repeatable. 0 / wobj0: the robot base.",
+)
+@click.option(
+    "--utool",
+    "utools",
+    multiple=True,
+    metavar="ID=x,y,z,a,b,c",
+    help="Program files: a tool frame (FANUC UT, KRL TOOL_NO, RAPID tooldata) in the "
+    "flange frame, as --uframe. 0 / tool0: the flange.",
+)
+@click.option(
+    "--frames",
+    "frames_path",
+    type=click.Path(dir_okay=False),
+    help="Program files: a YAML file of the controller's frames, {uframe: {ID: [...]}, "
+    "utool: {ID: [...]}} (numbers as for --uframe); for KRL also the controller's "
+    "$config.dat (BASE_DATA[n], TOOL_DATA[n]).",
+)
+@click.option(
+    "--warn-dq-deg",
+    type=FiniteFloat(0.0),
+    default=1.0,
+    show_default=True,
+    help="Warn for every target whose correction moves a joint by more than this [deg].",
+)
 @allow_out_of_limits_option
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary.")
 @click.option("--force", is_flag=True, help="Overwrite --out.")
@@ -83,6 +115,10 @@ def compensate(
     decimals: int | None,
     report_path: str | None,
     allow_unreachable: bool,
+    uframes: tuple[str, ...],
+    utools: tuple[str, ...],
+    frames_path: str | None,
+    warn_dq_deg: float,
     allow_out_of_limits: bool,
     as_json: bool,
     force: bool,
@@ -95,7 +131,11 @@ def compensate(
     branch). A position-only target keeps the seed's tool orientation wherever the pose
     is not nearly singular. A program file (FANUC .ls, URScript, ABB RAPID, KUKA KRL):
     each joint target is moved so that the real robot takes the flange pose the nominal
-    robot has at the programmed joints; the rest of the program is kept byte for byte.
+    robot has at the programmed joints; each Cartesian target (in its user and tool
+    frames: --uframe/--utool/--frames) becomes the pose the nominal controller must be
+    commanded for the real robot to reach it, configuration flags kept; every target is
+    counted (corrected, left and why, unreachable); the rest of the program is kept byte
+    for byte.
     Unreachable or out-of-limit rows are listed, and the command exits with code 4
     unless --allow-unreachable.
     """
@@ -127,24 +167,17 @@ def compensate(
     if fmt == "csv":
         res, rows = _csv(cal, targets, tol_mm, scale, allow_out_of_limits)
     else:
-        res, rows = _program(cal, targets, fmt, tol_mm, scale, decimals)
-    bad = [i for i, s in enumerate(res.status) if s != "ok"]
-    for i in bad[:50]:
-        joint = ""
-        if res.limit_joint[i] >= 0:
-            joint = f" (J{res.limit_joint[i] + 1} beyond its limit)"
-        click.echo(
-            f"{targets}: {rows.where[i]}: {res.status[i]}{joint}: predicted error "
-            f"{res.error[i] * 1e3:.4f} mm",
-            err=True,
-        )
-    if len(bad) > 50:
-        click.echo(f"... and {len(bad) - 50} more rows", err=True)
+        frames = _frames(fmt, uframes, utools, frames_path)
+        res, rows = _program(cal, targets, fmt, tol_mm, scale, decimals, frames)
+    _warn_motion(targets, res, rows, warn_dq_deg)
+    bad = [i for i, s in enumerate(res.status) if s not in ("ok", "left")]
+    _echo_bad(targets, res, rows, bad)
     ok = res.status == "ok"
     summary = {
         "n": len(res.status),
         "ok": int(ok.sum()),
         "unreachable": len(bad),
+        "left": int((res.status == "left").sum()),
         "max_err_mm": float(res.error[ok].max() * 1e3) if ok.any() else None,
         "max_dq_deg": float(_dq_deg(res)[ok].max()) if ok.any() else None,
         "out": out_path,
@@ -168,6 +201,56 @@ def compensate(
             f"{summary['ok']} of {summary['n']} targets compensated; largest predicted "
             f"error {summary['max_err_mm'] or 0:.6f} mm; wrote {out_path}"
             + (f" and {report_path}" if report_path and fmt != "csv" else "")
+        )
+
+
+def _echo_bad(path, res, rows, bad):
+    """The unreachable or out-of-limit rows on stderr (the first 50)."""
+    for i in bad[:50]:
+        joint = ""
+        if res.limit_joint[i] >= 0:
+            joint = f" (J{res.limit_joint[i] + 1} beyond its limit)"
+        click.echo(
+            f"{path}: {rows.where[i]}: {res.status[i]}{joint}: predicted error "
+            f"{res.error[i] * 1e3:.4f} mm",
+            err=True,
+        )
+    if len(bad) > 50:
+        click.echo(f"... and {len(bad) - 50} more rows", err=True)
+
+
+def _frames(fmt, uframes, utools, frames_path):
+    """(uframes, utools) of a program run: --frames, then --uframe/--utool over it."""
+    from kinecal.cli._compensate_cartesian import load_frames_file, parse_frames
+
+    uf, ut = load_frames_file(frames_path, fmt) if frames_path else ({}, {})
+    uf.update(parse_frames(uframes, fmt, "--uframe"))
+    ut.update(parse_frames(utools, fmt, "--utool"))
+    return uf, ut
+
+
+def _warn_motion(path, res, rows, warn_dq_deg):
+    """Warnings for corrections that move a joint far, and for singular poses solved
+    with the least joint motion."""
+    import numpy as np
+
+    dq = np.degrees(np.abs(res.joint_change))
+    moved = np.flatnonzero((res.status == "ok") & (dq.max(axis=1) > warn_dq_deg))
+    for i in moved[:50]:
+        j = int(np.argmax(dq[i]))
+        click.echo(
+            f"warning   {path}: {rows.where[i]}: the correction moves J{j + 1} by "
+            f"{dq[i, j]:.3f} deg (more than --warn-dq-deg {warn_dq_deg:g})",
+            err=True,
+        )
+    relaxed = np.zeros(0, int) if res.relaxed is None else np.flatnonzero(res.relaxed)
+    for i in relaxed[:50]:
+        click.echo(
+            f"warning   {path}: {rows.where[i]}: next to a singular pose: position met, "
+            f"the tool turned {np.degrees(res.rotation_error[i]):.4f} deg from the wanted "
+            "orientation to keep the joints still (largest joint change "
+            f"{dq[i].max():.4f} deg)",
+            err=True,
         )
 
 
@@ -292,15 +375,69 @@ def _csv(cal, targets: str, tol_mm: float, scale, allow_out_of_limits: bool):
     return res, _Output(where, write)
 
 
-def _program(cal, path: str, fmt: str, tol_mm: float, scale, decimals):
+def _joint_part(cal, prog, scale, tol_mm):
+    """Compensate the joint targets of a program: (q_prog, p_t, res, ls)."""
     import numpy as np
 
     from kinecal.compensation import compensate as run_compensation
     from kinecal.compensation import program_targets
+    from kinecal.io import program_joints
+
+    q_prog = program_joints(prog, cal.model.robot)
+    N = q_prog.shape[0]
+    ls = None if scale is None else np.full(N, scale)
+    if N == 0:
+        return q_prog, np.zeros((0, 3)), None, ls
+    p_t, R_t = program_targets(cal, q_prog)
+    res = run_compensation(
+        cal, p_t, q_prog, R_target=R_t, load_scale=ls, tol=tol_mm * 1e-3
+    )
+    return q_prog, p_t, res, ls
+
+
+def _joined(res, run, n):
+    """The joint targets' result and the Cartesian targets' as one CompensationResult
+    (Cartesian targets left as written: status 'left', NaN errors)."""
+    import numpy as np
+
+    from kinecal.compensation import CompensationResult
+
+    Nc = len(run.points)
+    err = np.full(Nc, np.nan)
+    rot = np.full(Nc, np.nan)
+    cond = np.full(Nc, np.nan)
+    lim = np.full(Nc, -1)
+    relaxed = np.zeros(Nc, bool)
+    q_new = np.where(np.isfinite(run.q_new), run.q_new, run.q_seed)
+    if run.res is not None:
+        r = run.res
+        err[run.rows], rot[run.rows], cond[run.rows] = r.error, r.rotation_error, r.cond
+        lim[run.rows] = r.limit_joint
+        relaxed[run.rows] = r.relaxed
+    parts = [
+        (np.nan_to_num(q_new), np.nan_to_num(run.q_seed), err, rot,
+         np.asarray(run.status, str), lim, cond, relaxed)
+    ]  # fmt: skip
+    if res is not None:
+        relax = np.zeros(len(res.status), bool) if res.relaxed is None else res.relaxed
+        parts.insert(0, (res.q_ctrl, res.q_program, res.error, res.rotation_error,
+                         res.status, res.limit_joint, res.cond, relax))  # fmt: skip
+    cols = [np.concatenate(c) if c[0].ndim == 1 else np.vstack(c) for c in zip(*parts)]
+    cols[0], cols[1] = (c.reshape(-1, n) for c in cols[:2])
+    it = 0 if res is None else res.iterations
+    q_ctrl, q_program, error, rot_err, status, limit_joint, cond, relaxed = cols
+    return CompensationResult(
+        q_ctrl, q_program, error, rot_err, status, limit_joint, cond, it, relaxed
+    )
+
+
+def _program(cal, path: str, fmt: str, tol_mm: float, scale, decimals, frames):
+    import numpy as np
+
+    from kinecal.cli._compensate_cartesian import cartesian_run, written_errors
     from kinecal.io import (
         atomic_write_files,
         program_bytes,
-        program_joints,
         read_program,
         write_program,
         written_joints,
@@ -309,54 +446,99 @@ def _program(cal, path: str, fmt: str, tol_mm: float, scale, decimals):
 
     robot = cal.model.robot
     prog = read_program(path, fmt)
-    q_prog = program_joints(prog, robot)
-    N = q_prog.shape[0]
-    _warn_extrapolation(cal, q_prog, range(1, N + 1), f"{path} (targets in order)")
-    p_t, R_t = program_targets(cal, q_prog)
-    ls = None if scale is None else np.full(N, scale)
-    res = run_compensation(
-        cal, p_t, q_prog, R_target=R_t, load_scale=ls, tol=tol_mm * 1e-3
+    q_prog, p_t, res_j, ls = _joint_part(cal, prog, scale, tol_mm)
+    uframes, utools = frames
+    run = cartesian_run(cal, prog, q_prog, uframes, utools, scale, tol_mm, decimals)
+    q_all = np.vstack([q_prog, run.q_seed[np.all(np.isfinite(run.q_seed), axis=1)]])
+    _warn_extrapolation(
+        cal, q_all, range(1, q_all.shape[0] + 1), f"{path} (targets in order)"
     )
-    if prog.skipped:
-        click.echo(
-            f"{path}: {prog.skipped} Cartesian targets left as they are (only joint "
-            "targets are compensated).",
-            err=True,
-        )
-    keep = res.status != "ok"
-    text = write_program(prog, res.q_ctrl, robot, decimals=decimals, keep=keep)
+    keep = (res_j.status != "ok") if res_j is not None else np.zeros(0, bool)
+    q_w_in = res_j.q_ctrl if res_j is not None else q_prog
+    text = write_program(
+        prog, q_w_in, robot, decimals=decimals, keep=keep, extra=run.edits
+    )
     # The predicted error of what is written (the joints rounded to the file's decimals).
     q_w = written_joints(prog, text, robot)
-    out = cal.model.evaluate(cal.params, ModelInputs.make(q_w, load_scale=ls)).p_user
-    err_w = np.linalg.norm(out - p_t, axis=1)
+    err_w = np.zeros(0)
+    if q_w.shape[0]:
+        out = cal.model.evaluate(
+            cal.params, ModelInputs.make(q_w, load_scale=ls)
+        ).p_user
+        err_w = np.linalg.norm(out - p_t, axis=1)
+    err_c, rot_c = written_errors(cal, run, text, prog.format, scale)
+    res = _joined(res_j, run, robot.n_joints)
+    names = [pt.name for pt in prog.points] + [
+        f"{pt.name}, Cartesian" for pt in run.points
+    ]
+    lines_ = [pt.line for pt in prog.points] + [pt.line for pt in run.points]
+    q_w_all = np.vstack([q_w, np.nan_to_num(run.q_new)])
+    err_all = np.concatenate([err_w, err_c])
+    _echo_cartesian(path, run, err_c, rot_c)
 
     def write(out_path, report_path, force):
         files: dict[str, bytes | str] = {out_path: program_bytes(text)}
         if report_path:
-            head = [
-                "point",
-                "line",
-                *(f"j{k + 1}_program" for k in range(robot.n_joints)),
-            ]
-            head += [f"j{k + 1}" for k in range(robot.n_joints)]
-            lines = [",".join([*head, "err_written_mm", *_DIAG_HEADER])]
-            deg = np.where(robot.prismatic, 1e3, 180.0 / np.pi)
-            for i, pt in enumerate(prog.points):
-                vals = [f"{v:.8f}" for v in (*(q_prog[i] * deg), *(q_w[i] * deg))]
-                name = pt.name.replace(",", ";").replace('"', "'")
-                row = [name, str(pt.line), *vals, f"{err_w[i] * 1e3:.6f}"]
-                lines.append(",".join([*row, *_diagnostics(res, i)]))
-            files[report_path] = "\n".join(lines) + "\n"
+            files[report_path] = _report_text(
+                res, names, lines_, q_w_all, err_all, robot
+            )
         atomic_write_files(files, force=force)  # the program and its report, or neither
+        n_j = int((~keep).sum())
+        if keep.size == 0:
+            return
         click.echo(
-            f"{path}: {int((~keep).sum())} joint targets corrected; largest error as "
-            f"written {err_w[~keep].max() * 1e3 if (~keep).any() else 0:.4f} mm "
+            f"{path}: {n_j} joint targets corrected; largest error as "
+            f"written {err_w[~keep].max() * 1e3 if n_j else 0:.4f} mm "
             "(the joints rounded to the file's decimals).",
             err=True,
         )
 
-    where = [f"line {pt.line} ({pt.name})" for pt in prog.points]
+    where = [f"line {ln} ({nm})" for ln, nm in zip(lines_, names)]
     return res, _Output(where, write)
+
+
+def _report_text(res, names, lines_, q_w, err_w, robot):
+    import numpy as np
+
+    head = ["point", "line", *(f"j{k + 1}_program" for k in range(robot.n_joints))]
+    head += [f"j{k + 1}" for k in range(robot.n_joints)]
+    out = [",".join([*head, "err_written_mm", *_DIAG_HEADER])]
+    deg = np.where(robot.prismatic, 1e3, 180.0 / np.pi)
+    for i, name in enumerate(names):
+        vals = [f"{v:.8f}" for v in (*(res.q_program[i] * deg), *(q_w[i] * deg))]
+        name = name.replace(",", ";").replace('"', "'")
+        row = [name, str(lines_[i]), *vals, f"{err_w[i] * 1e3:.6f}"]
+        out.append(",".join([*row, *_diagnostics(res, i)]))
+    return "\n".join(out) + "\n"
+
+
+def _echo_cartesian(path, run, err_c, rot_c):
+    """The Cartesian targets' count on stderr, and why each one left is left."""
+    import numpy as np
+
+    if not run.points:
+        return
+    st = np.asarray(run.status, str)
+    for k in np.flatnonzero(st == "left"):
+        pt = run.points[k]
+        click.echo(
+            f"{path}: line {pt.line} ({pt.name}): left as written: {run.why[k]}",
+            err=True,
+        )
+    for k, note in run.notes:
+        pt = run.points[k]
+        click.echo(f"warning   {path}: line {pt.line} ({pt.name}): {note}", err=True)
+    ok = st == "ok"
+    worst = np.nanmax(err_c[ok]) * 1e3 if ok.any() else 0.0
+    worst_r = np.degrees(np.nanmax(rot_c[ok])) if ok.any() else 0.0
+    click.echo(
+        f"{path}: {len(st)} Cartesian targets: {int(ok.sum())} corrected, "
+        f"{int((st == 'left').sum())} left as written, "
+        f"{int(((st != 'ok') & (st != 'left')).sum())} unreachable; largest error of the "
+        f"calibrated robot at the corrected targets as the nominal controller reads them "
+        f"{worst:.4f} mm, {worst_r:.4f} deg.",
+        err=True,
+    )
 
 
 def _map_labels(labels, index, own, path, what):

@@ -16,6 +16,7 @@ predicted residual, the condition number of the task there and the joint change.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -32,6 +33,12 @@ STATUS = ("ok", "unreachable", "joint_limit")
 # hundred numbers a target; 1e6 targets took 2.7 GB at once). Every target is solved
 # on its own, so the chunks give the same numbers.
 CHUNK = 50_000
+# The most orientation a pose target gives up for the least joint motion [rad]: next to a
+# singular pose a sub-millimetre correction turns the tool by a few hundredths of a degree.
+_RELAX_MAX = float(np.radians(0.1))
+# The condition number of the pose task (1 rad as 0.5 m) above which a pose is next to a
+# singular one; the IK leaves out directions below 2 % of the largest (50).
+_SINGULAR_COND = 20.0
 _ROW_FIELDS = (
     "q_ctrl",
     "q_program",
@@ -40,6 +47,7 @@ _ROW_FIELDS = (
     "status",
     "limit_joint",
     "cond",
+    "relaxed",
 )
 
 
@@ -62,6 +70,9 @@ class CompensationResult:
     cond : (N,) condition number of the task Jacobian at the solution (position rows for
         point targets).
     iterations : int, the most iterations any target needed.
+    relaxed : (N,) bool, pose targets met in position only, with the least joint motion
+        (a wrist or shoulder singularity: meeting the orientation exactly would swing
+        joints far for a tiny turn; ``rotation_error`` says how far the tool is turned).
     """
 
     q_ctrl: Float
@@ -72,6 +83,7 @@ class CompensationResult:
     limit_joint: np.ndarray
     cond: Float
     iterations: int
+    relaxed: np.ndarray | None = None
 
     @property
     def ok(self) -> np.ndarray:
@@ -96,6 +108,8 @@ def compensate(
     tol: float = 1e-6,
     tol_rotation: float = 1e-6,
     max_iter: int = 50,
+    least_motion_deg: float | None = 1.0,
+    p_cam: ArrayLike | None = None,
 ) -> CompensationResult:
     """Controller angles that put the calibrated tool point on each target.
 
@@ -111,6 +125,12 @@ def compensate(
     tol, tol_rotation : a row is 'ok' when the model error is below these [m, rad]
         (orientation only for pose targets).
     max_iter : iterations of the damped least-squares phase of the IK.
+    least_motion_deg : pose targets that move a joint by more than this [deg], or that
+        are not met, are solved again as point targets keeping the wanted orientation
+        where it is well conditioned (a controller's handling of singular poses): taken
+        when that meets the position with less joint motion (``relaxed``). None: off.
+    p_cam : (N, 3), optional the point of the cam frame put on ``p_target`` (a tool
+        point; default the cam origin) [m].
 
     Raises
     ------
@@ -129,31 +149,15 @@ def compensate(
         raise DataError("p_target and q_seed must be finite.")
     ls = None if load_scale is None else np.asarray(load_scale, np.float64).reshape(-1)
     if p.shape[0] > CHUNK:  # large programs by chunks of targets: memory stays small
-        parts = []
-        for lo in range(0, p.shape[0], CHUNK):
-            rows = slice(lo, lo + CHUNK)
-
-            def cut(v: ArrayLike | None, rows: slice = rows) -> np.ndarray | None:
-                return None if v is None else np.asarray(v)[rows]
-
-            parts.append(
-                compensate(
-                    calibrated,
-                    p[rows],
-                    q0[rows],
-                    R_target=cut(R_target),
-                    set_index=cut(set_index),
-                    marker_index=cut(marker_index),
-                    load_scale=cut(ls),
-                    tol=tol,
-                    tol_rotation=tol_rotation,
-                    max_iter=max_iter,
-                )
-            )
-        joined = {
-            f: np.concatenate([getattr(r, f) for r in parts]) for f in _ROW_FIELDS
-        }
-        return CompensationResult(**joined, iterations=max(r.iterations for r in parts))
+        kw = dict(
+            R_target=R_target, set_index=set_index, marker_index=marker_index,
+            load_scale=ls, p_cam=p_cam,
+        )  # fmt: skip
+        fixed = dict(
+            tol=tol, tol_rotation=tol_rotation, max_iter=max_iter,
+            least_motion_deg=least_motion_deg,
+        )  # fmt: skip
+        return _by_chunks(calibrated, p, q0, kw, fixed)
     res = solve_ik_lm(
         model,
         calibrated.params,
@@ -166,43 +170,32 @@ def compensate(
         tol_position=min(tol, 1e-11),
         tol_rotation=min(tol_rotation, 1e-10),
         max_iter=max_iter,
+        p_cam=p_cam,
     )
     assert res.cond is not None
     pose = R_target is not None
+    relaxed = np.zeros(p.shape[0], bool)
+    if pose and least_motion_deg is not None:
+        res, relaxed = _least_motion(
+            model, calibrated.params, res, p, q0, R_target,
+            set_index, marker_index, ls, tol, tol_rotation, max_iter,
+            np.radians(least_motion_deg), p_cam,
+        )  # fmt: skip
+        assert res.cond is not None
     ok = (res.position_error <= tol) & res.within_limits
     if pose:
-        ok &= res.rotation_error <= tol_rotation
+        ok &= (res.rotation_error <= tol_rotation) | relaxed
     status = np.where(ok, "ok", "unreachable").astype(object)
     limit_joint = np.full(ok.shape, -1)
     bad = np.flatnonzero(~ok)
     if bad.size:
-        # Beyond the limits or out of reach? Solve the failed rows again without limits:
-        # where that meets the target, the joint furthest outside its limit is to blame.
-        free = solve_ik_lm(
-            model,
-            calibrated.params,
-            p[bad],
-            res.q_ctrl[bad],
-            R_target=None if R_target is None else np.asarray(R_target)[bad],
-            point_only=R_target is None,
-            set_index=None if set_index is None else np.asarray(set_index)[bad],
-            marker_index=None
-            if marker_index is None
-            else np.asarray(marker_index)[bad],
-            load_scale=None if ls is None else ls[bad],
-            limits=np.tile([-np.inf, np.inf], (n, 1)),
-            tol_position=min(tol, 1e-11),
-            tol_rotation=min(tol_rotation, 1e-10),
-            max_iter=max_iter,
-        )
-        lim = model.robot.limits
-        outside = np.maximum(lim[:, 0] - free.q_ctrl, free.q_ctrl - lim[:, 1])
-        reached = free.position_error <= tol
-        if pose:
-            reached &= free.rotation_error <= tol_rotation
-        blame = reached & (outside.max(axis=1) > 0)
-        limit_joint[bad[blame]] = np.argmax(outside[blame], axis=1)
-        status[bad[blame]] = "joint_limit"
+        blamed, joint = _blame_limits(
+            model, calibrated.params, res, p, bad, R_target, set_index,
+            marker_index, ls, p_cam, tol, tol_rotation, max_iter,
+        )  # fmt: skip
+        limit_joint[bad[blamed]] = joint
+        status[bad[blamed]] = "joint_limit"
+    assert res.cond is not None
     return CompensationResult(
         res.q_ctrl,
         q0.copy(),
@@ -212,7 +205,101 @@ def compensate(
         limit_joint,
         res.cond,
         res.iterations,
+        relaxed,
     )
+
+
+def _by_chunks(
+    calibrated: CalibratedModel,
+    p: Float,
+    q0: Float,
+    per_row: dict[str, Any],
+    fixed: dict[str, Any],
+) -> CompensationResult:
+    """:func:`compensate` by chunks of :data:`CHUNK` targets, joined."""
+    parts = []
+    for lo in range(0, p.shape[0], CHUNK):
+        rows = slice(lo, lo + CHUNK)
+        cut: dict[str, Any] = {
+            k: None if v is None else np.asarray(v)[rows] for k, v in per_row.items()
+        }
+        parts.append(compensate(calibrated, p[rows], q0[rows], **cut, **fixed))
+    joined = {f: np.concatenate([getattr(r, f) for r in parts]) for f in _ROW_FIELDS}
+    return CompensationResult(
+        **{k: v for k, v in joined.items() if k != "relaxed"},
+        iterations=max(r.iterations for r in parts),
+        relaxed=joined["relaxed"],
+    )
+
+
+def _blame_limits(
+    model, params, res, p, bad, R_target, set_index, marker_index, ls, p_cam, tol,
+    tol_rotation, max_iter,
+):  # fmt: skip
+    """Beyond the limits or out of reach? The failed rows ``bad`` solved again without
+    limits: where that meets the target, the joint furthest outside its limit is to
+    blame. Returns (blamed (B,) bool over ``bad``, their 0-based joints)."""
+
+    def cut(v):
+        return None if v is None else np.asarray(v)[bad]
+
+    free = solve_ik_lm(
+        model, params, p[bad], res.q_ctrl[bad], R_target=cut(R_target),
+        point_only=R_target is None, set_index=cut(set_index),
+        marker_index=cut(marker_index), load_scale=cut(ls),
+        limits=np.tile([-np.inf, np.inf], (model.n_joints, 1)), p_cam=cut(p_cam),
+        tol_position=min(tol, 1e-11), tol_rotation=min(tol_rotation, 1e-10),
+        max_iter=max_iter,
+    )  # fmt: skip
+    lim = model.robot.limits
+    outside = np.maximum(lim[:, 0] - free.q_ctrl, free.q_ctrl - lim[:, 1])
+    reached = free.position_error <= tol
+    if R_target is not None:
+        reached &= free.rotation_error <= tol_rotation
+    blame = reached & (outside.max(axis=1) > 0)
+    return blame, np.argmax(outside[blame], axis=1)
+
+
+def _least_motion(
+    model, params, res, p, q0, R_target, set_index, marker_index, ls, tol,
+    tol_rotation, max_iter, dq_max, p_cam=None,
+):  # fmt: skip
+    """Pose rows not met or moving a joint by more than ``dq_max`` [rad], solved again as
+    point targets that keep the orientation where it is well conditioned; a row takes the
+    new solution when it meets the position within the limits with less joint motion."""
+    from dataclasses import replace
+
+    motion = np.abs(res.q_ctrl - q0).max(axis=1)
+    met = (res.position_error <= tol) & (res.rotation_error <= tol_rotation)
+    met &= res.within_limits
+    # Only next to a singular pose: elsewhere a target not met is out of reach or beyond
+    # a limit, and giving up orientation there would hide it.
+    rows = np.flatnonzero((~met | (motion > dq_max)) & (res.cond > _SINGULAR_COND))
+    relaxed = np.zeros(p.shape[0], bool)
+    if rows.size == 0:
+        return res, relaxed
+
+    def cut(v):
+        return None if v is None else np.asarray(v)[rows]
+
+    again = solve_ik_lm(
+        model, params, p[rows], q0[rows], R_target=np.asarray(R_target)[rows],
+        point_only=True, set_index=cut(set_index), marker_index=cut(marker_index),
+        load_scale=cut(ls), p_cam=cut(p_cam), tol_position=min(tol, 1e-11),
+        tol_rotation=min(tol_rotation, 1e-10), max_iter=max_iter,
+    )  # fmt: skip
+    new_motion = np.abs(again.q_ctrl - q0[rows]).max(axis=1)
+    take = (again.position_error <= tol) & again.within_limits
+    take &= (new_motion < motion[rows]) | ~met[rows]
+    take &= again.rotation_error <= _RELAX_MAX  # a tiny turn given up, not a target
+    sel = rows[take]
+    fields = {}
+    for f in ("q_ctrl", "position_error", "rotation_error", "within_limits", "cond"):
+        a = getattr(res, f).copy()
+        a[sel] = getattr(again, f)[take]
+        fields[f] = a
+    relaxed[sel] = again.rotation_error[take] > tol_rotation  # the orientation given up
+    return replace(res, **fields), relaxed
 
 
 def program_targets(

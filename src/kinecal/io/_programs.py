@@ -21,8 +21,8 @@ krl         KUKA KRL ``.src/.dat``     ``{A1 x, A2 x, ...}`` aggregates (AXIS,  
 
 Prismatic joints are in mm in every format but URScript (metres). Cartesian targets
 (FANUC ``X = .. mm``, URScript ``p[...]``, RAPID ``robtarget``, KRL ``{X .., A ..}``
-frames) are left as they are and counted; compensating them needs the controller's user
-and tool frames, which kinecal does not know.
+frames) are read by :mod:`kinecal.io._cartesian_programs`; here they are only counted
+(``Program.skipped``).
 """
 
 from __future__ import annotations
@@ -265,7 +265,14 @@ def read_program(path: str | Path, fmt: str | None = None) -> Program:
     except DataError as exc:
         raise DataError(f"{p}: {exc}") from None
     if not points:
-        raise DataError(f"{p}: no joint target found ({fmt}).")
+        from kinecal.io._cartesian_programs import read_cartesian
+
+        try:
+            cartesian = read_cartesian(text, fmt)
+        except DataError as exc:
+            raise DataError(f"{p}: {exc}") from None
+        if not cartesian:
+            raise DataError(f"{p}: no joint or Cartesian target found ({fmt}).")
     return Program(str(p), fmt, text, tuple(points), skipped)
 
 
@@ -297,7 +304,7 @@ def program_joints(prog: Program, robot: RobotDescription) -> Float:
                 f"{prog.path}: line {pt.line}: {pt.name} has {len(pt.values)} joint values; "
                 f"{robot.name} has {n} joints."
             )
-    q = np.array([pt.values[:n] for pt in prog.points], dtype=np.float64)
+    q = np.array([pt.values[:n] for pt in prog.points], dtype=np.float64).reshape(-1, n)
     return q * _scale(prog, robot)
 
 
@@ -313,8 +320,10 @@ def write_program(
     *,
     decimals: int | None = None,
     keep: np.ndarray | None = None,
+    extra: list[tuple[int, int, str]] | None = None,
 ) -> str:
-    """The program text with the joint targets replaced by ``q_ctrl`` (N, n) [rad, m].
+    """The program text with the joint targets replaced by ``q_ctrl`` (N, n) [rad, m]
+    (and the ``extra`` edits (start, end, new text) made: Cartesian targets).
 
     Values are written with ``decimals`` decimals (default: as many as the file has, at
     least the format's usual: FANUC 3, URScript 8, RAPID and KRL 4); a value that reads
@@ -346,6 +355,7 @@ def write_program(
             if old[:1].isspace():  # FANUC: keep the column, and a blank after '='
                 new = new.rjust(len(old)) if len(new) < len(old) else " " + new
             edits.append((a, b, new))
+    edits = sorted(edits + list(extra or []))
     out = []
     last = 0
     for a, b, new in edits:
@@ -359,6 +369,8 @@ def write_program(
 def written_joints(prog: Program, text: str, robot: RobotDescription) -> Float:
     """The joint targets (N, n) [rad, m] a written program holds (read back)."""
     points, _ = _READERS[prog.format](text)
+    if not points:
+        return np.zeros((0, robot.n_joints))
     return program_joints(
         Program(prog.path, prog.format, text, tuple(points), 0), robot
     )

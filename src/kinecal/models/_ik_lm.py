@@ -107,6 +107,7 @@ class _Problem:
         marker_index: np.ndarray | None,
         load_scale: Float | None,
         length: float,
+        p_cam: Float | None = None,
     ) -> None:
         self.model = model
         self.params = params
@@ -116,6 +117,7 @@ class _Problem:
         self.si = set_index
         self.mi = marker_index
         self.ls = load_scale
+        self.p_cam = p_cam
         self.length = length
         self.C = model.robot.coupling
 
@@ -131,6 +133,7 @@ class _Problem:
             set_index=pick(self.si),
             marker_index=pick(self.mi),
             load_scale=pick(self.ls),
+            p_cam=pick(self.p_cam),
         )
 
     def errors(self, q: Float, rows: np.ndarray) -> tuple[Float, Float]:
@@ -210,6 +213,7 @@ def solve_ik_lm(
     marker_index: np.ndarray | None = None,
     load_scale: Float | None = None,
     limits: ArrayLike | None = None,
+    p_cam: ArrayLike | None = None,
     tol_position: float = 1e-10,
     tol_rotation: float = 1e-9,
     max_iter: int = 50,
@@ -237,6 +241,7 @@ def solve_ik_lm(
         ``R_target`` is omitted, False where it is given.
     set_index, marker_index, load_scale : (N,) per-target model inputs (see ModelInputs).
     limits : (n, 2) controller joint limits [rad, m]; default the robot's.
+    p_cam : (N, 3), optional the point of the cam frame put on ``p_target`` [m].
     tol_position, tol_rotation : the task is met below these [m], [rad].
     max_iter : iterations of the damped least-squares phase.
     polish_iter : iterations of the Newton polish with the exact Jacobian.
@@ -274,6 +279,7 @@ def solve_ik_lm(
         marker_index,
         load_scale,
         length,
+        p_cam if p_cam is None else np.asarray(p_cam, np.float64).reshape(N, 3),
     )
     errors = None
     if R_target is None:  # the seed's orientation

@@ -1,0 +1,337 @@
+"""``kinecal compensate`` on the Cartesian targets of a program (issue 34).
+
+Each target is a tool pose in a user frame. The wanted flange pose in the robot base frame
+is ``T_base_uframe · T_target · inv(T_flange_tool)``; the taught configuration is the
+nominal joint solution with the target's flags (or, without flags, the one nearest the
+program's earlier joints); the calibrated IK from there gives ``q*`` and the corrected
+target is the nominal pose of ``q*`` in the same frames (:mod:`kinecal.compensation._cartesian`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kinecal.errors import DataError
+
+# Frame id meaning the robot base (user frames) or the flange (tools), per format.
+_BASE_IDS = {"fanuc-ls": "0", "krl": "0", "rapid": "wobj0", "urscript": ""}
+_FLANGE_IDS = {"fanuc-ls": "0", "krl": "0", "rapid": "tool0", "urscript": ""}
+_FRAME_NUMBERS = {"fanuc-ls": 6, "krl": 6, "rapid": 7, "urscript": 6}
+
+
+def parse_frames(
+    specs: tuple[str, ...], fmt: str, option: str
+) -> dict[str, np.ndarray]:
+    """``ID=x,y,z,a,b,c`` values (the program's own units and angles; RAPID
+    ``x,y,z,q1,q2,q3,q4``) -> {id: pose (4, 4) [m]}."""
+    from kinecal.io._cartesian_programs import point_pose
+
+    out = {}
+    k = _FRAME_NUMBERS[fmt]
+    for spec in specs:
+        key, sep, rest = spec.partition("=")
+        try:
+            vals = [float(v) for v in rest.split(",")] if sep else []
+        except ValueError:
+            vals = []
+        if not key.strip() or len(vals) != k or not np.isfinite(vals).all():
+            raise DataError(
+                f"{option} {spec!r}: expected ID={','.join(['v'] * k)} ({k} finite "
+                f"numbers in the {fmt} program's units)."
+            )
+        out[key.strip()] = point_pose(fmt, tuple(vals))
+    return out
+
+
+def _krl_config_frames(path: str, text: str) -> tuple[dict, dict]:
+    """``BASE_DATA[n]={X .., .., C ..}`` and ``TOOL_DATA[n]=..`` of a KUKA
+    ``$config.dat`` -> (uframes, utools)."""
+    import re
+
+    from kinecal.io._cartesian_programs import point_pose
+
+    out: tuple[dict, dict] = ({}, {})
+    num = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+    pat = r"\b(BASE|TOOL)_DATA\s*\[\s*(\d+)\s*\]\s*=\s*\{([^{}]*)\}"
+    for m in re.finditer(pat, text, re.I):
+        vals = []
+        for key in "XYZABC":
+            k = re.search(rf"(?<![\w$]){key}\s+({num})", m.group(3))
+            if k is None:
+                line = text.count("\n", 0, m.start()) + 1
+                raise DataError(f"{path}: line {line}: {m.group(1)}_DATA[{m.group(2)}] "
+                                f"has no {key}; expected X, Y, Z [mm], A, B, C [deg].")  # fmt: skip
+            vals.append(float(k.group(1)))
+        out[m.group(1).upper() == "TOOL"][m.group(2)] = point_pose("krl", tuple(vals))
+    return out
+
+
+def load_frames_file(path: str, fmt: str) -> tuple[dict, dict]:
+    """A YAML file ``{uframe: {ID: [..]}, utool: {ID: [..]}}``, or for KRL the
+    controller's ``$config.dat`` (``BASE_DATA[n]``, ``TOOL_DATA[n]``) -> (uframes,
+    utools)."""
+    import yaml
+
+    if fmt == "krl" and Path(path).suffix.lower() == ".dat":
+        try:
+            text = Path(path).read_bytes().decode("utf-8", errors="replace")
+        except OSError as exc:
+            raise DataError(
+                f"{path}: cannot read the frames file ({exc.strerror})."
+            ) from None
+        return _krl_config_frames(path, text)
+
+    try:
+        doc = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
+    except (OSError, yaml.YAMLError) as exc:
+        raise DataError(f"{path}: cannot read the frames file ({exc}).") from None
+    if not isinstance(doc, dict) or set(doc) - {"uframe", "utool"}:
+        raise DataError(f"{path}: expected the keys uframe and utool (ID: [numbers]).")
+    out = []
+    for key in ("uframe", "utool"):
+        group = doc.get(key) or {}
+        if not isinstance(group, dict):
+            raise DataError(f"{path}: {key}: expected ID: [numbers] entries.")
+        specs = []
+        for ident, vals in group.items():
+            if not isinstance(vals, list):
+                raise DataError(f"{path}: {key} {ident}: expected a list of numbers.")
+            specs.append(f"{ident}=" + ",".join(str(v) for v in vals))
+        out.append(parse_frames(tuple(specs), fmt, f"{path}: {key}"))
+    return out[0], out[1]
+
+
+@dataclass
+class CartesianRun:
+    """What the Cartesian part of a run found and did, per target."""
+
+    points: list
+    status: np.ndarray  # 'ok', 'unreachable', 'joint_limit', 'left'
+    why: list[str]
+    q_seed: np.ndarray  # (N, n) the taught configuration (NaN: none)
+    q_new: np.ndarray  # (N, n) corrected joints (NaN: none)
+    T_uf: np.ndarray
+    T_tool: np.ndarray
+    T_tcp: np.ndarray  # (N, 4, 4) the taught tool poses in the base frame
+    edits: list = field(default_factory=list)
+    notes: list = field(default_factory=list)  # (target index, message)
+    res: object = None
+    rows: np.ndarray = field(default_factory=lambda: np.zeros(0, np.intp))
+    fmt: str = ""
+
+
+def _frames(prog, pts, uframes, utools):
+    """Per target: T_base_uframe, T_flange_tool (N, 4, 4) and why a frame is missing."""
+    from kinecal.io._cartesian_programs import point_pose, rapid_frames
+
+    fmt = prog.format
+    known_uf, known_tool = dict(uframes), dict(utools)
+    if fmt == "rapid":
+        tools, wobjs = rapid_frames(prog.text)
+        for name, frame in tools.items():
+            known_tool.setdefault(name, frame)
+        for name, frame in wobjs.items():
+            known_uf.setdefault(name, frame)
+    N = len(pts)
+    T_uf, T_tool = np.tile(np.eye(4), (N, 1, 1)), np.tile(np.eye(4), (N, 1, 1))
+    why = [pt.why_not for pt in pts]
+    for k, pt in enumerate(pts):
+        if fmt == "urscript":
+            if pt.tool:
+                vals = [float(v) for v in pt.tool[2:-1].split(",")]
+                T_tool[k] = point_pose("urscript", tuple(vals))
+            continue
+        for ident, base, known, out, what in (
+            (pt.frame, _BASE_IDS[fmt], known_uf, T_uf, "user frame"),
+            (pt.tool, _FLANGE_IDS[fmt], known_tool, T_tool, "tool"),
+        ):
+            val: Any = known.get(ident)
+            if isinstance(val, str):
+                why[k] = why[k] or f"{what} {ident}: {val}"
+            elif val is not None:
+                out[k] = val
+            elif ident != base:
+                opt = "--uframe" if what == "user frame" else "--utool"
+                why[k] = (
+                    why[k]
+                    or f"{what} {ident} not given ({opt} {ident}=... or --frames)"
+                )
+    return T_uf, T_tool, why
+
+
+def _near_joints(prog, pts, robot, q_joint):
+    """Per target without flags: the joints to start from (the UR waypoint's own, or the
+    program's last joint target before it), NaN where none."""
+    n = robot.n_joints
+    starts = (
+        np.array([p.spans[0][0] for p in prog.points]) if prog.points else np.zeros(0)
+    )
+    out = np.full((len(pts), n), np.nan)
+    for k, pt in enumerate(pts):
+        if len(pt.q_values) >= n:
+            out[k] = pt.q_values[:n]
+            continue
+        before = np.flatnonzero(starts < pt.spans[0][0])
+        if before.size:
+            out[k] = q_joint[before[-1]]
+    return out
+
+
+def _seeds(cal, fmt, pts, F_want, near, why):
+    """The taught configuration of each target (N, n), NaN where it cannot be found."""
+    from kinecal.compensation._cartesian import branch_solutions, nearest_solutions
+    from kinecal.compensation._configs import config_accept
+
+    N, n = len(pts), cal.model.n_joints
+    seeds = np.full((N, n), np.nan)
+    flagged = [k for k in range(N) if not why[k] and pts[k].config is not None]
+    if flagged and n != 6:
+        for k in flagged:
+            why[k] = "configuration flags are read for 6-axis arms only"
+        flagged = []
+    if flagged:
+        configs = [pts[k].config for k in flagged]
+        q, found = branch_solutions(
+            cal, F_want[flagged], config_accept(cal, fmt, configs)
+        )
+        seeds[flagged] = q
+        for k, f in zip(flagged, found):
+            if not f:
+                why[k] = (
+                    f"no nominal joint solution with its configuration {pts[k].config}"
+                )
+    free = [k for k in range(N) if not why[k] and pts[k].config is None]
+    for k in free:
+        if not np.isfinite(near[k]).all():
+            why[k] = "no configuration and no earlier joint target to start from"
+    free = [k for k in free if not why[k]]
+    if free:
+        q, found = nearest_solutions(cal, F_want[free], near[free])
+        seeds[free] = q
+        for k, f in zip(free, found):
+            if not f:
+                why[k] = "the nominal model does not reach it from the joints before it"
+    return seeds
+
+
+def _crossed_flags(cal, run, q_ctrl):
+    """New configuration flags (per target, None: kept) where the corrected joints
+    cross a configuration boundary (next to J5 = 0 or the stretched arm): the
+    controller must be told the branch the correction is on; noted for the screen."""
+    from kinecal.compensation._configs import encode_config, same_config
+
+    pts, rows = run.points, run.rows
+    out: list = [None] * len(run.points)
+    flagged = [i for i, k in enumerate(rows) if pts[k].config is not None]
+    if not flagged:
+        return out
+    fmt = run.fmt
+    same = same_config(
+        cal, fmt, q_ctrl[flagged], [pts[rows[i]].config for i in flagged]
+    )
+    for i in np.asarray(flagged, int)[~same]:
+        k = rows[i]
+        new = encode_config(cal, fmt, q_ctrl[i][None])[0]
+        if fmt == "krl":  # S bit 2 (A5) in the file's own sense, flipped with A5
+            old = pts[k].config
+            flip = (run.q_seed[k, 4] < 0) != (q_ctrl[i, 4] < 0)
+            new = ((new[0] & 3) | ((old[0] & 4) ^ (4 if flip else 0)), new[1])
+        out[k] = new
+        run.notes.append((k, f"configuration written as {new} (was {pts[k].config}): "
+                             "the correction crosses a configuration boundary"))  # fmt: skip
+    return out
+
+
+def cartesian_run(cal, prog, q_joint, uframes, utools, scale, tol_mm, decimals):
+    """Correct the Cartesian targets of ``prog``; joint targets ``q_joint`` (N_j, n)
+    [rad] give the starting joints of targets without flags."""
+    from kinecal.compensation._cartesian import compensate_poses
+    from kinecal.geometry import transform_inv
+    from kinecal.io._cartesian_programs import (
+        cartesian_edits,
+        point_pose,
+        read_cartesian,
+    )
+
+    fmt, robot = prog.format, cal.model.robot
+    try:
+        pts = read_cartesian(prog.text, fmt)
+    except DataError as exc:
+        raise DataError(f"{prog.path}: {exc}") from None
+    N, n = len(pts), robot.n_joints
+    T_uf, T_tool, why = _frames(prog, pts, uframes, utools)
+    T_target = np.array(
+        [point_pose(fmt, p.values) if p.values else np.eye(4) for p in pts]
+    ).reshape(N, 4, 4)
+    T_tcp = T_uf @ T_target
+    F_want = T_tcp @ transform_inv(T_tool) if N else T_tcp
+    near = _near_joints(prog, pts, robot, q_joint)
+    seeds = _seeds(cal, fmt, pts, F_want, near, why)
+    status = np.array(["left"] * N, dtype=object)
+    q_new = np.full((N, n), np.nan)
+    rows = np.array([k for k in range(N) if not why[k]], np.intp)
+    run = CartesianRun(pts, status, why, seeds, q_new, T_uf, T_tool, T_tcp, rows=rows)
+    run.fmt = fmt
+    if rows.size == 0:
+        return run
+    ls = None if scale is None else np.full(rows.size, scale)
+    pc = compensate_poses(
+        cal, F_want[rows], seeds[rows], T_flange_tool=T_tool[rows], load_scale=ls,
+        tol=tol_mm * 1e-3,
+    )  # fmt: skip
+    run.res = pc.result
+    status[rows] = pc.result.status
+    q_new[rows] = pc.result.q_ctrl
+    new_configs = _crossed_flags(cal, run, pc.result.q_ctrl)
+    ok = rows[status[rows] == "ok"]
+    T_new = np.full((N, 4, 4), np.nan)
+    T_corr = np.full((N, 4, 4), np.nan)
+    T_corr[rows] = pc.T_corrected
+    T_new[ok] = transform_inv(T_uf[ok]) @ T_corr[ok] @ T_tool[ok]
+    run.edits = cartesian_edits(
+        prog.text, fmt, pts, T_new, q_new, decimals=decimals, configs=new_configs
+    )
+    run.status = status
+    return run
+
+
+def written_errors(cal, run, text, fmt, scale):
+    """How far the calibrated robot's tool is from each taught pose when the controller's
+    nominal model interprets the written program: (position [m], rotation [rad]) (N,),
+    NaN for targets not corrected."""
+    from kinecal.compensation._cartesian import (
+        branch_solutions,
+        calibrated_flange,
+        nearest_solutions,
+    )
+    from kinecal.compensation._configs import config_accept
+    from kinecal.geometry import so3_log, transform_inv
+    from kinecal.io._cartesian_programs import point_pose, read_cartesian
+
+    pts = read_cartesian(text, fmt)
+    N = len(pts)
+    err_p, err_r = np.full(N, np.nan), np.full(N, np.nan)
+    done = np.flatnonzero(run.status == "ok")
+    if done.size == 0:
+        return err_p, err_r
+    T = np.array([point_pose(fmt, pts[k].values) for k in done])
+    F = run.T_uf[done] @ T @ transform_inv(run.T_tool[done])
+    flags: list[Any] = [pts[k].config for k in done]
+    if all(c is not None for c in flags):
+        q, found = branch_solutions(cal, F, config_accept(cal, fmt, flags))
+    else:  # a controller without flags starts from the joints it is at
+        q, found = nearest_solutions(cal, F, run.q_new[done])
+    ls = None if scale is None else np.full(done.size, scale)
+    got = calibrated_flange(cal, np.nan_to_num(q), ls) @ run.T_tool[done]
+    want = run.T_tcp[done]
+    ep = np.linalg.norm(got[:, :3, 3] - want[:, :3, 3], axis=1)
+    er = np.linalg.norm(
+        so3_log(np.swapaxes(want[:, :3, :3], 1, 2) @ got[:, :3, :3]), axis=1
+    )
+    err_p[done] = np.where(found, ep, np.inf)
+    err_r[done] = np.where(found, er, np.inf)
+    return err_p, err_r
