@@ -46,6 +46,28 @@ from kinecal.cli._common import targets_option
     "add (default: the calibration data if the model names an existing file, else "
     "1000 random poses inside the joint limits).",
 )
+@click.option(
+    "--like",
+    "like",
+    type=click.Path(dir_okay=False),
+    help="The vendor's URDF of the robot: write a copy of it with every link, joint, "
+    "name, mesh, inertial and limit kept and only the movable joints' origins "
+    "calibrated (link frames stay the vendor's; joints take the kinematic angles).",
+)
+@click.option(
+    "--tool-link",
+    default="calibrated_tool",
+    show_default=True,
+    help="--like: name of the calibrated tool link (fixed child of the last moving "
+    "link; <name>_<marker> per marker when the model has several).",
+)
+@click.option(
+    "--user-link",
+    default=None,
+    help="--like: add the set's measurement frame as a new root link of this name (FK "
+    "from it to the tool link = the model's tool pose). Default: the vendor's root stays "
+    "the root.",
+)
 @targets_option
 @click.option("--force", is_flag=True, help="Overwrite --out.")
 def export_urdf(
@@ -57,6 +79,9 @@ def export_urdf(
     coupling: str,
     data: str | None,
     targets: str | None,
+    like: str | None,
+    tool_link: str,
+    user_link: str | None,
     force: bool,
 ) -> None:
     """Write the calibrated kinematic part of MODEL.yaml as a URDF (or a DH table).
@@ -125,6 +150,46 @@ def export_urdf(
             err=True,
         )
     rng_q = _random_poses(robot, 256)
+    if like is not None:
+        if fmt != "urdf" or coupling != "kinematic":
+            raise click.UsageError(
+                "--like writes a URDF whose joints take the kinematic angles; it does "
+                "not go with --format yaml-dh or --coupling mimic"
+            )
+        from kinecal.io._urdf_like import like_urdf
+
+        notes.append(
+            f"A copy of {Path(like).name} with the movable joints' origins calibrated "
+            "(everything else as the vendor wrote it); calibrated tool frame: link "
+            f"{tool_link!r}."
+        )
+        if not _identity(robot.coupling):
+            notes.append(
+                _coupling_note(robot)
+                .replace("Joints j1..jN", "The URDF joints")
+                .replace(" Coupling 'mimic' writes controller angles instead.", "")
+            )
+        res = like_urdf(
+            cal,
+            like,
+            set_label=set_label,
+            tool_link=tool_link,
+            user_link=user_link,
+            comments=notes,
+        )
+        if res.check_m > 1e-9:  # pragma: no cover - a defect, not a user error
+            raise RuntimeError(
+                f"export-urdf --like: the file misses the model by {res.check_m:.2e} m."
+            )
+        atomic_write_text(out_path, res.text, force=force)
+        click.echo(
+            f"{robot.name}: wrote {out_path} (copy of {like}: joints "
+            f"{', '.join(res.joints)}; origins moved by up to {res.moved_mm:.3f} mm, "
+            f"{res.turned_deg:.4f} deg; root {res.root!r}, tool "
+            f"{', '.join(repr(t) for t in res.tips.values())}; FK equals the model to "
+            f"{res.check_m * 1e3:.1e} mm)"
+        )
+        return
     if fmt == "urdf":
         chain = export_chain(cal, set_label=set_label, coupling=coupling)
         if coupling == "kinematic" and not _identity(robot.coupling):
