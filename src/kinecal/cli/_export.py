@@ -19,11 +19,12 @@ from kinecal.cli._common import targets_option
 @click.option(
     "--format",
     "fmt",
-    type=click.Choice(("urdf", "yaml-dh")),
+    type=click.Choice(("urdf", "yaml-dh", "ur-calibration")),
     default="urdf",
     show_default=True,
     help="urdf: root link 'user', joints j1..jN, tool links. yaml-dh: the calibrated DH "
-    "table as a robot YAML, loadable as --robot.",
+    "table as a robot YAML, loadable as --robot. ur-calibration: the kinematics.yaml "
+    "the Universal Robots ROS driver reads (ur_description joint origins).",
 )
 @click.option(
     "--set", "set_label", help="The set whose user frame is the root (default: first)."
@@ -150,6 +151,26 @@ def export_urdf(
             err=True,
         )
     rng_q = _random_poses(robot, 256)
+    if fmt == "ur-calibration":
+        if like is not None or coupling != "kinematic":
+            raise click.UsageError(
+                "--format ur-calibration does not go with --like or --coupling mimic"
+            )
+        from kinecal.io._urdf_like import ur_calibration_text
+
+        notes.append(
+            "The origins of ur_description's joints (x y z m, roll pitch yaw rad), as "
+            "ur_calibration writes them; base_link is the calibrated robot base (the "
+            "tool and the measurement frame are not part of this file)."
+        )
+        notes.append(
+            "The hash is kinecal's, not the controller's: the driver reports that it "
+            "differs from the robot's factory calibration."
+        )
+        text = ur_calibration_text(cal, set_label=set_label, comments=notes)
+        atomic_write_text(out_path, text, force=force)
+        click.echo(f"{robot.name}: wrote {out_path} (ur-calibration kinematics.yaml)")
+        return
     if like is not None:
         if fmt != "urdf" or coupling != "kinematic":
             raise click.UsageError(

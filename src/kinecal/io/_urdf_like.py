@@ -56,6 +56,7 @@ class LikeExport:
     moved_mm, turned_deg : largest change of a joint origin's position and rotation.
     line_residual_mm : how far the vendor's nominal axes are from the model's nominal ones.
     check_m : largest FK difference to the model on random poses, read back [m].
+    origins : vendor joint name -> its calibrated origin (4, 4).
     """
 
     text: str
@@ -66,6 +67,7 @@ class LikeExport:
     turned_deg: float
     line_residual_mm: float
     check_m: float
+    origins: dict[str, Pose]
 
 
 def _num(v: float) -> str:
@@ -155,6 +157,21 @@ def _moves(j: ET.Element) -> bool:
     return j.get("type", "") in _MOVABLE
 
 
+def _exact(H: Pose, axis: Float, kind: str) -> Pose:
+    """``H`` turned (by rounding-sized angles) so that the model's joint axis, seen from
+    the vendor's link frame, is exactly the vendor's ``axis`` through its origin (the
+    vendor's numbers such as 1.570796327 for pi/2 are otherwise a 1e-10 rad tilt)."""
+    R = H[:3, :3]
+    b = R.T @ np.array([0.0, 0.0, 1.0])
+    c, d = np.cross(b, axis), float(b @ axis)
+    K = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
+    Q = np.eye(3) + K + K @ K / (1.0 + d)  # the rotation taking b to axis
+    out = np.eye(4)
+    out[:3, :3] = R @ Q.T
+    out[:3, 3] = H[:3, 3] if kind == "prismatic" else [0.0, 0.0, H[2, 3]]
+    return out
+
+
 def _kabsch(a: Float, b: Float) -> Float:
     """Rotation R minimising sum |R a_k - b_k|^2 (rows are vectors)."""
     U, _, Vt = np.linalg.svd(b.T @ a)
@@ -170,6 +187,7 @@ def like_urdf(
     tool_link: str = "calibrated_tool",
     user_link: str | None = None,
     comments: list[str] | None = None,
+    text: str | None = None,
 ) -> LikeExport:
     """The vendor's URDF with the calibrated joint origins (module docstring).
 
@@ -183,16 +201,17 @@ def like_urdf(
     user_link : when given, a new root link of this name, the measurement frame of the
         set, so that FK user_link -> tool_link is the model's tool pose.
     comments : lines of a comment put before the ``<robot>`` element.
+    text : the document itself (``vendor`` then only names it in messages).
     """
     from kinecal.compensation import export_chain
 
     src = str(vendor)
     p = Path(vendor)
     try:
-        tree = ET.parse(p)
-    except (OSError, ET.ParseError) as exc:
+        raw = p.read_text(encoding="utf-8") if text is None else text
+        root_el = ET.fromstring(raw)
+    except (OSError, UnicodeDecodeError, ET.ParseError) as exc:
         raise ConfigError(f"{src}: cannot read URDF ({exc}).") from exc
-    root_el = tree.getroot()
     if root_el.tag != "robot":
         raise ConfigError(f"{src}: expected a <robot> document; got <{root_el.tag}>.")
     if any(
@@ -287,7 +306,10 @@ def like_urdf(
             "model's robot; expected the URDF of the same robot (joints in the same "
             "order, turning the same way)."
         )
-    H = [np.linalg.inv(B @ J) @ U for J, U in zip(J0, U0)]
+    H = [
+        _exact(np.linalg.inv(B @ J) @ U, axes[k], kind)
+        for J, U, k, kind in zip(J0, U0, movable, kinds)
+    ]
     rng = np.random.default_rng(1)
     lim = np.where(np.isfinite(robot.limits), robot.limits, [-np.pi, np.pi])
     for theta in rng.uniform(lim[:, 0], lim[:, 1], (8, n)) @ C.T:
@@ -325,7 +347,6 @@ def like_urdf(
         )
         for k in axes
     )
-    raw = p.read_text(encoding="utf-8")
     for k in movable:
         raw = _set_origin(raw, path[k].get("name", ""), new[k], src)
     # The calibrated tool frame(s) and the user frame.
@@ -363,6 +384,7 @@ def like_urdf(
         float(np.degrees(turned)),
         resid * 1e3,
         check,
+        {path[k].get("name", ""): new[k] for k in movable},
     )
 
 
@@ -458,3 +480,83 @@ def _check(text, src, cal, set_label, tips, top, T_top_user, rng) -> float:
             want[:3, :3], want[:3, 3] = out.R_user_cam[r], out.p_user[r]
             worst = max(worst, float(np.abs(T - T_top_user @ want).max()))
     return worst
+
+
+_UR_ALPHA = np.radians([90.0, 0.0, 0.0, 90.0, -90.0, 0.0])
+_UR_PARTS = ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")
+
+
+def ur_calibration_text(cal, *, set_label: str | None = None, comments=()) -> str:
+    """The ``kinematics.yaml`` of the Universal Robots ROS driver (``ur_calibration``'s
+    output): the origins of ``ur_description``'s six joints, ``x y z roll pitch yaw``
+    [m, rad], and a ``hash``, for the calibrated kinematic part of ``cal``.
+
+    Raises
+    ------
+    ConfigError
+        The model's robot is not a Universal Robots arm (its DH table).
+    """
+    robot = cal.model.robot
+    ch = robot.dh_chain()
+    ok = (
+        robot.n_joints == 6
+        and not np.any(robot.prismatic)
+        and np.allclose(ch.alpha, _UR_ALPHA, atol=1e-6)
+        and np.allclose(ch.theta_offset, 0.0, atol=1e-9)
+        and np.allclose(ch.a[[0, 3, 4, 5]], 0.0, atol=1e-9)
+        and np.allclose(ch.d[[1, 2]], 0.0, atol=1e-9)
+        and np.allclose(robot.coupling, np.eye(6))
+    )
+    if not ok:
+        raise ConfigError(
+            f"--format ur-calibration: {robot.name} is not a Universal Robots arm "
+            "(expected the UR DH table: 6 revolute joints, alpha 90 0 0 90 -90 0 deg, "
+            "no offsets, a1 = a4 = a5 = a6 = 0, d2 = d3 = 0)."
+        )
+    d, a = ch.d, ch.a
+    org = [
+        (0, 0, d[0], 0, 0, 0),
+        (0, 0, 0, np.pi / 2, 0, 0),
+        (a[1], 0, 0, 0, 0, 0),
+        (a[2], 0, d[3], 0, 0, 0),
+        (0, -d[4], 0, np.pi / 2, 0, 0),
+        (0, d[5], 0, np.pi / 2, np.pi, np.pi),
+    ]
+    lines = ['<robot name="ur">', '  <link name="base_link_inertia"/>']
+    parent = "base_link_inertia"
+    for part, row in zip(_UR_PARTS, org):
+        o = [float(v) for v in row]
+        lines += [
+            f'  <link name="{part}_link"/>',
+            f'  <joint name="{part}_joint" type="revolute">',
+            f'    <parent link="{parent}"/><child link="{part}_link"/>',
+            f'    <origin xyz="{o[0]!r} {o[1]!r} {o[2]!r}" rpy="{o[3]!r} {o[4]!r} {o[5]!r}"/>',
+            '    <axis xyz="0 0 1"/>',
+            "  </joint>",
+        ]
+        parent = f"{part}_link"
+    lines.append("</robot>")
+    res = like_urdf(
+        cal,
+        f"<the ur_description chain of {robot.name}>",
+        set_label=set_label,
+        tool_link="kinecal_tool",
+        text="\n".join(lines) + "\n",
+    )
+    import hashlib
+
+    out = [f"# {ln}".rstrip() for ln in comments]
+    out.append("kinematics:")
+    values = []
+    for part in _UR_PARTS:
+        O = res.origins[f"{part}_joint"]
+        v = [*O[:3, 3], *matrix_to_rpy(O[:3, :3])]
+        values += v
+        out.append(f"  {part}:")
+        out += [
+            f"    {k}: {_num(x)}"
+            for k, x in zip(("x", "y", "z", "roll", "pitch", "yaw"), v)
+        ]
+    digest = hashlib.blake2b(repr(values).encode(), digest_size=8).digest()
+    out.append(f"  hash: calib_{int.from_bytes(digest, 'big')}")
+    return "\n".join(out) + "\n"
