@@ -1,0 +1,394 @@
+"""`kinecal export-urdf --like VENDOR.urdf` and `--format ur-calibration` (issue 34).
+
+The vendor files: the LR Mate 200iD URDFs of ROS-Industrial and of FANUC
+(tests/data/fanuc_lrmate200id, meshes, limits, FANUC's with inertials) and a UR10e in the
+layout of ROS ur_description (tests/data/ur_e_series, meshes, inertials, limits with
+effort and velocity). The forward kinematics of the written files are computed by
+pinocchio and yourdfpy (optional, skipped when absent) and by the test suite's own
+evaluator (tests/urdf_reference.py), never by kinecal.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from kinecal.identification import calibrate
+from kinecal.io import read_measurements, save_model
+from kinecal.robot import load_robot
+from kinecal.simulation import LaserTracker, experiment2
+from tests.urdf_reference import urdf_chain_fk
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+ROSI = DATA / "fanuc_lrmate200id" / "rosi_lrmate200id.urdf"
+FANUC = DATA / "fanuc_lrmate200id" / "fanuc_lrmate200id.urdf"
+LR7L = DATA / "fanuc_lrmate200id" / "rosi_lrmate200id7l.urdf"
+UR10E = DATA / "ur_e_series" / "ur10e_like_ur_description.urdf"
+
+
+def _cli(capsys, *args):
+    from kinecal.cli import main
+
+    code = main(list(args))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.fixture(scope="module")
+def models(tmp_path_factory):
+    """A kinematic and a full model of the LR Mate twin; a kinematic UR10e model from
+    the real motion-capture data."""
+    d = tmp_path_factory.mktemp("like")
+    e = experiment2(9, n_train=60, tracker=LaserTracker(5e-6, 0.0))
+    for name in ("kinematic", "full"):
+        save_model(
+            d / f"lr_{name}.yaml", calibrate(e.truth.robot, e.train, name).calibrated
+        )
+    ur = load_robot("ur10e")
+    m = read_measurements(DATA / "real" / "ur10_mocap.csv", ur)
+    save_model(d / "ur.yaml", calibrate(ur, m, "kinematic").calibrated)
+    return d
+
+
+def _export(capsys, model, vendor, out, *extra):
+    code, stdout, err = _cli(
+        capsys,
+        "export-urdf",
+        str(model),
+        "--like",
+        str(vendor),
+        "--out",
+        str(out),
+        *extra,
+    )
+    assert code == 0, err
+    return stdout
+
+
+def _fk_model(capsys, model, q_deg) -> dict:
+    code, out, err = _cli(
+        capsys, "fk", "--model", str(model), "--json", "--", *map(str, q_deg)
+    )
+    assert code == 0, err
+    return json.loads(out)["kinematic"]
+
+
+def _pin_fk(path: Path, frame: str, theta: np.ndarray) -> np.ndarray:
+    pin = pytest.importorskip("pinocchio", reason="pinocchio (pip install pin) absent")
+    model = pin.buildModelFromXML(path.read_text())
+    data = model.createData()
+    fid = model.getFrameId(frame, pin.FrameType.BODY)
+    out = np.empty((len(theta), 4, 4))
+    for k, th in enumerate(theta):
+        pin.framesForwardKinematics(model, data, th)
+        out[k] = data.oMf[fid].homogeneous
+    return out
+
+
+def _yourdfpy_fk(path: Path, frame: str, names, theta: np.ndarray) -> np.ndarray:
+    yourdfpy = pytest.importorskip("yourdfpy", reason="yourdfpy absent (optional)")
+    urdf = yourdfpy.URDF.load(str(path), load_meshes=False, build_scene_graph=True)
+    out = np.empty((len(theta), 4, 4))
+    for k, th in enumerate(theta):
+        urdf.update_cfg(dict(zip(names, th)))
+        out[k] = urdf.get_transform(frame, urdf.base_link)
+    return out
+
+
+def _poses(robot, n=6, seed=3):
+    lim = np.where(np.isfinite(robot.limits), robot.limits, [-np.pi, np.pi])
+    q = np.random.default_rng(seed).uniform(lim[:, 0], lim[:, 1], (n, robot.n_joints))
+    return q, q @ robot.coupling.T  # controller angles, URDF (kinematic) angles
+
+
+def _elements(path: Path) -> tuple[dict[str, str], dict[str, ET.Element]]:
+    root = ET.parse(path).getroot()
+    links = {
+        el.get("name", ""): ET.tostring(el, encoding="unicode")
+        for el in root.findall("link")
+    }
+    joints = {el.get("name", ""): el for el in root.findall("joint")}
+    return links, joints
+
+
+@pytest.mark.parametrize(
+    ("model", "vendor", "movable"),
+    [
+        ("lr_kinematic.yaml", ROSI, [f"joint_{i}" for i in range(1, 7)]),
+        ("lr_full.yaml", FANUC, [f"J{i}" for i in range(1, 7)]),
+        (
+            "ur.yaml",
+            UR10E,
+            ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint"]
+            + [f"wrist_{i}_joint" for i in (1, 2, 3)],
+        ),
+    ],
+)
+def test_issue_34_like_keeps_every_vendor_element_and_moves_only_origins(
+    capsys, models, tmp_path, model, vendor, movable
+):
+    out = tmp_path / "cal.urdf"
+    said = _export(capsys, models / model, vendor, out)
+    assert "origins moved by up to" in said
+    links0, joints0 = _elements(vendor)
+    links1, joints1 = _elements(out)
+    # Every link (meshes, collisions, inertials) identical; one link more, the tool.
+    assert set(links1) == set(links0) | {"calibrated_tool"}
+    for name, text in links0.items():
+        assert links1[name] == text, name
+    assert set(joints1) == set(joints0) | {"calibrated_tool_joint"}
+    for name, j0 in joints0.items():
+        j1 = joints1[name]
+        for tag in ("parent", "child", "axis", "limit", "dynamics", "mimic"):
+            a, b = j0.find(tag), j1.find(tag)
+            assert (a is None) == (b is None), (name, tag)
+            if a is not None and b is not None:
+                assert a.attrib == b.attrib, (name, tag)
+        assert j1.attrib == j0.attrib
+        if name not in movable:
+            assert j1.find("origin").attrib == j0.find("origin").attrib, name
+    # The origins moved by the calibration only: below 2 mm and 1 deg.
+    for name in movable:
+        o0, o1 = joints0[name].find("origin"), joints1[name].find("origin")
+        xyz0 = np.array(o0.get("xyz").split(), float)
+        xyz1 = np.array(o1.get("xyz").split(), float)
+        assert np.linalg.norm(xyz1 - xyz0) < 2e-3, name
+    m = re.search(r"up to ([0-9.]+) mm, ([0-9.]+) deg", said)
+    assert m is not None and 0 < float(m.group(1)) < 2 and 0 < float(m.group(2)) < 1
+    # Byte for byte outside the changed origins and the additions.
+    text0, text1 = vendor.read_text(), out.read_text()
+    strip = re.compile(r"<origin [^>]*/>")
+    body1 = re.sub(r"<!--\n  Kinematic part.*?-->\n", "", text1, flags=re.S)
+    body1 = body1.replace(
+        body1[
+            body1.index('  <link name="calibrated_tool"/>') : body1.rindex("</robot>")
+        ],
+        "",
+    )
+    assert strip.sub("", body1).replace(" ", "") == strip.sub("", text0).replace(
+        " ", ""
+    )
+
+
+@pytest.mark.parametrize(
+    ("model", "vendor", "root"),
+    [
+        ("lr_kinematic.yaml", ROSI, "base_link"),
+        ("lr_full.yaml", FANUC, "base_link"),
+        ("ur.yaml", UR10E, "world"),
+    ],
+)
+def test_issue_34_like_fk_equals_kinecal_fk_model_in_independent_libraries(
+    capsys, models, tmp_path, model, vendor, root
+):
+    """FK user -> calibrated_tool of the written file, in pinocchio, yourdfpy and the
+    suite's own evaluator, equals `kinecal fk --model` (kinematic part) within 1e-4 mm."""
+    out = tmp_path / "cal.urdf"
+    _export(capsys, models / model, vendor, out, "--user-link", "user")
+    from kinecal.io import load_model
+
+    robot = load_model(models / model).model.robot
+    q, theta = _poses(robot)
+    want = np.array(
+        [_fk_model(capsys, models / model, np.degrees(qk))["tool_mm"] for qk in q]
+    )
+    _, joints = _elements(out)
+    names = [
+        n for n, j in joints.items() if j.get("type") in ("revolute", "continuous")
+    ]
+    got = {
+        "reference": np.array(
+            [urdf_chain_fk(out, "user", "calibrated_tool", th)[:3, 3] for th in theta]
+        )
+    }
+    try:
+        got["pinocchio"] = _pin_fk(out, "calibrated_tool", theta)[:, :3, 3]
+    except pytest.skip.Exception:
+        pass
+    try:
+        got["yourdfpy"] = _yourdfpy_fk(out, "calibrated_tool", names, theta)[:, :3, 3]
+    except pytest.skip.Exception:
+        pass
+    assert {"pinocchio", "yourdfpy"} & set(got) or not _importable(
+        "pinocchio", "yourdfpy"
+    )
+    for lib, p in got.items():
+        assert np.abs(p * 1e3 - want).max() < 1e-4, lib
+    # The vendor's own links stay the vendor's: its flange (ROS-I, FANUC) or tool0 (UR)
+    # sits where the model puts the physical flange.
+    plain = tmp_path / "plain.urdf"
+    _export(capsys, models / model, vendor, plain)
+    flange = "tool0" if vendor == UR10E else "flange"
+    ref = np.array([urdf_chain_fk(plain, root, flange, th)[:3, 3] for th in theta])
+    fl = np.array(
+        [_fk_model(capsys, models / model, np.degrees(qk))["flange_mm"] for qk in q]
+    )
+    if vendor == UR10E:  # the DH base frame is base_link_inertia: Rz(pi) from world
+        fl = fl * [-1.0, -1.0, 1.0]
+    shift = ref * 1e3 - fl  # the robot base in the vendor root: a constant
+    assert np.ptp(shift, axis=0).max() < 1e-6
+    if vendor != UR10E:  # FANUC World = base_link 330 mm up
+        assert np.abs(shift - [0.0, 0.0, 330.0]).max() < 1e-6
+
+
+def test_issue_34_like_on_the_vendor_root_is_the_user_frame_moved(
+    capsys, models, tmp_path
+):
+    """Without --user-link the root stays the vendor's; FK root -> tool is the model's
+    tool pose seen from the calibrated robot base (the same for every pose)."""
+    a, b = tmp_path / "a.urdf", tmp_path / "b.urdf"
+    _export(capsys, models / "lr_kinematic.yaml", ROSI, a)
+    _export(capsys, models / "lr_kinematic.yaml", ROSI, b, "--user-link", "user")
+    _, theta = _poses(load_robot("fanuc-lrmate200id"))
+    T_root_user = np.linalg.inv(urdf_chain_fk(b, "user", "base_link", theta[0]))
+    for th in theta:
+        Ta = urdf_chain_fk(a, "base_link", "calibrated_tool", th)
+        Tb = urdf_chain_fk(b, "user", "calibrated_tool", th)
+        assert np.abs(Ta - T_root_user @ Tb).max() < 1e-12
+
+
+def test_issue_34_ur_calibration_yaml_drops_into_ur_description(
+    capsys, models, tmp_path
+):
+    """The six origins of kinematics.yaml, put into the ur_description chain, give the
+    calibrated forward kinematics (the --like export's, which equals the model)."""
+    from kinecal import _yaml as yaml
+
+    kin = tmp_path / "kinematics.yaml"
+    code, _, err = _cli(
+        capsys,
+        "export-urdf",
+        str(models / "ur.yaml"),
+        "--format",
+        "ur-calibration",
+        "--out",
+        str(kin),
+    )
+    assert code == 0, err
+    doc = yaml.load(kin.read_text())["kinematics"]
+    assert re.fullmatch(r"calib_\d+", doc["hash"])
+    parts = ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")
+    assert set(doc) == {*parts, "hash"}
+    text = UR10E.read_text()
+    for part, jn in zip(
+        parts,
+        (
+            "shoulder_pan_joint",
+            "shoulder_lift_joint",
+            "elbow_joint",
+            "wrist_1_joint",
+            "wrist_2_joint",
+            "wrist_3_joint",
+        ),
+    ):
+        v = doc[part]
+        xyz = " ".join(repr(v[k]) for k in ("x", "y", "z"))
+        rpy = " ".join(repr(v[k]) for k in ("roll", "pitch", "yaw"))
+        new = f'<origin xyz="{xyz}" rpy="{rpy}"/>'
+        text = re.sub(
+            rf'(<joint name="{jn}".*?)<origin [^>]*/>',
+            lambda m, new=new: m.group(1) + new,
+            text,
+            count=1,
+            flags=re.S,
+        )
+    sub = tmp_path / "ur_with_yaml.urdf"
+    sub.write_text(text)
+    like = tmp_path / "like.urdf"
+    _export(capsys, models / "ur.yaml", UR10E, like)
+    _, theta = _poses(load_robot("ur10e"))
+    for th in theta:
+        A = urdf_chain_fk(sub, "world", "tool0", th)
+        B = urdf_chain_fk(like, "world", "tool0", th)
+        # 1e-10: the fixture's 1.570796327 for pi/2 against the exact DH template
+        assert np.abs(A - B).max() < 1e-9
+    code, _, err = _cli(
+        capsys,
+        "export-urdf",
+        str(models / "lr_kinematic.yaml"),
+        "--format",
+        "ur-calibration",
+        "--out",
+        str(tmp_path / "x.yaml"),
+    )
+    assert code != 0 and "not a Universal Robots arm" in err
+
+
+def test_issue_34_like_refuses_a_vendor_file_that_does_not_fit(
+    capsys, models, tmp_path
+):
+    out = tmp_path / "cal.urdf"
+    code, _, err = _cli(
+        capsys,
+        "export-urdf",
+        str(models / "lr_kinematic.yaml"),
+        "--like",
+        str(LR7L),
+        "--out",
+        str(out),
+    )
+    assert (
+        code != 0
+        and "from the nominal axes of fanuc-lrmate200id" in err
+        and "Traceback" not in err
+    )
+    code, _, err = _cli(
+        capsys,
+        "export-urdf",
+        str(models / "ur.yaml"),
+        "--like",
+        str(ROSI),
+        "--out",
+        str(out),
+    )
+    assert code != 0 and "ur10e" in err and "Traceback" not in err
+    bad = tmp_path / "bad.urdf"
+    for text, words in (
+        ("<robot name='x'><link name='a'/>", "cannot read URDF"),
+        ("<xacro:macro name='x'/>", "cannot read URDF"),
+        (
+            '<robot xmlns:xacro="http://www.ros.org/wiki/xacro">'
+            '<xacro:property name="a" value="1"/></robot>',
+            "xacro",
+        ),
+        (
+            "<robot name='x'><link name='a'/><link name='b'/><joint name='j' "
+            "type='revolute'><parent link='a'/><child link='b'/></joint></robot>",
+            "has 1 movable joints",
+        ),
+    ):
+        bad.write_text(text)
+        code, _, err = _cli(
+            capsys,
+            "export-urdf",
+            str(models / "lr_kinematic.yaml"),
+            "--like",
+            str(bad),
+            "--out",
+            str(out),
+        )
+        assert code != 0 and words in err and "Traceback" not in err, (text, err)
+    code, _, err = _cli(
+        capsys,
+        "export-urdf",
+        str(models / "lr_kinematic.yaml"),
+        "--like",
+        str(ROSI),
+        "--out",
+        str(out),
+        "--tool-link",
+        "tool0",
+    )
+    assert code != 0 and "already has a link 'tool0'" in err
+    assert not out.exists()
+
+
+def _importable(*names: str) -> bool:
+    import importlib.util
+
+    return any(importlib.util.find_spec(n) is not None for n in names)
