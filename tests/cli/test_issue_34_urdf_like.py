@@ -20,7 +20,7 @@ import pytest
 
 from kinecal.identification import calibrate
 from kinecal.io import read_measurements, save_model
-from kinecal.robot import load_robot
+from kinecal.robot import load_robot, robot_from_urdf
 from kinecal.simulation import LaserTracker, experiment2
 from tests.urdf_reference import urdf_chain_fk
 
@@ -52,6 +52,9 @@ def models(tmp_path_factory):
     ur = load_robot("ur10e")
     m = read_measurements(DATA / "real" / "ur10_mocap.csv", ur)
     save_model(d / "ur.yaml", calibrate(ur, m, "kinematic").calibrated)
+    imported = robot_from_urdf(UR10E, base="world", tip="tool0")
+    m = read_measurements(DATA / "real" / "ur10_mocap.csv", imported)
+    save_model(d / "ur_imported.yaml", calibrate(imported, m, "kinematic").calibrated)
     return d
 
 
@@ -392,3 +395,25 @@ def _importable(*names: str) -> bool:
     import importlib.util
 
     return any(importlib.util.find_spec(n) is not None for n in names)
+
+
+def test_issue_34_like_of_an_imported_robot_puts_the_tip_on_the_model_flange(
+    capsys, models, tmp_path
+):
+    """The robot imported from the vendor's URDF (import-urdf, world -> tool0): FK from
+    the vendor's root to its tip link equals `kinecal fk --model`'s kinematic
+    flange_mm and wpr (DESIGN: third wave), the tool hangs below the tip."""
+    out = tmp_path / "cal.urdf"
+    said = _export(capsys, models / "ur_imported.yaml", UR10E, out)
+    assert "tip 'tool0'" in said
+    _, joints = _elements(out)
+    assert joints["calibrated_tool_joint"].find("parent").get("link") == "tool0"
+    from kinecal.geometry import matrix_to_wpr
+
+    q, theta = _poses(robot_from_urdf(UR10E, base="world", tip="tool0"))
+    for qk, th in zip(q, theta):
+        want = _fk_model(capsys, models / "ur_imported.yaml", np.degrees(qk))
+        T = urdf_chain_fk(out, "world", "tool0", th)
+        assert np.abs(T[:3, 3] * 1e3 - want["flange_mm"]).max() < 1e-4
+        wpr = np.degrees(matrix_to_wpr(T[:3, :3]))
+        assert np.abs((wpr - want["wpr_deg"] + 180) % 360 - 180).max() < 1e-6

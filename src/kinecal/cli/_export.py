@@ -59,8 +59,8 @@ from kinecal.cli._common import targets_option
     "--tool-link",
     default="calibrated_tool",
     show_default=True,
-    help="--like: name of the calibrated tool link (fixed child of the last moving "
-    "link; <name>_<marker> per marker when the model has several).",
+    help="--like: name of the calibrated tool link (fixed child of the vendor's tip "
+    "link, the end of the chain; <name>_<marker> per marker when the model has several).",
 )
 @click.option(
     "--user-link",
@@ -206,8 +206,9 @@ def export_urdf(
         click.echo(
             f"{robot.name}: wrote {out_path} (copy of {like}: joints "
             f"{', '.join(res.joints)}; origins moved by up to {res.moved_mm:.3f} mm, "
-            f"{res.turned_deg:.4f} deg; root {res.root!r}, tool "
-            f"{', '.join(repr(t) for t in res.tips.values())}; FK equals the model to "
+            f"{res.turned_deg:.4f} deg; root {res.root!r}, tip {res.tip!r}, tool "
+            f"{', '.join(repr(t) for t in res.tips.values())} below it; FK equals the "
+            "model to "
             f"{res.check_m * 1e3:.1e} mm)"
         )
         return

@@ -52,6 +52,8 @@ class LikeExport:
     ----------
     text : the URDF document.
     root, tips : root link; marker label -> calibrated tool link.
+    tip : the vendor's tip link (the end of the unbranched chain below the last moving
+        link), parent of the tool links.
     joints : vendor names of the movable joints, in chain order.
     moved_mm, turned_deg : largest change of a joint origin's position and rotation.
     line_residual_mm : how far the vendor's nominal axes are from the model's nominal ones.
@@ -62,6 +64,7 @@ class LikeExport:
     text: str
     root: str
     tips: dict[str, str]
+    tip: str
     joints: tuple[str, ...]
     moved_mm: float
     turned_deg: float
@@ -196,7 +199,7 @@ def like_urdf(
     cal : CalibratedModel.
     vendor : the vendor's URDF (untrusted: every problem is a :class:`ConfigError`).
     set_label : the set whose user frame ``user_link`` is.
-    tool_link : name of the calibrated tool link (a fixed child of the last moving link);
+    tool_link : name of the calibrated tool link (a fixed child of the tip link);
         ``<tool_link>_<marker>`` per marker when the model has several.
     user_link : when given, a new root link of this name, the measurement frame of the
         set, so that FK user_link -> tool_link is the model's tool pose.
@@ -350,7 +353,17 @@ def like_urdf(
     for k in movable:
         raw = _set_origin(raw, path[k].get("name", ""), new[k], src)
     # The calibrated tool frame(s) and the user frame.
-    last = path[movable[-1]].find("child").get("link", "")  # type: ignore[union-attr]
+    # The tip: down from the last moving link while the chain does not branch.
+    tip = path[movable[-1]].find("child").get("link", "")  # type: ignore[union-attr]
+    _, by_child, children = _tree(root_el, src)
+    T_last_tip = np.eye(4)
+    while len(children.get(tip, [])) == 1:
+        child = children[tip][0]
+        j = by_child[child]
+        if _moves(j):  # pragma: no cover - _vendor_path stops at the last movable
+            break
+        T_last_tip = T_last_tip @ _origin(j, f"{src}: joint {j.get('name')!r} origin")
+        tip = child
     q0 = np.zeros((1, n))
     tips: dict[str, str] = {}
     extra: list[str] = []
@@ -359,8 +372,8 @@ def like_urdf(
         name = tool_link if len(markers) == 1 else f"{tool_link}_{label or 'default'}"
         name = "".join(ch if ch.isalnum() or ch in "_-" else "_" for ch in name)
         T_user_cam = ch_cal.fk(q0, ch_cal.tips[label])[0]
-        O = np.linalg.inv(U_cal[-1]) @ T_root_user @ T_user_cam
-        extra += _fixed_xml(name, last, name, O)
+        O = np.linalg.inv(U_cal[-1] @ T_last_tip) @ T_root_user @ T_user_cam
+        extra += _fixed_xml(name, tip, name, O)
         tips[label] = name
     top = root
     if user_link is not None:
@@ -379,6 +392,7 @@ def like_urdf(
         text,
         top,
         tips,
+        tip,
         names,
         moved * 1e3,
         float(np.degrees(turned)),
