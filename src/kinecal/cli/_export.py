@@ -197,6 +197,7 @@ def export_urdf(
             tool_link=tool_link,
             user_link=user_link,
             comments=notes,
+            tip_note=True,
         )
         if res.check_m > 1e-9:  # pragma: no cover - a defect, not a user error
             raise RuntimeError(
@@ -218,6 +219,9 @@ def export_urdf(
             notes.append(_coupling_note(robot))
         else:
             notes.append("Joints j1..jN take the controller angles (radians / metres).")
+        notes.append(
+            "kinecal tip link: flange (the robot's flange, for import-urdf and --robot)."
+        )
         notes.append(
             "Joint limits are the controller's (for a coupled joint in kinematic angles: "
             "the widest range they allow); effort and velocity are placeholders (0)."

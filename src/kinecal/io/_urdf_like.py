@@ -191,6 +191,7 @@ def like_urdf(
     user_link: str | None = None,
     comments: list[str] | None = None,
     text: str | None = None,
+    tip_note: bool = False,
 ) -> LikeExport:
     """The vendor's URDF with the calibrated joint origins (module docstring).
 
@@ -205,6 +206,8 @@ def like_urdf(
         set, so that FK user_link -> tool_link is the model's tool pose.
     comments : lines of a comment put before the ``<robot>`` element.
     text : the document itself (``vendor`` then only names it in messages).
+    tip_note : add the line ``kinecal tip link: <tip>`` to the comment (read by
+        :func:`kinecal.robot.robot_from_urdf`).
     """
     from kinecal.compensation import export_chain
 
@@ -383,6 +386,11 @@ def like_urdf(
     if end < 0:
         raise ConfigError(f"{src}: no closing </robot> tag.")
     text = raw[:end] + "".join(extra) + raw[end:]
+    if tip_note:
+        comments = [
+            *(comments or []),
+            f"kinecal tip link: {tip} (the robot's flange, for import-urdf and --robot).",
+        ]
     if comments:
         text = _with_comment(text, comments)
     # Read back: FK of the written file against the model's kinematic part.
