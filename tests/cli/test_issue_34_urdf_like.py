@@ -417,3 +417,36 @@ def test_issue_34_like_of_an_imported_robot_puts_the_tip_on_the_model_flange(
         assert np.abs(T[:3, 3] * 1e3 - want["flange_mm"]).max() < 1e-4
         wpr = np.degrees(matrix_to_wpr(T[:3, :3]))
         assert np.abs((wpr - want["wpr_deg"] + 180) % 360 - 180).max() < 1e-6
+
+
+def test_issue_34_plain_export_has_one_link_set_per_robot(models):
+    """Two calibrations of one robot, J2's zero 8 deg apart (the LR Mate's J2 origin sits
+    at the roll-pitch-yaw lock nominally; 8 deg off it, the values alone would not split
+    it): the same links, and each file reproduces its own chain."""
+    from dataclasses import replace
+
+    from kinecal.compensation import export_chain
+    from kinecal.io import load_model, urdf_text
+    from kinecal.io._urdf_export import stable_splits
+
+    cal = load_model(models / "lr_kinematic.yaml")
+    lay = cal.model.layout
+    x = cal.params.copy()
+    x[lay.index("joint2.theta_offset")] += np.radians(8.0)
+    other = replace(cal, params=x)
+    q, theta = _poses(cal.model.robot, 4)
+    link_sets = []
+    for c in (cal, other):
+        chain = export_chain(c)
+        text = urdf_text(chain, name="r", comments=[], split=stable_splits(c))
+        root = ET.fromstring(text)
+        link_sets.append(sorted(el.get("name") for el in root.findall("link")))
+        f = Path(models / "plain_check.urdf")
+        f.write_text(text)
+        for qk, th in zip(q, theta):
+            want = chain.fk(qk[None], "tool")[0]
+            np.testing.assert_allclose(
+                urdf_chain_fk(f, "user", "tool", th), want, atol=1e-12
+            )
+    assert link_sets[0] == link_sets[1]
+    assert "j2_pre" in link_sets[0]

@@ -229,7 +229,12 @@ def export_urdf(
         err = check_chain(cal, chain, set_label, rng_q)
         if err > 1e-9:  # pragma: no cover - a defect, not a user error
             raise RuntimeError(f"export-urdf: the chain misses the model by {err:.2e}.")
-        text = urdf_text(chain, name=f"{robot.name}_calibrated", comments=notes)
+        from kinecal.io._urdf_export import stable_splits
+
+        split = stable_splits(cal, set_label=set_label, coupling=coupling)
+        text = urdf_text(
+            chain, name=f"{robot.name}_calibrated", comments=notes, split=split
+        )
     else:
         desc, T_user_base = dh_description(cal, set_label=set_label, marker=marker)
         from kinecal.geometry import transform_to_euler

@@ -3,9 +3,10 @@
 URDF joint origins are ``xyz`` and fixed-axis ``rpy`` (``R = Rz(yaw) Ry(pitch) Rx(roll)``).
 Roll-pitch-yaw lose precision next to ``pitch = +-90 deg`` (roll and yaw become one
 angle; a DH row with ``alpha = -90`` followed by ``theta_offset = -90``, the LR Mate's J2,
-sits exactly there), so an origin closer than ~6 deg to it is written as two: a fixed
-joint ``<name>_pre`` turning 90 deg about x into a link ``<name>_pre_link``, then the joint
-itself. Numbers are written with 17 significant digits, so the file reproduces the chain
+sits exactly there), so such an origin is written as two: a fixed joint ``<name>_pre``
+turning 90 deg about x into a link ``<name>_pre``, then the joint itself. Which joints are
+split is decided on the nominal robot (``stable_splits``): every calibration of one robot
+has the same links. Numbers are written with 17 significant digits, so the file reproduces the chain
 to rounding (1e-15 m).
 """
 
@@ -22,9 +23,10 @@ from kinecal.geometry import matrix_to_rpy, rot_x, transform_to_euler
 from kinecal.robot import RobotDescription, dump_robot
 from kinecal.typing import Pose
 
-__all__ = ["robot_yaml_text", "urdf_text"]
+__all__ = ["robot_yaml_text", "stable_splits", "urdf_text"]
 
 _NEAR_LOCK = 0.995  # |sin(pitch)| above which an origin is split in two
+_SPLIT_NOMINAL = 0.9  # the same, on the nominal robot (stable_splits)
 _Q_PRE = np.eye(4)
 _Q_PRE[:3, :3] = rot_x(np.pi / 2)
 
@@ -73,7 +75,35 @@ def _joint_xml(e: Element, parent: str, origin: Pose) -> list[str]:
     return out
 
 
-def urdf_text(chain: ExportedChain, *, name: str, comments: list[str]) -> str:
+def stable_splits(cal, *, set_label: str | None = None, coupling: str = "kinematic"):
+    """Names of the robot's joints whose origin :func:`urdf_text` writes as two (a
+    ``<name>_pre`` link), decided on the nominal robot, so that every calibration of one
+    robot has the same links (a calibrated origin is within a few degrees of the nominal
+    one; the measurement and tool frames are never split)."""
+    import numpy as np
+
+    from kinecal.compensation import export_chain
+
+    model = cal.model
+    nominal = type(cal)(
+        model, model.nominal.copy(), np.full(model.size, np.nan), ["fixed"] * model.size
+    )
+    chain = export_chain(nominal, set_label=set_label, coupling=coupling)
+    frames = ("base_joint", "user_", "tool")
+    return frozenset(
+        e.name
+        for e in chain.elements
+        if not e.name.startswith(frames) and abs(e.origin[2, 0]) > _SPLIT_NOMINAL
+    )
+
+
+def urdf_text(
+    chain: ExportedChain,
+    *,
+    name: str,
+    comments: list[str],
+    split: frozenset[str] | None = None,
+) -> str:
     """The URDF document of an exported chain.
 
     Parameters
@@ -81,12 +111,15 @@ def urdf_text(chain: ExportedChain, *, name: str, comments: list[str]) -> str:
     chain : ExportedChain (see :func:`kinecal.compensation.export_chain`).
     name : robot name.
     comments : lines of the comment block at the top (units, what is left out).
+    split : the elements written as two (:func:`stable_splits`); default: those whose
+        origin is within ~6 deg of the roll-pitch-yaw lock (depends on the values).
     """
     links = [chain.root]
     joints: list[str] = []
     for e in chain.elements:
         parent, origin = e.parent, e.origin
-        if abs(origin[2, 0]) > _NEAR_LOCK:
+        near = abs(origin[2, 0]) > _NEAR_LOCK
+        if near if split is None else e.name in split:
             pre = f"{e.name}_pre"
             joints += _joint_xml(
                 Element(pre, "fixed", parent, pre, _Q_PRE), parent, _Q_PRE
