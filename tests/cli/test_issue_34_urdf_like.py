@@ -450,3 +450,46 @@ def test_issue_34_plain_export_has_one_link_set_per_robot(models):
             )
     assert link_sets[0] == link_sets[1]
     assert "j2_pre" in link_sets[0]
+
+
+def test_issue_34_plain_export_carries_velocities_never_zero(capsys, models, tmp_path):
+    """Velocities come from the robot file (the LR Mate's from the ROS-I URDF; J3 in
+    kinematic angles moves at J2's + J3's); import-urdf reads velocity and effort and the
+    robot YAML keeps them; no <limit> says 0."""
+    from kinecal import _yaml as yaml
+    from kinecal.robot import dump_robot, robot_from_dict
+
+    for extra in ((), ("--coupling", "mimic")):
+        out = tmp_path / "plain.urdf"
+        code, _, err = _cli(
+            capsys,
+            "export-urdf",
+            str(models / "lr_kinematic.yaml"),
+            "--out",
+            str(out),
+            "--force",
+            *extra,
+        )
+        assert code == 0, err
+        lims = {
+            j.get("name"): j.find("limit").attrib
+            for j in ET.parse(out).getroot().findall("joint")
+            if j.find("limit") is not None
+        }
+        assert all(
+            float(a["velocity"]) > 0 and float(a["effort"]) > 0 for a in lims.values()
+        )
+        v = {k: np.degrees(float(a["velocity"])) for k, a in lims.items()}
+        assert v["j1"] == pytest.approx(450) and v["j6"] == pytest.approx(1000)
+        assert v["j3"] == pytest.approx(380 + 520 if not extra else 520)
+    r = robot_from_urdf(UR10E)
+    assert r.joints[0].velocity == pytest.approx(2.0944) and r.joints[3].effort == 56
+    again = robot_from_dict(yaml.load(yaml.dump(dump_robot(r))), source="<t>")
+    assert [j.velocity for j in again.joints] == pytest.approx(
+        [j.velocity for j in r.joints]
+    )
+    assert [j.effort for j in again.joints] == [j.effort for j in r.joints]
+    bad = dump_robot(r)
+    bad["joints"][0]["velocity"] = 0
+    with pytest.raises(Exception, match=r"joints\[0\]\.velocity|velocity.*positive"):
+        robot_from_dict(bad, source="<t>")

@@ -222,18 +222,36 @@ def export_urdf(
         notes.append(
             "kinecal tip link: flange (the robot's flange, for import-urdf and --robot)."
         )
+        known = [j.velocity is not None for j in robot.joints]
         notes.append(
             "Joint limits are the controller's (for a coupled joint in kinematic angles: "
-            "the widest range they allow); effort and velocity are placeholders (0)."
+            "the widest range they allow); velocity "
+            + (
+                "from the robot file"
+                if all(known)
+                else "1 rad/s (m/s), a placeholder: the robot file states none"
+                if not any(known)
+                else "from the robot file where it states one, else 1 rad/s (m/s)"
+            )
+            + "; effort "
+            + (
+                "from the robot file."
+                if all(j.effort is not None for j in robot.joints)
+                else "1000 N m (N) where the robot file states none (a placeholder)."
+            )
         )
         err = check_chain(cal, chain, set_label, rng_q)
         if err > 1e-9:  # pragma: no cover - a defect, not a user error
             raise RuntimeError(f"export-urdf: the chain misses the model by {err:.2e}.")
-        from kinecal.io._urdf_export import stable_splits
+        from kinecal.io._urdf_export import joint_rates, stable_splits
 
         split = stable_splits(cal, set_label=set_label, coupling=coupling)
         text = urdf_text(
-            chain, name=f"{robot.name}_calibrated", comments=notes, split=split
+            chain,
+            name=f"{robot.name}_calibrated",
+            comments=notes,
+            split=split,
+            rates=joint_rates(robot, chain),
         )
     else:
         desc, T_user_base = dh_description(cal, set_label=set_label, marker=marker)

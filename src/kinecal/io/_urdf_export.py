@@ -23,7 +23,7 @@ from kinecal.geometry import matrix_to_rpy, rot_x, transform_to_euler
 from kinecal.robot import RobotDescription, dump_robot
 from kinecal.typing import Pose
 
-__all__ = ["robot_yaml_text", "stable_splits", "urdf_text"]
+__all__ = ["joint_rates", "robot_yaml_text", "stable_splits", "urdf_text"]
 
 _NEAR_LOCK = 0.995  # |sin(pitch)| above which an origin is split in two
 _SPLIT_NOMINAL = 0.9  # the same, on the nominal robot (stable_splits)
@@ -47,7 +47,15 @@ def _comment(lines: list[str]) -> str:
     return f"<!--\n{body}\n-->"
 
 
-def _joint_xml(e: Element, parent: str, origin: Pose) -> list[str]:
+_PLACEHOLDER = (1.0, 1000.0)  # velocity [rad/s, m/s], effort [N m, N]: not the robot's
+
+
+def _joint_xml(
+    e: Element,
+    parent: str,
+    origin: Pose,
+    rates: tuple[float | None, float | None] = (None, None),
+) -> list[str]:
     kind = e.kind
     lim = e.limits
     finite = lim is not None and bool(np.all(np.isfinite(lim)))
@@ -61,9 +69,11 @@ def _joint_xml(e: Element, parent: str, origin: Pose) -> list[str]:
         out.append(f'    <axis xyz="{" ".join(_num(v) for v in e.axis)}"/>')
         if kind != "continuous":
             lo, hi = lim if finite and lim is not None else (-1e3, 1e3)  # m: no limit
+            vel = rates[0] if rates[0] is not None else _PLACEHOLDER[0]
+            eff = rates[1] if rates[1] is not None else _PLACEHOLDER[1]
             out.append(
-                f'    <limit lower="{_num(lo)}" upper="{_num(hi)}" effort="0" '
-                'velocity="0"/>'
+                f'    <limit lower="{_num(lo)}" upper="{_num(hi)}" effort="{_num(eff)}" '
+                f'velocity="{_num(vel)}"/>'
             )
         if e.mimic is not None:
             j, mult, off = e.mimic
@@ -103,6 +113,7 @@ def urdf_text(
     name: str,
     comments: list[str],
     split: frozenset[str] | None = None,
+    rates: dict[str, tuple[float | None, float | None]] | None = None,
 ) -> str:
     """The URDF document of an exported chain.
 
@@ -113,6 +124,9 @@ def urdf_text(
     comments : lines of the comment block at the top (units, what is left out).
     split : the elements written as two (:func:`stable_splits`); default: those whose
         origin is within ~6 deg of the roll-pitch-yaw lock (depends on the values).
+    rates : joint name -> (velocity, effort) of its ``<limit>``; where unknown (None or
+        not listed) the placeholders 1 rad/s (m/s) and 1000 N m (N), never 0 (which
+        MoveIt and Gazebo read as a frozen joint).
     """
     links = [chain.root]
     joints: list[str] = []
@@ -126,7 +140,7 @@ def urdf_text(
             )
             links.append(pre)
             parent, origin = pre, np.linalg.inv(_Q_PRE) @ origin
-        joints += _joint_xml(e, parent, origin)
+        joints += _joint_xml(e, parent, origin, (rates or {}).get(e.name, (None, None)))
         links.append(e.child)
     out = ['<?xml version="1.0"?>', _comment(comments)]
     out.append(f"<robot name={quoteattr(name)}>")
@@ -160,3 +174,29 @@ def robot_yaml_text(robot: RobotDescription, *, comments: list[str]) -> str:
     doc["tool"] = _frame_dict_full(robot.T_flange_tool)
     head = "".join(f"# {ln}".rstrip() + "\n" for ln in comments)
     return head + yaml.dump(doc, sort_keys=False, width=100)
+
+
+def joint_rates(robot: RobotDescription, chain: ExportedChain):
+    """(velocity, effort) per movable element of an exported chain, from the robot's
+    joints: a joint in kinematic angles ``theta_i = sum_k C_ik q_k`` moves at most at
+    ``sum_k |C_ik| v_k``; a mimic element at ``|multiplier|`` times its joint's."""
+    import numpy as np
+
+    v = [j.velocity for j in robot.joints]
+    f = [j.effort for j in robot.joints]
+    C = robot.coupling
+    out: dict[str, tuple[float | None, float | None]] = {}
+    for i, name in enumerate(chain.joints):
+        if chain.coupling == "kinematic":
+            ks = np.flatnonzero(C[i])
+            known = all(v[k] is not None for k in ks)
+            vel = float(sum(abs(C[i, k]) * v[k] for k in ks)) if known else None
+        else:
+            vel = v[i]
+        out[name] = (vel, f[i])
+    for e in chain.elements:
+        if e.mimic is not None:
+            k = chain.joints.index(e.mimic[0])
+            vk = v[k]
+            out[e.name] = (abs(e.mimic[1]) * vk if vk is not None else None, f[k])
+    return out

@@ -219,6 +219,19 @@ def _limits(lim: ET.Element, where: str) -> tuple[float, float]:
     return lo, hi
 
 
+def _rates(lim: ET.Element | None) -> tuple[float | None, float | None]:
+    """Velocity and effort of a ``<limit>`` (None where absent, not positive, or not a
+    number: ROS-Industrial writes effort 0 for unknown)."""
+    out: list[float | None] = []
+    for key in ("velocity", "effort"):
+        try:
+            v = float(lim.get(key, "nan")) if lim is not None else np.nan
+        except ValueError:
+            v = np.nan
+        out.append(v if np.isfinite(v) and v > 0 else None)
+    return out[0], out[1]
+
+
 def _on_z(p: np.ndarray, u: np.ndarray) -> bool:
     """Whether the line through ``p`` along ``u`` is the z axis (same direction)."""
     return bool(
@@ -355,6 +368,7 @@ def robot_from_urdf(
     lines: list[tuple[np.ndarray, np.ndarray]] = []
     specs: list[tuple[str, str, tuple[float, float]]] = []
     mimics: dict[int, tuple[str, float, float]] = {}
+    rates: dict[str, tuple[float | None, float | None]] = {}
     fixed_above: list[tuple[str, np.ndarray]] = []
     for j in chain:
         jn = j.get("name", "?")
@@ -387,6 +401,7 @@ def robot_from_urdf(
         lo, hi = -np.inf, np.inf
         if kind != "continuous" and lim is not None:
             lo, hi = _limits(lim, f"{src}: joint {jn!r} limit")
+        rates[jn] = _rates(lim)
         lines.append((T[:3, 3].copy(), T[:3, :3] @ axis))
         specs.append((jn, "prismatic" if kind == "prismatic" else "revolute", (lo, hi)))
     if not lines:
@@ -464,7 +479,7 @@ def robot_from_urdf(
         jname, jkind, jlim = specs[i]
         if jkind == "revolute":
             theta += offsets[i]
-        joints.append(JointSpec(jname, theta, d, a, alpha, jkind, jlim))
+        joints.append(JointSpec(jname, theta, d, a, alpha, jkind, jlim, *rates[jname]))
         z_prev, x_prev, o_prev = z, x, o
     F_n = np.eye(4)
     F_n[:3, :3] = np.column_stack([x_prev, np.cross(z_prev, x_prev), z_prev])
