@@ -493,3 +493,54 @@ def test_issue_34_plain_export_carries_velocities_never_zero(capsys, models, tmp
     bad["joints"][0]["velocity"] = 0
     with pytest.raises(Exception, match=r"joints\[0\]\.velocity|velocity.*positive"):
         robot_from_dict(bad, source="<t>")
+
+
+def test_issue_34_names_robot_uses_the_robots_joint_names(capsys, models, tmp_path):
+    """--names robot: an imported robot's joint names (ur_description's), links
+    base_link .. tool0, root base_link; the frames those of the kinecal-named file."""
+    plain, named = tmp_path / "plain.urdf", tmp_path / "named.urdf"
+    model = models / "ur_imported.yaml"
+    for out, extra in ((plain, ()), (named, ("--names", "robot"))):
+        code, _, err = _cli(
+            capsys, "export-urdf", str(model), "--out", str(out), *extra
+        )
+        assert code == 0, err
+    links, joints = _elements(named)
+    want = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint"]
+    want += [f"wrist_{i}_joint" for i in (1, 2, 3)]
+    movable = [n for n, j in joints.items() if j.get("type") != "fixed"]
+    assert movable == want
+    assert {"base_link", "user", "flange", "tool0"} <= set(links)
+    assert {f"link_{i}" for i in range(1, 7)} <= set(links)
+    _, theta = _poses(robot_from_urdf(UR10E, base="world", tip="tool0"), 4)
+    for th in theta:
+        A = urdf_chain_fk(named, "base_link", "tool0", th)
+        B = urdf_chain_fk(plain, "base", "tool", th)
+        np.testing.assert_allclose(A, B, atol=1e-12)
+        U = urdf_chain_fk(named, "base_link", "user", th)
+        np.testing.assert_allclose(
+            U @ urdf_chain_fk(plain, "user", "tool", th), A, atol=1e-12
+        )
+    try:
+        T = _pin_fk(named, "tool0", theta)
+        for th, Tk in zip(theta, T):
+            np.testing.assert_allclose(
+                Tk, urdf_chain_fk(named, "base_link", "tool0", th), atol=1e-12
+            )
+    except pytest.skip.Exception:
+        pass
+    # read back as --robot: base_link and flange recognised, the joint names kept
+    r = robot_from_urdf(named)
+    assert [j.name for j in r.joints] == want and "base_link -> flange" in r.source
+    code, _, err = _cli(
+        capsys,
+        "export-urdf",
+        str(model),
+        "--out",
+        str(tmp_path / "x"),
+        "--names",
+        "robot",
+        "--format",
+        "yaml-dh",
+    )
+    assert code != 0 and "--names" in err

@@ -48,6 +48,16 @@ from kinecal.cli._common import targets_option
     "1000 random poses inside the joint limits).",
 )
 @click.option(
+    "--names",
+    type=click.Choice(("kinecal", "robot")),
+    default="kinecal",
+    show_default=True,
+    help="urdf without --like: kinecal: root 'user', joints j1..jN, links link1..N, "
+    "flange, tool. robot: the robot's own joint names (those of an imported URDF), links "
+    "base_link (the root), link_1..link_N, flange, tool0, the measurement frame 'user' "
+    "a fixed child of base_link.",
+)
+@click.option(
     "--like",
     "like",
     type=click.Path(dir_okay=False),
@@ -80,6 +90,7 @@ def export_urdf(
     coupling: str,
     data: str | None,
     targets: str | None,
+    names: str,
     like: str | None,
     tool_link: str,
     user_link: str | None,
@@ -107,6 +118,11 @@ def export_urdf(
 
     if Path(out_path).exists() and not force:  # refuse before the work, not after it
         raise FileExistsError(f"{out_path}: exists; use --force to overwrite it.")
+    if names != "kinecal" and (fmt != "urdf" or like is not None):
+        raise click.UsageError(
+            "--names chooses the names of the plain URDF export; --like keeps the "
+            "vendor's names, --format yaml-dh and ur-calibration have none to choose"
+        )
     if marker is not None and fmt != "yaml-dh":
         raise click.UsageError(
             "--marker chooses the tool of --format yaml-dh; a URDF holds every marker "
@@ -243,9 +259,34 @@ def export_urdf(
         err = check_chain(cal, chain, set_label, rng_q)
         if err > 1e-9:  # pragma: no cover - a defect, not a user error
             raise RuntimeError(f"export-urdf: the chain misses the model by {err:.2e}.")
-        from kinecal.io._urdf_export import joint_rates, stable_splits
+        from kinecal.io._urdf_export import (
+            joint_rates,
+            robot_named_chain,
+            stable_splits,
+        )
 
         split = stable_splits(cal, set_label=set_label, coupling=coupling)
+        if names == "robot":
+            import numpy as np
+
+            named, renamed = robot_named_chain(robot, chain)
+            split = frozenset(renamed.get(s, s) for s in split)
+            Tb = np.linalg.inv(chain.T_user_base)
+            for label, tip in chain.tips.items():
+                d = named.fk(rng_q, named.tips[label]) - Tb @ chain.fk(rng_q, tip)
+                if np.abs(d).max() > 1e-9:  # pragma: no cover - a defect
+                    raise RuntimeError(
+                        "export-urdf --names robot: renaming moved a frame."
+                    )
+            chain = named
+            notes = [
+                n.replace("Joints j1..jN", "The joints").replace("j1..jN", "the joints")
+                for n in notes
+            ]
+            notes.append(
+                "Root base_link = the calibrated robot base; the measurement frame is the "
+                "fixed child link 'user'."
+            )
         text = urdf_text(
             chain,
             name=f"{robot.name}_calibrated",

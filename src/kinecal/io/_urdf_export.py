@@ -23,7 +23,13 @@ from kinecal.geometry import matrix_to_rpy, rot_x, transform_to_euler
 from kinecal.robot import RobotDescription, dump_robot
 from kinecal.typing import Pose
 
-__all__ = ["joint_rates", "robot_yaml_text", "stable_splits", "urdf_text"]
+__all__ = [
+    "joint_rates",
+    "robot_named_chain",
+    "robot_yaml_text",
+    "stable_splits",
+    "urdf_text",
+]
 
 _NEAR_LOCK = 0.995  # |sin(pitch)| above which an origin is split in two
 _SPLIT_NOMINAL = 0.9  # the same, on the nominal robot (stable_splits)
@@ -200,3 +206,72 @@ def joint_rates(robot: RobotDescription, chain: ExportedChain):
             vk = v[k]
             out[e.name] = (abs(e.mimic[1]) * vk if vk is not None else None, f[k])
     return out
+
+
+def _clean(name: str) -> str:
+    return "".join(ch if ch.isalnum() or ch in "_-" else "_" for ch in name)
+
+
+def robot_named_chain(robot: RobotDescription, chain: ExportedChain):
+    """The chain with ROS-style names (``export-urdf --names robot``): the robot's own
+    joint names (an imported URDF's, a robot file's), links ``base_link``,
+    ``link_1..link_N``, ``flange``, ``tool0`` (``tool0_<marker>``), rooted at
+    ``base_link`` (the calibrated robot base) with the measurement frame ``user`` as a
+    fixed child. Returns the chain and the renaming (old -> new) of its joints."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    own = [_clean(j.name) for j in robot.joints]
+    if len(set(own)) < len(own) or any(not n for n in own):
+        own = [f"joint_{i + 1}" for i in range(len(own))]
+    jmap = {f"j{i + 1}": own[i] for i in range(len(own))}
+    lmap = {"base": "base_link", "flange": "flange"}
+    lmap.update({f"link{i + 1}": f"link_{i + 1}" for i in range(len(own))})
+    for tip in chain.tips.values():
+        lmap[tip] = "tool0" if tip == "tool" else "tool0_" + tip.removeprefix("tool_")
+    for e in chain.elements:
+        if e.mimic is not None:  # j3_from_j2 -> J3_from_J2
+            a, b = e.name.removeprefix("j").split("_from_j")
+            jmap[e.name] = f"{own[int(a) - 1]}_from_{own[int(b) - 1]}"
+            lmap[e.child] = jmap[e.name] + "_link"
+    renamed: dict[str, str] = {}
+    els = []
+    for e in chain.elements:
+        if e.name == "base_joint":  # user -> base, turned round: base_link -> user
+            els.append(
+                replace(
+                    e,
+                    name="user_joint",
+                    parent="base_link",
+                    child=chain.root,
+                    origin=np.asarray(np.linalg.inv(e.origin), dtype=np.float64),
+                )
+            )
+            continue
+        name = jmap.get(e.name, e.name)
+        if e.name.endswith("_joint") and e.child in lmap:  # flange_joint, tool_joint
+            name = lmap[e.child] + "_joint"
+        renamed[e.name] = name
+        mimic = e.mimic
+        if mimic is not None:
+            mimic = (jmap.get(mimic[0], mimic[0]), mimic[1], mimic[2])
+        els.append(
+            replace(
+                e,
+                name=name,
+                parent=lmap.get(e.parent, e.parent),
+                child=lmap.get(e.child, e.child),
+                mimic=mimic,
+            )
+        )
+    # parents before children: base_link's user frame first
+    els.sort(key=lambda e: e.name != "user_joint")
+    out = replace(
+        chain,
+        elements=tuple(els),
+        root="base_link",
+        joints=tuple(jmap[j] for j in chain.joints),
+        tips={label: lmap[tip] for label, tip in chain.tips.items()},
+    )
+    return out, renamed
