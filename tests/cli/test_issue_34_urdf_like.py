@@ -544,3 +544,21 @@ def test_issue_34_names_robot_uses_the_robots_joint_names(capsys, models, tmp_pa
         "yaml-dh",
     )
     assert code != 0 and "--names" in err
+
+
+def test_issue_35_export_and_import_never_overwrite_their_input(
+    capsys, models, tmp_path
+):
+    vendor = tmp_path / "vendor.urdf"
+    vendor.write_bytes(ROSI.read_bytes())
+    model = tmp_path / "model.yaml"
+    model.write_bytes((models / "lr_kinematic.yaml").read_bytes())
+    for args in (
+        ("export-urdf", str(model), "--like", str(vendor), "--out", str(vendor)),
+        ("export-urdf", str(model), "--out", str(model)),
+        ("import-urdf", str(vendor), "--out", str(vendor)),
+    ):
+        code, _, err = _cli(capsys, *args, "--force")
+        assert code != 0 and "is the" in err and "input" in err, err
+    assert vendor.read_bytes() == ROSI.read_bytes()
+    assert model.read_bytes() == (models / "lr_kinematic.yaml").read_bytes()

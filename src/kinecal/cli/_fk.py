@@ -241,12 +241,19 @@ def import_urdf(
     The DH table reproduces the URDF's forward kinematics exactly; edit the YAML to add
     couplings, gravity, the link self-weight layout or priors.
     """
+    from pathlib import Path
+
     import numpy as np
 
     from kinecal import _yaml as yaml
     from kinecal.io import atomic_write_text
     from kinecal.robot import dump_robot, robot_from_dict, robot_from_urdf
 
+    if Path(urdf).resolve() == Path(out).resolve():
+        raise click.UsageError(
+            f"--out {out} is the URDF input of this command; expected another file (an "
+            "input is never overwritten, --force or not)"
+        )
     robot = robot_from_urdf(urdf, base=base, tip=tip, name=name)
     doc = dump_robot(robot)
     # Check the written document: it must load and give the same flange poses.
