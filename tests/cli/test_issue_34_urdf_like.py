@@ -376,6 +376,32 @@ def test_issue_34_like_refuses_a_vendor_file_that_does_not_fit(
             str(out),
         )
         assert code != 0 and words in err and "Traceback" not in err, (text, err)
+    rosi = ROSI.read_text()
+    for text, words in (
+        (
+            rosi.replace('xyz="0 0 0.330"', 'xyz="0 0 nan"', 1),
+            "expected 3 finite numbers",
+        ),
+        # the forearm offset 10 mm longer: another robot
+        (rosi.replace('xyz="0 0 0.035"', 'xyz="0 0 0.045"'), "from the nominal axes"),
+        (
+            rosi.replace(
+                '<axis xyz="0 0 1"/>', '<axis xyz="0 0 1"/><mimic joint="joint_2"/>', 1
+            ),
+            "is a mimic joint",
+        ),
+    ):
+        bad.write_text(text)
+        code, _, err = _cli(
+            capsys,
+            "export-urdf",
+            str(models / "lr_kinematic.yaml"),
+            "--like",
+            str(bad),
+            "--out",
+            str(out),
+        )
+        assert code != 0 and words in err and "Traceback" not in err, (words, err)
     code, _, err = _cli(
         capsys,
         "export-urdf",

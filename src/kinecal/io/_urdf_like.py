@@ -138,6 +138,19 @@ def _vendor_path(
             )
         link = kids[0]
         path.append(by_child[link])
+    for j in path:
+        kind = j.get("type", "")
+        if kind != "fixed" and kind not in _MOVABLE:
+            raise ConfigError(
+                f"{src}: joint {j.get('name')!r} has type {kind!r}; expected fixed, "
+                "revolute, continuous or prismatic joints in the robot's chain."
+            )
+        if _moves(j) and j.find("mimic") is not None:
+            raise ConfigError(
+                f"{src}: joint {j.get('name')!r} is a mimic joint; --like needs "
+                "independent joints (the URDF joints take the kinematic angles): use the "
+                "vendor's file without the mimic joints."
+            )
     movable = [k for k, j in enumerate(path) if _moves(j)]
     if len(movable) != n:
         names = ", ".join(repr(path[k].get("name")) for k in movable)
@@ -146,13 +159,6 @@ def _vendor_path(
             f"({names}); the model's robot has {n}. Expected the URDF of the calibrated "
             "robot."
         )
-    for k in movable:
-        j = path[k]
-        if j.find("mimic") is not None:
-            raise ConfigError(
-                f"{src}: joint {j.get('name')!r} is a mimic joint; expected independent "
-                "joints for --like (the URDF joints take the kinematic angles)."
-            )
     return root, path, movable
 
 
