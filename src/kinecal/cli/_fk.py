@@ -266,7 +266,13 @@ def import_urdf(
         )
     header = f"# Imported from {urdf} by kinecal import-urdf ({robot.source}).\n"
     atomic_write_text(out, header + yaml.dump(doc, sort_keys=False), force=force)
-    click.echo(f"{robot.name}: {robot.n_joints} joints -> {out}")
+    chain = robot.source.rsplit("(URDF ", 1)[-1].rstrip(")")
+    coupled = (
+        ""
+        if np.array_equal(robot.coupling, np.eye(robot.n_joints))
+        else (", coupled by mimic joints")
+    )
+    click.echo(f"{robot.name}: {robot.n_joints} joints ({chain}{coupled}) -> {out}")
 
 
 def _labels(own: tuple[str, ...]) -> str:
