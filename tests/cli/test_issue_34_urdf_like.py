@@ -588,3 +588,34 @@ def test_issue_35_export_and_import_never_overwrite_their_input(
         assert code != 0 and "is the" in err and "input" in err, err
     assert vendor.read_bytes() == ROSI.read_bytes()
     assert model.read_bytes() == (models / "lr_kinematic.yaml").read_bytes()
+
+
+def test_issue_34_like_a_vendor_file_with_other_numbers_warns_and_stays_exact(
+    capsys, models, tmp_path
+):
+    """The forearm offset 0.3 mm off (a data sheet's rounding): written, with a warning
+    naming the difference; the FK still equals `kinecal fk --model`."""
+    vendor = tmp_path / "rounded.urdf"
+    vendor.write_text(ROSI.read_text().replace('xyz="0 0 0.035"', 'xyz="0 0 0.0353"'))
+    out = tmp_path / "cal.urdf"
+    code, _, err = _cli(
+        capsys,
+        "export-urdf",
+        str(models / "lr_kinematic.yaml"),
+        "--like",
+        str(vendor),
+        "--out",
+        str(out),
+        "--user-link",
+        "user",
+    )
+    assert code == 0, err
+    m = re.search(r"warning: .* ([0-9.]+) mm \(or mrad\) away", err)
+    assert m is not None and 0.2 < float(m.group(1)) < 1.0, err
+    q, theta = _poses(load_robot("fanuc-lrmate200id"), 3)
+    for qk, th in zip(q, theta):
+        want = _fk_model(capsys, models / "lr_kinematic.yaml", np.degrees(qk))[
+            "tool_mm"
+        ]
+        got = urdf_chain_fk(out, "user", "calibrated_tool", th)[:3, 3] * 1e3
+        assert np.abs(got - want).max() < 1e-4

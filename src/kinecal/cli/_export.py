@@ -230,6 +230,14 @@ def export_urdf(
             raise RuntimeError(
                 f"export-urdf --like: the file misses the model by {res.check_m:.2e} m."
             )
+        if res.mismatch_mm > 0.01:
+            click.echo(
+                f"warning: {like} describes {robot.name} {res.mismatch_mm:.3f} mm (or "
+                "mrad) away from the model's nominal robot (other numbers for the same "
+                "robot?): the forward kinematics are exact, the vendor's meshes sit up to "
+                "that far from where the calibrated robot has them.",
+                err=True,
+            )
         atomic_write_text(out_path, res.text, force=force)
         click.echo(
             f"{robot.name}: wrote {out_path} (copy of {like}: joints "
