@@ -619,3 +619,41 @@ def test_issue_34_like_a_vendor_file_with_other_numbers_warns_and_stays_exact(
         ]
         got = urdf_chain_fk(out, "user", "calibrated_tool", th)[:3, 3] * 1e3
         assert np.abs(got - want).max() < 1e-4
+
+
+@pytest.mark.parametrize("key", ["lrmate", "lrmate-hayati"])
+def test_issue_34_like_with_hayati_rows_sets_and_markers(key, tmp_path):
+    """Every parameter off nominal (Hayati beta on J2 included), two sets, two markers:
+    one tool link per marker; FK user -> tool of each, for either set, equals the model's
+    kinematic part (the joint axes stay the vendor's)."""
+    from kinecal.compensation import kinematic_params
+    from kinecal.io._urdf_like import like_urdf
+    from kinecal.models import ModelInputs
+    from tests.compensation.test_issue_23_export import _case
+
+    cal = _case(key, np.random.default_rng(7))
+    q, theta = _poses(cal.model.robot, 5)
+    x = kinematic_params(cal)
+    for s, set_label in enumerate(cal.model.spec.sets):
+        res = like_urdf(cal, ROSI, set_label=set_label, user_link="user")
+        assert res.check_m < 1e-9
+        assert set(res.tips.values()) == {"calibrated_tool_m1", "calibrated_tool_m2"}
+        root = ET.fromstring(res.text)
+        axes0 = {
+            j.get("name"): j.find("axis")
+            for j in ET.parse(ROSI).getroot().iter("joint")
+        }
+        for j in root.iter("joint"):
+            if j.get("name") in axes0 and axes0[j.get("name")] is not None:
+                assert j.find("axis").attrib == axes0[j.get("name")].attrib
+        f = tmp_path / f"like_{s}.urdf"
+        f.write_text(res.text)
+        for m, marker in enumerate(cal.model.spec.markers):
+            inp = ModelInputs.make(
+                q, set_index=np.full(len(q), s), marker_index=np.full(len(q), m)
+            )
+            out = cal.model.evaluate(x, inp, orientation=True)
+            for k, th in enumerate(theta):
+                T = urdf_chain_fk(f, "user", res.tips[marker], th)
+                np.testing.assert_allclose(T[:3, 3], out.p_user[k], atol=1e-10)
+                np.testing.assert_allclose(T[:3, :3], out.R_user_cam[k], atol=1e-10)
