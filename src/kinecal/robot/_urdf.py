@@ -28,6 +28,9 @@ from kinecal.robot._description import JointSpec, RobotDescription
 __all__ = ["robot_from_urdf"]
 
 _MOVABLE = ("revolute", "continuous", "prismatic")
+_HOW = (
+    "import-urdf FILE --base LINK --tip LINK --out robot.yaml, then --robot robot.yaml"
+)
 _PARALLEL = 1e-9  # |sin| below which two axes count as parallel
 _ON_AXIS = 1e-9  # [m]
 
@@ -149,7 +152,9 @@ def _chain(
             raise ConfigError(
                 f"{src}: the joints form {len(trees)} separate trees, rooted at {desc}; "
                 "expected one chain (a joint whose parent should be the end of the other "
-                "tree names another link?), or name --base to use one tree."
+                "tree names another link?), or name the base link of one tree ("
+                + _HOW
+                + ")."
             )
         base = trees[0]
     if tip is None:
@@ -170,7 +175,7 @@ def _chain(
                 else:
                     raise ConfigError(
                         f"{src}: the chain branches at link {link!r} "
-                        f"({', '.join(kids)}); name the --tip link."
+                        f"({', '.join(kids)}); name the tip link ({_HOW})."
                     )
             link = kids[0]
         tip = link
@@ -424,7 +429,7 @@ def robot_from_urdf(
         raise ConfigError(
             f"{src}: the first joint axis must be the base link's z axis (DH frame 0 "
             f"sits on it); it is {np.round(u1, 6).tolist()} through "
-            f"{np.round(p1, 6).tolist()}. Choose another --base link."
+            f"{np.round(p1, 6).tolist()}. Choose another base link ({_HOW})."
         )
     if len(lines) < 2:
         raise ConfigError(
