@@ -434,31 +434,40 @@ def _with_comment(text: str, lines: list[str]) -> str:
 
 def _set_origin(raw: str, name: str, O: Pose, src: str) -> str:
     """``raw`` with the ``<origin>`` of joint ``name`` replaced by ``O`` (the rest of the
-    document byte for byte as it was)."""
+    document byte for byte as it was). The robot's joint is the ``<joint>`` with a
+    ``type``, outside comments (a ``<transmission>`` or ``<ros2_control>`` names joints
+    too)."""
     pat = re.compile(
-        r"<joint\b[^>]*\bname\s*=\s*([\"'])"
+        r"<joint\b([^>]*)\bname\s*=\s*([\"'])"
         + re.escape(name)
-        + r"\1[^>]*>(.*?)</joint\s*>",
+        + r"\2([^>]*)>(.*?)</joint\s*>",
         re.S,
     )
-    hits = list(pat.finditer(raw))
+    comments = [c.span() for c in re.finditer(r"<!--.*?-->", raw, re.S)]
+    hits = [
+        m
+        for m in pat.finditer(raw)
+        if re.search(r"\btype\s*=", m.group(1) + m.group(3))
+        and not any(a <= m.start() < b for a, b in comments)
+    ]
     if len(hits) != 1:
         raise ConfigError(
             f"{src}: cannot find the element of joint {name!r} in the text "
-            f'({len(hits)} matches); expected <joint name="{name}" ...>...</joint>.'
+            f'({len(hits)} matches); expected one <joint name="{name}" type=...>...'
+            "</joint>."
         )
     m = hits[0]
     new = (
         f'<origin xyz="{" ".join(_num(v) for v in O[:3, 3])}" '
         f'rpy="{" ".join(_num(v) for v in matrix_to_rpy(O[:3, :3]))}"/>'
     )
-    body = m.group(2)
+    body = m.group(4)
     o = re.search(r"<origin\b[^>]*?/>|<origin\b[^>]*>.*?</origin\s*>", body, re.S)
     if o is not None:
         body = body[: o.start()] + new + body[o.end() :]
     else:
         body = f"\n    {new}" + body
-    a, b = m.span(2)
+    a, b = m.span(4)
     return raw[:a] + body + raw[b:]
 
 
