@@ -122,10 +122,22 @@ def test_issue_35_own_exports_are_accepted_as_robot(capsys, exported, tmp_path):
             warnings.simplefilter("error")
             r = robot_from_urdf(f)
         assert f"URDF {base_frame} -> {tip})" in r.source, r.source
-        code, _, err = _cli(
-            capsys, "fk", "--robot", str(f), "--", "0", "0", "0", "0", "0", "0"
-        )
-        assert code == 0, err
+        # every file takes the controller angles: the coupling read back (mimic joints,
+        # or the 'kinecal coupling' line of a file whose joints are kinematic angles)
+        np.testing.assert_allclose(r.coupling, load_robot("fanuc-lrmate200id").coupling)
+        shift = (
+            [0.0, 0.0, 330.0] if name == "like" else [0.0, 0.0, 0.0]
+        )  # ROS-I base_link
+        for qk in np.degrees(_q(load_robot("fanuc-lrmate200id"), 3)):
+            args = ["--json", "--", *map(str, qk)]
+            c1, o1, e1 = _cli(capsys, "fk", "--robot", str(f), *args)
+            c2, o2, e2 = _cli(
+                capsys, "fk", "--model", str(exported / "model.yaml"), *args
+            )
+            assert c1 == c2 == 0, (e1, e2)
+            got = np.subtract(json.loads(o1)["flange_mm"], shift)
+            want = json.loads(o2)["kinematic"]["flange_mm"]
+            assert np.abs(got - want).max() < 1e-6, name
     # calibrate on the mimic export: controller angles, the coupling read from the
     # file; the fit is as good as with the built-in robot (the data's own twin).
     fits = {}
@@ -189,6 +201,29 @@ def test_issue_35_mimic_joints_that_do_not_fit_are_refused(tmp_path):
         q4 = np.array([q[0], q[1], 2 * q[1] + 0.1, q[2]])
         want = urdf_chain_fk(ok, "a", "e", q4)
         np.testing.assert_allclose(r.fk_flange(q), want, atol=1e-12)
+    declared = _urdf(
+        tmp_path,
+        _j("j1", "a", "b")
+        + _j("j2", "b", "c", "0 0 0.3", "0 1 0")
+        + _j("j3", "c", "d", "0.4 0 0", "0 1 0"),
+    )
+    text = declared.read_text()
+    for line, words in (
+        ("J3 += 1.0 * J2", None),
+        ("J3 += x * J2", "cannot read the coupling term"),
+        ("J3 += 1.0 * J9", "expected joints 1..3"),
+        ("J3 += -1.0 * J3", "expected joints 1..3, two different"),
+    ):
+        declared.write_text(
+            f"<!-- kinecal coupling (theta = C q_ctrl): {line} -->\n{text}"
+        )
+        if words is None:
+            np.testing.assert_allclose(
+                robot_from_urdf(declared).coupling, [[1, 0, 0], [0, 1, 0], [0, 1, 1]]
+            )
+        else:
+            with pytest.raises(ConfigError, match=re.escape(words)):
+                robot_from_urdf(declared)
     for joints, words in (
         (
             _j("j1", "a", "b")

@@ -217,6 +217,7 @@ def export_urdf(
                 .replace("Joints j1..jN", "The URDF joints")
                 .replace(" Coupling 'mimic' writes controller angles instead.", "")
             )
+            notes.append(coupling_line(robot))
         res = like_urdf(
             cal,
             like,
@@ -252,6 +253,7 @@ def export_urdf(
         chain = export_chain(cal, set_label=set_label, coupling=coupling)
         if coupling == "kinematic" and not _identity(robot.coupling):
             notes.append(_coupling_note(robot))
+            notes.append(coupling_line(robot))
         else:
             notes.append("Joints j1..jN take the controller angles (radians / metres).")
         notes.append(
@@ -347,6 +349,21 @@ def _identity(C) -> bool:
     import numpy as np
 
     return bool(np.array_equal(C, np.eye(C.shape[0])))
+
+
+def coupling_line(robot) -> str:
+    """The machine-readable coupling line of a URDF whose joints take kinematic angles
+    (read back by :func:`kinecal.robot.robot_from_urdf`)."""
+    import numpy as np
+
+    C = robot.coupling
+    terms = [
+        f"J{i + 1} += {float(C[i, k])!r} * J{k + 1}"
+        for i in range(C.shape[0])
+        for k in map(int, np.flatnonzero(C[i]))
+        if k != i
+    ]
+    return "kinecal coupling (theta = C q_ctrl): " + "; ".join(terms)
 
 
 def _coupling_note(robot) -> str:

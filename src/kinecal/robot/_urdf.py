@@ -224,6 +224,33 @@ def _limits(lim: ET.Element, where: str) -> tuple[float, float]:
     return lo, hi
 
 
+def _declared_coupling(text: str, n: int, src: str) -> np.ndarray:
+    """The coupling matrix of kinecal's line ``kinecal coupling (theta = C q_ctrl): J3 +=
+    1.0 * J2; ...`` (its URDF joints take kinematic angles; the robot takes controller
+    angles, as the data hold them)."""
+    C = np.eye(n)
+    for term in filter(None, (t.strip() for t in text.split(";"))):
+        m = re.fullmatch(r"J(\d+) \+= (\S+) \* J(\d+)\.?", term)
+        try:
+            if m is None:
+                raise ValueError(term)
+            i, k, f = int(m.group(1)) - 1, int(m.group(3)) - 1, float(m.group(2))
+        except ValueError:
+            raise ConfigError(
+                f"{src}: cannot read the coupling term {term!r} of the 'kinecal "
+                "coupling' line; expected 'Ji += factor * Jk'."
+            ) from None
+        if not (0 <= i < n and 0 <= k < n and i != k and np.isfinite(f)):
+            raise ConfigError(
+                f"{src}: coupling term {term!r}: expected joints 1..{n}, two different "
+                "ones, and a finite factor."
+            )
+        C[i, k] += f
+    if abs(np.linalg.det(C)) < 1e-9:
+        raise ConfigError(f"{src}: the declared joint coupling is singular.")
+    return C
+
+
 def _rates(lim: ET.Element | None) -> tuple[float | None, float | None]:
     """Velocity and effort of a ``<limit>`` (None where absent, not positive, or not a
     number: ROS-Industrial writes effort 0 for unknown)."""
@@ -360,8 +387,12 @@ def robot_from_urdf(
         raise ConfigError(f"{p}: cannot read URDF ({exc}).") from exc
     src = str(p)
     base_given = base
+    text = p.read_text(errors="replace")
+    declared = re.search(
+        r"kinecal coupling \(theta = C q_ctrl\): (.*?)\s*(?:-->|$)", text, re.M
+    )
     if tip is None:  # kinecal's own export names its tip (the tool links hang below it)
-        m = re.search(r"kinecal tip link: (\S+)", p.read_text(errors="replace"))
+        m = re.search(r"kinecal tip link: (\S+)", text)
         if m is not None and any(
             el.get("name") == m.group(1) for el in root.iter("link")
         ):
@@ -413,6 +444,8 @@ def robot_from_urdf(
         raise ConfigError(f"{src}: no movable joint between {base!r} and {tip!r}.")
     T_tip = T
     lines, specs, C, offsets = _merge_mimics(lines, specs, mimics, src)
+    if declared is not None and not mimics:
+        C = _declared_coupling(declared.group(1), len(lines), src)
     p1, u1 = lines[0]
     if specs[0][1] == "prismatic":  # a slide has no axis position: put it through 0
         p1 = np.zeros(3)
