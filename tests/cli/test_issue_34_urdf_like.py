@@ -414,6 +414,22 @@ def test_issue_34_like_refuses_a_vendor_file_that_does_not_fit(
         "tool0",
     )
     assert code != 0 and "already has a link 'tool0'" in err
+    for extra, words in (
+        (("--tool-link", ""), "expected a link name"),
+        (("--tool-link", "a b"), "expected a link name"),
+        (("--tool-link", "t", "--user-link", "t"), "both 't'"),
+    ):
+        code, _, err = _cli(
+            capsys,
+            "export-urdf",
+            str(models / "lr_kinematic.yaml"),
+            "--like",
+            str(ROSI),
+            "--out",
+            str(out),
+            *extra,
+        )
+        assert code != 0 and words in err and "Traceback" not in err, err
     assert not out.exists()
 
 

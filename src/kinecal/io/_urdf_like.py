@@ -222,6 +222,15 @@ def like_urdf(
     """
     from kinecal.compensation import export_chain
 
+    for what, given in (("--tool-link", tool_link), ("--user-link", user_link)):
+        if given is not None and not re.fullmatch(
+            r"[A-Za-z0-9_][A-Za-z0-9_.\-]*", given
+        ):
+            raise ConfigError(
+                f"{what} {given!r}: expected a link name (letters, digits, '_', '-', '.')."
+            )
+    if tool_link == user_link:
+        raise ConfigError(f"--tool-link and --user-link are both {tool_link!r}.")
     src = str(vendor)
     p = Path(vendor)
     try:
