@@ -183,7 +183,7 @@ def export_urdf(
             raise click.UsageError(
                 "--format ur-calibration does not go with --like or --coupling mimic"
             )
-        from kinecal.io._urdf_like import ur_calibration_text
+        from kinecal.io._ur_calibration import ur_calibration_text
 
         notes.append(
             "The origins of ur_description's joints (x y z m, roll pitch yaw rad), as "
