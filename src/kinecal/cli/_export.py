@@ -104,6 +104,10 @@ def export_urdf(
     link1..linkN (the model's DH frames), 'flange' and 'tool' (or tool_<marker> per
     marker). Compliance and transmission terms cannot live in a URDF: they are listed in
     a comment, with the accuracy lost without them.
+
+    --like VENDOR.urdf writes the vendor's file instead, with only its movable joints'
+    origins calibrated and the calibrated tool below its tip link; --format
+    ur-calibration writes the Universal Robots driver's kinematics.yaml.
     """
     from pathlib import Path
 
