@@ -348,7 +348,13 @@ def like_urdf(
                 raise ConfigError(
                     f"{src}: link of joint {names[i]!r} moves differently from joint "
                     f"{i + 1} of {robot.name} ({err * 1e3:.3f} mm apart on a random "
-                    "pose); expected the URDF of the same robot."
+                    "pose); expected the URDF of the same robot"
+                    + (
+                        ", its joints taking the kinematic angles (theta = C q_ctrl, "
+                        "FANUC joint_3 = J3 + J2)."
+                        if not np.array_equal(C, np.eye(n))
+                        else "."
+                    )
                 )
     # Calibrated frames in the vendor root; new origins along the path.
     T_root_user = B @ np.linalg.inv(ch_cal.T_user_base)
