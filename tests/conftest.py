@@ -125,6 +125,8 @@ SHARED_MODULES = {
     "tests/io/test_model_file.py": "model-result",
     "tests/cli/test_plan_cli.py": "plan-files",
     "tests/cli/test_export_cli.py": "export-models",
+    "tests/cli/test_issue_34_urdf_like.py": "urdf-like",
+    "tests/robot/test_issue_35_urdf_mimic.py": "urdf-mimic",
     "tests/cli/test_fault_inputs.py": "fault-inputs",
     "tests/cli/test_fault_results.py": "fault-results",
     "tests/identification/test_issue_26_auto.py": "poses-300",

@@ -19,11 +19,12 @@ from kinecal.cli._common import targets_option
 @click.option(
     "--format",
     "fmt",
-    type=click.Choice(("urdf", "yaml-dh")),
+    type=click.Choice(("urdf", "yaml-dh", "ur-calibration")),
     default="urdf",
     show_default=True,
     help="urdf: root link 'user', joints j1..jN, tool links. yaml-dh: the calibrated DH "
-    "table as a robot YAML, loadable as --robot.",
+    "table as a robot YAML, loadable as --robot. ur-calibration: the kinematics.yaml "
+    "the Universal Robots ROS driver reads (ur_description joint origins).",
 )
 @click.option(
     "--set", "set_label", help="The set whose user frame is the root (default: first)."
@@ -46,6 +47,38 @@ from kinecal.cli._common import targets_option
     "add (default: the calibration data if the model names an existing file, else "
     "1000 random poses inside the joint limits).",
 )
+@click.option(
+    "--names",
+    type=click.Choice(("kinecal", "robot")),
+    default="kinecal",
+    show_default=True,
+    help="urdf without --like: kinecal: root 'user', joints j1..jN, links link1..N, "
+    "flange, tool. robot: the robot's own joint names (those of an imported URDF), links "
+    "base_link (the root), link_1..link_N, flange, tool0, the measurement frame 'user' "
+    "a fixed child of base_link.",
+)
+@click.option(
+    "--like",
+    "like",
+    type=click.Path(dir_okay=False),
+    help="The vendor's URDF of the robot: write a copy of it with every link, joint, "
+    "name, mesh, inertial and limit kept and only the movable joints' origins "
+    "calibrated (link frames stay the vendor's; joints take the kinematic angles).",
+)
+@click.option(
+    "--tool-link",
+    default="calibrated_tool",
+    show_default=True,
+    help="--like: name of the calibrated tool link (fixed child of the vendor's tip "
+    "link, the end of the chain; <name>_<marker> per marker when the model has several).",
+)
+@click.option(
+    "--user-link",
+    default=None,
+    help="--like: add the set's measurement frame as a new root link of this name (FK "
+    "from it to the tool link = the model's tool pose). Default: the vendor's root stays "
+    "the root.",
+)
 @targets_option
 @click.option("--force", is_flag=True, help="Overwrite --out.")
 def export_urdf(
@@ -57,6 +90,10 @@ def export_urdf(
     coupling: str,
     data: str | None,
     targets: str | None,
+    names: str,
+    like: str | None,
+    tool_link: str,
+    user_link: str | None,
     force: bool,
 ) -> None:
     """Write the calibrated kinematic part of MODEL.yaml as a URDF (or a DH table).
@@ -67,6 +104,10 @@ def export_urdf(
     link1..linkN (the model's DH frames), 'flange' and 'tool' (or tool_<marker> per
     marker). Compliance and transmission terms cannot live in a URDF: they are listed in
     a comment, with the accuracy lost without them.
+
+    --like VENDOR.urdf writes the vendor's file instead, with only its movable joints'
+    origins calibrated and the calibrated tool below its tip link; --format
+    ur-calibration writes the Universal Robots driver's kinematics.yaml.
     """
     from pathlib import Path
 
@@ -79,8 +120,24 @@ def export_urdf(
     )
     from kinecal.io import atomic_write_text, load_model, robot_yaml_text, urdf_text
 
+    for what, given in (
+        ("MODEL.yaml", model_path),
+        ("--like", like),
+        ("--data", data),
+        ("--targets", targets),
+    ):
+        if given is not None and Path(given).resolve() == Path(out_path).resolve():
+            raise click.UsageError(
+                f"--out {out_path} is the {what} input of this command; expected another "
+                "file (an input is never overwritten, --force or not)"
+            )
     if Path(out_path).exists() and not force:  # refuse before the work, not after it
         raise FileExistsError(f"{out_path}: exists; use --force to overwrite it.")
+    if names != "kinecal" and (fmt != "urdf" or like is not None):
+        raise click.UsageError(
+            "--names chooses the names of the plain URDF export; --like keeps the "
+            "vendor's names, --format yaml-dh and ur-calibration have none to choose"
+        )
     if marker is not None and fmt != "yaml-dh":
         raise click.UsageError(
             "--marker chooses the tool of --format yaml-dh; a URDF holds every marker "
@@ -125,20 +182,143 @@ def export_urdf(
             err=True,
         )
     rng_q = _random_poses(robot, 256)
+    if fmt == "ur-calibration":
+        if like is not None or coupling != "kinematic":
+            raise click.UsageError(
+                "--format ur-calibration does not go with --like or --coupling mimic"
+            )
+        from kinecal.io._ur_calibration import ur_calibration_text
+
+        notes.append(
+            "The origins of ur_description's joints (x y z m, roll pitch yaw rad), as "
+            "ur_calibration writes them; base_link is the calibrated robot base (the "
+            "tool and the measurement frame are not part of this file)."
+        )
+        notes.append(
+            "The hash is kinecal's, not the controller's: the driver reports that it "
+            "differs from the robot's factory calibration."
+        )
+        text = ur_calibration_text(cal, set_label=set_label, comments=notes)
+        atomic_write_text(out_path, text, force=force)
+        click.echo(f"{robot.name}: wrote {out_path} (ur-calibration kinematics.yaml)")
+        return
+    if like is not None:
+        if fmt != "urdf" or coupling != "kinematic":
+            raise click.UsageError(
+                "--like writes a URDF whose joints take the kinematic angles; it does "
+                "not go with --format yaml-dh or --coupling mimic"
+            )
+        from kinecal.io._urdf_like import like_urdf
+
+        notes.append(
+            f"A copy of {Path(like).name} with the movable joints' origins calibrated "
+            "(everything else as the vendor wrote it); calibrated tool frame: link "
+            f"{tool_link!r}."
+        )
+        if not _identity(robot.coupling):
+            notes.append(
+                _coupling_note(robot)
+                .replace("Joints j1..jN", "The URDF joints")
+                .replace(" Coupling 'mimic' writes controller angles instead.", "")
+            )
+            notes.append(coupling_line(robot))
+        res = like_urdf(
+            cal,
+            like,
+            set_label=set_label,
+            tool_link=tool_link,
+            user_link=user_link,
+            comments=notes,
+            tip_note=True,
+        )
+        if res.check_m > 1e-9:  # pragma: no cover - a defect, not a user error
+            raise RuntimeError(
+                f"export-urdf --like: the file misses the model by {res.check_m:.2e} m."
+            )
+        if res.mismatch_mm > 0.01:
+            click.echo(
+                f"warning: {like} describes {robot.name} {res.mismatch_mm:.3f} mm (or "
+                "mrad) away from the model's nominal robot (other numbers for the same "
+                "robot?): the forward kinematics are exact, the vendor's meshes sit up to "
+                "that far from where the calibrated robot has them.",
+                err=True,
+            )
+        atomic_write_text(out_path, res.text, force=force)
+        click.echo(
+            f"{robot.name}: wrote {out_path} (copy of {like}: joints "
+            f"{', '.join(res.joints)}; origins moved by up to {res.moved_mm:.3f} mm, "
+            f"{res.turned_deg:.4f} deg; root {res.root!r}, tip {res.tip!r}, tool "
+            f"{', '.join(repr(t) for t in res.tips.values())} below it; FK equals the "
+            "model to "
+            f"{res.check_m * 1e3:.1e} mm)"
+        )
+        return
     if fmt == "urdf":
         chain = export_chain(cal, set_label=set_label, coupling=coupling)
         if coupling == "kinematic" and not _identity(robot.coupling):
             notes.append(_coupling_note(robot))
+            notes.append(coupling_line(robot))
         else:
             notes.append("Joints j1..jN take the controller angles (radians / metres).")
         notes.append(
+            "kinecal tip link: flange (the robot's flange, for import-urdf and --robot)."
+        )
+        known = [j.velocity is not None for j in robot.joints]
+        notes.append(
             "Joint limits are the controller's (for a coupled joint in kinematic angles: "
-            "the widest range they allow); effort and velocity are placeholders (0)."
+            "the widest range they allow); velocity "
+            + (
+                "from the robot file"
+                if all(known)
+                else "1 rad/s (m/s), a placeholder: the robot file states none"
+                if not any(known)
+                else "from the robot file where it states one, else 1 rad/s (m/s)"
+            )
+            + "; effort "
+            + (
+                "from the robot file."
+                if all(j.effort is not None for j in robot.joints)
+                else "1000 N m (N) where the robot file states none (a placeholder)."
+            )
         )
         err = check_chain(cal, chain, set_label, rng_q)
         if err > 1e-9:  # pragma: no cover - a defect, not a user error
             raise RuntimeError(f"export-urdf: the chain misses the model by {err:.2e}.")
-        text = urdf_text(chain, name=f"{robot.name}_calibrated", comments=notes)
+        from kinecal.io._urdf_export import (
+            joint_rates,
+            robot_named_chain,
+            stable_splits,
+        )
+
+        split = stable_splits(cal, set_label=set_label, coupling=coupling)
+        if names == "robot":
+            import numpy as np
+
+            named, renamed = robot_named_chain(robot, chain)
+            split = frozenset(renamed.get(s, s) for s in split)
+            Tb = np.linalg.inv(chain.T_user_base)
+            for label, tip in chain.tips.items():
+                d = named.fk(rng_q, named.tips[label]) - Tb @ chain.fk(rng_q, tip)
+                if np.abs(d).max() > 1e-9:  # pragma: no cover - a defect
+                    raise RuntimeError(
+                        "export-urdf --names robot: renaming moved a frame."
+                    )
+            chain = named
+            notes = [
+                n.replace("Joints j1..jN", "The joints").replace("j1..jN", "the joints")
+                for n in notes
+            ]
+            notes.append(
+                "Root base_link = the calibrated robot base; the measurement frame is the "
+                "fixed child link 'user'."
+            )
+        text = urdf_text(
+            chain,
+            name=f"{robot.name}_calibrated",
+            comments=notes,
+            split=split,
+            rates=joint_rates(robot, chain),
+        )
     else:
         desc, T_user_base = dh_description(cal, set_label=set_label, marker=marker)
         from kinecal.geometry import transform_to_euler
@@ -173,6 +353,21 @@ def _identity(C) -> bool:
     import numpy as np
 
     return bool(np.array_equal(C, np.eye(C.shape[0])))
+
+
+def coupling_line(robot) -> str:
+    """The machine-readable coupling line of a URDF whose joints take kinematic angles
+    (read back by :func:`kinecal.robot.robot_from_urdf`)."""
+    import numpy as np
+
+    C = robot.coupling
+    terms = [
+        f"J{i + 1} += {float(C[i, k])!r} * J{k + 1}"
+        for i in range(C.shape[0])
+        for k in map(int, np.flatnonzero(C[i]))
+        if k != i
+    ]
+    return "kinecal coupling (theta = C q_ctrl): " + "; ".join(terms)
 
 
 def _coupling_note(robot) -> str:

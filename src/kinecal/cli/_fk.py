@@ -241,12 +241,19 @@ def import_urdf(
     The DH table reproduces the URDF's forward kinematics exactly; edit the YAML to add
     couplings, gravity, the link self-weight layout or priors.
     """
+    from pathlib import Path
+
     import numpy as np
 
     from kinecal import _yaml as yaml
     from kinecal.io import atomic_write_text
     from kinecal.robot import dump_robot, robot_from_dict, robot_from_urdf
 
+    if Path(urdf).resolve() == Path(out).resolve():
+        raise click.UsageError(
+            f"--out {out} is the URDF input of this command; expected another file (an "
+            "input is never overwritten, --force or not)"
+        )
     robot = robot_from_urdf(urdf, base=base, tip=tip, name=name)
     doc = dump_robot(robot)
     # Check the written document: it must load and give the same flange poses.
@@ -259,7 +266,13 @@ def import_urdf(
         )
     header = f"# Imported from {urdf} by kinecal import-urdf ({robot.source}).\n"
     atomic_write_text(out, header + yaml.dump(doc, sort_keys=False), force=force)
-    click.echo(f"{robot.name}: {robot.n_joints} joints -> {out}")
+    chain = robot.source.rsplit("(URDF ", 1)[-1].rstrip(")")
+    coupled = (
+        ""
+        if np.array_equal(robot.coupling, np.eye(robot.n_joints))
+        else (", coupled by mimic joints")
+    )
+    click.echo(f"{robot.name}: {robot.n_joints} joints ({chain}{coupled}) -> {out}")
 
 
 def _labels(own: tuple[str, ...]) -> str:

@@ -473,6 +473,8 @@ def dh_description(
             alpha=float(rows[i, 3]),
             kind=j.kind,
             limits=j.limits,
+            velocity=j.velocity,
+            effort=j.effort,
         )
         for i, j in enumerate(robot.joints)
     )

@@ -51,6 +51,8 @@ class JointSpec:
     alpha: float
     kind: str = "revolute"  # or "prismatic"
     limits: tuple[float, float] = (-np.inf, np.inf)
+    velocity: float | None = None  # rad/s (m/s if prismatic), when the maker states it
+    effort: float | None = None  # N m (N if prismatic), when stated
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,8 @@ Schema (DESIGN §11, with the optional extensions marked *)::
     convention: dh | mdh
     units: {length: mm | m, angle: deg | rad}
     joints:
-      - {name: J1*, theta_offset, d, a, alpha, limits: [lo, hi], type: revolute | prismatic*}
+      - {name: J1*, theta_offset, d, a, alpha, limits: [lo, hi], type: revolute | prismatic*,
+         velocity*: deg/s or mm/s (the file's units per second), effort*: N m or N}
     coupling: [{joint: 3, from: 2, factor: 1}]      # theta = C q_ctrl
     flange: {x, y, z, r, w, p}                     * physical flange in the last joint frame
     tool: {x, y, z, r, w, p}                        nominal tool in the flange frame
@@ -56,7 +57,17 @@ _REQUIRED_TOP = ("name", "convention", "units", "joints")
 # Longer DH lengths and offsets are typing errors (and break the numerics). Far below,
 # a DH d of tens of metres is real: the common normal of nearly parallel axes.
 _MAX_LENGTH_M = 1e4
-_JOINT_KEYS = {"name", "theta_offset", "d", "a", "alpha", "limits", "type"}
+_JOINT_KEYS = {
+    "name",
+    "theta_offset",
+    "d",
+    "a",
+    "alpha",
+    "limits",
+    "type",
+    "velocity",
+    "effort",
+}
 _JOINT_REQUIRED = ("theta_offset", "d", "a", "alpha")
 _FRAME_KEYS = ("x", "y", "z", "r", "w", "p")
 _COUPLING_KEYS = {"joint", "from", "factor"}
@@ -219,6 +230,15 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
                     f"{where}.limits", f"lower limit must be below upper; got {lim!r}."
                 )
             limits = (lo, hi)
+        rates: dict[str, float | None] = {"velocity": None, "effort": None}
+        for key, scale in (("velocity", lim_scale), ("effort", 1.0)):
+            if jr.get(key) is not None:
+                v = _number(jr[key], f"{where}.{key}")
+                if not (np.isfinite(v) and v > 0):
+                    raise _err(
+                        f"{where}.{key}", f"expected a positive number; got {v!r}."
+                    )
+                rates[key] = v * scale
         jname = jr.get("name", f"J{i + 1}")
         if not isinstance(jname, str) or not jname:
             raise _err(f"{where}.name", f"expected a non-empty string; got {jname!r}.")
@@ -231,6 +251,8 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
                 alpha=vals["alpha"] * au,
                 kind=kind,
                 limits=limits,
+                velocity=rates["velocity"],
+                effort=rates["effort"],
             )
         )
     n = len(joints)
@@ -377,6 +399,10 @@ def dump_robot(robot: RobotDescription) -> dict[str, Any]:
             row["limits"] = [j.limits[0] * lim_scale, j.limits[1] * lim_scale]
         if j.kind != "revolute":
             row["type"] = j.kind
+        if j.velocity is not None:
+            row["velocity"] = round(j.velocity * lim_scale, 9)
+        if j.effort is not None:
+            row["effort"] = round(float(j.effort), 9)
         joints.append(row)
     coupling = [
         {"joint": int(r + 1), "from": int(c + 1), "factor": float(robot.coupling[r, c])}

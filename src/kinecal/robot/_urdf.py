@@ -14,6 +14,7 @@ are the controller values (no couplings).
 
 from __future__ import annotations
 
+import re
 import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -27,6 +28,9 @@ from kinecal.robot._description import JointSpec, RobotDescription
 __all__ = ["robot_from_urdf"]
 
 _MOVABLE = ("revolute", "continuous", "prismatic")
+_HOW = (
+    "import-urdf FILE --base LINK --tip LINK --out robot.yaml, then --robot robot.yaml"
+)
 _PARALLEL = 1e-9  # |sin| below which two axes count as parallel
 _ON_AXIS = 1e-9  # [m]
 
@@ -148,7 +152,9 @@ def _chain(
             raise ConfigError(
                 f"{src}: the joints form {len(trees)} separate trees, rooted at {desc}; "
                 "expected one chain (a joint whose parent should be the end of the other "
-                "tree names another link?), or name --base to use one tree."
+                "tree names another link?), or name the base link of one tree ("
+                + _HOW
+                + ")."
             )
         base = trees[0]
     if tip is None:
@@ -156,10 +162,21 @@ def _chain(
         while children.get(link):
             kids = children[link]
             if len(kids) > 1:
-                raise ConfigError(
-                    f"{src}: the chain branches at link {link!r} ({', '.join(kids)}); "
-                    "name the --tip link."
-                )
+                moving = [
+                    c
+                    for c in kids
+                    if by_child[c].get("type", "") in _MOVABLE
+                    or _movable_below(c, children, by_child)
+                ]
+                if len(moving) == 1:  # the others are fixed frames: follow the chain
+                    kids = moving
+                elif not moving:  # fixed frames only (tools, markers): the chain ends
+                    break
+                else:
+                    raise ConfigError(
+                        f"{src}: the chain branches at link {link!r} "
+                        f"({', '.join(kids)}); name the tip link ({_HOW})."
+                    )
             link = kids[0]
         tip = link
     for name, what in ((base, "base"), (tip, "tip")):
@@ -207,6 +224,129 @@ def _limits(lim: ET.Element, where: str) -> tuple[float, float]:
     return lo, hi
 
 
+def _declared_coupling(text: str, n: int, src: str) -> np.ndarray:
+    """The coupling matrix of kinecal's line ``kinecal coupling (theta = C q_ctrl): J3 +=
+    1.0 * J2; ...`` (its URDF joints take kinematic angles; the robot takes controller
+    angles, as the data hold them)."""
+    C = np.eye(n)
+    for term in filter(None, (t.strip() for t in text.split(";"))):
+        m = re.fullmatch(r"J(\d+) \+= (\S+) \* J(\d+)\.?", term)
+        try:
+            if m is None:
+                raise ValueError(term)
+            i, k, f = int(m.group(1)) - 1, int(m.group(3)) - 1, float(m.group(2))
+        except ValueError:
+            raise ConfigError(
+                f"{src}: cannot read the coupling term {term!r} of the 'kinecal "
+                "coupling' line; expected 'Ji += factor * Jk'."
+            ) from None
+        if not (0 <= i < n and 0 <= k < n and i != k and np.isfinite(f)):
+            raise ConfigError(
+                f"{src}: coupling term {term!r}: expected joints 1..{n}, two different "
+                "ones, and a finite factor."
+            )
+        C[i, k] += f
+    if abs(np.linalg.det(C)) < 1e-9:
+        raise ConfigError(f"{src}: the declared joint coupling is singular.")
+    return C
+
+
+def _rates(lim: ET.Element | None) -> tuple[float | None, float | None]:
+    """Velocity and effort of a ``<limit>`` (None where absent, not positive, or not a
+    number: ROS-Industrial writes effort 0 for unknown)."""
+    out: list[float | None] = []
+    for key in ("velocity", "effort"):
+        try:
+            v = float(lim.get(key, "nan")) if lim is not None else np.nan
+        except ValueError:
+            v = np.nan
+        out.append(v if np.isfinite(v) and v > 0 else None)
+    return out[0], out[1]
+
+
+def _on_z(p: np.ndarray, u: np.ndarray) -> bool:
+    """Whether the line through ``p`` along ``u`` is the z axis (same direction)."""
+    return bool(
+        np.allclose(u, [0.0, 0.0, 1.0], atol=1e-9) and np.hypot(*p[:2]) <= _ON_AXIS
+    )
+
+
+def _mimic(el: ET.Element, where: str) -> tuple[str, float, float]:
+    """(joint, multiplier, offset) of a ``<mimic>`` element."""
+    name = el.get("joint", "")
+    if not name:
+        raise ConfigError(
+            f'{where}: expected <mimic joint="NAME" .../>; no joint named.'
+        )
+    try:
+        mult = float(el.get("multiplier", "1"))
+        off = float(el.get("offset", "0"))
+    except ValueError:
+        raise ConfigError(
+            f"{where}: expected numbers; got multiplier={el.get('multiplier')!r}, "
+            f"offset={el.get('offset')!r}."
+        ) from None
+    if not (np.isfinite(mult) and np.isfinite(off)) or mult == 0.0:
+        raise ConfigError(
+            f"{where}: expected a finite non-zero multiplier and a finite offset; got "
+            f"multiplier={mult:g}, offset={off:g}."
+        )
+    return name, mult, off
+
+
+def _merge_mimics(lines, specs, mimics, src):
+    """Joints that mimic another become a coupling: a mimic joint on the axis line of a
+    neighbouring independent joint adds ``multiplier * q_other`` (and its offset) to
+    that joint's kinematic angle (``theta = C q_ctrl``, FANUC J2/J3 as kinecal's
+    ``--coupling mimic`` writes it). Returns the lines and specs of the independent
+    joints, C and the angle offsets (n,)."""
+    keep = [i for i in range(len(lines)) if i not in mimics]
+    index = {specs[i][0]: k for k, i in enumerate(keep)}
+    n = len(keep)
+    C = np.eye(n)
+    offsets = np.zeros(n)
+    for i, (other, mult, off) in sorted(mimics.items()):
+        name, kind, _ = specs[i]
+        if other not in index:
+            what = (
+                "a mimic joint itself"
+                if other in {s[0] for s in specs}
+                else ("not a movable joint of the chain")
+            )
+            raise ConfigError(
+                f"{src}: joint {name!r} mimics {other!r}, which is {what}; expected the "
+                "name of an independent joint of the chain."
+            )
+        if kind != "revolute":
+            raise ConfigError(
+                f"{src}: joint {name!r} is a {kind} mimic joint; kinecal couples "
+                "revolute joints only."
+            )
+        p, u = lines[i]
+        host = None
+        for k in (i + 1, i - 1):  # the independent neighbour on the same line
+            if k in mimics or not 0 <= k < len(lines) or specs[k][1] != "revolute":
+                continue
+            q_, w = lines[k]
+            d = p - q_
+            if abs(abs(u @ w) - 1.0) < 1e-9 and np.linalg.norm(d - (d @ w) * w) < 1e-7:
+                host = k
+                sign = float(np.sign(u @ w))
+                break
+        if host is None:
+            raise ConfigError(
+                f"{src}: mimic joint {name!r} turns about its own axis; kinecal reads a "
+                "mimic joint on the axis of the joint before or after it (a coupling "
+                "such as FANUC J2/J3), not a separate linkage."
+            )
+        r = keep.index(host)
+        C[r, index[other]] += sign * mult
+        offsets[r] += sign * off
+    if abs(np.linalg.det(C)) < 1e-9:
+        raise ConfigError(f"{src}: the mimic joints make the joint coupling singular.")
+    return [lines[i] for i in keep], [specs[i] for i in keep], C, offsets
+
+
 def _angle(a: np.ndarray, b: np.ndarray, axis: np.ndarray) -> float:
     """Signed angle from unit vector ``a`` to ``b`` about unit ``axis``."""
     return float(np.arctan2(np.cross(a, b) @ axis, a @ b))
@@ -246,11 +386,26 @@ def robot_from_urdf(
     except (OSError, ET.ParseError) as exc:
         raise ConfigError(f"{p}: cannot read URDF ({exc}).") from exc
     src = str(p)
+    base_given = base
+    text = p.read_text(errors="replace")
+    declared = re.search(
+        r"kinecal coupling \(theta = C q_ctrl\): (.*?)\s*(?:-->|$)", text, re.M
+    )
+    if tip is None:  # kinecal's own export names its tip (the tool links hang below it)
+        m = re.search(r"kinecal tip link: (\S+)", text)
+        if m is not None and any(
+            el.get("name") == m.group(1) for el in root.iter("link")
+        ):
+            tip = m.group(1)
     base, tip, chain = _chain(root, base, tip, src)
     # Axis lines at the zero configuration, in the base link's frame.
+    auto_base = base_given is None
     T = np.eye(4)
     lines: list[tuple[np.ndarray, np.ndarray]] = []
     specs: list[tuple[str, str, tuple[float, float]]] = []
+    mimics: dict[int, tuple[str, float, float]] = {}
+    rates: dict[str, tuple[float | None, float | None]] = {}
+    fixed_above: list[tuple[str, np.ndarray]] = []
     for j in chain:
         jn = j.get("name", "?")
         T = T @ _origin(j, f"{src}: joint {jn!r} origin")
@@ -258,7 +413,14 @@ def robot_from_urdf(
         if kind not in _MOVABLE:
             if kind != "fixed":
                 raise ConfigError(f"{src}: joint {jn!r} has unsupported type {kind!r}.")
+            if not lines:
+                child = j.find("child")
+                assert child is not None
+                fixed_above.append((child.get("link", ""), T.copy()))
             continue
+        mim = j.find("mimic")
+        if mim is not None:
+            mimics[len(lines)] = _mimic(mim, f"{src}: joint {jn!r} mimic")
         ax_el = j.find("axis")
         axis = _floats(
             ax_el.get("xyz") if ax_el is not None else "1 0 0",
@@ -275,20 +437,32 @@ def robot_from_urdf(
         lo, hi = -np.inf, np.inf
         if kind != "continuous" and lim is not None:
             lo, hi = _limits(lim, f"{src}: joint {jn!r} limit")
+        rates[jn] = _rates(lim)
         lines.append((T[:3, 3].copy(), T[:3, :3] @ axis))
         specs.append((jn, "prismatic" if kind == "prismatic" else "revolute", (lo, hi)))
     if not lines:
         raise ConfigError(f"{src}: no movable joint between {base!r} and {tip!r}.")
     T_tip = T
+    lines, specs, C, offsets = _merge_mimics(lines, specs, mimics, src)
+    if declared is not None and not mimics:
+        C = _declared_coupling(declared.group(1), len(lines), src)
     p1, u1 = lines[0]
     if specs[0][1] == "prismatic":  # a slide has no axis position: put it through 0
         p1 = np.zeros(3)
         lines[0] = (p1, u1)
-    if not np.allclose(u1, [0.0, 0.0, 1.0], atol=1e-9) or np.hypot(*p1[:2]) > _ON_AXIS:
+    if not _on_z(p1, u1) and auto_base and fixed_above:
+        # The root is not on the first axis (kinecal's own export: the root is the
+        # measurement frame 'user'): the deepest link above the first joint that is.
+        for link, T_root_link in reversed(fixed_above):
+            Ti = np.linalg.inv(T_root_link)
+            p_, u_ = Ti[:3, :3] @ p1 + Ti[:3, 3], Ti[:3, :3] @ u1
+            if _on_z(p_, u_):
+                return robot_from_urdf(path, base=link, tip=tip, name=name)
+    if not _on_z(p1, u1):
         raise ConfigError(
             f"{src}: the first joint axis must be the base link's z axis (DH frame 0 "
             f"sits on it); it is {np.round(u1, 6).tolist()} through "
-            f"{np.round(p1, 6).tolist()}. Choose another --base link."
+            f"{np.round(p1, 6).tolist()}. Choose another base link ({_HOW})."
         )
     if len(lines) < 2:
         raise ConfigError(
@@ -341,7 +515,9 @@ def robot_from_urdf(
                 f"{np.linalg.norm(resid):.2e} m); the chain may need MDH."
             )
         jname, jkind, jlim = specs[i]
-        joints.append(JointSpec(jname, theta, d, a, alpha, jkind, jlim))
+        if jkind == "revolute":
+            theta += offsets[i]
+        joints.append(JointSpec(jname, theta, d, a, alpha, jkind, jlim, *rates[jname]))
         z_prev, x_prev, o_prev = z, x, o
     F_n = np.eye(4)
     F_n[:3, :3] = np.column_stack([x_prev, np.cross(z_prev, x_prev), z_prev])
@@ -351,7 +527,7 @@ def robot_from_urdf(
         name=name or root.get("name") or p.stem,
         convention="dh",
         joints=tuple(joints),
-        coupling=np.eye(n),
+        coupling=C,
         T_n_flange=T_n_flange,
         self_weight=None,
         source=f"{src} (URDF {base} -> {tip})",

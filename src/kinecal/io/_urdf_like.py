@@ -1,0 +1,540 @@
+"""``export-urdf --like VENDOR.urdf``: the vendor's URDF with calibrated joint origins.
+
+Every link, joint, name, mesh, collision, inertial, limit and comment of the vendor's file
+is kept; only the ``<origin>`` of the movable joints between the root and the last movable
+joint changes, so that the forward kinematics root -> link equal the calibrated kinematic
+part of the model while each link frame keeps its place relative to the axis of the joint
+that moves it (the meshes attached to it stay where they were on the link).
+
+How: both the model (:func:`kinecal.compensation.export_chain`) and the vendor file put a
+frame on each joint axis, turning with the joint. In the nominal model and the vendor's
+file the two frames of one joint differ by a constant transform ``H_i`` (found at the
+zero pose and checked on random poses: a vendor file of another robot is refused). The
+calibrated link frame is the calibrated joint frame times ``H_i``; the new joint origins
+are read off between consecutive calibrated link frames. The joint axes (in the child
+frame) never change: ``H_i`` keeps the axis through the link origin.
+
+The robot base of the model is placed in the vendor's root frame by the joint axis lines
+of the zero pose (rotation from their directions, translation from their positions), so
+a built-in robot whose base frame differs from the vendor's root (FANUC World at J2 height,
+base_link on the floor) matches too.
+
+Coupled robots: the URDF joints take the kinematic angles ``theta = C q_ctrl`` (as the
+ROS-Industrial FANUC files do).
+"""
+
+from __future__ import annotations
+
+import re
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from kinecal.errors import ConfigError
+from kinecal.geometry import matrix_to_rpy
+from kinecal.robot._urdf import _MOVABLE, _floats, _origin, _tree
+from kinecal.typing import Float, Pose
+
+__all__ = ["LikeExport", "like_urdf"]
+
+# The vendor's file against the model's nominal robot (axis lines at the zero pose, the
+# vendor-to-model link transforms on random poses) [m, rad]: above _REFUSE another robot;
+# between _SAME and _REFUSE the same robot described with other numbers (a data sheet's
+# rounding), accepted with a warning: the FK stays exact, the meshes sit that far off.
+_SAME = 1e-5
+_REFUSE = 1e-3
+
+
+@dataclass(frozen=True)
+class LikeExport:
+    """The written document and what changed.
+
+    Attributes
+    ----------
+    text : the URDF document.
+    root, tips : root link; marker label -> calibrated tool link.
+    tip : the vendor's tip link (the end of the unbranched chain below the last moving
+        link), parent of the tool links.
+    joints : vendor names of the movable joints, in chain order.
+    moved_mm, turned_deg : largest change of a joint origin's position and rotation.
+    mismatch_mm : how far the vendor's nominal robot is from the model's (axis lines,
+        link motion; mm or mrad); above 0.01 the CLI warns.
+    check_m : largest FK difference to the model on random poses, read back [m].
+    origins : vendor joint name -> its calibrated origin (4, 4).
+    """
+
+    text: str
+    root: str
+    tips: dict[str, str]
+    tip: str
+    joints: tuple[str, ...]
+    moved_mm: float
+    turned_deg: float
+    mismatch_mm: float
+    check_m: float
+    origins: dict[str, Pose]
+
+
+def _num(v: float) -> str:
+    """17 significant digits; rounding noise below 1e-15 (m or rad) written as 0."""
+    v = float(v)
+    return repr(0.0 if abs(v) < 1e-15 else v + 0.0)
+
+
+def _axis_of(j: ET.Element, where: str) -> Float:
+    el = j.find("axis")
+    a = _floats(el.get("xyz") if el is not None else "1 0 0", 3, f"{where} axis")
+    n = float(np.linalg.norm(a))
+    if not n > 1e-9:
+        raise ConfigError(f"{where} axis: expected a non-zero direction; got {a}.")
+    return a / n
+
+
+def _motion(kind: str, axis: Float, v: float) -> Pose:
+    M = np.eye(4)
+    if kind == "prismatic":
+        M[:3, 3] = v * axis
+    else:
+        K = np.array(
+            [[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]]
+        )
+        M[:3, :3] = np.eye(3) + np.sin(v) * K + (1 - np.cos(v)) * K @ K
+    return M
+
+
+def _vendor_path(
+    root_el: ET.Element, src: str, n: int
+) -> tuple[str, list[ET.Element], list[int]]:
+    """Root link, the joints from it down to the last movable joint of the one movable
+    chain, and the positions of the movable ones in that list."""
+    links, by_child, children = _tree(root_el, src)
+    roots = sorted(lk for lk in links if lk not in by_child)
+
+    def movable_below(link: str) -> int:
+        count, todo = 0, [link]
+        while todo:
+            lk = todo.pop()
+            for c in children.get(lk, []):
+                count += by_child[c].get("type", "") in _MOVABLE
+                todo.append(c)
+        return count
+
+    with_joints = [lk for lk in roots if movable_below(lk)]
+    if len(with_joints) != 1:
+        raise ConfigError(
+            f"{src}: expected one tree with movable joints; found "
+            f"{len(with_joints)} ({', '.join(map(repr, with_joints)) or 'none'})."
+        )
+    root = with_joints[0]
+    path: list[ET.Element] = []
+    link = root
+    while movable_below(link):
+        kids = [
+            c for c in children.get(link, []) if movable_below(c) or _moves(by_child[c])
+        ]
+        if len(kids) > 1:
+            raise ConfigError(
+                f"{src}: the chain branches at link {link!r} into "
+                f"{', '.join(map(repr, kids))}, each with movable joints; expected one "
+                "serial chain (a gripper's fingers? remove them from the copy)."
+            )
+        link = kids[0]
+        path.append(by_child[link])
+    for j in path:
+        kind = j.get("type", "")
+        if kind != "fixed" and kind not in _MOVABLE:
+            raise ConfigError(
+                f"{src}: joint {j.get('name')!r} has type {kind!r}; expected fixed, "
+                "revolute, continuous or prismatic joints in the robot's chain."
+            )
+        if _moves(j) and j.find("mimic") is not None:
+            raise ConfigError(
+                f"{src}: joint {j.get('name')!r} is a mimic joint; --like needs "
+                "independent joints (the URDF joints take the kinematic angles): use the "
+                "vendor's file without the mimic joints."
+            )
+    movable = [k for k, j in enumerate(path) if _moves(j)]
+    if len(movable) != n:
+        names = ", ".join(repr(path[k].get("name")) for k in movable)
+        raise ConfigError(
+            f"{src}: the chain {root} -> {link} has {len(movable)} movable joints "
+            f"({names}); the model's robot has {n}. Expected the URDF of the calibrated "
+            "robot."
+        )
+    return root, path, movable
+
+
+def _moves(j: ET.Element) -> bool:
+    return j.get("type", "") in _MOVABLE
+
+
+def _exact(H: Pose, axis: Float, kind: str) -> Pose:
+    """``H`` turned (by rounding-sized angles) so that the model's joint axis, seen from
+    the vendor's link frame, is exactly the vendor's ``axis`` through its origin (the
+    vendor's numbers such as 1.570796327 for pi/2 are otherwise a 1e-10 rad tilt)."""
+    R = H[:3, :3]
+    b = R.T @ np.array([0.0, 0.0, 1.0])
+    c, d = np.cross(b, axis), float(b @ axis)
+    K = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
+    Q = np.eye(3) + K + K @ K / (1.0 + d)  # the rotation taking b to axis
+    out = np.eye(4)
+    out[:3, :3] = R @ Q.T
+    out[:3, 3] = H[:3, 3] if kind == "prismatic" else [0.0, 0.0, H[2, 3]]
+    return out
+
+
+def _kabsch(a: Float, b: Float) -> Float:
+    """Rotation R minimising sum |R a_k - b_k|^2 (rows are vectors)."""
+    U, _, Vt = np.linalg.svd(b.T @ a)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    return np.asarray(U @ D @ Vt)
+
+
+def like_urdf(
+    cal,
+    vendor: str | Path,
+    *,
+    set_label: str | None = None,
+    tool_link: str = "calibrated_tool",
+    user_link: str | None = None,
+    comments: list[str] | None = None,
+    text: str | None = None,
+    tip_note: bool = False,
+) -> LikeExport:
+    """The vendor's URDF with the calibrated joint origins (module docstring).
+
+    Parameters
+    ----------
+    cal : CalibratedModel.
+    vendor : the vendor's URDF (untrusted: every problem is a :class:`ConfigError`).
+    set_label : the set whose user frame ``user_link`` is.
+    tool_link : name of the calibrated tool link (a fixed child of the tip link);
+        ``<tool_link>_<marker>`` per marker when the model has several.
+    user_link : when given, a new root link of this name, the measurement frame of the
+        set, so that FK user_link -> tool_link is the model's tool pose.
+    comments : lines of a comment put before the ``<robot>`` element.
+    text : the document itself (``vendor`` then only names it in messages).
+    tip_note : add the line ``kinecal tip link: <tip>`` to the comment (read by
+        :func:`kinecal.robot.robot_from_urdf`).
+    """
+    from kinecal.compensation import export_chain
+
+    for what, given in (("--tool-link", tool_link), ("--user-link", user_link)):
+        if given is not None and not re.fullmatch(
+            r"[A-Za-z0-9_][A-Za-z0-9_.\-]*", given
+        ):
+            raise ConfigError(
+                f"{what} {given!r}: expected a link name (letters, digits, '_', '-', '.')."
+            )
+    if tool_link == user_link:
+        raise ConfigError(f"--tool-link and --user-link are both {tool_link!r}.")
+    src = str(vendor)
+    p = Path(vendor)
+    try:
+        raw = p.read_text(encoding="utf-8") if text is None else text
+        root_el = ET.fromstring(raw)
+    except (OSError, UnicodeDecodeError, ET.ParseError) as exc:
+        raise ConfigError(f"{src}: cannot read URDF ({exc}).") from exc
+    if root_el.tag != "robot":
+        raise ConfigError(f"{src}: expected a <robot> document; got <{root_el.tag}>.")
+    if any(
+        "xacro" in (el.tag or "") for el in root_el.iter() if isinstance(el.tag, str)
+    ):
+        raise ConfigError(
+            f"{src}: holds xacro elements; expected a plain URDF (expand it first: "
+            "xacro FILE.xacro > FILE.urdf)."
+        )
+    model = cal.model
+    robot = model.robot
+    n = model.n_joints
+    C = robot.coupling
+    root, path, movable = _vendor_path(root_el, src, n)
+    names = tuple(path[k].get("name", "?") for k in movable)
+    kinds = [path[k].get("type", "") for k in movable]
+    for i, (kind, pris) in enumerate(zip(kinds, robot.prismatic)):
+        if (kind == "prismatic") != bool(pris):
+            raise ConfigError(
+                f"{src}: joint {names[i]!r} is {kind}; joint {i + 1} of "
+                f"{robot.name} is {'prismatic' if pris else 'revolute'}."
+            )
+    origins = [_origin(j, f"{src}: joint {j.get('name')!r} origin") for j in path]
+    axes = {
+        k: _axis_of(path[k], f"{src}: joint {path[k].get('name')!r}") for k in movable
+    }
+    for existing in {el.get("name") for el in root_el.findall("link")}:
+        if existing == tool_link or existing == user_link:
+            raise ConfigError(
+                f"{src}: already has a link {existing!r}; choose another name "
+                "(--tool-link / --user-link)."
+            )
+
+    def vendor_frames(theta: Float, org: list[Pose]) -> list[Pose]:
+        """Child link frames of the movable joints, in the root frame."""
+        T, out, i = np.eye(4), [], 0
+        for k in range(len(path)):
+            T = T @ org[k]
+            if k in axes:
+                T = T @ _motion(kinds[i], axes[k], float(theta[i]))
+                out.append(T)
+                i += 1
+        return out
+
+    Cinv = np.linalg.inv(C)
+
+    def model_frames(ch, theta: Float) -> list[Pose]:
+        """Joint frames link1..linkN of an exported chain, in the robot base frame."""
+        q = (Cinv @ theta)[None]
+        Tb = np.linalg.inv(ch.T_user_base)
+        return [Tb @ ch.fk(q, f"link{i + 1}")[0] for i in range(n)]
+
+    nominal = type(cal)(
+        model, model.nominal.copy(), np.full(model.size, np.nan), ["fixed"] * model.size
+    )
+    ch_nom = export_chain(nominal, set_label=set_label)
+    ch_cal = export_chain(cal, set_label=set_label)
+    zero = np.zeros(n)
+    J0 = model_frames(ch_nom, zero)
+    U0 = vendor_frames(zero, origins)
+    # The robot base in the vendor root: axis lines of the zero pose.
+    dirs_m = np.array([J[:3, 2] for J in J0])
+    dirs_v = np.array([U[:3, :3] @ axes[k] for U, k in zip(U0, movable)])
+    if np.linalg.matrix_rank(dirs_m, tol=1e-6) < 2:
+        raise ConfigError(
+            f"{src}: all joint axes are parallel; --like cannot place the robot base in "
+            "the vendor's root frame (use export-urdf without --like)."
+        )
+    R = _kabsch(dirs_m, dirs_v)
+    rows, rhs = [], []
+    for J, U, u, kind in zip(J0, U0, dirs_v, kinds):
+        if kind == "prismatic":
+            continue
+        P = np.eye(3) - np.outer(u, u)
+        rows.append(P)
+        rhs.append(P @ (U[:3, 3] - R @ J[:3, 3]))
+    t = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
+    B = np.eye(4)
+    B[:3, :3], B[:3, 3] = R, t
+    resid = 0.0
+    for J, U, u in zip(J0, U0, dirs_v):
+        w = U[:3, 3] - (B @ J)[:3, 3]
+        resid = max(
+            resid,
+            float(np.linalg.norm(w - (w @ u) * u)),
+            float(np.linalg.norm(R @ J[:3, 2] - u)),
+        )
+    if resid > _REFUSE:
+        raise ConfigError(
+            f"{src}: the joint axes of this URDF are {resid * 1e3:.3f} mm (or "
+            f"{np.degrees(resid):.3f} deg) from the nominal axes of {robot.name}, the "
+            "model's robot; expected the URDF of the same robot (joints in the same "
+            "order, turning the same way)."
+        )
+    H = [
+        _exact(np.linalg.inv(B @ J) @ U, axes[k], kind)
+        for J, U, k, kind in zip(J0, U0, movable, kinds)
+    ]
+    rng = np.random.default_rng(1)
+    lim = np.where(np.isfinite(robot.limits), robot.limits, [-np.pi, np.pi])
+    for theta in rng.uniform(lim[:, 0], lim[:, 1], (8, n)) @ C.T:
+        for i, (J, U) in enumerate(
+            zip(model_frames(ch_nom, theta), vendor_frames(theta, origins))
+        ):
+            err = float(np.abs(np.linalg.inv(B @ J) @ U - H[i]).max())
+            resid = max(resid, err)
+            if err > _REFUSE:
+                raise ConfigError(
+                    f"{src}: link of joint {names[i]!r} moves differently from joint "
+                    f"{i + 1} of {robot.name} ({err * 1e3:.3f} mm apart on a random "
+                    "pose); expected the URDF of the same robot"
+                    + (
+                        ", its joints taking the kinematic angles (theta = C q_ctrl, "
+                        "FANUC joint_3 = J3 + J2)."
+                        if not np.array_equal(C, np.eye(n))
+                        else "."
+                    )
+                )
+    # Calibrated frames in the vendor root; new origins along the path.
+    T_root_user = B @ np.linalg.inv(ch_cal.T_user_base)
+    U_cal = [B @ J @ h for J, h in zip(model_frames(ch_cal, zero), H)]
+    new = list(origins)
+    T = np.eye(4)
+    i = 0
+    for k in range(len(path)):
+        if k in axes:
+            new[k] = np.linalg.inv(T) @ U_cal[i]
+            T = U_cal[i]
+            i += 1
+        else:
+            T = T @ origins[k]
+    moved = max(float(np.linalg.norm(new[k][:3, 3] - origins[k][:3, 3])) for k in axes)
+    turned = max(
+        float(
+            np.arccos(
+                np.clip(
+                    (np.trace(new[k][:3, :3].T @ origins[k][:3, :3]) - 1) / 2, -1, 1
+                )
+            )
+        )
+        for k in axes
+    )
+    for k in movable:
+        raw = _set_origin(raw, path[k].get("name", ""), new[k], src)
+    # The calibrated tool frame(s) and the user frame.
+    # The tip: down from the last moving link while the chain does not branch.
+    tip = path[movable[-1]].find("child").get("link", "")  # type: ignore[union-attr]
+    _, by_child, children = _tree(root_el, src)
+    T_last_tip = np.eye(4)
+    while len(children.get(tip, [])) == 1:
+        child = children[tip][0]
+        j = by_child[child]
+        if _moves(j):  # pragma: no cover - _vendor_path stops at the last movable
+            break
+        T_last_tip = T_last_tip @ _origin(j, f"{src}: joint {j.get('name')!r} origin")
+        tip = child
+    q0 = np.zeros((1, n))
+    tips: dict[str, str] = {}
+    extra: list[str] = []
+    markers = model.spec.markers
+    for label in markers:
+        name = tool_link if len(markers) == 1 else f"{tool_link}_{label or 'default'}"
+        name = "".join(ch if ch.isalnum() or ch in "_-" else "_" for ch in name)
+        T_user_cam = ch_cal.fk(q0, ch_cal.tips[label])[0]
+        O = np.linalg.inv(U_cal[-1] @ T_last_tip) @ T_root_user @ T_user_cam
+        extra += _fixed_xml(name, tip, name, O)
+        tips[label] = name
+    top = root
+    if user_link is not None:
+        extra += _fixed_xml(user_link, user_link, root, np.linalg.inv(T_root_user))
+        top = user_link
+    end = raw.rfind("</robot>")
+    if end < 0:
+        raise ConfigError(f"{src}: no closing </robot> tag.")
+    text = raw[:end] + "".join(extra) + raw[end:]
+    if tip_note:
+        comments = [
+            *(comments or []),
+            f"kinecal tip link: {tip} (the robot's flange, for import-urdf and --robot).",
+        ]
+    if comments:
+        text = _with_comment(text, comments)
+    # Read back: FK of the written file against the model's kinematic part.
+    T_top_user = np.eye(4) if user_link is not None else T_root_user
+    check = _check(text, src, cal, set_label, tips, top, T_top_user, rng)
+    return LikeExport(
+        text,
+        top,
+        tips,
+        tip,
+        names,
+        moved * 1e3,
+        float(np.degrees(turned)),
+        resid * 1e3,
+        check,
+        {path[k].get("name", ""): new[k] for k in movable},
+    )
+
+
+def _with_comment(text: str, lines: list[str]) -> str:
+    """``text`` with a comment of ``lines`` after the XML declaration (if any)."""
+    body = "\n".join(f"  {ln}".rstrip().replace("--", "- -") for ln in lines)
+    at = 0
+    m = re.match(r"\s*<\?xml[^>]*\?>[ \t]*\n?", text)
+    if m:
+        at = m.end()
+    return text[:at] + f"<!--\n{body}\n-->\n" + text[at:]
+
+
+def _set_origin(raw: str, name: str, O: Pose, src: str) -> str:
+    """``raw`` with the ``<origin>`` of joint ``name`` replaced by ``O`` (the rest of the
+    document byte for byte as it was). The robot's joint is the ``<joint>`` with a
+    ``type``, outside comments (a ``<transmission>`` or ``<ros2_control>`` names joints
+    too)."""
+    pat = re.compile(
+        r"<joint\b([^>]*)\bname\s*=\s*([\"'])"
+        + re.escape(name)
+        + r"\2([^>]*)>(.*?)</joint\s*>",
+        re.S,
+    )
+    comments = [c.span() for c in re.finditer(r"<!--.*?-->", raw, re.S)]
+    hits = [
+        m
+        for m in pat.finditer(raw)
+        if re.search(r"\btype\s*=", m.group(1) + m.group(3))
+        and not any(a <= m.start() < b for a, b in comments)
+    ]
+    if len(hits) != 1:
+        raise ConfigError(
+            f"{src}: cannot find the element of joint {name!r} in the text "
+            f'({len(hits)} matches); expected one <joint name="{name}" type=...>...'
+            "</joint>."
+        )
+    m = hits[0]
+    new = (
+        f'<origin xyz="{" ".join(_num(v) for v in O[:3, 3])}" '
+        f'rpy="{" ".join(_num(v) for v in matrix_to_rpy(O[:3, :3]))}"/>'
+    )
+    body = m.group(4)
+    o = re.search(r"<origin\b[^>]*?/>|<origin\b[^>]*>.*?</origin\s*>", body, re.S)
+    if o is not None:
+        body = body[: o.start()] + new + body[o.end() :]
+    else:
+        body = f"\n    {new}" + body
+    a, b = m.span(4)
+    return raw[:a] + body + raw[b:]
+
+
+def _fixed_xml(name: str, parent: str, child: str, O: Pose) -> list[str]:
+    """A new link ``name`` and the fixed joint ``<name>_joint`` parent -> child."""
+    return [
+        f"  <link name={quoteattr(name)}/>\n",
+        f'  <joint name={quoteattr(name + "_joint")} type="fixed">\n',
+        f"    <parent link={quoteattr(parent)}/>\n",
+        f"    <child link={quoteattr(child)}/>\n",
+        f'    <origin xyz="{" ".join(_num(v) for v in O[:3, 3])}" '
+        f'rpy="{" ".join(_num(v) for v in matrix_to_rpy(O[:3, :3]))}"/>\n',
+        "  </joint>\n",
+    ]
+
+
+def _check(text, src, cal, set_label, tips, top, T_top_user, rng) -> float:
+    """Largest difference [m] between the written file's FK (``top`` -> tool links) and
+    the model's kinematic part (in ``top``) on random poses."""
+    from kinecal.compensation import kinematic_params
+    from kinecal.models import ModelInputs
+
+    model = cal.model
+    robot = model.robot
+    n = model.n_joints
+    _, by_child, _ = _tree(ET.fromstring(text), src)
+    lim = np.where(np.isfinite(robot.limits), robot.limits, [-np.pi, np.pi])
+    q = rng.uniform(lim[:, 0], lim[:, 1], (16, n))
+    theta = q @ robot.coupling.T
+    s = 0 if set_label is None else model.spec.sets.index(set_label)
+    x = kinematic_params(cal)
+    worst = 0.0
+    for m, label in enumerate(model.spec.markers):
+        chain = []
+        link = tips[label]
+        while link in by_child:
+            chain.append(by_child[link])
+            link = by_child[link].find("parent").get("link", "")  # type: ignore[union-attr]
+        if link != top:  # pragma: no cover - a defect, not a user error
+            raise RuntimeError(f"export-urdf --like: {tips[label]} is not below {top}.")
+        chain.reverse()
+        N = len(q)
+        inp = ModelInputs.make(q, set_index=np.full(N, s), marker_index=np.full(N, m))
+        out = model.evaluate(x, inp, orientation=True)
+        for r in range(N):  # a check on 16 poses, not a hot path
+            T, i = np.eye(4), 0
+            for j in chain:
+                T = T @ _origin(j, src)
+                if _moves(j):
+                    T = T @ _motion(j.get("type", ""), _axis_of(j, src), theta[r, i])
+                    i += 1
+            want = np.eye(4)
+            want[:3, :3], want[:3, 3] = out.R_user_cam[r], out.p_user[r]
+            worst = max(worst, float(np.abs(T - T_top_user @ want).max()))
+    return worst
