@@ -28,6 +28,7 @@ __all__ = [
     "DHChain",
     "JointSpec",
     "RobotDescription",
+    "LinkMass",
     "SelfWeightSpec",
     "dh_transforms",
 ]
@@ -65,6 +66,21 @@ class SelfWeightSpec:
     shoulder: int = 2
     elbow: int = 3
     wrist_frame: int = 4
+
+
+@dataclass(frozen=True)
+class LinkMass:
+    """Mass and centre of mass of the body rigid with standard-DH frame ``frame``.
+
+    The general link self-weight model (Eq. 25 for N links) starts from these: body k
+    (moved by joints 1..k) weighs ``mass`` [kg] with its centre of mass at ``com`` (3,)
+    [m] in DH frame k. ``import-urdf`` lumps the URDF inertials of every link between
+    joint k and joint k + 1 (fixed joints included) into body k.
+    """
+
+    frame: int
+    mass: float
+    com: tuple[float, float, float]
 
 
 @dataclass(frozen=True)
@@ -147,6 +163,9 @@ class RobotDescription:
         geometry departs more from its nominal table).
     source : str
         Where the data came from (file path or built-in name).
+    link_masses : tuple of LinkMass
+        Link masses and centres of mass (from a URDF's inertials) for the general link
+        self-weight model; used when ``self_weight`` is None. Empty: none known.
     """
 
     name: str
@@ -161,6 +180,7 @@ class RobotDescription:
     source: str = ""
     prior_sigma: dict[tuple[str, str], float] = field(default_factory=dict)
     rated_payload_kg: float | None = None
+    link_masses: tuple[LinkMass, ...] = ()
 
     def __post_init__(self) -> None:
         n = len(self.joints)
@@ -176,6 +196,11 @@ class RobotDescription:
             )
         if abs(np.linalg.det(self.coupling)) < 1e-9:
             raise ConfigError(f"{self.name}: the joint coupling matrix is singular.")
+        frames = [b.frame for b in self.link_masses]
+        if len(set(frames)) != len(frames) or not all(1 <= k <= n for k in frames):
+            raise ConfigError(
+                f"{self.name}: link masses need distinct DH frames 1..{n}; got {frames}."
+            )
         g = np.linalg.norm(self.gravity)
         if not np.isfinite(g) or g <= 0:
             raise ConfigError(
@@ -190,6 +215,11 @@ class RobotDescription:
     @property
     def joint_names(self) -> list[str]:
         return [j.name for j in self.joints]
+
+    @property
+    def link_bodies(self) -> tuple[int, ...]:
+        """DH frames of the bodies with a known mass (the general link model's bodies)."""
+        return tuple(b.frame for b in self.link_masses if b.mass > 0)
 
     @property
     def prismatic(self) -> NDArrayBool:

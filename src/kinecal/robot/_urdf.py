@@ -7,9 +7,12 @@ along the common normal to the next axis) and the four DH numbers read off betwe
 consecutive frames. The last DH frame is put on the last axis, level with the tip
 link's origin; the tip link is the physical flange (``flange`` in the description).
 
-Only the geometry is imported: masses and the link self-weight layout are not, so the
-description has ``self_weight: null`` (edit the YAML to add it). The URDF joint values
-are the controller values (no couplings).
+The links' inertials become the general link self-weight layout (``link_masses``): the
+masses and centres of mass of every link between joint k and joint k + 1 (links hanging
+from them by fixed joints included) are lumped into body k, its centre of mass given in
+DH frame k. The lumped two-moment model of the paper (``self_weight``) stays null: the
+general model covers any arm (7 axes, parallel shoulders, offset wrists, a prismatic
+first joint). The URDF joint values are the controller values (no couplings).
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ import numpy as np
 
 from kinecal.errors import ConfigError
 from kinecal.geometry import rpy_to_matrix
-from kinecal.robot._description import JointSpec, RobotDescription
+from kinecal.robot._description import JointSpec, LinkMass, RobotDescription
 
 __all__ = ["robot_from_urdf"]
 
@@ -207,6 +210,64 @@ def _limits(lim: ET.Element, where: str) -> tuple[float, float]:
     return lo, hi
 
 
+def _inertial(link: ET.Element | None, where: str) -> tuple[float, np.ndarray] | None:
+    """Mass [kg] and centre of mass (3,) [m] in the link frame, or None without one."""
+    el = link.find("inertial") if link is not None else None
+    if el is None:
+        return None
+    m_el = el.find("mass")
+    if m_el is None:
+        return None
+    try:
+        m = float(m_el.get("value", ""))
+    except ValueError:
+        raise ConfigError(
+            f"{where} mass: expected a number; got {m_el.get('value')!r}."
+        ) from None
+    if not (np.isfinite(m) and m >= 0):
+        raise ConfigError(f"{where} mass: expected a mass >= 0 kg; got {m}.")
+    o = el.find("origin")
+    c = (
+        _floats(o.get("xyz", "0 0 0"), 3, f"{where} origin xyz")
+        if o is not None
+        else np.zeros(3)
+    )
+    return m, c
+
+
+def _link_masses(
+    root: ET.Element,
+    src: str,
+    placed: list[tuple[str, np.ndarray, int]],
+    frames: list[np.ndarray],
+) -> tuple[LinkMass, ...]:
+    """Bodies 1..n from the inertials of the chain's links (``placed``: link name, pose
+    at the zero configuration, body number) and of links fixed to them."""
+    _, by_child, children = _tree(root, src)
+    link_el = {el.get("name", ""): el for el in root.findall("link")}
+    todo = list(placed)
+    on_chain = {name for name, _, _ in placed}
+    acc: dict[int, list[tuple[float, np.ndarray]]] = {}
+    while todo:
+        name, T, body = todo.pop()
+        got = _inertial(link_el.get(name), f"{src}: link {name!r} inertial")
+        if got is not None and body >= 1 and got[0] > 0:
+            acc.setdefault(body, []).append((got[0], T[:3, :3] @ got[1] + T[:3, 3]))
+        for c in children.get(name, []):
+            j = by_child[c]
+            if c in on_chain or j.get("type", "") != "fixed":
+                continue  # the chain's next link, or a gripper's moving finger
+            todo.append((c, T @ _origin(j, f"{src}: joint {j.get('name')!r}"), body))
+    out = []
+    for k in sorted(acc):
+        m = sum(mi for mi, _ in acc[k])
+        p = sum(mi * pi for mi, pi in acc[k]) / m
+        F = frames[k - 1]
+        com = F[:3, :3].T @ (p - F[:3, 3])
+        out.append(LinkMass(k, float(m), (float(com[0]), float(com[1]), float(com[2]))))
+    return tuple(out)
+
+
 def _angle(a: np.ndarray, b: np.ndarray, axis: np.ndarray) -> float:
     """Signed angle from unit vector ``a`` to ``b`` about unit ``axis``."""
     return float(np.arctan2(np.cross(a, b) @ axis, a @ b))
@@ -251,14 +312,18 @@ def robot_from_urdf(
     T = np.eye(4)
     lines: list[tuple[np.ndarray, np.ndarray]] = []
     specs: list[tuple[str, str, tuple[float, float]]] = []
+    placed: list[tuple[str, np.ndarray, int]] = [(base, np.eye(4), 0)]
     for j in chain:
         jn = j.get("name", "?")
         T = T @ _origin(j, f"{src}: joint {jn!r} origin")
         kind = j.get("type", "")
+        child = j.find("child").get("link", "")  # type: ignore[union-attr]
         if kind not in _MOVABLE:
             if kind != "fixed":
                 raise ConfigError(f"{src}: joint {jn!r} has unsupported type {kind!r}.")
+            placed.append((child, T.copy(), len(lines)))
             continue
+        placed.append((child, T.copy(), len(lines) + 1))
         ax_el = j.find("axis")
         axis = _floats(
             ax_el.get("xyz") if ax_el is not None else "1 0 0",
@@ -302,6 +367,7 @@ def robot_from_urdf(
         np.zeros(3),
     )
     joints: list[JointSpec] = []
+    frames: list[np.ndarray] = []  # DH frames 1..n at the zero configuration
     n = len(lines)
     for i in range(n):
         if i + 1 < n:
@@ -342,6 +408,10 @@ def robot_from_urdf(
             )
         jname, jkind, jlim = specs[i]
         joints.append(JointSpec(jname, theta, d, a, alpha, jkind, jlim))
+        F = np.eye(4)
+        F[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+        F[:3, 3] = o
+        frames.append(F)
         z_prev, x_prev, o_prev = z, x, o
     F_n = np.eye(4)
     F_n[:3, :3] = np.column_stack([x_prev, np.cross(z_prev, x_prev), z_prev])
@@ -355,4 +425,5 @@ def robot_from_urdf(
         T_n_flange=T_n_flange,
         self_weight=None,
         source=f"{src} (URDF {base} -> {tip})",
+        link_masses=_link_masses(root, src, placed, frames),
     )
