@@ -74,7 +74,14 @@ def urdf_text() -> str:
 
 
 def _rpy(r: float, p: float, y: float) -> np.ndarray:
-    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    cr, sr, cp, sp, cy, sy = (
+        np.cos(r),
+        np.sin(r),
+        np.cos(p),
+        np.sin(p),
+        np.cos(y),
+        np.sin(y),
+    )
     Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
     Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
     Rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
@@ -154,7 +161,9 @@ def true_arm(seed: int = 0, compliance_scale: float = 1.0) -> TrueArm:
     T_tb = np.eye(4)
     T_tb[:3, :3] = _rpy(0.01, -0.02, np.radians(150))
     T_tb[:3, 3] = (2.0, -0.5, -0.3)
-    return TrueArm(np.array(origins), offsets, compliance, T_tb, np.array([0.03, 0.0, 0.06]))
+    return TrueArm(
+        np.array(origins), offsets, compliance, T_tb, np.array([0.03, 0.0, 0.06])
+    )
 
 
 def random_poses(n: int, rng: np.random.Generator) -> np.ndarray:

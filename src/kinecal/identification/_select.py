@@ -116,7 +116,10 @@ def candidate_specs(
     base = spec_for(robot, meas, "kinematic", hayati=hayati)
     if ntm_joints is None:
         ntm_joints = robot.ntm_joints
-    has_link = robot.self_weight is not None
+    lumped = robot.self_weight is not None
+    bodies = () if lumped else robot.link_bodies  # the general model's, from the masses
+    has_link = lumped or bool(bodies)
+    link = "paper" if lumped else ("general" if bodies else "none")
     out: list[tuple[str, ModelSpec]] = [("kinematic", base)]
     out.append(
         (
@@ -126,10 +129,16 @@ def candidate_specs(
     )
     out.append(("ntm", replace(base, ntm_joints=ntm_joints, ntm_order=2, name="ntm")))
     out.append(("load", replace(base, load=True, name="load")))
-    if has_link:
+    if lumped:
         out.append(("rfcm", replace(base, load=True, link="rfcm", name="rfcm")))
+    if has_link:
         out.append(
-            ("load+link", replace(base, load=True, link="paper", name="load+link"))
+            (
+                "load+link",
+                replace(
+                    base, load=True, link=link, link_bodies=bodies, name="load+link"
+                ),
+            )
         )
     out.append(
         (
@@ -139,7 +148,8 @@ def candidate_specs(
                 ntm_joints=ntm_joints,
                 ntm_order=1,
                 load=True,
-                link="paper" if has_link else "none",
+                link=link,
+                link_bodies=bodies,
                 name="full",
             ),
         )
@@ -152,7 +162,8 @@ def candidate_specs(
                 ntm_joints=ntm_joints,
                 ntm_order=2,
                 load=True,
-                link="paper" if has_link else "none",
+                link=link,
+                link_bodies=bodies,
                 name="full",
             ),
         )

@@ -27,8 +27,8 @@ from kinecal.typing import ArrayLike, Float, Pose
 __all__ = [
     "DHChain",
     "JointSpec",
-    "RobotDescription",
     "LinkMass",
+    "RobotDescription",
     "SelfWeightSpec",
     "dh_transforms",
 ]
