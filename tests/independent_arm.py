@@ -17,29 +17,69 @@ import numpy as np
 
 G = 9.80665
 
-# (name, origin xyz [m], origin rpy [rad], mass of the child link [kg], its com [m])
+# (name, origin xyz [m], origin rpy [rad], mass of the child link [kg], its com [m],
+#  limits); every joint turns (or slides) about its own z axis.
 ARM7 = [
-    ("j1", (0, 0, 0.333), (0, 0, 0), 4.9, (0.003, -0.03, -0.07)),
-    ("j2", (0, 0, 0), (-np.pi / 2, 0, 0), 0.65, (-0.003, -0.03, 0.03)),
-    ("j3", (0, -0.316, 0), (np.pi / 2, 0, 0), 3.2, (0.03, 0.04, -0.07)),
-    ("j4", (0.0825, 0, 0), (np.pi / 2, 0, 0), 3.6, (-0.05, 0.1, 0.03)),
-    ("j5", (-0.0825, 0.384, 0), (-np.pi / 2, 0, 0), 1.2, (-0.01, 0.04, -0.1)),
-    ("j6", (0, 0, 0), (np.pi / 2, 0, 0), 1.7, (0.06, -0.01, 0.01)),
-    ("j7", (0.088, 0, 0), (np.pi / 2, 0, 0), 0.75, (0.01, 0.004, 0.08)),
+    ("j1", (0, 0, 0.333), (0, 0, 0), 4.9, (0.003, -0.03, -0.07), (-2.7, 2.7)),
+    ("j2", (0, 0, 0), (-np.pi / 2, 0, 0), 0.65, (-0.003, -0.03, 0.03), (-1.7, 1.7)),
+    ("j3", (0, -0.316, 0), (np.pi / 2, 0, 0), 3.2, (0.03, 0.04, -0.07), (-2.7, 2.7)),
+    ("j4", (0.0825, 0, 0), (np.pi / 2, 0, 0), 3.6, (-0.05, 0.1, 0.03), (-3.0, -0.15)),
+    (
+        "j5",
+        (-0.0825, 0.384, 0),
+        (-np.pi / 2, 0, 0),
+        1.2,
+        (-0.01, 0.04, -0.1),
+        (-2.7, 2.7),
+    ),
+    ("j6", (0, 0, 0), (np.pi / 2, 0, 0), 1.7, (0.06, -0.01, 0.01), (0.55, 4.5)),
+    ("j7", (0.088, 0, 0), (np.pi / 2, 0, 0), 0.75, (0.01, 0.004, 0.08), (-2.9, 2.9)),
 ]
+# A UR-type arm: parallel shoulder, elbow and wrist-1 axes, offset wrist.
+UR6 = [
+    ("shoulder_pan", (0, 0, 0.163), (0, 0, 0), 3.7, (0, -0.02, 0), (-3.1, 3.1)),
+    ("shoulder_lift", (0, 0, 0), (np.pi / 2, 0, 0), 8.4, (-0.21, 0, 0.14), (-3.1, 0.0)),
+    ("elbow", (-0.425, 0, 0), (0, 0, 0), 2.3, (-0.19, 0, 0.02), (-2.8, 2.8)),
+    ("wrist_1", (-0.392, 0, 0.134), (0, 0, 0), 1.2, (0, -0.02, 0), (-3.1, 3.1)),
+    ("wrist_2", (0, -0.1, 0), (np.pi / 2, 0, 0), 1.2, (0, 0.02, 0), (-3.1, 3.1)),
+    ("wrist_3", (0, 0.1, 0), (-np.pi / 2, 0, 0), 0.25, (0, 0, -0.02), (-3.1, 3.1)),
+]
+# A prismatic first joint (a torso lift, as TIAGo's) under a 6R arm.
+TORSO = [
+    ("torso_lift", (0, 0, 0.6), (0, 0, 0), 12.0, (0.0, 0.0, 0.1), (0.0, 0.35)),
+    ("arm_1", (0.1, 0, 0.2), (0, 0, 0), 1.6, (0.05, 0.0, 0.02), (-2.5, 2.5)),
+    (
+        "arm_2",
+        (0.125, 0.02, -0.015),
+        (np.pi / 2, 0, 0),
+        1.8,
+        (0.0, 0.0, 0.06),
+        (-1.5, 1.5),
+    ),
+    ("arm_3", (0.0, 0.0, 0.3), (-np.pi / 2, 0, 0), 1.4, (0.0, 0.05, 0.0), (-3.4, 1.5)),
+    ("arm_4", (0.02, 0.0, 0.0), (np.pi / 2, 0, 0), 1.2, (0.0, 0.0, 0.1), (-0.3, 2.3)),
+    (
+        "arm_5",
+        (-0.02, 0.0, 0.22),
+        (-np.pi / 2, 0, 0),
+        0.9,
+        (0.0, 0.05, 0.0),
+        (-2.0, 2.0),
+    ),
+    ("arm_6", (0.0, 0.0, 0.12), (np.pi / 2, 0, 0), 0.4, (0.0, 0.0, 0.03), (-1.4, 1.4)),
+]
+PRISMATIC = {"torso_lift"}
 FLANGE_Z = 0.107
 HAND = (0.7, (0.0, 0.0, 0.05))  # fixed to the flange: mass, com in the flange frame
-LIMITS = [(-2.7, 2.7), (-1.7, 1.7), (-2.7, 2.7), (-3.0, -0.15), (-2.7, 2.7)]
-LIMITS += [(0.55, 4.5), (-2.9, 2.9)]
 
 
-def urdf_text() -> str:
+def urdf_text(arm: list = ARM7, name: str = "arm7") -> str:
     """The arm as a URDF with inertials."""
-    out = ['<robot name="arm7">', '<link name="base"/>']
+    out = [f'<robot name="{name}">', '<link name="base"/>']
     parent = "base"
-    for i, (name, xyz, rpy, m, c) in enumerate(ARM7):
+    for i, (name, xyz, rpy, m, c, (lo, hi)) in enumerate(arm):
         child = f"link{i + 1}"
-        lo, hi = LIMITS[i]
+        kind = "prismatic" if name in PRISMATIC else "revolute"
         out.append(
             f'<link name="{child}"><inertial><mass value="{m}"/>'
             f'<origin xyz="{c[0]} {c[1]} {c[2]}"/>'
@@ -47,7 +87,7 @@ def urdf_text() -> str:
             "</inertial></link>"
         )
         out.append(
-            f'<joint name="{name}" type="revolute"><parent link="{parent}"/>'
+            f'<joint name="{name}" type="{kind}"><parent link="{parent}"/>'
             f'<child link="{child}"/><origin xyz="{xyz[0]} {xyz[1]} {xyz[2]}" '
             f'rpy="{rpy[0]} {rpy[1]} {rpy[2]}"/><axis xyz="0 0 1"/>'
             f'<limit lower="{lo}" upper="{hi}" effort="87" velocity="2"/></joint>'
@@ -55,7 +95,7 @@ def urdf_text() -> str:
         parent = child
     out.append('<link name="flange"/>')
     out.append(
-        '<joint name="flange_joint" type="fixed"><parent link="link7"/>'
+        f'<joint name="flange_joint" type="fixed"><parent link="link{len(arm)}"/>'
         f'<child link="flange"/><origin xyz="0 0 {FLANGE_Z}"/></joint>'
     )
     m, c = HAND
@@ -96,10 +136,17 @@ def _rz(q: np.ndarray) -> np.ndarray:
     return R
 
 
+def _tz(q: np.ndarray) -> np.ndarray:
+    T = np.broadcast_to(np.eye(4), (q.size, 4, 4)).copy()
+    T[:, 2, 3] = q
+    return T
+
+
 @dataclass
 class TrueArm:
-    """The true arm: joint origins (7, 4, 4), zero offsets, compliances [rad/(N m)]."""
+    """The true arm: joint origins (n, 4, 4), zero offsets, compliances [rad/(N m)]."""
 
+    arm: list
     origins: np.ndarray
     offsets: np.ndarray
     compliance: np.ndarray
@@ -107,65 +154,87 @@ class TrueArm:
     reflector: np.ndarray  # in the flange frame [m]
 
     def _frames(self, q: np.ndarray):
-        """Joint frames (N, 7, 4, 4) after each joint, flange (N, 4, 4)."""
+        """Joint frames (N, n, 4, 4) after each joint, flange (N, 4, 4)."""
         N = q.shape[0]
         T = np.broadcast_to(np.eye(4), (N, 4, 4)).copy()
         frames = []
-        for i in range(7):
-            T = T @ self.origins[i] @ _rz(q[:, i] + self.offsets[i])
+        for i, row in enumerate(self.arm):
+            move = _tz if row[0] in PRISMATIC else _rz
+            T = T @ self.origins[i] @ move(q[:, i] + self.offsets[i])
             frames.append(T)
         F = np.eye(4)
         F[2, 3] = FLANGE_Z
         return np.stack(frames, 1), T @ F
 
     def gravity_torques(self, q: np.ndarray) -> np.ndarray:
-        """Torque of gravity about each joint axis (N, 7) [N m]."""
+        """Torque (force for a slide) of gravity about (along) each joint axis (N, n)."""
         frames, flange = self._frames(q)
         g = np.array([0.0, 0.0, -G])
         pts, masses = [], []
-        for i, (*_, m, c) in enumerate(ARM7):
+        for i, (*_, m, c, _lim) in enumerate(self.arm):
             pts.append(frames[:, i, :3, :3] @ np.array(c) + frames[:, i, :3, 3])
             masses.append(m)
         pts.append(flange[:, :3, :3] @ np.array(HAND[1]) + flange[:, :3, 3])
         masses.append(HAND[0])
         tau = np.zeros(q.shape)
-        for j in range(7):
+        n = len(self.arm)
+        for j in range(n):
             z, o = frames[:, j, :3, 2], frames[:, j, :3, 3]
-            for b in range(j, 8):  # bodies moved by joint j
+            # Joint j's frame is after its motion; its axis is the same line.
+            for b in range(j, n + 1):  # bodies moved by joint j
                 f = masses[b] * g
-                tau[:, j] += np.einsum("ni,ni->n", z, np.cross(pts[b] - o, f))
+                if self.arm[j][0] in PRISMATIC:
+                    tau[:, j] += np.einsum("ni,i->n", z, f)
+                else:
+                    tau[:, j] += np.einsum("ni,ni->n", z, np.cross(pts[b] - o, f))
         return tau
 
-    def measure(self, q: np.ndarray, rng: np.random.Generator, noise: float = 10e-6):
-        """Reflector positions in the tracker frame (N, 3) [m] with noise."""
+    def measure(
+        self,
+        q: np.ndarray,
+        rng: np.random.Generator | None,
+        noise: float = 10e-6,
+        iterations: int = 3,
+    ):
+        """Reflector positions in the tracker frame (N, 3) [m] with noise; the torques
+        at the deflected pose (``iterations`` fixed-point steps, 1: at the commanded)."""
         th = q.copy()
-        for _ in range(3):  # the deflected pose's torques (converges quadratically)
+        for _ in range(iterations):  # converges fast: the deflection is small
             th = q + self.compliance * self.gravity_torques(th)
         _, flange = self._frames(th)
         p = flange[:, :3, :3] @ self.reflector + flange[:, :3, 3]
         p = p @ self.T_tracker_base[:3, :3].T + self.T_tracker_base[:3, 3]
-        return p + rng.normal(scale=noise, size=p.shape)
+        return p if rng is None else p + rng.normal(scale=noise, size=p.shape)
 
 
-def true_arm(seed: int = 0, compliance_scale: float = 1.0) -> TrueArm:
+def true_arm(
+    seed: int = 0, compliance_scale: float = 1.0, arm: list = ARM7, exact: bool = False
+) -> TrueArm:
+    """A drawn true arm (``exact``: the nominal geometry, tracker at the base, the
+    reflector on the flange)."""
     rng = np.random.default_rng(seed)
+    err = 0.0 if exact else 1.0
     origins = []
-    for _, xyz, rpy, *_ in ARM7:
+    for _, xyz, rpy, *_ in arm:
         T = np.eye(4)
-        T[:3, :3] = _rpy(*(np.array(rpy) + rng.normal(scale=np.radians(0.03), size=3)))
-        T[:3, 3] = np.array(xyz) + rng.normal(scale=0.2e-3, size=3)
+        dr = rng.normal(scale=np.radians(0.03), size=3) * err
+        T[:3, :3] = _rpy(*(np.array(rpy) + dr))
+        T[:3, 3] = np.array(xyz) + rng.normal(scale=0.2e-3, size=3) * err
         origins.append(T)
-    offsets = rng.normal(scale=np.radians(0.05), size=7)
-    # Joint compliance [rad/(N m)]: the shoulder and elbow yield most.
-    compliance = compliance_scale * np.array([2, 3, 3, 4, 6, 6, 8]) * 1e-5
+    n = len(arm)
+    offsets = rng.normal(scale=np.radians(0.05), size=n) * err
+    # Joint compliance [rad/(N m)], [m/N] for a slide: the outer joints yield more.
+    compliance = compliance_scale * np.linspace(2, 8, n) * 1e-5
+    compliance[[r[0] in PRISMATIC for r in arm]] = 2e-7
     T_tb = np.eye(4)
-    T_tb[:3, :3] = _rpy(0.01, -0.02, np.radians(150))
-    T_tb[:3, 3] = (2.0, -0.5, -0.3)
-    return TrueArm(
-        np.array(origins), offsets, compliance, T_tb, np.array([0.03, 0.0, 0.06])
-    )
+    if not exact:
+        T_tb[:3, :3] = _rpy(0.01, -0.02, np.radians(150))
+        T_tb[:3, 3] = (2.0, -0.5, -0.3)
+    refl = np.zeros(3) if exact else np.array([0.03, 0.0, 0.06])
+    return TrueArm(arm, np.array(origins), offsets, compliance, T_tb, refl)
 
 
-def random_poses(n: int, rng: np.random.Generator) -> np.ndarray:
-    lo, hi = np.array(LIMITS).T
-    return rng.uniform(lo + 0.1, hi - 0.1, size=(n, 7))
+def random_poses(n: int, rng: np.random.Generator, arm: list = ARM7) -> np.ndarray:
+    lo, hi = np.array([r[-1] for r in arm]).T
+    margin = 0.05 * (hi - lo)
+    return rng.uniform(lo + margin, hi - margin, size=(n, len(arm)))
