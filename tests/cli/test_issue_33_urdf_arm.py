@@ -28,12 +28,14 @@ def _joints(path) -> np.ndarray:
     return np.radians(np.array([[float(r[i]) for i in cols] for r in rows[1:]]))
 
 
-def _cli(capsys, *args: str) -> str:
+def _cli(capsys, *args: str, err: list | None = None) -> str:
     from kinecal.cli import main
 
     code = main(list(args))
     out = capsys.readouterr()
     assert code == 0, out.err
+    if err is not None:
+        err.append(out.err)
     return out.out
 
 
@@ -88,18 +90,38 @@ def test_default_calibration_of_imported_urdf_as_good_as_hand_layout(results, ca
     doc.pop("link_masses")
     doc["self_weight"] = {"shoulder": 2, "elbow": 4, "wrist_frame": 5}
     (d / "hand.yaml").write_text(yaml.dump(doc))
-    rms = {}
+    # And with no self-weight layout at all (the masses dropped).
+    doc["self_weight"] = None
+    (d / "none.yaml").write_text(yaml.dump(doc))
+    rms, err = {}, {}
     for label, robot_file, model in (
         ("default", "arm7.yaml", "full"),
         ("hand", "hand.yaml", "full"),
         ("auto", "arm7.yaml", "auto"),
         ("kinematic", "arm7.yaml", "kinematic"),
+        ("none", "none.yaml", "full"),
     ):
         out = d / label
         args = ["calibrate", str(d / "train.csv"), "--robot", str(d / robot_file)]
-        _cli(capsys, *args, "--model", model, "--out", str(out), "-q", "--no-report")
+        err[label] = []
+        _cli(
+            capsys,
+            *args,
+            "--model",
+            model,
+            "--out",
+            str(out),
+            "-q",
+            "--no-report",
+            err=err[label],
+        )
         rms[label] = _rms(capsys, d, str(out / "model.yaml"))
     print(rms)
+    # Only the robot without a layout is told its residuals look like gravity.
+    assert "no self-weight layout" in err["none"][0]
+    assert rms["none"] > 1.5 * rms["default"]
+    for label in ("default", "hand", "auto", "kinematic"):
+        assert "no self-weight layout" not in err[label][0]
     assert rms["kinematic"] > 3 * rms["default"]  # the gravity deflection is there
     assert rms["default"] <= 1.2 * rms["hand"]
     assert rms["auto"] <= 1.2 * rms["hand"]

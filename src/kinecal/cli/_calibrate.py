@@ -265,6 +265,11 @@ def calibrate(
 
         say("check", "the nominal robot and the priors against the data")
         result.diagnostics.extend(nominal_check(result, robot, meas, options=opts))
+    from kinecal.identification._gravity_check import gravity_check
+
+    found = gravity_check(result, meas)  # no self-weight layout, gravity-like errors
+    if found is not None:
+        result.diagnostics.append(found)
     if cv_folds:
         from kinecal.identification import cross_validate_many
 
