@@ -132,6 +132,18 @@ def _write_experiment(exp, out: Path, final: Path) -> dict[str, str]:
     help="With --robot: random poses to test.",
 )
 @click.option(
+    "--tool",
+    metavar="X,Y,Z[,R,W,P]",
+    help="With --robot: the reflector in the flange frame [mm, deg] (default the "
+    "robot file's tool), as for `kinecal plan --tool`.",
+)
+@click.option(
+    "--new-session",
+    is_flag=True,
+    help="With --robot: measure test.csv from a second tracker station (evaluate it "
+    "with --refit user).",
+)
+@click.option(
     "--payload-kg",
     type=FiniteFloat(0.0),
     help="With --robot: payload at the tool [kg] (default the robot's, or a 1 kg tool); "
@@ -177,6 +189,8 @@ def simulate(
     robot_name: str | None,
     plan_file: str | None,
     n_test: int,
+    tool: str | None,
+    new_session: bool,
     payload_kg: float | None,
     out_dir: str,
     seed: int,
@@ -212,13 +226,20 @@ def simulate(
             n_test,
             plan_file,
             payload_kg,
+            tool,
+            new_session,
             _parse_extras(extras),
             noise_um,
             force,
             quiet,
         )
         return
-    for name, value in (("--plan", plan_file), ("--payload-kg", payload_kg)):
+    for name, value in (
+        ("--plan", plan_file),
+        ("--payload-kg", payload_kg),
+        ("--new-session", new_session or None),
+        ("--tool", tool),
+    ):
         if value is not None:
             raise click.BadParameter(
                 f"{name} is for a twin of a robot; expected it with --robot",
@@ -274,6 +295,8 @@ def _simulate_robot(
     n_test: int,
     plan_file: str | None,
     payload_kg: float | None,
+    tool: str | None,
+    new_session: bool,
     extras: tuple[str, ...],
     noise_um: float | None,
     force: bool,
@@ -281,6 +304,8 @@ def _simulate_robot(
 ) -> None:
     """``simulate --robot``: a twin of that robot measured by a laser tracker."""
     from dataclasses import replace
+
+    import numpy as np
 
     from kinecal import _yaml as yaml
     from kinecal.cli._plan import _read_poses
@@ -292,6 +317,15 @@ def _simulate_robot(
     robot = load_robot(robot_name)
     if payload_kg is not None:
         robot = replace(robot, payload_kg=payload_kg or None)
+    if tool is not None:
+        from kinecal.cli._plan import _floats
+        from kinecal.geometry import euler_transform
+
+        n_tool = len(tool.split(","))
+        vals = _floats(tool, 6 if n_tool == 6 else 3, "--tool") or []
+        vals += [0.0] * (6 - len(vals))
+        T = euler_transform([*np.array(vals[:3]) * 1e-3, *np.radians(vals[3:])])
+        robot = replace(robot, T_flange_tool=T)
     q_train = _read_poses(plan_file, robot, None)[2] if plan_file else None
     if q_train is None and n_train < 1:  # pragma: no cover - click checks it
         raise click.BadParameter("expected at least 1", param_hint="--n-train")
@@ -303,7 +337,13 @@ def _simulate_robot(
     )
     truth = robot_truth(robot, seed=seed, extras=extras)
     exp = robot_experiment(
-        truth, seed, n_train=n_train, n_test=n_test, q_train=q_train, tracker=tracker
+        truth,
+        seed,
+        n_train=n_train,
+        n_test=n_test,
+        q_train=q_train,
+        tracker=tracker,
+        new_session=new_session,
     )
     written = _write_experiment(exp, out, Path(out_dir))
     header = f"# {robot.name} as simulated by kinecal simulate ({robot.source}).\n"

@@ -168,9 +168,12 @@ def robot_experiment(
     n_test: int = 300,
     q_train: Float | None = None,
     tracker: LaserTracker | None = None,
+    new_session: bool = False,
 ) -> Experiment:
     """A laser-tracker calibration of ``truth``: ``q_train`` (a plan's poses) or
-    ``n_train`` random poses to calibrate, ``n_test`` random poses to test."""
+    ``n_train`` random poses to calibrate, ``n_test`` random poses to test
+    (``new_session``: measured from a second tracker station, 0.6 m and 25 deg away, so
+    the test set has a user frame of its own)."""
     rng = np.random.default_rng(seed + 1)
     robot = truth.robot
     tracker = tracker or LaserTracker()
@@ -182,6 +185,14 @@ def robot_experiment(
         q = np.concatenate([q_train, random_joint_poses(robot, n_test, rng)])
         n_train_ = q_train.shape[0]
     p_true, _ = truth.evaluate(q, sequence=np.arange(q.shape[0]))
+    if q_train is None:
+        tr, te = _split(q.shape[0], n_train_, rng)
+    else:
+        tr, te = np.arange(n_train_), np.arange(n_train_, q.shape[0])
+    if new_session:  # the second station sees the test poses in its own frame
+        c, s_ = np.cos(np.radians(25.0)), np.sin(np.radians(25.0))
+        R = np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
+        p_true[te] = p_true[te] @ R.T + np.array([0.3, -0.5, 0.05])
     p_meas, sigma = tracker.measure(p_true, rng)
     payload = (
         np.full(q.shape[0], robot.payload_kg) if robot.payload_kg is not None else None
@@ -195,10 +206,6 @@ def robot_experiment(
         rows=np.arange(1, q.shape[0] + 1),
         source=f"{robot.name} twin (simulated)",
     )
-    if q_train is None:
-        tr, te = _split(q.shape[0], n_train_, rng)
-    else:
-        tr, te = np.arange(n_train_), np.arange(n_train_, q.shape[0])
     return Experiment(
         f"{robot.name} twin: laser tracker",
         truth,
@@ -210,5 +217,6 @@ def robot_experiment(
             "robot": robot.name,
             "n_poses": int(q.shape[0]),
             "tracker_um": [tracker.sigma0 * 1e6, tracker.per_m * 1e6],
+            "test_session": "new" if new_session else "same",
         },
     )
