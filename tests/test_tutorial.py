@@ -57,7 +57,7 @@ def test_tutorial_runs(tmp_path, monkeypatch, capsys):
         "export-urdf",
     ]
 
-    # The quoted accuracy (0.031 mm held out, the truth 0.026 mm): within 1.3x of the
+    # The quoted accuracy (0.033 mm held out, the truth 0.026 mm): within 1.3x of the
     # truth on the new session; the nominal robot far worse.
     def rms(model: str) -> float:
         main(

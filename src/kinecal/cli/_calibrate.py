@@ -93,7 +93,10 @@ def _options_from(loss: str, priors: str, stage2: str):
     help="Hayati rows (no d) for joints whose axis is parallel to the next one.",
 )
 @click.option(
-    "--ntm-joints", metavar="J,J,..", help="Joints with transmission terms [1,2,3]."
+    "--ntm-joints",
+    metavar="J,J,..",
+    help="Joints with transmission terms [default: the three revolute joints with the "
+    "longest lever to the tool: 1,2,3 on 6-axis arms].",
 )
 @click.option(
     "--ntm-order",

@@ -112,7 +112,8 @@ def candidate_specs(
     ntm_joints: tuple[int, ...] | None = None,
 ) -> list[tuple[str, ModelSpec]]:
     """Candidate layouts from the kinematic model to the full one, smallest first
-    (``ntm_joints``: the robot's first three revolute joints by default)."""
+    (``ntm_joints``: the robot's default, :attr:`RobotDescription.ntm_joints`; the link
+    terms: the robot's lumped layout or the general model of its link masses)."""
     base = spec_for(robot, meas, "kinematic", hayati=hayati)
     if ntm_joints is None:
         ntm_joints = robot.ntm_joints
@@ -123,7 +124,7 @@ def candidate_specs(
     out: list[tuple[str, ModelSpec]] = [("kinematic", base)]
     out.append(
         (
-            "ntm J1-J3 order 1",
+            f"ntm J{','.join(map(str, ntm_joints))} order 1",
             replace(base, ntm_joints=ntm_joints, ntm_order=1, name="ntm"),
         )
     )

@@ -108,6 +108,46 @@ class DHChain:
         return int(self.theta_offset.shape[0])
 
 
+def _ntm_joints(robot: RobotDescription) -> tuple[int, ...]:
+    """:attr:`RobotDescription.ntm_joints` (computed once per description object)."""
+    hit = robot.__dict__.get("_ntm_joints")
+    if hit is not None:
+        return hit  # type: ignore[no-any-return]
+    revolute = [i for i, j in enumerate(robot.joints) if j.kind != "prismatic"]
+    if len(revolute) <= 3:
+        out = tuple(i + 1 for i in revolute)
+    else:
+        lever = _mean_levers(robot)
+        best = sorted(revolute, key=lambda i: (-round(lever[i], 6), i))[:3]
+        out = tuple(sorted(i + 1 for i in best))
+    object.__setattr__(robot, "_ntm_joints", out)  # a cache, not a field
+    return out
+
+
+def _mean_levers(robot: RobotDescription, n: int = 256) -> Float:
+    """Mean distance (n,) [m] of the tool point from each joint axis over ``n`` poses
+    drawn (seeded) within the joint limits (+-170 deg, +-0.5 m where none)."""
+    lim = robot.limits.copy()
+    wide = np.where(robot.prismatic, 0.5, np.radians(170.0))
+    lo = np.where(np.isfinite(lim[:, 0]), lim[:, 0], -wide)
+    hi = np.where(np.isfinite(lim[:, 1]), lim[:, 1], wide)
+    q = np.random.default_rng(0).uniform(lo, hi, (n, robot.n_joints))
+    ch = robot.dh_chain()
+    th = robot.theta_from_ctrl(q)
+    rot = np.where(ch.prismatic, ch.theta_offset, ch.theta_offset + th)
+    dd = np.where(ch.prismatic, ch.d + th, ch.d)
+    A = dh_transforms(rot, dd, ch.a, ch.alpha)
+    frames = [np.broadcast_to(ch.T_base_0, (n, 4, 4))]
+    for i in range(robot.n_joints):  # a loop over joints, not poses
+        frames.append(frames[-1] @ A[:, i])
+    tool = (frames[-1] @ ch.T_n_flange @ robot.T_flange_tool)[:, :3, 3]
+    out = np.empty(robot.n_joints)
+    for j in range(robot.n_joints):
+        z, o = frames[j][:, :3, 2], frames[j][:, :3, 3]
+        out[j] = float(np.linalg.norm(np.cross(z, tool - o), axis=1).mean())
+    return out
+
+
 def dh_transforms(
     theta: ArrayLike, d: ArrayLike, a: ArrayLike, alpha: ArrayLike
 ) -> Pose:
@@ -227,12 +267,11 @@ class RobotDescription:
 
     @property
     def ntm_joints(self) -> tuple[int, ...]:
-        """The joints (1-based) that carry the transmission series by default: the first
-        three revolute ones (J1-J3 of a 6-axis arm; a prismatic joint has no Fourier
-        series in its angle)."""
-        return tuple(i + 1 for i, j in enumerate(self.joints) if j.kind != "prismatic")[
-            :3
-        ]
+        """The joints (1-based) that carry the transmission series by default: the three
+        revolute joints with the longest mean lever arm to the tool over poses within
+        the limits, in joint order (J1-J3 of a 6-axis arm, J1, J2, J4 of a 7-axis arm
+        with a roll joint J3; a prismatic joint has no Fourier series in its angle)."""
+        return _ntm_joints(self)
 
     @property
     def limits(self) -> Float:
