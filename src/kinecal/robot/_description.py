@@ -110,15 +110,15 @@ class DHChain:
 
 def _ntm_joints(robot: RobotDescription) -> tuple[int, ...]:
     """:attr:`RobotDescription.ntm_joints` (computed once per description object)."""
-    hit = robot.__dict__.get("_ntm_joints")
+    hit: tuple[int, ...] | None = robot.__dict__.get("_ntm_joints")
     if hit is not None:
-        return hit  # type: ignore[no-any-return]
+        return hit
     revolute = [i for i, j in enumerate(robot.joints) if j.kind != "prismatic"]
     if len(revolute) <= 3:
         out = tuple(i + 1 for i in revolute)
     else:
         lever = _mean_levers(robot)
-        best = sorted(revolute, key=lambda i: (-round(lever[i], 6), i))[:3]
+        best = sorted(revolute, key=lambda i: (-round(float(lever[i]), 6), i))[:3]
         out = tuple(sorted(i + 1 for i in best))
     object.__setattr__(robot, "_ntm_joints", out)  # a cache, not a field
     return out
