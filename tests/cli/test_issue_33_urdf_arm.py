@@ -63,7 +63,7 @@ def test_default_calibration_of_imported_urdf_as_good_as_hand_layout(results, ca
         str(d / "arm7.yaml"),
     )
     robot = load_robot_file(d / "arm7.yaml")
-    assert robot.link_bodies == (1, 2, 3, 4, 5, 6, 7)
+    assert robot.link_bodies == (2, 3, 4, 5, 6, 7)  # J1 vertical: body 1 unfelt
     _cli(
         capsys,
         "plan",

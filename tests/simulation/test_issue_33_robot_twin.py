@@ -95,7 +95,7 @@ def test_simulate_robot_cli(tmp_path, capsys):
         "truth.yaml",
     ]
     robot = load_robot(out / "robot.yaml")
-    assert robot.link_bodies == (1, 2, 3, 4, 5, 6) and robot.payload_kg == 2
+    assert robot.link_bodies == (2, 3, 4, 5, 6) and robot.payload_kg == 2
     train = read_measurements(out / "train.csv", robot)
     assert train.n == 40 and np.all(train.payload_kg == 2)
     code = main(

@@ -258,8 +258,22 @@ class RobotDescription:
 
     @property
     def link_bodies(self) -> tuple[int, ...]:
-        """DH frames of the bodies with a known mass (the general link model's bodies)."""
-        return tuple(b.frame for b in self.link_masses if b.mass > 0)
+        """DH frames of the bodies with a known mass whose weight some joint feels (the
+        general link model's bodies): body 1 hangs from joint 1 alone, and a revolute
+        joint 1 about the gravity line carries no torque from it."""
+        ch = self.dh_chain()
+        g = self.gravity / np.linalg.norm(self.gravity)
+        silent = (
+            {1}
+            if (
+                not ch.prismatic[0]
+                and abs(abs(float(ch.T_base_0[:3, 2] @ g)) - 1) < 1e-9
+            )
+            else set()
+        )
+        return tuple(
+            b.frame for b in self.link_masses if b.mass > 0 and b.frame not in silent
+        )
 
     @property
     def prismatic(self) -> NDArrayBool:
