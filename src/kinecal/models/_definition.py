@@ -35,6 +35,7 @@ from kinecal.geometry import (
     rot_z,
     transform_to_euler,
 )
+from kinecal.models._chain import chain_frames
 from kinecal.models._compliance import (
     general_link_pattern,
     link_torque_pattern,
@@ -498,8 +499,6 @@ def _link_mass_nominal(defn: ModelDefinition) -> Float:
     mass taken from the robot's DH frame k into the model's frame k at the nominal
     geometry (the same frame but for the last row, whose offsets moved into the cam).
     """
-    from kinecal.models._numpy_forward import chain
-
     robot = defn.robot
     ch = robot.dh_chain()
     n = robot.n_joints
@@ -510,7 +509,14 @@ def _link_mass_nominal(defn: ModelDefinition) -> Float:
         T = T @ dh_transforms(ch.theta_offset[i], ch.d[i], ch.a[i], ch.alpha[i])
         dh_frames.append(T)
     x = defn.nominal.copy()
-    fr = chain(defn, np.zeros((n, 1)), defn.rows(x))
+    rows = defn.rows(x)  # the model's frames at the zero configuration
+    fr = chain_frames(
+        rows[None, :, OFF],
+        rows[:, D],
+        rows[:, A],
+        rows[:, ALPHA],
+        rows[:, BETA] if defn.has_beta else None,
+    )
     T_bm = defn.T_robotbase_modelbase
     m_ref = robot.payload_kg or 1.0
     for b in robot.link_masses:
