@@ -201,8 +201,7 @@ def simulate(
     force: bool,
     quiet: bool,
 ) -> None:
-    """Simulate one of the paper's experiments on the digital twin (LR Mate 200iD), or
-    a calibration of any robot (--robot).
+    """Simulate a paper's experiment on the LR Mate 200iD twin, or any robot (--robot).
 
     Writes train.csv and test.csv (measurements), targets.csv (experiment 1), truth.yaml
     (the true robot as a model file, for `kinecal evaluate` or a parameter comparison),

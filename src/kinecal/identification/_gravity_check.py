@@ -12,8 +12,9 @@ residuals is reported (``systematic_residuals``).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
-from scipy import stats
 
 from kinecal.identification._diagnostics import Diagnostic
 from kinecal.identification._measurements import Measurements
@@ -26,6 +27,17 @@ __all__ = ["gravity_check", "unit_mass_torques"]
 # and the regression is significant at this level.
 _SHARE = 0.25
 _ALPHA = 1e-6
+
+
+def _chi2_sf(x: float, k: int) -> float:
+    """Survival function of chi-square with k degrees of freedom (Wilson-Hilferty; the
+    regression F statistic times its rank, for many residual degrees of freedom; no
+    scipy.stats, which would load numpy.ma into every calibration)."""
+    if x <= 0:
+        return 1.0
+    v = 2.0 / (9.0 * k)
+    z = ((x / k) ** (1.0 / 3.0) - (1.0 - v)) / math.sqrt(v)
+    return 0.5 * math.erfc(z / math.sqrt(2.0))
 
 
 def unit_mass_torques(robot: RobotDescription, q_ctrl: Float) -> Float:
@@ -82,7 +94,7 @@ def gravity_check(result: object, meas: Measurements) -> Diagnostic | None:
     dof = r.size - rank
     if dof < 1 or share >= 1.0:
         return None
-    p = float(stats.f.sf((share / rank) / ((1 - share) / dof), rank, dof))
+    p = _chi2_sf(rank * (share / rank) / ((1 - share) / dof), rank)
     if share < _SHARE or p > _ALPHA:
         return None
     rms_after = np.sqrt((ss_r - ss_fit) / len(r)) * 1e3
