@@ -108,3 +108,26 @@ def test_fanuc_urdf_inertials():
     assert sum(b.mass for b in robot.link_masses) == pytest.approx(
         5.62 + 9.05 + 2.15 + 2.42 + 0.446 + 0.0134, rel=1e-9
     )
+
+
+@pytest.mark.parametrize("scale", [0.0, 1.0])
+def test_gravity_check_only_with_gravity_deflection(tmp_path, scale):
+    """A robot without a self-weight layout: the check warns when the independent
+    arm's joints yield to its link weights, and not when they do not."""
+    from dataclasses import replace
+
+    from kinecal.identification import Measurements, calibrate
+    from kinecal.identification._gravity_check import gravity_check
+
+    path = tmp_path / "arm7.urdf"
+    path.write_text(urdf_text())
+    robot = replace(robot_from_urdf(path, tip="flange"), link_masses=())
+    rng = np.random.default_rng(5)
+    q = random_poses(80, rng)
+    truth = true_arm(2, compliance_scale=scale)
+    meas = Measurements("point", q, truth.measure(q, rng))
+    found = gravity_check(calibrate(robot, meas, "full"), meas)
+    if scale:
+        assert found is not None and "no self-weight layout" in found.message
+    else:
+        assert found is None
