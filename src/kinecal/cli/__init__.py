@@ -91,7 +91,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "simulate": (
         "_simulate",
         "simulate",
-        "Simulate one of the paper's experiments on the digital twin (LR Mate 200iD).",
+        "Simulate a paper's experiment on the LR Mate 200iD twin, or any robot (--robot).",
     ),
 }
 

@@ -94,7 +94,10 @@ def _options_from(loss: str, priors: str, stage2: str):
     help="Hayati rows (no d) for joints whose axis is parallel to the next one.",
 )
 @click.option(
-    "--ntm-joints", metavar="J,J,..", help="Joints with transmission terms [1,2,3]."
+    "--ntm-joints",
+    metavar="J,J,..",
+    help="Joints with transmission terms [default: the three revolute joints with the "
+    "longest lever to the tool: 1,2,3 on 6-axis arms].",
 )
 @click.option(
     "--ntm-order",
@@ -266,6 +269,11 @@ def calibrate(
 
         say("check", "the nominal robot and the priors against the data")
         result.diagnostics.extend(nominal_check(result, robot, meas, options=opts))
+    from kinecal.identification._gravity_check import gravity_check
+
+    found = gravity_check(result, meas)  # no self-weight layout, gravity-like errors
+    if found is not None:
+        result.diagnostics.append(found)
     held = None
     if cv_folds:
         held = _held_out(

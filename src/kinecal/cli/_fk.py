@@ -238,8 +238,11 @@ def import_urdf(
 ) -> None:
     """Write a robot YAML (standard DH, mm, deg) for the serial chain of a URDF.
 
-    The DH table reproduces the URDF's forward kinematics exactly; edit the YAML to add
-    couplings, gravity, the link self-weight layout or priors.
+    The DH table reproduces the URDF's forward kinematics exactly. The links' inertials
+    become link_masses (mass and centre of mass of each body), the layout of the general
+    link self-weight model that the rfcm, full and auto models then use. Edit the YAML
+    to add couplings, gravity (default: along -z of the base link), the payload or
+    priors.
     """
     from pathlib import Path
 
@@ -273,6 +276,28 @@ def import_urdf(
         else (", coupled by mimic joints")
     )
     click.echo(f"{robot.name}: {robot.n_joints} joints ({chain}{coupled}) -> {out}")
+    click.echo(_self_weight_summary(robot))
+
+
+def _self_weight_summary(robot) -> str:
+    """One line on the imported link masses and the joints their weight loads."""
+    if not robot.link_bodies:
+        return (
+            "link masses: none in the URDF (no <inertial>); the models have no link "
+            "self-weight terms (add link_masses or self_weight to the YAML)"
+        )
+    import numpy as np
+
+    from kinecal.simulation import gravity_torques, random_joint_poses
+
+    q = random_joint_poses(robot, 200, np.random.default_rng(0))
+    tau = np.abs(gravity_torques(robot, q)).max(axis=0)
+    loaded = [robot.joint_names[j] for j in range(robot.n_joints) if tau[j] > 1e-9]
+    total = sum(b.mass for b in robot.link_masses)
+    return (
+        f"link masses: {len(robot.link_bodies)} bodies, {total:.3g} kg; gravity "
+        f"loads joints {', '.join(loaded) or 'none'}"
+    )
 
 
 def _labels(own: tuple[str, ...]) -> str:

@@ -105,9 +105,49 @@ def _write_experiment(exp, out: Path, final: Path) -> dict[str, str]:
 @click.option(
     "--experiment",
     type=click.Choice(("1", "2")),
-    default="2",
+    default=None,
+    help="1: 3D sensor and four ceramic spheres; 2: laser tracker grid (the default). "
+    "The paper's LR Mate 200iD twin.",
+)
+@click.option(
+    "--robot",
+    "robot_name",
+    metavar="NAME|FILE",
+    help="A twin of this robot (built-in, YAML or URDF) instead of the paper's: random "
+    "tolerances, zero offsets, gravity compliance from its self-weight layout or link "
+    "masses, a laser tracker; also writes robot.yaml.",
+)
+@click.option(
+    "--plan",
+    "plan_file",
+    type=click.Path(exists=True, dir_okay=False),
+    help="With --robot: measure these poses (j1_deg..jN_deg, e.g. from `kinecal plan`) "
+    "for train.csv instead of --n-train random ones.",
+)
+@click.option(
+    "--n-test",
+    type=click.IntRange(min=1),
+    default=300,
     show_default=True,
-    help="1: 3D sensor and four ceramic spheres; 2: laser tracker grid.",
+    help="With --robot: random poses to test.",
+)
+@click.option(
+    "--tool",
+    metavar="X,Y,Z[,R,W,P]",
+    help="With --robot: the reflector in the flange frame [mm, deg] (default the "
+    "robot file's tool), as for `kinecal plan --tool`.",
+)
+@click.option(
+    "--new-session",
+    is_flag=True,
+    help="With --robot: measure test.csv from a second tracker station (evaluate it "
+    "with --refit user).",
+)
+@click.option(
+    "--payload-kg",
+    type=FiniteFloat(0.0),
+    help="With --robot: payload at the tool [kg] (default the robot's, or a 1 kg tool); "
+    "written as a payload_kg column.",
 )
 @click.option(
     "--out",
@@ -145,7 +185,13 @@ def _write_experiment(exp, out: Path, final: Path) -> dict[str, str]:
 @click.option("--force", is_flag=True, help="Overwrite files in --out.")
 @common_options
 def simulate(
-    experiment: str,
+    experiment: str | None,
+    robot_name: str | None,
+    plan_file: str | None,
+    n_test: int,
+    tool: str | None,
+    new_session: bool,
+    payload_kg: float | None,
     out_dir: str,
     seed: int,
     n_train: int,
@@ -155,13 +201,50 @@ def simulate(
     force: bool,
     quiet: bool,
 ) -> None:
-    """Simulate one of the paper's experiments on the digital twin (LR Mate 200iD).
+    """Simulate a paper's experiment on the LR Mate 200iD twin, or any robot (--robot).
 
     Writes train.csv and test.csv (measurements), targets.csv (experiment 1), truth.yaml
-    (the true robot as a model file, for `kinecal evaluate` or a parameter comparison)
-    and manifest.json; all of them or none (the folder is written at the end).
+    (the true robot as a model file, for `kinecal evaluate` or a parameter comparison),
+    robot.yaml (--robot: the robot file to calibrate with) and manifest.json; all of
+    them or none (the folder is written at the end).
     """
     from kinecal.io import prepare_output_dir, write_json
+
+    if robot_name is not None:
+        if experiment is not None or outliers > 0:
+            raise click.BadParameter(
+                "--robot simulates a laser-tracker calibration of that robot; expected "
+                "no --experiment or --outliers with it",
+                param_hint="--robot",
+            )
+        _simulate_robot(
+            robot_name,
+            out_dir,
+            seed,
+            n_train,
+            n_test,
+            plan_file,
+            payload_kg,
+            tool,
+            new_session,
+            _parse_extras(extras),
+            noise_um,
+            force,
+            quiet,
+        )
+        return
+    for name, value in (
+        ("--plan", plan_file),
+        ("--payload-kg", payload_kg),
+        ("--new-session", new_session or None),
+        ("--tool", tool),
+    ):
+        if value is not None:
+            raise click.BadParameter(
+                f"{name} is for a twin of a robot; expected it with --robot",
+                param_hint=name,
+            )
+    experiment = experiment or "2"
 
     if experiment == "1" and outliers > 0:
         raise click.BadParameter(
@@ -200,6 +283,100 @@ def simulate(
     tgt = f" --targets {files['targets']}" if "targets" in files else ""
     click.echo(
         f"next: kinecal compare {files['train']} {files['test']} --robot {robot_arg}{tgt}"
+    )
+
+
+def _simulate_robot(
+    robot_name: str,
+    out_dir: str,
+    seed: int,
+    n_train: int,
+    n_test: int,
+    plan_file: str | None,
+    payload_kg: float | None,
+    tool: str | None,
+    new_session: bool,
+    extras: tuple[str, ...],
+    noise_um: float | None,
+    force: bool,
+    quiet: bool,
+) -> None:
+    """``simulate --robot``: a twin of that robot measured by a laser tracker."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from kinecal import _yaml as yaml
+    from kinecal.cli._plan import _read_poses
+    from kinecal.io import atomic_write_text, prepare_output_dir, write_json
+    from kinecal.robot import dump_robot, load_robot
+    from kinecal.simulation import LaserTracker, robot_experiment, robot_truth
+
+    say = Progress(quiet)
+    robot = load_robot(robot_name)
+    if payload_kg is not None:
+        robot = replace(robot, payload_kg=payload_kg or None)
+    if tool is not None:
+        from kinecal.cli._plan import _floats
+        from kinecal.geometry import euler_transform
+
+        n_tool = len(tool.split(","))
+        vals = _floats(tool, 6 if n_tool == 6 else 3, "--tool") or []
+        vals += [0.0] * (6 - len(vals))
+        T = euler_transform([*np.array(vals[:3]) * 1e-3, *np.radians(vals[3:])])
+        robot = replace(robot, T_flange_tool=T)
+    q_train = _read_poses(plan_file, robot, None)[2] if plan_file else None
+    if q_train is None and n_train < 1:  # pragma: no cover - click checks it
+        raise click.BadParameter("expected at least 1", param_hint="--n-train")
+    files = ["train.csv", "test.csv", "truth.yaml", "robot.yaml", "manifest.json"]
+    out = prepare_output_dir(out_dir, files, force=force)
+    say("simulate", f"{robot.name}, seed {seed}")
+    tracker = (
+        LaserTracker(noise_um * 1e-6, 0.0) if noise_um is not None else LaserTracker()
+    )
+    truth = robot_truth(robot, seed=seed, extras=extras)
+    exp = robot_experiment(
+        truth,
+        seed,
+        n_train=n_train,
+        n_test=n_test,
+        q_train=q_train,
+        tracker=tracker,
+        new_session=new_session,
+    )
+    written = _write_experiment(exp, out, Path(out_dir))
+    header = f"# {robot.name} as simulated by kinecal simulate ({robot.source}).\n"
+    atomic_write_text(
+        out / "robot.yaml",
+        header + yaml.dump(dump_robot(robot), sort_keys=False),
+        force=True,
+    )
+    written["robot"] = str(Path(out_dir) / "robot.yaml")
+    write_json(
+        out / "manifest.json",
+        manifest(
+            {"robot": robot_name, "plan": plan_file},
+            {
+                "seed": seed,
+                "n_train": exp.train.n,
+                "n_test": exp.test.n,
+                "extras": list(extras),
+                "noise_um": noise_um,
+                "payload_kg": robot.payload_kg,
+                "truth": truth.description,
+                "files": written,
+                **exp.info,
+            },
+            files=[Path(f).name for f in written.values()],
+        ),
+        force=True,
+    )
+    click.echo(f"{exp.name}: {exp.train.n} poses to calibrate, {exp.test.n} to test")
+    for k, v in {**written, "manifest": str(Path(out_dir) / "manifest.json")}.items():
+        click.echo(f"  {k:8s} {v}")
+    click.echo(
+        f"next: kinecal calibrate {written['train']} --robot {written['robot']} "
+        f"--out CAL; kinecal evaluate {written['test']} --model CAL/model.yaml"
     )
 
 

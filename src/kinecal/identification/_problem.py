@@ -181,6 +181,7 @@ def spec_for(
         sets=meas.set_labels,
         markers=meas.marker_labels,
         has_self_weight=robot.self_weight is not None,
+        link_bodies=robot.link_bodies,
         **options,  # type: ignore[arg-type]
     )
 
@@ -243,6 +244,10 @@ class Problem:
                 f"{meas.source} has {meas.n_joints} joint columns; robot {robot.name} "
                 f"has {robot.n_joints} joints."
             )
+        data_payload = meas.reference_payload()
+        if robot.link_masses and data_payload and data_payload != robot.payload_kg:
+            # The link masses' nominal ratios are per unit of the reference payload.
+            robot = replace(robot, payload_kg=data_payload)
         spec = spec_for(robot, meas, model)
         cm = CalibrationModel(robot, spec)
         c = meas.components

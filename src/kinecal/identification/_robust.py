@@ -153,6 +153,7 @@ def _full_spec(model: CalibrationModel) -> ModelSpec:
         hayati=spec.hayati,
         ntm_joints=spec.ntm_joints or model.robot.ntm_joints,
         has_self_weight=model.robot.self_weight is not None,
+        link_bodies=model.robot.link_bodies,
     )
     return full
 

@@ -153,24 +153,34 @@ def candidate_specs(
     ntm_joints: tuple[int, ...] | None = None,
 ) -> list[tuple[str, ModelSpec]]:
     """Candidate layouts from the kinematic model to the full one, smallest first
-    (``ntm_joints``: the robot's first three revolute joints by default)."""
+    (``ntm_joints``: the robot's default, :attr:`RobotDescription.ntm_joints`; the link
+    terms: the robot's lumped layout or the general model of its link masses)."""
     base = spec_for(robot, meas, "kinematic", hayati=hayati)
     if ntm_joints is None:
         ntm_joints = robot.ntm_joints
-    has_link = robot.self_weight is not None
+    lumped = robot.self_weight is not None
+    bodies = () if lumped else robot.link_bodies  # the general model's, from the masses
+    has_link = lumped or bool(bodies)
+    link = "paper" if lumped else ("general" if bodies else "none")
     out: list[tuple[str, ModelSpec]] = [("kinematic", base)]
     out.append(
         (
-            "ntm J1-J3 order 1",
+            f"ntm J{','.join(map(str, ntm_joints))} order 1",
             replace(base, ntm_joints=ntm_joints, ntm_order=1, name="ntm"),
         )
     )
     out.append(("ntm", replace(base, ntm_joints=ntm_joints, ntm_order=2, name="ntm")))
     out.append(("load", replace(base, load=True, name="load")))
-    if has_link:
+    if lumped:
         out.append(("rfcm", replace(base, load=True, link="rfcm", name="rfcm")))
+    if has_link:
         out.append(
-            ("load+link", replace(base, load=True, link="paper", name="load+link"))
+            (
+                "load+link",
+                replace(
+                    base, load=True, link=link, link_bodies=bodies, name="load+link"
+                ),
+            )
         )
     out.append(
         (
@@ -180,7 +190,8 @@ def candidate_specs(
                 ntm_joints=ntm_joints,
                 ntm_order=1,
                 load=True,
-                link="paper" if has_link else "none",
+                link=link,
+                link_bodies=bodies,
                 name="full",
             ),
         )
@@ -193,7 +204,8 @@ def candidate_specs(
                 ntm_joints=ntm_joints,
                 ntm_order=2,
                 load=True,
-                link="paper" if has_link else "none",
+                link=link,
+                link_bodies=bodies,
                 name="full",
             ),
         )

@@ -60,7 +60,9 @@ def model_to_dict(cal: CalibratedModel) -> dict[str, Any]:
     if refs:
         spec["reference_rotations_deg"] = refs
     params = {
-        r["name"]: {k: r[k] for k in ("value", "std", "unit", "status")}
+        r["name"]: {
+            k: r[k] for k in ("value", "std", "unit", "status", "joint_name") if k in r
+        }
         for r in parameter_records(cal)
     }
     frames: dict[str, Any] = {}
@@ -348,10 +350,22 @@ def _parameters(
         entry = params_doc[ps.name]
         if not isinstance(entry, dict) or "value" not in entry:
             raise ConfigError(f"{where}: expected {{value, unit, std, status}}.")
-        bad = sorted(set(map(str, entry)) - {"value", "unit", "std", "status"})
+        bad = sorted(
+            set(map(str, entry)) - {"value", "unit", "std", "status", "joint_name"}
+        )
         if bad:
             raise ConfigError(
-                f"{where}: unknown key {bad[0]!r} (allowed: std, status, unit, value)."
+                f"{where}: unknown key {bad[0]!r} (allowed: joint_name, std, status, "
+                "unit, value)."
+            )
+        jn = entry.get("joint_name")
+        if jn is not None and (
+            ps.joint is None or jn != model.robot.joint_names[ps.joint - 1]
+        ):
+            want = "none" if ps.joint is None else model.robot.joint_names[ps.joint - 1]
+            raise ConfigError(
+                f"{where}.joint_name: expected {want!r} (the robot's name of joint "
+                f"{ps.joint}); got {jn!r}."
             )
         unit = entry.get("unit", ps.unit.file_unit)
         if unit != ps.unit.file_unit:

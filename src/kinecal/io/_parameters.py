@@ -22,6 +22,9 @@ def _finite(x: float) -> float | None:
     return float(x) if math.isfinite(float(x)) else None
 
 
+_JOINT_GROUPS = ("joint", "ntm", "load", "link")
+
+
 def parameter_records(
     cal: CalibratedModel,
     *,
@@ -42,9 +45,12 @@ def parameter_records(
     -------
     list of dict
         ``name, group, joint, field, label, unit, value, std, status`` (``std`` None
-        where not estimated), and ``start`` / ``prior_std`` when given.
+        where not estimated), ``joint_name`` (the robot's name of the parameter's joint,
+        or of the joint a link body moves with, where it is not the default ``J<k>``),
+        and ``start`` / ``prior_std`` when given.
     """
     layout = cal.model.layout
+    names = cal.model.robot.joint_names
     out = []
     for i, ps in enumerate(layout.specs):
         f = ps.unit.to_file
@@ -59,6 +65,10 @@ def parameter_records(
             "std": _finite(cal.std[i] * f),
             "status": cal.status[i],
         }
+        if ps.joint is not None and ps.group in _JOINT_GROUPS:
+            # The robot's own name of the joint (of the joint a link body moves with).
+            if names[ps.joint - 1] != f"J{ps.joint}":
+                rec["joint_name"] = names[ps.joint - 1]
         if start is not None:
             rec["start"] = float(start[i] * f)
         if prior_sigma is not None:

@@ -35,6 +35,7 @@ from kinecal.geometry import (
     rot_z,
     transform_to_euler,
 )
+from kinecal.models._chain import chain_frames
 from kinecal.models._compliance import (
     general_link_pattern,
     link_torque_pattern,
@@ -44,7 +45,7 @@ from kinecal.models._compliance import (
 from kinecal.models._inputs import ModelInputs
 from kinecal.models._layout import ParameterLayout, ParamSpec
 from kinecal.models._spec import ModelSpec
-from kinecal.robot import RobotDescription, SelfWeightSpec
+from kinecal.robot import RobotDescription, SelfWeightSpec, dh_transforms
 from kinecal.typing import Float
 
 __all__ = [
@@ -342,7 +343,7 @@ class ModelDefinition:
                 (j, first + k)
                 for j, k in general_link_pattern(spec.link_bodies, prismatic)
             ]
-        return cls(
+        defn = cls(
             robot=robot,
             spec=spec,
             layout=layout,
@@ -373,6 +374,9 @@ class ModelDefinition:
             x_sign=x_sign,
             products=tuple((j - 1, k) for j, k in pattern),
         )
+        if spec.link_bodies and robot.link_masses:
+            defn = dataclasses.replace(defn, nominal=_link_mass_nominal(defn))
+        return defn
 
     def with_references(
         self, R_ref_base: Float | None = None, R_ref_cam: Float | None = None
@@ -485,6 +489,49 @@ class ModelDefinition:
 
         key = ("ntm", spec.ntm_joints, spec.ntm_order, spec.ntm_offset)
         return inputs.derived(key, make)
+
+
+def _link_mass_nominal(defn: ModelDefinition) -> Float:
+    """The nominal with the general link terms of the robot's ``link_masses``.
+
+    Body k's mass and first moment per unit payload weight (the robot's ``payload_kg``,
+    or 1 kg when it has none): ``m_k / m_ref`` and ``m_k c_k / m_ref`` with the centre of
+    mass taken from the robot's DH frame k into the model's frame k at the nominal
+    geometry (the same frame but for the last row, whose offsets moved into the cam).
+    """
+    robot = defn.robot
+    ch = robot.dh_chain()
+    n = robot.n_joints
+    # DH frames at the zero configuration, robot base frame.
+    T = ch.T_base_0.copy()
+    dh_frames = []
+    for i in range(n):
+        T = T @ dh_transforms(ch.theta_offset[i], ch.d[i], ch.a[i], ch.alpha[i])
+        dh_frames.append(T)
+    x = defn.nominal.copy()
+    rows = defn.rows(x)  # the model's frames at the zero configuration
+    fr = chain_frames(
+        rows[None, :, OFF],
+        rows[:, D],
+        rows[:, A],
+        rows[:, ALPHA],
+        rows[:, BETA] if defn.has_beta else None,
+    )
+    T_bm = defn.T_robotbase_modelbase
+    m_ref = robot.payload_kg or 1.0
+    for b in robot.link_masses:
+        k = b.frame
+        if k not in defn.spec.link_bodies:
+            continue
+        F = dh_frames[k - 1]
+        p_base = F[:3, :3] @ np.asarray(b.com) + F[:3, 3]
+        p_model = T_bm[:3, :3].T @ (p_base - T_bm[:3, 3])
+        R_k = fr.cols[k][..., 0].T  # columns: the frame's axes
+        c = R_k.T @ (p_model - fr.origin[k][:, 0])
+        x[defn.layout.index(f"link{k}.m")] = b.mass / m_ref
+        for axis, v in zip("xyz", c):
+            x[defn.layout.index(f"link{k}.m{axis}")] = b.mass * v / m_ref
+    return x
 
 
 def _frame_spec(group: str, label: str, key: str) -> ParamSpec:

@@ -104,8 +104,11 @@ class ModelSpec:
         ntm_order: int = 2,
         hayati: tuple[int, ...] = (),
         has_self_weight: bool = True,
+        link_bodies: tuple[int, ...] = (),
     ) -> ModelSpec:
-        """One of :data:`PRESETS`. ``has_self_weight=False`` drops the link terms."""
+        """One of :data:`PRESETS`. ``has_self_weight=False`` drops the lumped link terms;
+        ``link_bodies`` (the robot's bodies with known masses, used without the lumped
+        layout) makes the link terms of 'rfcm' and 'full' the general model's."""
         if name not in PRESETS:
             raise ModelError(
                 f"unknown model {name!r}; expected one of {', '.join(PRESETS)}."
@@ -124,10 +127,18 @@ class ModelSpec:
         link = (
             "none" if not has_self_weight else ("rfcm" if name == "rfcm" else "paper")
         )
+        bodies: tuple[int, ...] = ()
+        if link == "none" and link_bodies:
+            link, bodies = "general", tuple(link_bodies)
         if name == "rfcm":
-            return replace(base, load=True, link=link)
+            return replace(base, load=True, link=link, link_bodies=bodies)
         return replace(
-            base, ntm_joints=ntm_joints, ntm_order=ntm_order, load=True, link=link
+            base,
+            ntm_joints=ntm_joints,
+            ntm_order=ntm_order,
+            load=True,
+            link=link,
+            link_bodies=bodies,
         )
 
     def with_(self, **changes: object) -> ModelSpec:

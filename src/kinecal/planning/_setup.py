@@ -102,6 +102,7 @@ def planning_model(
         cam_rotation=instrument.kind != "point",
         ntm_joints=robot.ntm_joints,
         has_self_weight=robot.self_weight is not None,
+        link_bodies=robot.link_bodies,
     )
     cm = CalibrationModel(robot, spec)
     x = cm.nominal.copy()

@@ -12,6 +12,7 @@ if TYPE_CHECKING:
     from kinecal.robot._description import (
         DHChain,
         JointSpec,
+        LinkMass,
         RobotDescription,
         SelfWeightSpec,
         dh_transforms,
@@ -22,6 +23,7 @@ if TYPE_CHECKING:
 __all__ = [
     "DHChain",
     "JointSpec",
+    "LinkMass",
     "RobotDescription",
     "SelfWeightSpec",
     "builtin_robot_names",
@@ -43,6 +45,7 @@ __getattr__, __dir__ = _lazy.exports(
         "_description": (
             "DHChain",
             "JointSpec",
+            "LinkMass",
             "RobotDescription",
             "SelfWeightSpec",
             "dh_transforms",

@@ -27,6 +27,7 @@ from kinecal.typing import ArrayLike, Float, Pose
 __all__ = [
     "DHChain",
     "JointSpec",
+    "LinkMass",
     "RobotDescription",
     "SelfWeightSpec",
     "dh_transforms",
@@ -70,6 +71,21 @@ class SelfWeightSpec:
 
 
 @dataclass(frozen=True)
+class LinkMass:
+    """Mass and centre of mass of the body rigid with standard-DH frame ``frame``.
+
+    The general link self-weight model (Eq. 25 for N links) starts from these: body k
+    (moved by joints 1..k) weighs ``mass`` [kg] with its centre of mass at ``com`` (3,)
+    [m] in DH frame k. ``import-urdf`` lumps the URDF inertials of every link between
+    joint k and joint k + 1 (fixed joints included) into body k.
+    """
+
+    frame: int
+    mass: float
+    com: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
 class DHChain:
     """A robot as a standard-DH chain between two fixed frames (all SI).
 
@@ -92,6 +108,46 @@ class DHChain:
     @property
     def n_joints(self) -> int:
         return int(self.theta_offset.shape[0])
+
+
+def _ntm_joints(robot: RobotDescription) -> tuple[int, ...]:
+    """:attr:`RobotDescription.ntm_joints` (computed once per description object)."""
+    hit: tuple[int, ...] | None = robot.__dict__.get("_ntm_joints")
+    if hit is not None:
+        return hit
+    revolute = [i for i, j in enumerate(robot.joints) if j.kind != "prismatic"]
+    if len(revolute) <= 3:
+        out = tuple(i + 1 for i in revolute)
+    else:
+        lever = _mean_levers(robot)
+        best = sorted(revolute, key=lambda i: (-round(float(lever[i]), 6), i))[:3]
+        out = tuple(sorted(i + 1 for i in best))
+    object.__setattr__(robot, "_ntm_joints", out)  # a cache, not a field
+    return out
+
+
+def _mean_levers(robot: RobotDescription, n: int = 256) -> Float:
+    """Mean distance (n,) [m] of the tool point from each joint axis over ``n`` poses
+    drawn (seeded) within the joint limits (+-170 deg, +-0.5 m where none)."""
+    lim = robot.limits.copy()
+    wide = np.where(robot.prismatic, 0.5, np.radians(170.0))
+    lo = np.where(np.isfinite(lim[:, 0]), lim[:, 0], -wide)
+    hi = np.where(np.isfinite(lim[:, 1]), lim[:, 1], wide)
+    q = np.random.default_rng(0).uniform(lo, hi, (n, robot.n_joints))
+    ch = robot.dh_chain()
+    th = robot.theta_from_ctrl(q)
+    rot = np.where(ch.prismatic, ch.theta_offset, ch.theta_offset + th)
+    dd = np.where(ch.prismatic, ch.d + th, ch.d)
+    A = dh_transforms(rot, dd, ch.a, ch.alpha)
+    frames = [np.broadcast_to(ch.T_base_0, (n, 4, 4))]
+    for i in range(robot.n_joints):  # a loop over joints, not poses
+        frames.append(frames[-1] @ A[:, i])
+    tool = (frames[-1] @ ch.T_n_flange @ robot.T_flange_tool)[:, :3, 3]
+    out = np.empty(robot.n_joints)
+    for j in range(robot.n_joints):
+        z, o = frames[j][:, :3, 2], frames[j][:, :3, 3]
+        out[j] = float(np.linalg.norm(np.cross(z, tool - o), axis=1).mean())
+    return out
 
 
 def dh_transforms(
@@ -149,6 +205,9 @@ class RobotDescription:
         geometry departs more from its nominal table).
     source : str
         Where the data came from (file path or built-in name).
+    link_masses : tuple of LinkMass
+        Link masses and centres of mass (from a URDF's inertials) for the general link
+        self-weight model; used when ``self_weight`` is None. Empty: none known.
     """
 
     name: str
@@ -163,6 +222,7 @@ class RobotDescription:
     source: str = ""
     prior_sigma: dict[tuple[str, str], float] = field(default_factory=dict)
     rated_payload_kg: float | None = None
+    link_masses: tuple[LinkMass, ...] = ()
 
     def __post_init__(self) -> None:
         n = len(self.joints)
@@ -178,6 +238,11 @@ class RobotDescription:
             )
         if abs(np.linalg.det(self.coupling)) < 1e-9:
             raise ConfigError(f"{self.name}: the joint coupling matrix is singular.")
+        frames = [b.frame for b in self.link_masses]
+        if len(set(frames)) != len(frames) or not all(1 <= k <= n for k in frames):
+            raise ConfigError(
+                f"{self.name}: link masses need distinct DH frames 1..{n}; got {frames}."
+            )
         g = np.linalg.norm(self.gravity)
         if not np.isfinite(g) or g <= 0:
             raise ConfigError(
@@ -194,17 +259,35 @@ class RobotDescription:
         return [j.name for j in self.joints]
 
     @property
+    def link_bodies(self) -> tuple[int, ...]:
+        """DH frames of the bodies with a known mass whose weight some joint feels (the
+        general link model's bodies): body 1 hangs from joint 1 alone, and a revolute
+        joint 1 about the gravity line carries no torque from it."""
+        ch = self.dh_chain()
+        g = self.gravity / np.linalg.norm(self.gravity)
+        silent = (
+            {1}
+            if (
+                not ch.prismatic[0]
+                and abs(abs(float(ch.T_base_0[:3, 2] @ g)) - 1) < 1e-9
+            )
+            else set()
+        )
+        return tuple(
+            b.frame for b in self.link_masses if b.mass > 0 and b.frame not in silent
+        )
+
+    @property
     def prismatic(self) -> NDArrayBool:
         return np.array([j.kind == "prismatic" for j in self.joints])
 
     @property
     def ntm_joints(self) -> tuple[int, ...]:
-        """The joints (1-based) that carry the transmission series by default: the first
-        three revolute ones (J1-J3 of a 6-axis arm; a prismatic joint has no Fourier
-        series in its angle)."""
-        return tuple(i + 1 for i, j in enumerate(self.joints) if j.kind != "prismatic")[
-            :3
-        ]
+        """The joints (1-based) that carry the transmission series by default: the three
+        revolute joints with the longest mean lever arm to the tool over poses within
+        the limits, in joint order (J1-J3 of a 6-axis arm, J1, J2, J4 of a 7-axis arm
+        with a roll joint J3; a prismatic joint has no Fourier series in its angle)."""
+        return _ntm_joints(self)
 
     @property
     def limits(self) -> Float:

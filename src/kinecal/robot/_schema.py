@@ -16,6 +16,9 @@ Schema (DESIGN §11, with the optional extensions marked *)::
     payload_kg: 1.5                                * payload at the tool, if known
     rated_payload_kg: 12.5                         * the maker's rated payload
     self_weight: {shoulder: 2, elbow: 3, wrist_frame: 4} | null   * (Eq. 25-26)
+    link_masses:                                   * general link self-weight (Eq. 25,
+      - {frame: 2, mass_kg: 4.2, com: [x, y, z]}      N links): body of DH frame k, its
+                                                      centre of mass in that frame
     priors: {joint_length: 1, joint_angle: 0.1, ntm: 0.03,        * prior std of the
              load_compliance: 1e-3, link_moment: 2000, link_ratio: 10}  identification
         (lengths and angles in the file's units, load_compliance in rad/m; null = none)
@@ -33,7 +36,12 @@ import numpy as np
 
 from kinecal.errors import ConfigError
 from kinecal.geometry import euler_transform, transform_to_euler
-from kinecal.robot._description import JointSpec, RobotDescription, SelfWeightSpec
+from kinecal.robot._description import (
+    JointSpec,
+    LinkMass,
+    RobotDescription,
+    SelfWeightSpec,
+)
 from kinecal.units import ANGLE_UNITS, LENGTH_UNITS
 
 __all__ = ["dump_robot", "load_robot_file", "robot_from_dict"]
@@ -51,6 +59,7 @@ _TOP_KEYS = {
     "payload_kg",
     "rated_payload_kg",
     "self_weight",
+    "link_masses",
     "priors",
 }
 _REQUIRED_TOP = ("name", "convention", "units", "joints")
@@ -72,6 +81,7 @@ _JOINT_REQUIRED = ("theta_offset", "d", "a", "alpha")
 _FRAME_KEYS = ("x", "y", "z", "r", "w", "p")
 _COUPLING_KEYS = {"joint", "from", "factor"}
 _SELF_WEIGHT_KEYS = {"shoulder", "elbow", "wrist_frame"}
+_LINK_MASS_KEYS = {"frame", "mass_kg", "com"}
 # priors key -> (group, kind) of the identification and the unit kind in the file.
 _PRIOR_KEYS = {
     "joint_length": (("joint", "length"), "length"),
@@ -136,6 +146,40 @@ def _mass(data: Mapping[str, Any], key: str, source: str) -> float | None:
     if m <= 0:
         raise _err(f"{source}: {key}", f"expected a positive mass; got {m}.")
     return m
+
+
+def _link_masses(data: Any, where: str, n: int, lu: float) -> tuple[LinkMass, ...]:
+    """The ``link_masses`` list: one body per DH frame, mass >= 0, com in file units."""
+    if not isinstance(data, list):
+        raise _err(where, f"expected a list of {{frame, mass_kg, com}}; got {data!r}.")
+    out = []
+    seen: set[int] = set()
+    for i, b in enumerate(data):
+        w = f"{where}[{i}]"
+        _check_keys(b, _LINK_MASS_KEYS, w, ("frame", "mass_kg", "com"))
+        k = b["frame"]
+        if not isinstance(k, int) or isinstance(k, bool) or not 1 <= k <= n:
+            raise _err(f"{w}.frame", f"expected a DH frame 1..{n}; got {k!r}.")
+        if k in seen:
+            raise _err(
+                f"{w}.frame", f"frame {k} is listed twice; expected one body each."
+            )
+        seen.add(k)
+        m = _number(b["mass_kg"], f"{w}.mass_kg")
+        if m < 0 or m > 1e4:
+            raise _err(f"{w}.mass_kg", f"expected a mass 0..10000 kg; got {m:g}.")
+        c = b["com"]
+        if not isinstance(c, list) or len(c) != 3:
+            raise _err(f"{w}.com", f"expected [x, y, z]; got {c!r}.")
+        com = [_number(x, f"{w}.com[{j}]") * lu for j, x in enumerate(c)]
+        if max(abs(x) for x in com) > 100.0:
+            raise _err(
+                f"{w}.com",
+                f"{c} is not a plausible centre of mass (over 100 m from its frame); "
+                "check units.length.",
+            )
+        out.append(LinkMass(k, m, (com[0], com[1], com[2])))
+    return tuple(out)
 
 
 def _frame(d: Any, where: str, lu: float, au: float) -> np.ndarray:
@@ -316,7 +360,7 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
     )
 
     sw: SelfWeightSpec | None = None
-    if "self_weight" not in data and n >= 5:
+    if "self_weight" not in data and n >= 5 and not data.get("link_masses"):
         sw = SelfWeightSpec()
     elif data.get("self_weight") is not None:
         swr = data["self_weight"]
@@ -335,6 +379,11 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
             )
         sw = SelfWeightSpec(**vals_sw)
 
+    link_masses = (
+        _link_masses(data["link_masses"], f"{source}: link_masses", n, lu)
+        if data.get("link_masses")
+        else ()
+    )
     priors = (
         _priors(data["priors"], f"{source}: priors", lu, au)
         if data.get("priors")
@@ -354,6 +403,7 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
         rated_payload_kg=rated,
         source=source if not desc else f"{source} ({desc})",
         prior_sigma=priors,
+        link_masses=link_masses,
     )
 
 
@@ -427,6 +477,15 @@ def dump_robot(robot: RobotDescription) -> dict[str, Any]:
             "wrist_frame": robot.self_weight.wrist_frame,
         },
     }
+    if robot.link_masses:
+        out["link_masses"] = [
+            {
+                "frame": b.frame,
+                "mass_kg": float(b.mass),
+                "com": [round(float(x) * 1e3, 9) for x in b.com],
+            }
+            for b in robot.link_masses
+        ]
     if robot.payload_kg is not None:
         out["payload_kg"] = robot.payload_kg
     if robot.rated_payload_kg is not None:

@@ -7,9 +7,12 @@ along the common normal to the next axis) and the four DH numbers read off betwe
 consecutive frames. The last DH frame is put on the last axis, level with the tip
 link's origin; the tip link is the physical flange (``flange`` in the description).
 
-Only the geometry is imported: masses and the link self-weight layout are not, so the
-description has ``self_weight: null`` (edit the YAML to add it). The URDF joint values
-are the controller values (no couplings).
+The links' inertials become the general link self-weight layout (``link_masses``): the
+masses and centres of mass of every link between joint k and joint k + 1 (links hanging
+from them by fixed joints included) are lumped into body k, its centre of mass given in
+DH frame k. The lumped two-moment model of the paper (``self_weight``) stays null: the
+general model covers any arm (7 axes, parallel shoulders, offset wrists, a prismatic
+first joint). The URDF joint values are the controller values (no couplings).
 """
 
 from __future__ import annotations
@@ -23,7 +26,13 @@ import numpy as np
 
 from kinecal.errors import ConfigError
 from kinecal.geometry import rpy_to_matrix
-from kinecal.robot._description import JointSpec, RobotDescription
+from kinecal.robot._description import JointSpec, LinkMass, RobotDescription
+from kinecal.robot._urdf_joints import (
+    declared_coupling,
+    merge_mimics,
+    mimic_of,
+    rates_of,
+)
 
 __all__ = ["robot_from_urdf"]
 
@@ -224,46 +233,6 @@ def _limits(lim: ET.Element, where: str) -> tuple[float, float]:
     return lo, hi
 
 
-def _declared_coupling(text: str, n: int, src: str) -> np.ndarray:
-    """The coupling matrix of kinecal's line ``kinecal coupling (theta = C q_ctrl): J3 +=
-    1.0 * J2; ...`` (its URDF joints take kinematic angles; the robot takes controller
-    angles, as the data hold them)."""
-    C = np.eye(n)
-    for term in filter(None, (t.strip() for t in text.split(";"))):
-        m = re.fullmatch(r"J(\d+) \+= (\S+) \* J(\d+)\.?", term)
-        try:
-            if m is None:
-                raise ValueError(term)
-            i, k, f = int(m.group(1)) - 1, int(m.group(3)) - 1, float(m.group(2))
-        except ValueError:
-            raise ConfigError(
-                f"{src}: cannot read the coupling term {term!r} of the 'kinecal "
-                "coupling' line; expected 'Ji += factor * Jk'."
-            ) from None
-        if not (0 <= i < n and 0 <= k < n and i != k and np.isfinite(f)):
-            raise ConfigError(
-                f"{src}: coupling term {term!r}: expected joints 1..{n}, two different "
-                "ones, and a finite factor."
-            )
-        C[i, k] += f
-    if abs(np.linalg.det(C)) < 1e-9:
-        raise ConfigError(f"{src}: the declared joint coupling is singular.")
-    return C
-
-
-def _rates(lim: ET.Element | None) -> tuple[float | None, float | None]:
-    """Velocity and effort of a ``<limit>`` (None where absent, not positive, or not a
-    number: ROS-Industrial writes effort 0 for unknown)."""
-    out: list[float | None] = []
-    for key in ("velocity", "effort"):
-        try:
-            v = float(lim.get(key, "nan")) if lim is not None else np.nan
-        except ValueError:
-            v = np.nan
-        out.append(v if np.isfinite(v) and v > 0 else None)
-    return out[0], out[1]
-
-
 def _on_z(p: np.ndarray, u: np.ndarray) -> bool:
     """Whether the line through ``p`` along ``u`` is the z axis (same direction)."""
     return bool(
@@ -271,80 +240,62 @@ def _on_z(p: np.ndarray, u: np.ndarray) -> bool:
     )
 
 
-def _mimic(el: ET.Element, where: str) -> tuple[str, float, float]:
-    """(joint, multiplier, offset) of a ``<mimic>`` element."""
-    name = el.get("joint", "")
-    if not name:
-        raise ConfigError(
-            f'{where}: expected <mimic joint="NAME" .../>; no joint named.'
-        )
+def _inertial(link: ET.Element | None, where: str) -> tuple[float, np.ndarray] | None:
+    """Mass [kg] and centre of mass (3,) [m] in the link frame, or None without one."""
+    el = link.find("inertial") if link is not None else None
+    if el is None:
+        return None
+    m_el = el.find("mass")
+    if m_el is None:
+        return None
     try:
-        mult = float(el.get("multiplier", "1"))
-        off = float(el.get("offset", "0"))
+        m = float(m_el.get("value", ""))
     except ValueError:
         raise ConfigError(
-            f"{where}: expected numbers; got multiplier={el.get('multiplier')!r}, "
-            f"offset={el.get('offset')!r}."
+            f"{where} mass: expected a number; got {m_el.get('value')!r}."
         ) from None
-    if not (np.isfinite(mult) and np.isfinite(off)) or mult == 0.0:
-        raise ConfigError(
-            f"{where}: expected a finite non-zero multiplier and a finite offset; got "
-            f"multiplier={mult:g}, offset={off:g}."
-        )
-    return name, mult, off
+    if not (np.isfinite(m) and m >= 0):
+        raise ConfigError(f"{where} mass: expected a mass >= 0 kg; got {m}.")
+    o = el.find("origin")
+    c = (
+        _floats(o.get("xyz", "0 0 0"), 3, f"{where} origin xyz")
+        if o is not None
+        else np.zeros(3)
+    )
+    return m, c
 
 
-def _merge_mimics(lines, specs, mimics, src):
-    """Joints that mimic another become a coupling: a mimic joint on the axis line of a
-    neighbouring independent joint adds ``multiplier * q_other`` (and its offset) to
-    that joint's kinematic angle (``theta = C q_ctrl``, FANUC J2/J3 as kinecal's
-    ``--coupling mimic`` writes it). Returns the lines and specs of the independent
-    joints, C and the angle offsets (n,)."""
-    keep = [i for i in range(len(lines)) if i not in mimics]
-    index = {specs[i][0]: k for k, i in enumerate(keep)}
-    n = len(keep)
-    C = np.eye(n)
-    offsets = np.zeros(n)
-    for i, (other, mult, off) in sorted(mimics.items()):
-        name, kind, _ = specs[i]
-        if other not in index:
-            what = (
-                "a mimic joint itself"
-                if other in {s[0] for s in specs}
-                else ("not a movable joint of the chain")
-            )
-            raise ConfigError(
-                f"{src}: joint {name!r} mimics {other!r}, which is {what}; expected the "
-                "name of an independent joint of the chain."
-            )
-        if kind != "revolute":
-            raise ConfigError(
-                f"{src}: joint {name!r} is a {kind} mimic joint; kinecal couples "
-                "revolute joints only."
-            )
-        p, u = lines[i]
-        host = None
-        for k in (i + 1, i - 1):  # the independent neighbour on the same line
-            if k in mimics or not 0 <= k < len(lines) or specs[k][1] != "revolute":
-                continue
-            q_, w = lines[k]
-            d = p - q_
-            if abs(abs(u @ w) - 1.0) < 1e-9 and np.linalg.norm(d - (d @ w) * w) < 1e-7:
-                host = k
-                sign = float(np.sign(u @ w))
-                break
-        if host is None:
-            raise ConfigError(
-                f"{src}: mimic joint {name!r} turns about its own axis; kinecal reads a "
-                "mimic joint on the axis of the joint before or after it (a coupling "
-                "such as FANUC J2/J3), not a separate linkage."
-            )
-        r = keep.index(host)
-        C[r, index[other]] += sign * mult
-        offsets[r] += sign * off
-    if abs(np.linalg.det(C)) < 1e-9:
-        raise ConfigError(f"{src}: the mimic joints make the joint coupling singular.")
-    return [lines[i] for i in keep], [specs[i] for i in keep], C, offsets
+def _link_masses(
+    root: ET.Element,
+    src: str,
+    placed: list[tuple[str, np.ndarray, int]],
+    frames: list[np.ndarray],
+) -> tuple[LinkMass, ...]:
+    """Bodies 1..n from the inertials of the chain's links (``placed``: link name, pose
+    at the zero configuration, body number) and of links fixed to them."""
+    _, by_child, children = _tree(root, src)
+    link_el = {el.get("name", ""): el for el in root.findall("link")}
+    todo = list(placed)
+    on_chain = {name for name, _, _ in placed}
+    acc: dict[int, list[tuple[float, np.ndarray]]] = {}
+    while todo:
+        name, T, body = todo.pop()
+        got = _inertial(link_el.get(name), f"{src}: link {name!r} inertial")
+        if got is not None and body >= 1 and got[0] > 0:
+            acc.setdefault(body, []).append((got[0], T[:3, :3] @ got[1] + T[:3, 3]))
+        for c in children.get(name, []):
+            j = by_child[c]
+            if c in on_chain or j.get("type", "") != "fixed":
+                continue  # the chain's next link, or a gripper's moving finger
+            todo.append((c, T @ _origin(j, f"{src}: joint {j.get('name')!r}"), body))
+    out = []
+    for k in sorted(acc):
+        m = sum(mi for mi, _ in acc[k])
+        p = sum(mi * pi for mi, pi in acc[k]) / m
+        F = frames[k - 1]
+        com = F[:3, :3].T @ (p - F[:3, 3])
+        out.append(LinkMass(k, float(m), (float(com[0]), float(com[1]), float(com[2]))))
+    return tuple(out)
 
 
 def _angle(a: np.ndarray, b: np.ndarray, axis: np.ndarray) -> float:
@@ -406,21 +357,23 @@ def robot_from_urdf(
     mimics: dict[int, tuple[str, float, float]] = {}
     rates: dict[str, tuple[float | None, float | None]] = {}
     fixed_above: list[tuple[str, np.ndarray]] = []
+    placed: list[tuple[str, np.ndarray, int]] = [(base, np.eye(4), 0)]
     for j in chain:
         jn = j.get("name", "?")
         T = T @ _origin(j, f"{src}: joint {jn!r} origin")
         kind = j.get("type", "")
+        child = j.find("child").get("link", "")  # type: ignore[union-attr]
         if kind not in _MOVABLE:
             if kind != "fixed":
                 raise ConfigError(f"{src}: joint {jn!r} has unsupported type {kind!r}.")
             if not lines:
-                child = j.find("child")
-                assert child is not None
-                fixed_above.append((child.get("link", ""), T.copy()))
+                fixed_above.append((child, T.copy()))
+            placed.append((child, T.copy(), len(lines)))
             continue
         mim = j.find("mimic")
         if mim is not None:
-            mimics[len(lines)] = _mimic(mim, f"{src}: joint {jn!r} mimic")
+            mimics[len(lines)] = mimic_of(mim, f"{src}: joint {jn!r} mimic")
+        placed.append((child, T.copy(), len(lines) + 1))
         ax_el = j.find("axis")
         axis = _floats(
             ax_el.get("xyz") if ax_el is not None else "1 0 0",
@@ -437,15 +390,19 @@ def robot_from_urdf(
         lo, hi = -np.inf, np.inf
         if kind != "continuous" and lim is not None:
             lo, hi = _limits(lim, f"{src}: joint {jn!r} limit")
-        rates[jn] = _rates(lim)
+        rates[jn] = rates_of(lim)
         lines.append((T[:3, 3].copy(), T[:3, :3] @ axis))
         specs.append((jn, "prismatic" if kind == "prismatic" else "revolute", (lo, hi)))
     if not lines:
         raise ConfigError(f"{src}: no movable joint between {base!r} and {tip!r}.")
     T_tip = T
-    lines, specs, C, offsets = _merge_mimics(lines, specs, mimics, src)
+    if mimics:  # bodies numbered by the independent joints (a mimic joint's link
+        # belongs to the body of the joint it is merged with, or the one before)
+        kept = np.cumsum([i not in mimics for i in range(len(lines))])
+        placed = [(nm, Tp, int(kept[b - 1]) if b else 0) for nm, Tp, b in placed]
+    lines, specs, C, offsets = merge_mimics(lines, specs, mimics, src)
     if declared is not None and not mimics:
-        C = _declared_coupling(declared.group(1), len(lines), src)
+        C = declared_coupling(declared.group(1), len(lines), src)
     p1, u1 = lines[0]
     if specs[0][1] == "prismatic":  # a slide has no axis position: put it through 0
         p1 = np.zeros(3)
@@ -476,6 +433,7 @@ def robot_from_urdf(
         np.zeros(3),
     )
     joints: list[JointSpec] = []
+    frames: list[np.ndarray] = []  # DH frames 1..n at the zero configuration
     n = len(lines)
     for i in range(n):
         if i + 1 < n:
@@ -518,6 +476,10 @@ def robot_from_urdf(
         if jkind == "revolute":
             theta += offsets[i]
         joints.append(JointSpec(jname, theta, d, a, alpha, jkind, jlim, *rates[jname]))
+        F = np.eye(4)
+        F[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+        F[:3, 3] = o
+        frames.append(F)
         z_prev, x_prev, o_prev = z, x, o
     F_n = np.eye(4)
     F_n[:3, :3] = np.column_stack([x_prev, np.cross(z_prev, x_prev), z_prev])
@@ -531,4 +493,5 @@ def robot_from_urdf(
         T_n_flange=T_n_flange,
         self_weight=None,
         source=f"{src} (URDF {base} -> {tip})",
+        link_masses=_link_masses(root, src, placed, frames),
     )

@@ -20,6 +20,12 @@ from kinecal.simulation._planning import (
     sphere_poses,
 )
 from kinecal.simulation._recovery import Recovery, noise_free, parameter_recovery
+from kinecal.simulation._robot_twin import (
+    gravity_torques,
+    random_joint_poses,
+    robot_experiment,
+    robot_truth,
+)
 from kinecal.simulation._truth import (
     EXTRAS,
     PAPER_TABLES,
@@ -42,12 +48,16 @@ __all__ = [
     "add_outliers",
     "experiment1",
     "experiment2",
+    "gravity_torques",
     "grid_poses",
     "joint_ranges_deg",
     "noise_free",
     "paper_truth",
     "parameter_recovery",
     "planning_model",
+    "random_joint_poses",
     "random_truth",
+    "robot_experiment",
+    "robot_truth",
     "sphere_poses",
 ]
