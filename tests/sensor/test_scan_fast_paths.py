@@ -50,3 +50,26 @@ def test_scan_images_decode_as_opencv_decodes_them(dtype):
     out = decode_grey_png(buf.tobytes())
     assert out is not None
     np.testing.assert_array_equal(out, img)
+
+
+@pytest.mark.parametrize("isal", [True, False])
+def test_inflation_with_and_without_isal(monkeypatch, isal):
+    """The optional ISA-L inflation (package ``isal``) and the standard library's give
+    the same image; broken data go to OpenCV (None) with either."""
+    import sys
+
+    from kinecal.sensor import _png
+
+    if isal:
+        pytest.importorskip("isal")
+    else:
+        monkeypatch.setitem(sys.modules, "isal", None)  # import isal fails
+    monkeypatch.setattr(_png, "_INFLATE", [])
+    rng = np.random.default_rng(7)
+    img = np.clip(rng.normal(8, 2, (120, 160)), 0, 255).astype(np.uint8)
+    data = cv2.imencode(".png", img)[1].tobytes()
+    np.testing.assert_array_equal(decode_grey_png(data), img)
+    assert _png._INFLATE[0][0].__module__.startswith("isal") == isal
+    _, idat = _png._chunks(data)
+    assert _png._inflate(idat[:-4] + bytes(4)) is None  # its Adler-32 wrong
+    assert _png._inflate(idat[:20]) is None  # cut short

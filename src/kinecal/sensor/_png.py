@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import struct
 import zlib
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -45,10 +47,10 @@ def decode_grey_png(data: bytes) -> np.ndarray | None:
     stride = W * bpp
     if H * (stride + 1) * 255 >= 2**31 or W < 1 or H < 1:
         return None  # the integral image would overflow its 32-bit sums
-    try:
-        raw = np.frombuffer(zlib.decompress(idat), np.uint8)
-    except zlib.error:
+    inflated = _inflate(idat)
+    if inflated is None:
         return None
+    raw = np.frombuffer(inflated, np.uint8)
     if raw.size != H * (stride + 1):
         return None
     raw = raw.reshape(H, stride + 1)
@@ -62,6 +64,28 @@ def decode_grey_png(data: bytes) -> np.ndarray | None:
     if bpp == 1:
         return out
     return out.reshape(H, W, 2).view(">u2")[:, :, 0].astype(np.uint16)
+
+
+def _inflate(data: bytes) -> bytes | None:
+    """The inflated zlib stream, None if broken: by ISA-L (2-3x faster) when the
+    ``isal`` package is installed, else by the standard library."""
+    if not _INFLATE:
+        try:
+            from isal import isal_zlib
+
+            isal_error: Any = isal_zlib.error  # typed as an instance by isal
+            _INFLATE.append((isal_zlib.decompress, (zlib.error, isal_error)))
+        except ImportError:
+            _INFLATE.append((zlib.decompress, (zlib.error,)))
+    inflate, errors = _INFLATE[0]
+    try:
+        return inflate(data)
+    except errors:
+        return None
+
+
+# the inflating function and its exceptions, once known
+_INFLATE: list[tuple[Callable[[bytes], bytes], tuple[type[Exception], ...]]] = []
 
 
 def _chunks(data: bytes) -> tuple[tuple[int, ...] | None, bytes]:
