@@ -73,3 +73,33 @@ def test_inflation_with_and_without_isal(monkeypatch, isal):
     _, idat = _png._chunks(data)
     assert _png._inflate(idat[:-4] + bytes(4)) is None  # its Adler-32 wrong
     assert _png._inflate(idat[:20]) is None  # cut short
+
+
+def test_reconstruct_gives_the_cloud_of_the_slow_path(tmp_path, capsys):
+    """``kinecal sensor reconstruct`` (kinecal's decoder, block-formatted CSV) writes the
+    text the slow path gives: images read by OpenCV, the scan, numpy.savetxt."""
+    from kinecal.io import read_image, save_sensor, write_image
+    from kinecal.sensor import StripeRenderer, paper_sensor, sphere_scene
+    from tests.cli_contract import run_kinecal
+
+    sen = paper_sensor()
+    ren = StripeRenderer(sen.camera, sen.planes)
+    scene = sphere_scene(np.array([0.0021, -0.0013, 0.1387]), 0.015)
+    rng = np.random.default_rng(8)
+    planes = (30, 60, 90)
+    for k in planes:
+        write_image(tmp_path / f"plane_{k:03d}.png", ren.render(scene, k, rng))
+    save_sensor(tmp_path / "sensor.yaml", sen)
+    res = run_kinecal(
+        capsys, "sensor", "reconstruct", tmp_path, "--sensor",
+        tmp_path / "sensor.yaml", "--out", tmp_path / "cloud.csv", "-q", "--jobs", "1",
+    )  # fmt: skip
+    assert res.code == 0, res
+    imgs = [read_image(tmp_path / f"plane_{k:03d}.png") for k in planes]
+    cloud = sen.scan(imgs, np.array(planes), jobs=1)
+    assert cloud.points.shape[0] > 300
+    ref = io.StringIO()
+    ref.write("x_mm,y_mm,z_mm,u_px,v_px,plane\n")
+    data = np.column_stack([cloud.points * 1e3, cloud.uv, cloud.plane.astype(float)])
+    np.savetxt(ref, data, fmt=["%.6f"] * 3 + ["%.4f"] * 2 + ["%d"], delimiter=",")
+    assert (tmp_path / "cloud.csv").read_text() == ref.getvalue()

@@ -10,8 +10,8 @@ import numpy as np
 
 from kinecal import _yaml as yaml
 from kinecal.errors import ConfigError, DataError
-from kinecal.io._csv import read_table
 from kinecal.io._files import atomic_write_bytes, atomic_write_text
+from kinecal.io._table import read_table
 
 if (
     TYPE_CHECKING
