@@ -18,7 +18,12 @@ import numpy as np
 
 from kinecal.report import _figures as F
 from kinecal.report._format import details, e, figure, num, page, ratio, table
-from kinecal.report._poses import RESIDUALS_CSV, PoseErrors, read_pose_errors
+from kinecal.report._poses import (
+    FIGURE_POSES,
+    RESIDUALS_CSV,
+    PoseErrors,
+    read_pose_errors,
+)
 from kinecal.report._tables import (
     SIGNIFICANT,
     compliance_table,
@@ -354,6 +359,16 @@ def render_calibration_report(
 
 def _figures(summary: Mapping[str, Any], poses: PoseErrors | None) -> list[str]:
     out = []
+    if poses is not None and poses.n > FIGURE_POSES:
+        # A large run: the per-pose figures from a sample, the tables from all poses.
+        total = poses.n
+        poses = poses.sample(FIGURE_POSES)
+        out.append(
+            f"<p class=muted>The per-pose figures show {poses.n} of the {total} poses "
+            f"(the {FIGURE_POSES // 100} largest errors after calibration and poses "
+            "evenly spaced through the data); the tables above are computed from all "
+            "of them.</p>"
+        )
     if poses is not None:
         eb = np.linalg.norm(poses.before_mm, axis=1)
         ea = np.linalg.norm(poses.after_mm, axis=1)
