@@ -103,3 +103,15 @@ def test_reconstruct_gives_the_cloud_of_the_slow_path(tmp_path, capsys):
     data = np.column_stack([cloud.points * 1e3, cloud.uv, cloud.plane.astype(float)])
     np.savetxt(ref, data, fmt=["%.6f"] * 3 + ["%.4f"] * 2 + ["%d"], delimiter=",")
     assert (tmp_path / "cloud.csv").read_text() == ref.getvalue()
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("n", [1, 2, 7, 2322, 5120])
+def test_ridge_median_has_numpys_bits(dtype, n):
+    from kinecal.sensor._ridge import _median
+
+    rng = np.random.default_rng(n)
+    a = np.abs(rng.normal(0, 3, n)).astype(dtype)
+    a[: n // 3] = np.round(a[: n // 3])  # ties, as in the images' grey levels
+    assert _median(a) == float(np.median(a))
+    assert _median(a.reshape(1, -1)[:, ::1]) == float(np.median(a))
