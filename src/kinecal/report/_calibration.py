@@ -359,17 +359,20 @@ def render_calibration_report(
 
 def _figures(summary: Mapping[str, Any], poses: PoseErrors | None) -> list[str]:
     out = []
-    if poses is not None and poses.n > FIGURE_POSES:
-        # A large run: the per-pose figures from a sample, the tables from all poses.
-        total = poses.n
-        poses = poses.sample(FIGURE_POSES)
-        out.append(
-            f"<p class=muted>The per-pose figures show {poses.n} of the {total} poses "
-            f"(the {FIGURE_POSES // 100} largest errors after calibration and poses "
-            "evenly spaced through the data); the tables above are computed from all "
-            "of them.</p>"
-        )
     if poses is not None:
+        # The histogram counts every pose (one pass); the figures that draw poses one
+        # by one take a sample of a large run (:meth:`PoseErrors.sample`).
+        hist_b = np.linalg.norm(poses.before_mm, axis=1)
+        hist_a = np.linalg.norm(poses.after_mm, axis=1)
+        if poses.n > FIGURE_POSES:
+            total = poses.n
+            poses = poses.sample(FIGURE_POSES)
+            out.append(
+                f"<p class=muted>The figures per pose show {poses.n} of the {total} "
+                f"poses (the {FIGURE_POSES // 100} largest errors after calibration and "
+                "poses evenly spaced through the data); the histogram and the tables "
+                "above count all of them.</p>"
+            )
         eb = np.linalg.norm(poses.before_mm, axis=1)
         ea = np.linalg.norm(poses.after_mm, axis=1)
         out.append(
@@ -381,7 +384,7 @@ def _figures(summary: Mapping[str, Any], poses: PoseErrors | None) -> list[str]:
         out.append(
             figure(
                 F.fig_error_histogram(
-                    {"before": eb, "after": ea},
+                    {"before": hist_b, "after": hist_a},
                     "count of position errors",
                     log=True,
                     colors=F.COLORS,
