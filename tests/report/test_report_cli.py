@@ -171,7 +171,9 @@ def test_issue_36_large_run_figures_from_a_sample_tables_from_all(
         real = getattr(_calibration.F, name)
 
         def spy(*args, _real=real, _name=name, **kw):
-            seen[_name] = [a if isinstance(a, dict) else np.asarray(a) for a in args[:2]]
+            seen[_name] = [
+                a if isinstance(a, dict) else np.asarray(a) for a in args[:2]
+            ]
             return _real(*args, **kw)
 
         monkeypatch.setattr(_calibration.F, name, spy)
