@@ -100,6 +100,12 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="with --issue36: only the row of 1e6 poses from CSV (minutes), merged in",
     )
+    ap.add_argument(
+        "--sensor",
+        action="store_true",
+        help="with --issue36: only the rows of sensor reconstruct (a 120-image scan), "
+        "merged in",
+    )
     args = ap.parse_args(argv)
     if args.issue36:
         from benchmarks._issue36 import main as issue36
@@ -107,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
         out = (
             "benchmarks/issue36.json" if args.out == ap.get_default("out") else args.out
         )
-        return issue36(out, args.quick, args.large)
+        return issue36(out, args.quick, args.large, args.sensor)
     if args.stripes:
         from benchmarks._stripes import main as stripes_main
 

@@ -435,9 +435,12 @@ def large_from_csv(record: Callable[..., None], n: int = 10**6) -> None:
     )
 
 
-def main(out_path: str, quick: bool = False, large: bool = False) -> int:
+def main(
+    out_path: str, quick: bool = False, large: bool = False, sensor: bool = False
+) -> int:
     """Every issue-36 row, written to ``out_path`` (JSON); with ``large`` only the 1e6
-    row, merged into the file's other rows."""
+    row, with ``sensor`` only the sensor scan's rows, merged into the file's other
+    rows."""
     results: dict[str, dict[str, Any]] = {}
 
     def record(name: str, seconds: float, target: str, **extra: Any) -> None:
@@ -449,10 +452,15 @@ def main(out_path: str, quick: bool = False, large: bool = False) -> int:
 
     print("kinecal issue-36 benchmarks", json.dumps(_machine()), flush=True)
     path = Path(out_path)
-    if large:
+    if large or sensor:
         old = json.loads(path.read_text()) if path.is_file() else {}
         results.update(old.get("results", {}))
-        large_from_csv(record)
+        if large:
+            large_from_csv(record)
+        if sensor:
+            from benchmarks._sensor_scan import sensor_scan
+
+            sensor_scan(record, _timed, 3 if quick else 7)
         old["results"] = results
         old.setdefault("machine", _machine())
         tmp_out = path.with_suffix(".tmp")

@@ -146,3 +146,67 @@ def test_issue_26_residuals_csv_matches_evaluate(result_dir, run_cli, tmp_path):
     rs = np.loadtxt(out / "residuals.csv", delimiter=",", skiprows=1, ndmin=2)
     cols = [head.index(c) for c in ("row", "ex_mm", "ey_mm", "ez_mm", "err_mm")]
     np.testing.assert_allclose(rs[:, cols], ev, atol=2e-6)
+
+
+def test_issue_36_large_run_figures_from_a_sample_tables_from_all(
+    result_dir, tmp_path, monkeypatch
+):
+    """A run with more poses than FIGURE_POSES: the per-pose figures get a deterministic
+    sample (a subset of the rows, the largest error among them), the accuracy table the
+    statistics of every pose."""
+    from kinecal.report import _calibration, _poses, write_report
+
+    out, _ = result_dir
+    full = _poses.read_pose_errors(out / "residuals.csv")
+    n_fig = 30
+    assert full.n > n_fig
+    monkeypatch.setattr(_calibration, "FIGURE_POSES", n_fig)
+    seen: dict[str, list[np.ndarray]] = {}
+    for name in (
+        "fig_errors_before_after",
+        "fig_error_histogram",
+        "fig_residuals_vs_joints",
+        "fig_workspace",
+    ):
+        real = getattr(_calibration.F, name)
+
+        def spy(*args, _real=real, _name=name, **kw):
+            seen[_name] = [
+                a if isinstance(a, dict) else np.asarray(a) for a in args[:2]
+            ]
+            return _real(*args, **kw)
+
+        monkeypatch.setattr(_calibration.F, name, spy)
+    html = write_report(out, out=tmp_path / "report.html").read_text()
+    sample = full.sample(n_fig)
+    assert sample.n == n_fig
+    np.testing.assert_array_equal(full.sample(n_fig).row, sample.row)  # deterministic
+    i = np.searchsorted(full.row, sample.row)
+    np.testing.assert_array_equal(full.row[i], sample.row)  # a subset, in order
+    np.testing.assert_array_equal(full.after_mm[i], sample.after_mm)
+    err = np.linalg.norm(full.after_mm, axis=1)
+    assert np.linalg.norm(sample.after_mm, axis=1).max() == err.max()
+    # the figures drew the sample
+    np.testing.assert_array_equal(
+        seen["fig_errors_before_after"][1], np.linalg.norm(sample.after_mm, axis=1)
+    )
+    np.testing.assert_array_equal(seen["fig_residuals_vs_joints"][0], sample.q)
+    np.testing.assert_array_equal(seen["fig_workspace"][0], sample.p_mm)
+    hist = seen["fig_error_histogram"][0]  # a dict: every pose counted
+    np.testing.assert_array_equal(hist["after"], err)
+    assert f"show {n_fig} of the {full.n} poses" in html
+    # the table: the statistics of all poses (residuals.csv holds 6 decimals)
+    summary = json.loads((out / "report.json").read_text())
+    after = summary["after"]
+    assert after["n"] == full.n
+    assert after["rms_mm"] == pytest.approx(np.sqrt(np.mean(err**2)), abs=2e-6)
+    assert after["max_mm"] == pytest.approx(err.max(), abs=2e-6)
+    from kinecal.report._format import num
+
+    row = html[html.index("calibration data, after") :].split("</tr>")[0]
+    assert num(after["rms_mm"]) in row and num(after["max_mm"]) in row
+    # below the threshold: every pose drawn, no note
+    monkeypatch.setattr(_calibration, "FIGURE_POSES", full.n)
+    html = write_report(out, out=tmp_path / "all.html").read_text()
+    assert "poses evenly spaced" not in html
+    assert seen["fig_workspace"][0].shape[0] == full.n

@@ -9,7 +9,6 @@ Folders of several result files are staged as a whole (:mod:`kinecal._outputs`).
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import tempfile
@@ -33,6 +32,8 @@ __all__ = [
 
 def file_sha256(path: str | Path) -> str:
     """SHA-256 of a file's bytes (for run manifests)."""
+    import hashlib  # not at start-up: commands without a manifest do not need it
+
     h = hashlib.sha256()
     with open(path, "rb") as f:
         for chunk in iter(lambda: f.read(1 << 20), b""):

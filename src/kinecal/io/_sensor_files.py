@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -9,8 +10,8 @@ import numpy as np
 
 from kinecal import _yaml as yaml
 from kinecal.errors import ConfigError, DataError
-from kinecal.io._csv import read_table
 from kinecal.io._files import atomic_write_bytes, atomic_write_text
+from kinecal.io._table import read_table
 
 if (
     TYPE_CHECKING
@@ -155,13 +156,21 @@ def write_stripes(
 def _write_rows(
     path: str | Path, cols: list[str], data: np.ndarray, fmt: list[str], force: bool
 ) -> Path:
-    import io
+    return atomic_write_bytes(path, _csv_blocks(cols, data, fmt), force=force)
 
-    buf = io.StringIO()
-    buf.write(",".join(cols) + "\n")
-    if data.size:
-        np.savetxt(buf, data, fmt=fmt, delimiter=",")
-    return atomic_write_text(path, buf.getvalue(), force=force)
+
+_BLOCK = 20_000  # rows formatted at a time
+
+
+def _csv_blocks(cols: list[str], data: np.ndarray, fmt: list[str]) -> Iterator[bytes]:
+    """The CSV text of ``data`` in pieces: the header, then blocks of rows, each by one
+    %-format of the whole block (the text of :func:`numpy.savetxt` with ``fmt`` and
+    ``,``; savetxt formats row by row in Python, 0.3 s for a scan's 38 000 points)."""
+    yield (",".join(cols) + "\n").encode()
+    line = ",".join(fmt) + "\n"
+    for i in range(0, data.shape[0] if data.size else 0, _BLOCK):
+        block = data[i : i + _BLOCK]
+        yield ((line * block.shape[0]) % tuple(block.ravel().tolist())).encode()
 
 
 def save_sensor(

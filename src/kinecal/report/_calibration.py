@@ -18,7 +18,12 @@ import numpy as np
 
 from kinecal.report import _figures as F
 from kinecal.report._format import details, e, figure, num, page, ratio, table
-from kinecal.report._poses import RESIDUALS_CSV, PoseErrors, read_pose_errors
+from kinecal.report._poses import (
+    FIGURE_POSES,
+    RESIDUALS_CSV,
+    PoseErrors,
+    read_pose_errors,
+)
 from kinecal.report._tables import (
     SIGNIFICANT,
     compliance_table,
@@ -355,6 +360,19 @@ def render_calibration_report(
 def _figures(summary: Mapping[str, Any], poses: PoseErrors | None) -> list[str]:
     out = []
     if poses is not None:
+        # The histogram counts every pose (one pass); the figures that draw poses one
+        # by one take a sample of a large run (:meth:`PoseErrors.sample`).
+        hist_b = np.linalg.norm(poses.before_mm, axis=1)
+        hist_a = np.linalg.norm(poses.after_mm, axis=1)
+        if poses.n > FIGURE_POSES:
+            total = poses.n
+            poses = poses.sample(FIGURE_POSES)
+            out.append(
+                f"<p class=muted>The figures per pose show {poses.n} of the {total} "
+                f"poses (the {FIGURE_POSES // 100} largest errors after calibration and "
+                "poses evenly spaced through the data); the histogram and the tables "
+                "above count all of them.</p>"
+            )
         eb = np.linalg.norm(poses.before_mm, axis=1)
         ea = np.linalg.norm(poses.after_mm, axis=1)
         out.append(
@@ -366,7 +384,7 @@ def _figures(summary: Mapping[str, Any], poses: PoseErrors | None) -> list[str]:
         out.append(
             figure(
                 F.fig_error_histogram(
-                    {"before": eb, "after": ea},
+                    {"before": hist_b, "after": hist_a},
                     "count of position errors",
                     log=True,
                     colors=F.COLORS,

@@ -25,7 +25,13 @@ import numpy as np
 from kinecal.errors import DataError
 from kinecal.typing import Float, Int
 
-__all__ = ["RESIDUALS_CSV", "PoseErrors", "pose_errors", "read_pose_errors"]
+__all__ = [
+    "FIGURE_POSES",
+    "RESIDUALS_CSV",
+    "PoseErrors",
+    "pose_errors",
+    "read_pose_errors",
+]
 
 RESIDUALS_CSV = "residuals.csv"
 _TAIL = [
@@ -46,6 +52,8 @@ _JOINT = re.compile(r"j(\d+)_(deg|mm)$")
 
 # Rows of residuals.csv formatted at once.
 _BLOCK = 20000
+# Poses drawn in the report's per-pose figures at most (a sample of larger runs).
+FIGURE_POSES = 20000
 
 
 @dataclass(frozen=True)
@@ -68,6 +76,36 @@ class PoseErrors:
     p_mm: Float
     before_mm: Float
     after_mm: Float
+
+    @property
+    def n(self) -> int:
+        return int(self.row.shape[0])
+
+    def sample(self, n: int = FIGURE_POSES) -> PoseErrors:
+        """At most ``n`` of the poses, in their order, the same every time: the 1 % of
+        ``n`` with the largest errors after calibration and poses evenly spaced through
+        the data for the rest (all of them when there are ``n`` or fewer)."""
+        N = self.n
+        if N <= n:
+            return self
+        err = np.einsum("ij,ij->i", self.after_mm, self.after_mm)
+        top = max(n // 100, 1)
+        worst = np.argpartition(err, N - top)[N - top :]
+        keep = np.zeros(N, bool)
+        keep[worst] = True
+        rest = np.flatnonzero(~keep)
+        keep[rest[np.linspace(0, rest.size - 1, n - top).round().astype(np.intp)]] = (
+            True
+        )
+        i = np.flatnonzero(keep)
+        return PoseErrors(
+            row=self.row[i],
+            q=self.q[i],
+            joint_units=self.joint_units,
+            p_mm=self.p_mm[i],
+            before_mm=self.before_mm[i],
+            after_mm=self.after_mm[i],
+        )
 
     def to_csv(self) -> str:
         """The text of ``residuals.csv`` (6 decimals: 1 nm, 1 µdeg)."""
