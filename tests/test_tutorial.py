@@ -20,7 +20,7 @@ PAGE = ROOT / "docs" / "tutorial.md"
 
 
 def _blocks(text: str) -> list[tuple[str, str]]:
-    return re.findall(r"```(sh|csv)\n(.*?)```", text, flags=re.S)
+    return re.findall(r"```(sh|csv|text)\n(.*?)```", text, flags=re.S)
 
 
 def test_tutorial_runs(tmp_path, monkeypatch, capsys):
@@ -31,7 +31,7 @@ def test_tutorial_runs(tmp_path, monkeypatch, capsys):
     assert [k for k, _ in blocks].count("sh") >= 7
     ran = []
     for kind, body in blocks:
-        if kind == "csv":
+        if kind in ("csv", "text"):
             (tmp_path / "targets.csv").write_text(body)
             continue
         for line in body.strip().splitlines():
