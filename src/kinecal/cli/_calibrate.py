@@ -300,6 +300,7 @@ def calibrate(
                 "model_code": kernel_name(result.calibrated.model),
             },
             files=written,
+            folder=out,
         ),
         force=True,
     )

@@ -284,6 +284,9 @@ def load_model(path: str | Path) -> CalibratedModel:
     ConfigError
         With a one-line message naming the file and the key.
     """
+    from kinecal._outputs import note_input
+
+    note_input(path)
     p = Path(path)
     doc = _read_doc(p)
     robot = robot_from_dict(doc["robot"], source=f"{p}: robot")

@@ -39,6 +39,9 @@ def _cv2() -> Any:
 
 def read_image(path: str | Path) -> np.ndarray:
     """A grey 8- or 16-bit image (H, W); colour images are refused with a clear error."""
+    from kinecal._outputs import note_input
+
+    note_input(path)
     p = Path(path)
     if not p.is_file():
         raise DataError(f"{p}: image not found.")
@@ -97,6 +100,9 @@ def image_files(folder: str | Path, pattern: str = "*.png") -> list[Path]:
 
 def read_cloud(path: str | Path) -> np.ndarray:
     """Points (N, 3) [m] from a CSV with columns ``x_mm, y_mm, z_mm``."""
+    from kinecal._outputs import note_input
+
+    note_input(path)
     t = read_table(path)
     for c in ("x_mm", "y_mm", "z_mm"):
         if c not in t.header:
@@ -186,6 +192,9 @@ def save_sensor(
 
 def load_sensor(path: str | Path, *, need_planes: bool = True) -> Sensor | Camera:
     """Read a sensor YAML; a file with only a camera gives the :class:`Camera`."""
+    from kinecal._outputs import note_input
+
+    note_input(path)
     from kinecal.sensor import Camera, LightPlanes, Sensor
 
     p = Path(path)
