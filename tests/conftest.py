@@ -125,6 +125,9 @@ SHARED_MODULES = {
     "tests/cli/test_export_cli.py": "export-models",
     "tests/cli/test_fault_inputs.py": "fault-inputs",
     "tests/cli/test_fault_results.py": "fault-results",
+    "tests/faults/test_overwrite_inputs.py": "faults",  # data (tests/faults/conftest)
+    "tests/faults/test_model_file_bounds.py": "faults",
+    "tests/faults/test_kinds_and_weights.py": "faults",
     "tests/identification/test_issue_26_auto.py": "poses-300",
     "tests/test_package_structure.py": "import-graph",
     "tests/slow/test_sensor_end_to_end.py": "slow-sensor",  # calibrated_sensor

@@ -90,6 +90,8 @@ def truth_model(exp: Any) -> Any:
         np.full(tm.size, np.nan),
         ["fixed"] * tm.size,
         info={
+            # the kind of data the truth generated: evaluate and plan --add read it
+            "kind": exp.train.kind,
             "truth": exp.truth.description,
             "extras": list(exp.truth.extras),
             "thermal_ppm_per_pose": exp.truth.thermal_ppm_per_pose,

@@ -11,12 +11,7 @@ import pytest
 from kinecal import _yaml as yaml
 from kinecal.errors import ConfigError
 from kinecal.io import load_model, save_model
-from tests.cli_contract import failed_with, make_point_data, run_kinecal
-
-
-@pytest.fixture(scope="module")
-def data(tmp_path_factory):
-    return make_point_data(tmp_path_factory.mktemp("faults-model"))
+from tests.cli_contract import failed_with, run_kinecal
 
 
 @pytest.fixture(scope="module")

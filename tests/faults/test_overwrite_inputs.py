@@ -9,14 +9,9 @@ import shutil
 
 import pytest
 
-from tests.cli_contract import failed_with, make_point_data, run_kinecal, snapshot
+from tests.cli_contract import failed_with, run_kinecal, snapshot
 
 ROBOT = "fanuc-lrmate200id"
-
-
-@pytest.fixture(scope="module")
-def data(tmp_path_factory):
-    return make_point_data(tmp_path_factory.mktemp("faults-overwrite"))
 
 
 @pytest.fixture

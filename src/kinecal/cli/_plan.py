@@ -303,7 +303,9 @@ def _setup(kw: dict[str, Any], say: Progress) -> dict[str, Any]:
         cm, x = cal.model, cal.params
         if (inst.kind == "point") == cm.spec.cam_rotation:
             raise ConfigError(
-                f"{name}: the model was calibrated from {cal.info.get('kind')} data; "
+                f"{name}: the model was calibrated from "
+                f"{cal.info.get('kind') or ('sensor or pose' if cm.spec.cam_rotation else 'point')}"
+                " data; "
                 f"--instrument {inst_name} measures other quantities."
             )
     else:
