@@ -128,6 +128,8 @@ SHARED_MODULES = {
     "tests/faults/test_overwrite_inputs.py": "faults",  # data (tests/faults/conftest)
     "tests/faults/test_model_file_bounds.py": "faults",
     "tests/faults/test_kinds_and_weights.py": "faults",
+    "tests/faults/test_round_trips.py": "round-trips",  # written (every writer once)
+    "tests/faults/test_images.py": "faults-scan",
     "tests/identification/test_issue_26_auto.py": "poses-300",
     "tests/test_package_structure.py": "import-graph",
     "tests/slow/test_sensor_end_to_end.py": "slow-sensor",  # calibrated_sensor

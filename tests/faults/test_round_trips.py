@@ -1,7 +1,8 @@
 """Issue 35 (7): what any command writes, every command taking that kind of file reads
 (a property of the command set, checked over every writer x reader pair below).
 
-Writers: simulate (tracker and sensor experiments: train/test CSVs, targets, truth.yaml),
+Writers: simulate's (tracker and sensor experiments, small: train/test CSVs, targets,
+truth.yaml),
 calibrate (model.yaml of point and sensor data), compare (model-*.yaml), export-urdf
 --format yaml-dh (robot YAML), plan (PLAN.csv). Readers: every command taking a model,
 a measurement file, a robot YAML or a joint list. (kinecal's exported URDF as --robot is
@@ -29,15 +30,18 @@ def _ok(capsys, *args):
 @pytest.fixture(scope="module")
 def written(tmp_path_factory):
     """Every writer run once, small; {name: path}."""
-    import contextlib
+
+    from kinecal.cli._simulate import _write_experiment
+    from kinecal.simulation import experiment1, experiment2
 
     capsys = _Capture()
     root = tmp_path_factory.mktemp("round-trips")
     e2, e1 = root / "exp2", root / "exp1"
-    with contextlib.redirect_stdout(None):
-        pass
-    _ok(capsys, "simulate", "--experiment", "2", "--n-train", "40", "--out", e2, "-q")
-    _ok(capsys, "simulate", "--experiment", "1", "--n-train", "30", "--out", e1, "-q")
+    # simulate's own writer, on small experiments (the command plans 1000 poses)
+    for d, exp in ((e2, experiment2(0, n_train=40, n_side=5)),
+                   (e1, experiment1(0, n_train=30, per_sphere=10))):  # fmt: skip
+        d.mkdir()
+        _write_experiment(exp, d, d)
     _ok(
         capsys, "calibrate", e2 / "train.csv", "--robot", ROBOT, "--model",
         "kinematic", "--out", root / "cal2", "-q",
@@ -139,7 +143,13 @@ def _targets(w: dict[str, Path], d: Path) -> Path:
     return f
 
 
-@pytest.mark.parametrize("model", MODELS)
+@pytest.mark.parametrize(
+    "model",
+    [
+        m if "sensor" not in m else pytest.param(m, marks=pytest.mark.slow)
+        for m in MODELS
+    ],
+)
 def test_round_trip_model_plan_add(written, capsys, tmp_path, model):
     extra = ["--targets", written["exp1"] / "targets.csv"] if "sensor" in model else []
     _ok(
