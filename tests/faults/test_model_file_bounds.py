@@ -44,10 +44,13 @@ BAD = [
     (_param("joint2.a", 2330.0), ["joint2.a.value", "mm from the robot's nominal"]),
     (_param("joint2.ka1", 1e9), ["joint2.ka1.value", "transmission error", "10 deg"]),
     (_param("joint2.ka1", 45.0), ["joint2.ka1.value", "-10 to 10 deg"]),
-    (_param("joint3.lambda", 1e9), ["joint3.lambda.value", "compliance", "0.1 rad/m"]),
+    (
+        _param("joint3.lambda", 1e9),
+        ["joint3.lambda.value", "compliance", "within 0.1 rad/m"],
+    ),
     (_param("joint3.lambda", -0.5), ["joint3.lambda.value", "-0.1 to 0.1"]),
     (_param("base.r", 1e5), ["base.r.value", "two turns"]),
-    (_param("base.x", 2e6), ["base.x.value", "within 1 km"]),
+    (_param("base.x", 2e6), ["base.x.value", "within 1e+06 mm"]),
     (
         lambda d: d["model"].__setitem__("reference_payload_kg", 1e9),
         ["model.reference_payload_kg", "1e+09 kg", "up to 70 kg", "rated 7 kg"],

@@ -73,19 +73,19 @@ def check_value(model: CalibrationModel, i: int, v: float, where: str) -> None:
     bound: float | None = None
     what = ""
     if unit == "mm":
-        bound, what = _MAX_MM, "a length within 1 km"
+        bound, what = _MAX_MM, "a length"
     elif kind == "ntm":
         bound, what = _MAX_NTM_DEG, "a transmission error amplitude"
     elif kind == "compliance":
-        bound, what = _MAX_COMPLIANCE, "a joint compliance (0.1 rad per m of lever)"
+        bound, what = _MAX_COMPLIANCE, "a joint compliance (rad per m of lever)"
     elif kind == "ratio":
         bound, what = _MAX_RATIO, "a link mass per unit payload mass"
     elif unit == "deg":
-        bound, what = _MAX_FRAME_DEG, "an angle within two turns"
+        bound, what = _MAX_FRAME_DEG, "an angle of at most two turns"
     if bound is not None and abs(v) > bound:
         raise ConfigError(
-            f"{where}: {v:g} {unit}; expected {what}, -{bound:g} to {bound:g} {unit} "
-            "(a typing error or a damaged file?)."
+            f"{where}: {v:g} {unit}; expected {what} within {bound:g} {unit} (from "
+            f"-{bound:g} to {bound:g} {unit}; a typing error or a damaged file?)."
         )
     if ps.group != "joint":
         return
