@@ -129,6 +129,7 @@ SHARED_MODULES = {
     "tests/faults/test_model_file_bounds.py": "faults",
     "tests/faults/test_kinds_and_weights.py": "faults",
     "tests/faults/test_full_disk.py": "faults",
+    "tests/faults/test_audit_bad_files.py": "faults",
     "tests/faults/test_round_trips.py": "round-trips",  # written (every writer once)
     "tests/faults/test_images.py": "faults-scan",
     "tests/identification/test_issue_26_auto.py": "poses-300",

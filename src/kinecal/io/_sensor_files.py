@@ -202,6 +202,8 @@ def load_sensor(path: str | Path, *, need_planes: bool = True) -> Sensor | Camer
         doc = yaml.load(p.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise DataError(f"{p}: file not found.") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{p}: not a text file; expected a sensor YAML.") from None
     except yaml.YAMLError as exc:
         raise ConfigError(f"{p}: not valid YAML ({exc}).") from None
     if not isinstance(doc, dict) or "camera" not in doc:
