@@ -111,3 +111,15 @@ def test_issue_35_report_refuses_files_of_different_runs(capsys, data, tmp_path)
     shutil.copy(runs[1] / "model.yaml", runs[0] / "model.yaml")
     res = run_kinecal(capsys, "report", runs[0], "--force")
     failed_with(res, "model.yaml", "manifest.json", "different runs")
+
+
+def test_issue_35_reconstruct_out_onto_one_of_its_images(capsys, tmp_path):
+    from kinecal.cli import main
+
+    d = tmp_path / "scan"
+    assert main(["sensor", "simulate-scan", "--out", str(d), "--every", "40"]) == 0
+    img = sorted(d.glob("plane_*.png"))[0]
+    _refused(
+        capsys, tmp_path, "sensor", "reconstruct", d, "--sensor", d / "sensor.yaml",
+        "--out", img, "--force",
+    )  # fmt: skip

@@ -95,6 +95,10 @@ def image_files(folder: str | Path, pattern: str = "*.png") -> list[Path]:
     files = sorted(p for p in d.glob(pattern) if p.is_file())
     if not files:
         raise DataError(f"{d}: no images matching {pattern}.")
+    from kinecal._outputs import note_input
+
+    for f in files:  # the command's inputs: no output may replace one
+        note_input(f)
     return files
 
 
