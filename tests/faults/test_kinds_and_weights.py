@@ -119,3 +119,13 @@ def test_issue_35_several_markers_onto_a_model_of_one(data, capsys, tmp_path):
     f = _with_markers(data["test"], tmp_path / "one.csv", ["A"])
     res = run_kinecal(capsys, "evaluate", f, "--model", data["model"])
     assert res.code == 0, res  # one marker, named where the model's is not: the same
+
+
+def test_issue_35_plan_with_targets_for_a_tracker(data, capsys, tmp_path):
+    res = run_kinecal(
+        capsys, "plan", "--robot", ROBOT, "--model", "kinematic", "--poses", "12",
+        "--n-candidates", "60", "--targets", data["dir"] / "spheres.csv",
+        "--out", tmp_path / "p.csv", "-q",
+    )  # fmt: skip
+    failed_with(res, "--targets", "--instrument tracker", "remove --targets")
+    assert not (tmp_path / "p.csv").exists()
