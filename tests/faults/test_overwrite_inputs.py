@@ -123,3 +123,11 @@ def test_issue_35_reconstruct_out_onto_one_of_its_images(capsys, tmp_path):
         capsys, tmp_path, "sensor", "reconstruct", d, "--sensor", d / "sensor.yaml",
         "--out", img, "--force",
     )  # fmt: skip
+
+
+def test_issue_35_without_force_the_message_does_not_suggest_force(capsys, work):
+    res = _refused(
+        capsys, work, "evaluate", work / "test.csv", "--model", work / "model.yaml",
+        "--errors-out", work / "test.csv", "-q",
+    )  # fmt: skip
+    assert "use --force" not in res.err

@@ -105,14 +105,21 @@ OUTPUT_PARAMS = frozenset(
 
 
 def _note_inputs(params: dict[str, object]) -> None:
-    from kinecal._outputs import note_input
+    """Note the command's input files; refuse at once an output that is one of them
+    (before any work, and before "exists; use --force" could suggest --force)."""
+    from kinecal._outputs import note_input, refuse_input
+
+    def values(value: object) -> list[str]:
+        items = value if isinstance(value, (tuple, list)) else (value,)
+        return [v for v in items if isinstance(v, str) and v]
 
     for name, value in params.items():
-        if name in OUTPUT_PARAMS:
-            continue
-        for v in value if isinstance(value, (tuple, list)) else (value,):
-            if isinstance(v, str) and v:
+        if name not in OUTPUT_PARAMS:
+            for v in values(value):
                 note_input(v, f"--{name.replace('_', '-')} {v}")
+    for name in OUTPUT_PARAMS & set(params):
+        for v in values(params[name]):
+            refuse_input(v)
 
 
 def _guarded(cmd: click.Command) -> click.Command:
