@@ -129,6 +129,13 @@ SHARED_MODULES = {
     "tests/robot/test_issue_35_urdf_mimic.py": "urdf-mimic",
     "tests/cli/test_fault_inputs.py": "fault-inputs",
     "tests/cli/test_fault_results.py": "fault-results",
+    "tests/faults/test_overwrite_inputs.py": "faults",  # data (tests/faults/conftest)
+    "tests/faults/test_model_file_bounds.py": "faults",
+    "tests/faults/test_kinds_and_weights.py": "faults",
+    "tests/faults/test_full_disk.py": "faults",
+    "tests/faults/test_audit_bad_files.py": "faults",
+    "tests/faults/test_round_trips.py": "round-trips",  # written (every writer once)
+    "tests/faults/test_images.py": "faults-scan",
     "tests/identification/test_issue_26_auto.py": "poses-300",
     "tests/test_package_structure.py": "import-graph",
     "tests/slow/test_sensor_end_to_end.py": "slow-sensor",  # calibrated_sensor

@@ -41,7 +41,9 @@ __all__ = [
     "end_transaction",
     "new_dir_mode",
     "new_file_mode",
+    "note_input",
     "output_transaction",
+    "refuse_input",
     "signals_held",
 ]
 
@@ -193,6 +195,37 @@ class OutputTransaction:
     # Ctrl-C or SIGTERM that came while the results were being moved into place: the
     # move completed, and the signal is reported here instead of raised.
     late_signals: list[int] = field(default_factory=list)
+    # The files this command reads, by (device, inode): an output that is one of them
+    # (the same name, a symbolic or a hard link) is refused, --force or not.
+    inputs: dict[tuple[int, int], str] = field(default_factory=dict)
+
+    def note_input(self, path: str | Path, what: str = "") -> None:
+        """Remember ``path`` as an input (``what``: e.g. "DATA"); a path that is not an
+        existing file is ignored."""
+        try:
+            st = os.stat(path)
+        except (OSError, ValueError):
+            return
+        if not os.path.isdir(path):
+            self.inputs.setdefault((st.st_dev, st.st_ino), what or str(path))
+
+    def refuse_input(self, path: str | Path) -> None:
+        """Raise if writing ``path`` would replace one of this command's inputs."""
+        if not self.inputs:
+            return
+        try:
+            st = os.stat(path)
+        except (OSError, ValueError):
+            return
+        what = self.inputs.get((st.st_dev, st.st_ino))
+        if what is not None:
+            from kinecal.errors import DataError
+
+            raise DataError(
+                f"{path}: is an input of this command ({what}); writing the output there "
+                "would replace it, so it is refused (--force or not): choose another "
+                "output name."
+            )
 
     def stage(self, final: Path, names: list[str], *, force: bool) -> Path:
         """A new temporary folder for the result ``final`` (created here)."""
@@ -253,6 +286,10 @@ def _commit(s: _Staged) -> None:
                 "replace it."
             )
     old = _old_result(s.final, s.names) if s.force else set()
+    tx = current_transaction()
+    if tx is not None:  # checked before anything is moved
+        for e in sorted(old | set(entries)):
+            tx.refuse_input(s.final / e)
     trash = s.staging / ".replaced"
     trash.mkdir()
     if _MANIFEST in old:  # the old result is incomplete from here on: say so first
@@ -293,6 +330,21 @@ def output_transaction() -> Iterator[OutputTransaction]:
         tx.commit()
     finally:
         _stack().remove(tx)
+
+
+def note_input(path: str | Path, what: str = "") -> None:
+    """Record ``path`` as an input of the running command (outside a transaction:
+    nothing); :func:`refuse_input` then refuses to write over it."""
+    for tx in _stack():
+        tx.note_input(path, what)
+
+
+def refuse_input(path: str | Path) -> None:
+    """Raise :class:`~kinecal.errors.DataError` if ``path`` is (the same file as) an
+    input of the running command: an output never replaces an input, even with
+    ``--force``."""
+    for tx in _stack():
+        tx.refuse_input(path)
 
 
 def begin_transaction() -> OutputTransaction:

@@ -83,19 +83,38 @@ def truth_model(exp: Any) -> Any:
     :class:`CalibratedModel` with no standard deviations, every parameter 'fixed')."""
     from kinecal.identification import CalibratedModel
 
-    tm = exp.truth.model
+    tm, x = exp.truth.model, exp.truth.params
+    if exp.train.kind == "point" and tm.spec.cam_rotation:
+        # Tracker points do not see the reflector's orientation: the truth as the
+        # model of point data (what calibrate writes, and plan --add reads).
+        tm, x = _without_cam_rotation(tm, x)
     return CalibratedModel(
         tm,
-        exp.truth.params,
+        x,
         np.full(tm.size, np.nan),
         ["fixed"] * tm.size,
         info={
+            # the kind of data the truth generated: evaluate and plan --add read it
+            "kind": exp.train.kind,
             "truth": exp.truth.description,
             "extras": list(exp.truth.extras),
             "thermal_ppm_per_pose": exp.truth.thermal_ppm_per_pose,
             "outlier_poses": int(exp.outlier_rows.size),
         },
     )
+
+
+def _without_cam_rotation(tm: Any, x: np.ndarray) -> tuple[Any, np.ndarray]:
+    """The model ``tm`` without the cam frame's rotation, with the values of ``x`` by
+    name (the rotation does not move a point at the cam frame's origin)."""
+    from dataclasses import replace
+
+    from kinecal.models import CalibrationModel
+
+    m = CalibrationModel(tm.robot, replace(tm.spec, cam_rotation=False))
+    m = m.with_references(tm.R_ref_base, None)
+    index = {n: i for i, n in enumerate(tm.layout.names)}
+    return m, np.array([x[index[n]] for n in m.layout.names])
 
 
 def run_demo(

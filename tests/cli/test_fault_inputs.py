@@ -330,6 +330,10 @@ def test_issue_21_report_of_a_damaged_folder(data, capsys, tmp_path):
     rep["parameters"][7]["value"] = ""  # a hand edit (found by the fuzz suite)
     (out / "report.json").write_text(json.dumps(rep))
     res = run_kinecal(capsys, "report", out, "-q")
+    # issue 35: the manifest's SHA-256 says report.json is not the file its run wrote
+    _bad(res, "report.json", "manifest.json", "different runs")
+    (out / "manifest.json").unlink()  # drawn from the files as they are: checked
+    res = run_kinecal(capsys, "report", out, "-q")
     _bad(res, "report.json", "expected the report.json kinecal calibrate wrote")
     res = run_kinecal(capsys, "report", tmp_path / "nowhere", "-q")
     _bad(res, "nowhere", "no such folder")

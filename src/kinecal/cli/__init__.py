@@ -12,6 +12,7 @@ command succeeds (:mod:`kinecal._outputs`).
 
 from __future__ import annotations
 
+import functools
 import importlib
 import sys
 
@@ -96,6 +97,50 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
 }
 
 
+# Options that name what a command writes; every other option or argument that names an
+# existing file is an input, which no output may replace (kinecal._outputs.note_input).
+OUTPUT_PARAMS = frozenset(
+    {"out", "out_dir", "out_path", "errors_out", "report_path", "save_candidates"}
+)
+
+
+def _note_inputs(params: dict[str, object]) -> None:
+    """Note the command's input files; refuse at once an output that is one of them
+    (before any work, and before "exists; use --force" could suggest --force)."""
+    from kinecal._outputs import note_input, refuse_input
+
+    def values(value: object) -> list[str]:
+        items = value if isinstance(value, (tuple, list)) else (value,)
+        return [v for v in items if isinstance(v, str) and v]
+
+    for name, value in params.items():
+        if name not in OUTPUT_PARAMS:
+            for v in values(value):
+                note_input(v, f"--{name.replace('_', '-')} {v}")
+    for name in OUTPUT_PARAMS & set(params):
+        for v in values(params[name]):
+            refuse_input(v)
+
+
+def _guarded(cmd: click.Command) -> click.Command:
+    """``cmd`` (and a group's commands) noting its input files before it runs."""
+    if isinstance(cmd, click.Group):
+        for sub in cmd.commands.values():
+            _guarded(sub)
+        return cmd
+    callback = cmd.callback
+    if callback is None or getattr(callback, "_kinecal_guarded", False):
+        return cmd
+
+    def guarded(*args: object, **kwargs: object) -> object:
+        _note_inputs(kwargs)
+        return callback(*args, **kwargs)
+
+    guarded._kinecal_guarded = True  # type: ignore[attr-defined]
+    cmd.callback = functools.update_wrapper(guarded, callback)
+    return cmd
+
+
 class _LazyGroup(click.Group):
     """A command group that imports a command's module only when that command runs."""
 
@@ -106,7 +151,7 @@ class _LazyGroup(click.Group):
         if cmd_name not in self.commands and cmd_name in COMMANDS:
             module, name, _ = COMMANDS[cmd_name]
             cmd = getattr(importlib.import_module(f"kinecal.cli.{module}"), name)
-            self.add_command(cmd, cmd_name)
+            self.add_command(_guarded(cmd), cmd_name)
         return self.commands.get(cmd_name)
 
     def format_commands(

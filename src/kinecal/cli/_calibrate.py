@@ -310,6 +310,7 @@ def calibrate(
                 "model_code": kernel_name(result.calibrated.model),
             },
             files=written,
+            folder=out,
         ),
         force=True,
     )
@@ -409,6 +410,26 @@ def _refit_groups(text: str | None) -> tuple[str, ...]:
     return tuple(dict.fromkeys(words))
 
 
+# A calibrated model whose median error on a data file exceeds this is not being
+# evaluated on its robot (another robot's data, another frame or units): refused.
+_OTHER_ROBOT_MM = 50.0
+
+
+def _check_same_robot(errors_mm: Any, data: str, model_path: str, robot: str) -> None:
+    import numpy as np
+
+    from kinecal.errors import DataError
+
+    med = float(np.median(errors_mm)) if len(errors_mm) else 0.0
+    if med > _OTHER_ROBOT_MM:
+        raise DataError(
+            f"{data}: the model's median error on these rows is {med:.1f} mm (expected "
+            f"at most {_OTHER_ROBOT_MM:g} mm for any calibrated robot): are they "
+            f"measurements of {robot}, the robot of {model_path}, in the frame and "
+            "set-up it was calibrated in? (--refit user,tool for a new set-up)"
+        )
+
+
 def _load_robot(name: str):
     from kinecal.robot import load_robot
 
@@ -467,6 +488,7 @@ def evaluate(
     check_refit_poses(meas, what)
     say.begin("evaluate", f"{meas.n} rows")
     ev = run_evaluate(cal, meas, refit=what)
+    _check_same_robot(ev.errors_mm, data, model_path, cal.model.robot.name)
     for d in ev.diagnostics:
         if d.severity == "warning":
             click.echo(f"warning   {d.message}", err=True)

@@ -216,9 +216,13 @@ def manifest(
     inputs: dict[str, str | None],
     config: dict[str, Any],
     files: list[str] | None = None,
+    folder: Path | None = None,
 ) -> dict[str, Any]:
     """Run manifest: version, command line, resolved config, input file hashes and the
-    result's files (``files``: what ``--force`` replaces as a whole next time)."""
+    result's files (``files``: what ``--force`` replaces as a whole next time); with
+    ``folder``, the SHA-256 of each of those files already written there
+    (``outputs``: ``kinecal report`` refuses a folder whose files come from different
+    runs)."""
     from kinecal._version import __version__
     from kinecal.io import file_sha256
 
@@ -233,6 +237,17 @@ def manifest(
         "config": config,
         "inputs": hashes,
         "files": [*(files or []), *([] if files is None else ["manifest.json"])],
+        **(
+            {}
+            if folder is None
+            else {
+                "outputs": {
+                    f: file_sha256(folder / f)
+                    for f in files or []
+                    if f != "manifest.json" and (folder / f).is_file()
+                }
+            }
+        ),
         "created_unix": time.time(),
     }
 

@@ -288,6 +288,11 @@ def _setup(kw: dict[str, Any], say: Progress) -> dict[str, Any]:
     tg = read_targets(kw["targets"]) if kw["targets"] else None
     if inst_name == "sensor" and tg is None:
         raise click.UsageError("--instrument sensor needs --targets T.csv.")
+    if inst_name != "sensor" and tg is not None:  # issue 35: it was ignored
+        raise click.UsageError(
+            f"--targets is for --instrument sensor; --instrument {inst_name} measures "
+            "the tool directly (remove --targets, or --instrument sensor)."
+        )
     inst = Instrument(
         inst_name,
         noise_mm * 1e-3,
@@ -303,7 +308,9 @@ def _setup(kw: dict[str, Any], say: Progress) -> dict[str, Any]:
         cm, x = cal.model, cal.params
         if (inst.kind == "point") == cm.spec.cam_rotation:
             raise ConfigError(
-                f"{name}: the model was calibrated from {cal.info.get('kind')} data; "
+                f"{name}: the model was calibrated from "
+                f"{cal.info.get('kind') or ('sensor or pose' if cm.spec.cam_rotation else 'point')}"
+                " data; "
                 f"--instrument {inst_name} measures other quantities."
             )
     else:

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from kinecal.cli._common import Progress, common_options, jobs_option
-from kinecal.cli._sensor_args import _LazyImages, _plane_index
+from kinecal.cli._sensor_args import SameSize, _LazyImages, _plane_index
 
 if TYPE_CHECKING:
     import numpy as np
@@ -113,9 +113,9 @@ def reconstruct(
     idx = np.array([_plane_index(f) for f in files])
     prog("images", f"{len(files)} stripe images")
     # Each image is read in the thread that extracts its stripes, and dropped after.
-    cloud = sen.scan(
-        _LazyImages(list(files), _read_scan_image), idx, jobs=jobs, method=method
-    )
+    cam = sen.camera
+    read = SameSize(_read_scan_image, (cam.width, cam.height), sensor_file)
+    cloud = sen.scan(_LazyImages(list(files), read), idx, jobs=jobs, method=method)
     write_cloud(
         out,
         cloud.points,

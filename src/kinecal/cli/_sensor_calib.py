@@ -195,7 +195,7 @@ def calibrate_camera_cmd(
 ) -> None:
     """Camera intrinsics from the chessboard images in FOLDER (*.png): Zhang's method
     refined by a bundle adjustment; standard deviations from the residuals."""
-    from kinecal.cli._sensor_args import _board, _LazyImages
+    from kinecal.cli._sensor_args import SameSize, _board, _LazyImages
     from kinecal.errors import DataError
     from kinecal.io import image_files, read_image, save_sensor
     from kinecal.sensor import calibrate_camera
@@ -205,7 +205,7 @@ def calibrate_camera_cmd(
     files = image_files(folder)
     prog("images", f"{len(files)} in {folder}")
     paths: list[Path | None] = [*files]
-    imgs = _LazyImages(paths, read_image)
+    imgs = _LazyImages(paths, SameSize(read_image))
     try:
         res = calibrate_camera(imgs, tgt, jobs=jobs, k3=k3, detector=detector)
     except DataError as exc:  # the folder instead of the function's name
@@ -297,7 +297,12 @@ def calibrate_planes_cmd(
     """
     import numpy as np
 
-    from kinecal.cli._sensor_args import _board, _LazyImages, _plane_index
+    from kinecal.cli._sensor_args import (
+        SameSize,
+        _board,
+        _LazyImages,
+        _plane_index,
+    )
     from kinecal.errors import DataError
     from kinecal.io import image_files, load_sensor, read_image, save_sensor
     from kinecal.sensor import Camera, calibrate_sensor
@@ -340,12 +345,15 @@ def calibrate_planes_cmd(
     # Images are read when searched or extracted, on the worker threads, and dropped.
     cb: list[Path | None] = [*cb_files]
     pb: list[Path | None] = [*boards]
+    read = SameSize(
+        read_image, None if cam is None else (cam.width, cam.height), str(camera_file)
+    )
     try:
         res = calibrate_sensor(
-            _LazyImages(cb, read_image),
+            _LazyImages(cb, read),
             tgt,
-            _LazyImages(pb, read_image),
-            [_LazyImages([s.get(i) for i in range(m)], read_image) for s in sets],
+            _LazyImages(pb, read),
+            [_LazyImages([s.get(i) for i in range(m)], read) for s in sets],
             n_planes=m,
             camera=cam,
             model=model,

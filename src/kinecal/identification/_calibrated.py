@@ -58,8 +58,10 @@ class CalibratedModel:
     def align(self, meas: Measurements) -> Measurements:
         """Map the set and marker labels of ``meas`` onto this model's.
 
-        A model with a single user frame (or marker) accepts any label: the data is taken
-        to come from the same set-up. Otherwise every label must be known.
+        A model with a single user frame (or marker) accepts the data of one label,
+        any (the data is taken to come from the same set-up), except a marker named
+        otherwise than the model's; several labels onto one frame are refused.
+        Otherwise every label must be known.
         """
         spec = self.model.spec
         out: dict[str, object] = {}
@@ -72,6 +74,22 @@ class CalibratedModel:
             if tuple(labels) == tuple(own):
                 continue
             if len(own) == 1:
+                used = [labels[i] for i in np.unique(idx)]
+                named = [lab for lab in used if lab and own[0] and lab != own[0]]
+                if len(used) > 1 or (what == "marker" and named):
+                    # several set-ups (points on the tool) cannot share one frame;
+                    # a marker named otherwise than the model's is another point
+                    why = (
+                        "each marker is its own point on the tool"
+                        if what == "marker"
+                        else "each set is its own user frame"
+                    )
+                    raise DataError(
+                        f"{meas.source}: {what}s {', '.join(map(repr, used))} in the "
+                        f"data, but the model has one {what} ({own[0]!r}): {why}"
+                        f"; expected data of that one {what} (or a model calibrated "
+                        f"with these {what}s)."
+                    )
                 out[attr_i] = np.zeros(meas.n, np.intp)
                 out[attr_l] = own
                 continue

@@ -16,7 +16,7 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from kinecal._outputs import new_file_mode
+from kinecal._outputs import new_file_mode, refuse_input
 from kinecal.errors import DataError
 
 __all__ = [
@@ -84,6 +84,7 @@ def atomic_write_bytes(
         raise IsADirectoryError(
             f"{p}: is a folder; expected the name of a file to write."
         )
+    refuse_input(p)
     if p.exists() and not force:
         raise FileExistsError(f"{p}: exists; use --force to overwrite it.")
     p.parent.mkdir(parents=True, exist_ok=True)
@@ -129,6 +130,7 @@ def atomic_write_files(
             raise IsADirectoryError(
                 f"{p}: is a folder; expected the name of a file to write."
             )
+        refuse_input(p)
         if p.exists() and not force:
             raise FileExistsError(f"{p}: exists; use --force to overwrite it.")
     temps: list[str] = []
@@ -211,14 +213,18 @@ def prepare_output_dir(
     FileExistsError
         One of ``names`` exists in ``path`` and ``force`` is False.
     """
-    from kinecal._outputs import clashes, current_transaction
+    from kinecal._outputs import _old_result, clashes, current_transaction
 
     d = Path(path)
+    refuse_input(d)
     if d.exists() and not d.is_dir():
         raise DataError(
             f"{d}: exists and is not a folder; expected a folder for the results "
             "(or a new name)."
         )
+    if d.is_dir():  # the entries this result replaces: none may be an input
+        for e in sorted(_old_result(d, names) if force else clashes(d, names)):
+            refuse_input(d / e)
     if not force:
         clash = clashes(d, names)
         if clash:

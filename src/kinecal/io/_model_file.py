@@ -20,6 +20,12 @@ from kinecal.geometry import euler_zyx_to_matrix, matrix_to_euler_zyx
 from kinecal.identification import CalibratedModel
 from kinecal.identification._calibrated import STATUSES
 from kinecal.io._files import atomic_write_text
+from kinecal.io._model_bounds import (
+    check_frames,
+    check_payload,
+    check_value,
+    robot_fingerprint,
+)
 from kinecal.io._parameters import parameter_records
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import dump_robot, robot_from_dict
@@ -65,6 +71,22 @@ def model_to_dict(cal: CalibratedModel) -> dict[str, Any]:
         }
         for r in parameter_records(cal)
     }
+    return {
+        "kinecal_model": FORMAT_VERSION,
+        "kinecal_version": __version__,
+        "robot": dump_robot(m.robot),
+        "robot_sha256": robot_fingerprint(m.robot),
+        "model": spec,
+        "parameters": params,
+        "frames_mm_deg": _frames(cal),
+        "info": cal.info,
+    }
+
+
+def _frames(cal: CalibratedModel) -> dict[str, Any]:
+    """The user and cam frames in mm and deg (``frames_mm_deg``: derived from the
+    parameters, for the reader; checked against them when the file is loaded)."""
+    m, s = cal.model, cal.model.spec
     frames: dict[str, Any] = {}
     for which, labels in (("base", s.sets), ("cam", s.markers)):
         E = m.frame_euler(cal.params, which)
@@ -74,15 +96,7 @@ def model_to_dict(cal: CalibratedModel) -> dict[str, Any]:
                 **{k: float(v * 1e3) for k, v in zip("xyz", e[:3])},
                 **{k: float(np.degrees(v)) for k, v in zip("rwp", e[3:])},
             }
-    return {
-        "kinecal_model": FORMAT_VERSION,
-        "kinecal_version": __version__,
-        "robot": dump_robot(m.robot),
-        "model": spec,
-        "parameters": params,
-        "frames_mm_deg": frames,
-        "info": cal.info,
-    }
+    return frames
 
 
 def save_model(path: str | Path, cal: CalibratedModel, *, force: bool = False) -> Path:
@@ -105,7 +119,6 @@ def _plain(x: Any) -> Any:
 
 # Model names kinecal writes: the presets, the candidates of --model auto (also as
 # "auto:<candidate>"), a simulated truth and a hand-built spec.
-_MAX_MM = 1e6  # lengths beyond 1 km are typing errors (and break the numerics)
 _CANDIDATES = ("kinematic", "ntm", "rfcm", "full", "load", "load+link")
 _NAMES = (*_CANDIDATES, "custom", "truth")
 _MAX_LABEL = 80
@@ -128,6 +141,7 @@ _TOP_KEYS = {
     "kinecal_model",
     "kinecal_version",
     "robot",
+    "robot_sha256",
     "model",
     "parameters",
     "frames_mm_deg",
@@ -286,20 +300,26 @@ def load_model(path: str | Path) -> CalibratedModel:
     ConfigError
         With a one-line message naming the file and the key.
     """
+    from kinecal._outputs import note_input
+
+    note_input(path)
     p = Path(path)
     doc = _read_doc(p)
     robot = robot_from_dict(doc["robot"], source=f"{p}: robot")
+    stamp = doc.get("robot_sha256")
+    if stamp is not None and stamp != robot_fingerprint(robot):
+        raise ConfigError(
+            f"{p}: robot_sha256: {stamp!r}, but the robot section's fingerprint is "
+            f"{robot_fingerprint(robot)!r}: the robot was edited after the calibration "
+            "(its parameters belong to the robot it was calibrated with); expected the "
+            "robot section as kinecal wrote it."
+        )
     s = doc["model"]
     spec = _spec(s, robot.n_joints, f"{p}: model")
     payload = s.get("reference_payload_kg")
-    if (
-        payload is not None
-        and not _finite(payload, f"{p}: model.reference_payload_kg") > 0
-    ):
-        raise ConfigError(
-            f"{p}: model.reference_payload_kg: expected a positive mass or null; "
-            f"got {payload!r}."
-        )
+    if payload is not None:
+        where = f"{p}: model.reference_payload_kg"
+        check_payload(_finite(payload, where), robot, where)
     try:
         model = CalibrationModel(robot, spec)
     except ValueError as exc:
@@ -315,7 +335,7 @@ def load_model(path: str | Path) -> CalibratedModel:
         Rc = _rotations(refs, "cam", len(spec.markers), where)
         model = model.with_references(Rb, Rc)
     values, std, status = _parameters(doc["parameters"], model, p)
-    return CalibratedModel(
+    cal = CalibratedModel(
         model,
         values,
         std,
@@ -323,6 +343,8 @@ def load_model(path: str | Path) -> CalibratedModel:
         None if payload is None else float(payload),
         info=dict(doc.get("info") or {}),
     )
+    check_frames(doc.get("frames_mm_deg"), _frames(cal), p)
+    return cal
 
 
 def _parameters(
@@ -373,11 +395,7 @@ def _parameters(
                 f"{where}.unit: expected {ps.unit.file_unit!r}; got {unit!r}."
             )
         v = _finite(entry["value"], f"{where}.value")
-        if ps.unit.file_unit == "mm" and abs(v) > _MAX_MM:
-            raise ConfigError(
-                f"{where}.value: {v:g} mm; expected a length within {_MAX_MM:g} mm "
-                "(a typing error?)."
-            )
+        check_value(model, i, v, f"{where}.value")
         values[i] = v / to_file[i]
         if entry.get("std") is not None:
             sd = _finite(entry["std"], f"{where}.std")

@@ -249,6 +249,9 @@ def read_program(path: str | Path, fmt: str | None = None) -> Program:
     DataError
         Unknown format, unreadable file, a malformed joint target, no joint target.
     """
+    from kinecal._outputs import note_input
+
+    note_input(path)
     p = Path(path)
     fmt = fmt or detect_program_format(p)
     if fmt not in _READERS:

@@ -40,6 +40,9 @@ def _cv2() -> Any:
 
 def read_image(path: str | Path) -> np.ndarray:
     """A grey 8- or 16-bit image (H, W); colour images are refused with a clear error."""
+    from kinecal._outputs import note_input
+
+    note_input(path)
     p = Path(path)
     if not p.is_file():
         raise DataError(f"{p}: image not found.")
@@ -93,11 +96,18 @@ def image_files(folder: str | Path, pattern: str = "*.png") -> list[Path]:
     files = sorted(p for p in d.glob(pattern) if p.is_file())
     if not files:
         raise DataError(f"{d}: no images matching {pattern}.")
+    from kinecal._outputs import note_input
+
+    for f in files:  # the command's inputs: no output may replace one
+        note_input(f)
     return files
 
 
 def read_cloud(path: str | Path) -> np.ndarray:
     """Points (N, 3) [m] from a CSV with columns ``x_mm, y_mm, z_mm``."""
+    from kinecal._outputs import note_input
+
+    note_input(path)
     t = read_table(path)
     for c in ("x_mm", "y_mm", "z_mm"):
         if c not in t.header:
@@ -195,6 +205,9 @@ def save_sensor(
 
 def load_sensor(path: str | Path, *, need_planes: bool = True) -> Sensor | Camera:
     """Read a sensor YAML; a file with only a camera gives the :class:`Camera`."""
+    from kinecal._outputs import note_input
+
+    note_input(path)
     from kinecal.sensor import Camera, LightPlanes, Sensor
 
     p = Path(path)
@@ -202,6 +215,8 @@ def load_sensor(path: str | Path, *, need_planes: bool = True) -> Sensor | Camer
         doc = yaml.load(p.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise DataError(f"{p}: file not found.") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{p}: not a text file; expected a sensor YAML.") from None
     except yaml.YAMLError as exc:
         raise ConfigError(f"{p}: not valid YAML ({exc}).") from None
     if not isinstance(doc, dict) or "camera" not in doc:

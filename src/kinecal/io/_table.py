@@ -192,6 +192,9 @@ def read_table(path: str | Path) -> Table:
         Missing or unreadable file, no header, no data rows, duplicate column names, a
         row with a different number of values than the header (naming its line).
     """
+    from kinecal._outputs import note_input
+
+    note_input(path)
     p = Path(path)
     text = _comma_separated(_read_text(p))
     if '"' in text or any(c in text for c in _ODD_BREAKS):

@@ -22,6 +22,28 @@ __all__ = ["ModelInputs"]
 _T = TypeVar("_T")
 
 
+def _rows(
+    name: str, value: ArrayLike | None, shape: tuple[int, ...], dtype: type, fill: float
+) -> np.ndarray:
+    """``value`` as an array of ``shape`` (``fill`` when None; the same number of
+    entries in another layout is reshaped, as before); a mismatch names the argument
+    and both shapes."""
+    if value is None:
+        return np.full(shape, fill, dtype=dtype)
+    a = np.asarray(value)
+    if a.size != int(np.prod(shape)):
+        raise DataError(
+            f"ModelInputs.make: {name} must have shape {shape} (one entry per pose of "
+            f"q_ctrl, N = {shape[0]}); got shape {a.shape}."
+        )
+    if dtype is np.intp and a.size and not np.issubdtype(a.dtype, np.integer):
+        if not (np.issubdtype(a.dtype, np.number) and np.all(a == np.round(a))):
+            raise DataError(
+                f"ModelInputs.make: {name} must hold integer indices; got {a.dtype}."
+            )
+    return np.asarray(a, dtype=dtype).reshape(shape)
+
+
 @dataclass(frozen=True)
 class ModelInputs:
     """Per-sample inputs of the model (all SI).
@@ -61,29 +83,16 @@ class ModelInputs:
         load_scale: ArrayLike | None = None,
     ) -> ModelInputs:
         q = np.array(q_ctrl, dtype=np.float64, ndmin=2)  # its own copy, read-only below
+        if q.ndim != 2:
+            raise DataError(
+                f"ModelInputs.make: q_ctrl must be (N, n) joint values; got shape "
+                f"{q.shape}."
+            )
         N = q.shape[0]
-        si = (
-            np.zeros(N, np.intp)
-            if set_index is None
-            else np.asarray(set_index, np.intp)
-        )
-        mi = (
-            np.zeros(N, np.intp)
-            if marker_index is None
-            else np.asarray(marker_index, np.intp)
-        )
-        pc = (
-            np.zeros((N, 3))
-            if p_cam is None
-            else np.asarray(p_cam, np.float64).reshape(N, 3)
-        )
-        ls = (
-            np.ones(N)
-            if load_scale is None
-            else np.asarray(load_scale, np.float64).reshape(N)
-        )
-        if si.shape != (N,) or mi.shape != (N,):
-            raise DataError("set_index and marker_index must have one entry per pose.")
+        si = _rows("set_index", set_index, (N,), np.intp, 0)
+        mi = _rows("marker_index", marker_index, (N,), np.intp, 0)
+        pc = _rows("p_cam", p_cam, (N, 3), np.float64, 0.0)
+        ls = _rows("load_scale", load_scale, (N,), np.float64, 1.0)
         q.flags.writeable = False
         return cls(q, si, mi, pc, ls)
 

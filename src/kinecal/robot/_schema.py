@@ -416,6 +416,10 @@ def load_robot_file(path: str | Path) -> RobotDescription:
         text = p.read_text(encoding="utf-8")
     except OSError as exc:
         raise ConfigError(f"{p}: cannot read robot file ({exc.strerror}).") from exc
+    except UnicodeDecodeError:
+        raise ConfigError(
+            f"{p}: not a text file; expected a robot YAML (or a URDF)."
+        ) from None
     try:
         data = yaml.load(text)
     except yaml.YAMLError as exc:

@@ -1,0 +1,156 @@
+"""Physical bounds of a model file's values, and its cross-checks (issue 35).
+
+A ``model.yaml`` is input like any other: a hand edit or a damaged file must not give a
+model that runs. Every parameter is checked against the range a real robot can have
+(its kind's bound) and, for the kinematic rows, against the robot the file embeds; the
+derived block ``frames_mm_deg`` must agree with the parameters it is computed from; the
+robot's fingerprint (``robot_sha256``) must match the robot section.
+
+The bounds are wide (a calibration never comes near them): they catch typing errors and
+damaged files, not unusual robots. Each message names the file, the key, the value and
+the range expected.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kinecal.errors import ConfigError
+from kinecal.models import CalibrationModel
+from kinecal.robot import RobotDescription, dump_robot
+
+__all__ = [
+    "MAX_PAYLOAD_KG",
+    "check_frames",
+    "check_payload",
+    "check_value",
+    "robot_fingerprint",
+]
+
+# (kind, group) -> (bound on |value| in file units, what it is). Geometry rows are
+# also checked against the nominal robot (_MAX_ROW_*).
+_MAX_MM = 1e6  # lengths beyond 1 km are typing errors (and break the numerics)
+_MAX_FRAME_DEG = 720.0  # Euler angles of a frame: two turns at most
+_MAX_ROW_DEG = 30.0  # a joint row's angle: within 30 deg of the robot's nominal one
+_MAX_NTM_DEG = 10.0  # a transmission error amplitude (real ones: ~0.01 deg)
+_MAX_COMPLIANCE = 0.1  # rad/m: 0.1 rad of deflection for 1 m of lever (real: ~1e-4)
+_MAX_RATIO = 1e4  # a link's mass per unit payload mass
+MAX_PAYLOAD_KG = 1e4  # a reference payload; and at most 10 x the robot's rated one
+_RATED_FACTOR = 10.0
+
+
+def robot_fingerprint(robot: RobotDescription) -> str:
+    """A short SHA-256 of the robot's description (its YAML document, canonical JSON):
+    two files describe the same robot exactly when their fingerprints agree."""
+    text = json.dumps(dump_robot(robot), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+def _wrap_deg(x: float) -> float:
+    return (x + 180.0) % 360.0 - 180.0
+
+
+def _reach_mm(robot: RobotDescription) -> float:
+    """Sum of the robot's link lengths and offsets [mm] (its reach, roughly)."""
+    rows = sum(abs(j.a) + abs(j.d) for j in robot.joints)
+    ends = float(np.linalg.norm(robot.T_n_flange[:3, 3]))
+    ends += float(np.linalg.norm(robot.T_flange_tool[:3, 3]))
+    return 1e3 * (rows + ends)
+
+
+def check_value(model: CalibrationModel, i: int, v: float, where: str) -> None:
+    """Raise ConfigError if parameter ``i`` of ``model`` with value ``v`` (file units)
+    is beyond its physical range; ``where`` names the file and key."""
+    ps = model.layout.specs[i]
+    unit = ps.unit.file_unit
+    kind = ps.kind
+    bound: float | None = None
+    what = ""
+    if unit == "mm":
+        bound, what = _MAX_MM, "a length"
+    elif kind == "ntm":
+        bound, what = _MAX_NTM_DEG, "a transmission error amplitude"
+    elif kind == "compliance":
+        bound, what = _MAX_COMPLIANCE, "a joint compliance (rad per m of lever)"
+    elif kind == "ratio":
+        bound, what = _MAX_RATIO, "a link mass per unit payload mass"
+    elif unit == "deg":
+        bound, what = _MAX_FRAME_DEG, "an angle of at most two turns"
+    if bound is not None and abs(v) > bound:
+        raise ConfigError(
+            f"{where}: {v:g} {unit}; expected {what} within {bound:g} {unit} (from "
+            f"-{bound:g} to {bound:g} {unit}; a typing error or a damaged file?)."
+        )
+    if ps.group != "joint":
+        return
+    nominal = float(model.nominal[i] * ps.unit.to_file)
+    if unit == "deg":
+        dev = abs(_wrap_deg(v - nominal))
+        if dev > _MAX_ROW_DEG:
+            raise ConfigError(
+                f"{where}: {v:g} deg is {dev:.3g} deg from the robot's nominal "
+                f"{nominal:g} deg; expected {nominal - _MAX_ROW_DEG:g} to "
+                f"{nominal + _MAX_ROW_DEG:g} deg (a calibration corrects by far less: "
+                "a typing error, or a model of another robot?)."
+            )
+    elif unit == "mm":
+        reach = _reach_mm(model.robot)
+        lim = max(100.0, 0.5 * reach)
+        if abs(v - nominal) > lim:
+            raise ConfigError(
+                f"{where}: {v:g} mm is {abs(v - nominal):.4g} mm from the robot's "
+                f"nominal {nominal:g} mm; expected {nominal - lim:g} to "
+                f"{nominal + lim:g} mm (a calibration corrects by far less: a typing "
+                "error, or a model of another robot?)."
+            )
+
+
+def check_payload(payload: float, robot: RobotDescription, where: str) -> None:
+    """The reference payload [kg]: positive, and at most 10 x the robot's rated one
+    (or :data:`MAX_PAYLOAD_KG` for a robot without one)."""
+    rated = robot.rated_payload_kg
+    hi = MAX_PAYLOAD_KG if rated is None else _RATED_FACTOR * rated
+    if not 0 < payload <= hi:
+        also = "" if rated is None else f" (10 x the robot's rated {rated:g} kg)"
+        raise ConfigError(
+            f"{where}: {payload:g} kg; expected a positive mass up to {hi:g} kg{also}, "
+            "or null."
+        )
+
+
+def check_frames(doc: Any, derived: dict[str, Any], p: Path) -> None:
+    """``frames_mm_deg`` of a file against the frames its parameters give
+    (``derived``, as written): a file whose block was edited is refused, since the
+    parameters are what every command uses."""
+    if doc is None:
+        return
+    where = f"{p}: frames_mm_deg"
+    if not isinstance(doc, dict):
+        raise ConfigError(f"{where}: expected a mapping of frames; got {doc!r}.")
+    if set(map(str, doc)) != set(derived):
+        raise ConfigError(
+            f"{where}: frames {sorted(map(str, doc))}; expected "
+            f"{sorted(derived)} (the frames of the model's sets and markers)."
+        )
+    for key, want in derived.items():
+        got = doc[key]
+        if not isinstance(got, dict) or set(map(str, got)) != set(want):
+            raise ConfigError(f"{where}.{key}: expected {{x, y, z, r, w, p}}.")
+        for k, w in want.items():
+            v = got[k]
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise ConfigError(f"{where}.{key}.{k}: expected a number; got {v!r}.")
+            diff = abs(v - w) if k in "xyz" else abs(_wrap_deg(v - w))
+            if not math.isfinite(v) or diff > 1e-6 * max(1.0, abs(w)):
+                unit = "mm" if k in "xyz" else "deg"
+                raise ConfigError(
+                    f"{where}.{key}.{k}: {v!r} {unit}, but the parameters give {w:.9g} "
+                    f"{unit}; frames_mm_deg is computed from the parameters (edit "
+                    "the parameters, or delete the block)."
+                )
