@@ -385,7 +385,16 @@ def test_issue_21_ctrl_c_in_worker_processes(data, tmp_path, capsys):
 def test_issue_21_sigterm_removes_the_staged_result(data, tmp_path, capsys):
     big = _big_data(tmp_path, data)
     code, err = _interrupt(
-        ["calibrate", big, "--robot", ROBOT, "--out", tmp_path / "cal"],
+        [
+            "calibrate",
+            big,
+            "--robot",
+            ROBOT,
+            "--model",
+            "full",
+            "--out",
+            tmp_path / "cal",
+        ],
         "stage 1",
         sig=signal.SIGTERM,
     )

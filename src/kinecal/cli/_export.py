@@ -120,17 +120,6 @@ def export_urdf(
     )
     from kinecal.io import atomic_write_text, load_model, robot_yaml_text, urdf_text
 
-    for what, given in (
-        ("MODEL.yaml", model_path),
-        ("--like", like),
-        ("--data", data),
-        ("--targets", targets),
-    ):
-        if given is not None and Path(given).resolve() == Path(out_path).resolve():
-            raise click.UsageError(
-                f"--out {out_path} is the {what} input of this command; expected another "
-                "file (an input is never overwritten, --force or not)"
-            )
     if Path(out_path).exists() and not force:  # refuse before the work, not after it
         raise FileExistsError(f"{out_path}: exists; use --force to overwrite it.")
     if names != "kinecal" and (fmt != "urdf" or like is not None):

@@ -244,7 +244,6 @@ def import_urdf(
     to add couplings, gravity (default: along -z of the base link), the payload or
     priors.
     """
-    from pathlib import Path
 
     import numpy as np
 
@@ -252,11 +251,6 @@ def import_urdf(
     from kinecal.io import atomic_write_text
     from kinecal.robot import dump_robot, robot_from_dict, robot_from_urdf
 
-    if Path(urdf).resolve() == Path(out).resolve():
-        raise click.UsageError(
-            f"--out {out} is the URDF input of this command; expected another file (an "
-            "input is never overwritten, --force or not)"
-        )
     robot = robot_from_urdf(urdf, base=base, tip=tip, name=name)
     doc = dump_robot(robot)
     # Check the written document: it must load and give the same flange poses.
