@@ -154,6 +154,7 @@ def test_issue_24_stripes_of_any_direction_with_every_column(tmp_path, run_cli):
     assert r.returncode == 2 and "sigma_px" in r.stderr
 
 
+@pytest.mark.slow  # (a whole image pipeline: make test-slow; `make test` under 90 s)
 def test_simulate_reconstruct_fit_chain(tmp_path, run_cli):
     scan = tmp_path / "scan"
     r = run_cli(
@@ -215,6 +216,7 @@ def test_simulate_reconstruct_fit_chain(tmp_path, run_cli):
     assert r.returncode == 2 and "light_planes" in r.stderr
 
 
+@pytest.mark.slow  # (a whole image pipeline: make test-slow; `make test` under 90 s)
 def test_calibration_commands(tmp_path, run_cli):
     cal = tmp_path / "cal"
     r = run_cli(

@@ -52,7 +52,9 @@ def _region_shift(seed: int):
     return robot, train, replace(test, p=test.p @ R.T + [0.2, -0.3, 0.05])
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4, 5])
+@pytest.mark.parametrize(
+    "seed", [0, 1, *(pytest.param(s, marks=pytest.mark.slow) for s in (2, 3, 4, 5))]
+)
 def test_default_transfers_to_another_region_and_set_up(seed):
     """The default (auto) within 1.1x of the best fixed model's error on the other
     region with user and tool frames refitted."""
@@ -89,7 +91,10 @@ REAL_SETS = {
 }
 
 
-@pytest.mark.parametrize("name", sorted(REAL_SETS))
+@pytest.mark.parametrize(
+    "name",
+    ["ur10e", *(pytest.param(n, marks=pytest.mark.slow) for n in ("fr3", "tiago"))],
+)
 def test_default_on_the_shipped_real_sets_five_fold(name):
     """5-fold, the selection inside every fold: the default within 2 % of the better of
     the kinematic and the full model (TIAGo: 4.332 against kinematic 4.276 mm; UR10e

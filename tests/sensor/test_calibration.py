@@ -113,6 +113,7 @@ def test_sector_based_detector_after_subpixel_refinement(boards):
         find_corners(img, TGT, "fast")
 
 
+@pytest.mark.slow  # (a whole image pipeline: make test-slow; `make test` under 90 s)
 def test_issue_24_joint_calibration_and_a_sphere_within_40um(sensor, session, boards):
     """Camera, target poses and light planes in one adjustment from the rendered session;
     planes seen at fewer than two poses placed about the mirror axis; then a sphere

@@ -101,6 +101,7 @@ def test_sixteen_bit_images(sensor):
     assert n > 300 and np.sqrt(np.mean(e**2)) < 0.15
 
 
+@pytest.mark.slow  # (a whole image pipeline: make test-slow; `make test` under 90 s)
 def test_scan_of_a_ceramic_sphere_with_the_true_geometry(sensor, renderer):
     """Extraction + undistortion + Eq. (5) + sphere fit, without calibration error."""
     rng = np.random.default_rng(3)
