@@ -20,6 +20,7 @@ PACKAGES = (
     "robot",
     "sensor",
     "models",
+    "workflows",
 )
 HERE = Path(__file__).resolve().parent / "api"
 

@@ -28,6 +28,7 @@ PACKAGES = (
     "robot",
     "sensor",
     "models",
+    "workflows",
 )
 _DIRECTIVE = re.compile(r"^\.\. auto(?:class|function|data):: (\w+)\s*$", re.M)
 

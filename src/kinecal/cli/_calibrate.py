@@ -16,8 +16,6 @@ from kinecal.cli._common import (
     FiniteFloat,
     Progress,
     allow_out_of_limits_option,
-    check_auto_folds,
-    check_distinct_poses,
     check_folds,
     check_refit_poses,
     common_options,
@@ -29,8 +27,6 @@ from kinecal.cli._common import (
     read_data_checked,
     targets_option,
 )
-
-_NOMINAL_CHECK_ROWS = 20000
 
 
 def _options_from(loss: str, priors: str, stage2: str):
@@ -181,15 +177,13 @@ def calibrate(
     """
     from kinecal._parallel import available_cpus
     from kinecal.cli import EXIT_NOT_CONVERGED
-    from kinecal.identification import calibrate as run_calibration
-    from kinecal.identification import spec_for
     from kinecal.io import (
         atomic_write_bytes,
         prepare_output_dir,
         save_model,
         write_json,
     )
-    from kinecal.models import kernel_name, parallel_pairs
+    from kinecal.models import kernel_name
     from kinecal.report import RESIDUALS_CSV, calibration_summary, pose_errors
 
     result_files = (
@@ -215,7 +209,6 @@ def calibrate(
     if cv_folds is not None:  # the folds' own check, before the calibration runs
         check_folds(meas, cv_folds, groups, cv_groups)
     extra: dict[str, object] = {"data_checks": [d.as_dict() for d in data_checks]}
-    hay = parallel_pairs(robot) if hayati else ()
     nj = parse_int_list(ntm_joints, "--ntm-joints", robot.n_joints) or robot.ntm_joints
     revolute = [i + 1 for i, j in enumerate(robot.joints) if j.kind != "prismatic"]
     bad = [j for j in nj if j not in revolute]
@@ -225,61 +218,27 @@ def calibrate(
             f"series needs one); its revolute joints: {', '.join(map(str, revolute))}.",
             param_hint="--ntm-joints",
         )
-    sel = None
-    if model_name == "auto":
-        from kinecal.identification import select_model
+    from kinecal.workflows import calibrate_measurements
 
-        smallest = spec_for(robot, meas, "kinematic")
-        check_distinct_poses(meas, robot, smallest, data)
-        check_auto_folds(meas, robot, smallest, k=cv_folds or 5)
-        say("auto", "cross-validating candidate models")
-        sel = select_model(
-            robot,
-            meas,
-            options=opts,
-            hayati=hay,
-            ntm_joints=nj,
-            progress=say,
-            jobs=jobs,
-            groups=groups,
-            group_name=cv_groups or "group",
-            k=cv_folds or 5,
-        )
-        spec = sel.spec
-        opts = replace(opts, prior_scale=sel.prior_scale)
-        extra["model_selection"] = sel.as_dict()
-        for w in sel.warnings:
-            say("auto", w)
-    else:
-        spec = spec_for(
-            robot, meas, model_name, hayati=hay, ntm_joints=nj, ntm_order=ntm_order
-        )
-    check_distinct_poses(meas, robot, spec, data)
-    # --model auto: when the largest candidate won, its calibration on every row is
-    # the selection's shared one (finished), not run again.
-    result = (sel.calibration(opts) if sel is not None else None) or (
-        run_calibration(robot, meas, spec, opts, progress=say)
+    run = calibrate_measurements(
+        robot,
+        meas,
+        model=model_name,
+        options=opts,
+        hayati=hayati,
+        ntm_joints=nj,
+        ntm_order=ntm_order,
+        cv_folds=cv_folds,
+        groups=groups,
+        group_name=cv_groups or "group",
+        jobs=jobs,
+        progress=say,
     )
-    if opts.priors != "none" and meas.n <= _NOMINAL_CHECK_ROWS:
-        # A wrong nominal robot (or units): the residual of the nominal robot far above
-        # the calibrated noise, and priors holding parameters the data reject (one more
-        # fit, without priors; on large data the priors hardly matter and it is left
-        # out).
-        from kinecal.identification import nominal_check
-
-        say("check", "the nominal robot and the priors against the data")
-        result.diagnostics.extend(nominal_check(result, robot, meas, options=opts))
-    from kinecal.identification._gravity_check import gravity_check
-
-    found = gravity_check(result, meas)  # no self-weight layout, gravity-like errors
-    if found is not None:
-        result.diagnostics.append(found)
-    held = None
-    if cv_folds:
-        held = _held_out(
-            robot, meas, spec, opts, cv_folds, groups, cv_groups, sel, jobs, say
-        )
-        extra["cross_validation"] = held.as_dict()
+    result, spec, held, hay = run.result, run.spec, run.held_out, run.hayati
+    extra.update(run.report_extra())
+    if held is not None:
+        for note in dict.fromkeys(n for fig in held.figures for n in fig.folds.notes):
+            click.echo(f"warning   {note}", err=True)
     say("write", "model.yaml, report.json, residuals.csv, manifest.json")
     summary = calibration_summary(result, extra=extra)
     save_model(out / "model.yaml", result.calibrated, force=True)
@@ -347,35 +306,6 @@ def calibrate(
     click.echo(f"wrote     {Path(out_dir)}{os.sep}: {', '.join(written)}")
     if not result.success:
         sys.exit(EXIT_NOT_CONVERGED)
-
-
-def _held_out(robot, meas, spec, opts, k, groups, group_name, sel, jobs, say):
-    """``--cv K``: the in-session and the new-region (or new-session) figures, by the
-    cross-validation path of ``--model auto``; a fold that cannot be fitted is an error
-    of the data."""
-    from kinecal.errors import CalibError
-    from kinecal.identification import held_out_accuracy
-
-    say("cv", f"{k}-fold cross-validation: nominal and model, random poses and regions")
-    try:
-        held = held_out_accuracy(
-            robot,
-            meas,
-            spec,
-            k,
-            options=opts,
-            groups=groups,
-            group_name=group_name or "group",
-            selection=sel,
-            jobs=jobs,
-            progress=say,
-        )
-    except CalibError as exc:
-        raise type(exc)(f"--cv {k}: a fold's calibration failed: {exc}") from exc
-    notes = dict.fromkeys(n for fig in held.figures for n in fig.folds.notes)
-    for note in notes:
-        click.echo(f"warning   {note}", err=True)
-    return held
 
 
 def _group_labels(data: str, column: str, rows: Any) -> Any:

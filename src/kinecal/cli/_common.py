@@ -273,59 +273,6 @@ def check_folds(meas: Any, k: int, groups: Any, group_name: str | None) -> None:
     make_folds(meas, k, groups=groups, group_name=group_name or "group")
 
 
-def check_distinct_poses(meas: Any, robot: Any, spec: Any, path: str) -> None:
-    """Refuse data whose distinct poses cannot determine the model (100 copies of one
-    pose are one pose): the same rule as for too few rows, on distinct rows."""
-    import numpy as np
-
-    from kinecal._stats import distinct_rows
-    from kinecal.errors import IdentifiabilityError
-    from kinecal.models import CalibrationModel
-
-    cols = [meas.q_ctrl, meas.set_index[:, None], meas.marker_index[:, None]]
-    if meas.target_index is not None:
-        cols.append(meas.target_index[:, None])
-    distinct = distinct_rows(np.hstack(cols))
-    if distinct == meas.n:
-        return
-    size = CalibrationModel(robot, spec).size
-    c = meas.components
-    if distinct * c <= size:
-        raise IdentifiabilityError(
-            f"{path}: the {meas.n} rows hold only {distinct} distinct pose"
-            f"{'s' if distinct != 1 else ''} (joint angles, set, marker, target); the "
-            f"'{spec.name}' model has {size} parameters: expected at least "
-            f"{size // c + 1} different poses (several times more for a reliable result)"
-        )
-
-
-def check_auto_folds(meas: Any, robot: Any, spec: Any, k: int = 5) -> None:
-    """``--model auto``: refuse data whose cross-validation folds cannot fit even the
-    smallest candidate ``spec`` (each fold is fitted on about (k-1)/k of the rows)."""
-    import math
-
-    from kinecal.errors import IdentifiabilityError
-    from kinecal.models import CalibrationModel
-
-    size = CalibrationModel(robot, spec).size
-    c = meas.components
-
-    def train(n: int) -> int:
-        return n - math.ceil(n / k)
-
-    if train(meas.n) * c > size:
-        return
-    need = meas.n + 1
-    while train(need) * c <= size:
-        need += 1
-    raise IdentifiabilityError(
-        f"{meas.source}: --model auto cross-validates in {k} folds, each fitted on about "
-        f"{train(meas.n)} of the {meas.n} poses ({train(meas.n) * c} residuals), but "
-        f"the smallest candidate '{spec.name}' has {size} parameters; expected at least "
-        f"{need} poses (several times more for a reliable choice), or a fixed --model."
-    )
-
-
 def check_refit_poses(meas: Any, what: tuple[str, ...]) -> None:
     """``evaluate --refit``: refuse a set whose rows hold fewer than 3 distinct poses
     (copies of one pose let the refitted frames absorb every error: an RMS of zero)."""
