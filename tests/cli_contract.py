@@ -31,6 +31,10 @@ class Run:
     def __str__(self) -> str:
         return f"exit {self.code}\n--- stdout\n{self.out}\n--- stderr\n{self.err}"
 
+    def __iter__(self) -> Iterator[int | str]:
+        """``code, out, err = run_kinecal(...)``."""
+        return iter((self.code, self.out, self.err))
+
 
 @contextlib.contextmanager
 def no_hang(seconds: float) -> Iterator[None]:

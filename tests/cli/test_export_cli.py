@@ -11,15 +11,7 @@ import pytest
 from kinecal.identification import calibrate
 from kinecal.io import save_model, write_measurements
 from kinecal.simulation import LaserTracker, experiment2
-
-
-def _in_process(capsys, *args):
-    """Run the command in this process (for error messages: no interpreter start-up)."""
-    from kinecal.cli import main
-
-    code = main(list(args))
-    out = capsys.readouterr()
-    return code, out.out, out.err
+from tests.cli_contract import run_kinecal as _in_process
 
 
 @pytest.fixture(scope="module")

@@ -22,6 +22,7 @@ from kinecal.identification import calibrate
 from kinecal.io import read_measurements, save_model
 from kinecal.robot import load_robot, robot_from_urdf
 from kinecal.simulation import LaserTracker, experiment2
+from tests.cli_contract import run_kinecal as _cli
 from tests.urdf_reference import urdf_chain_fk
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -29,14 +30,6 @@ ROSI = DATA / "fanuc_lrmate200id" / "rosi_lrmate200id.urdf"
 FANUC = DATA / "fanuc_lrmate200id" / "fanuc_lrmate200id.urdf"
 LR7L = DATA / "fanuc_lrmate200id" / "rosi_lrmate200id7l.urdf"
 UR10E = DATA / "ur_e_series" / "ur10e_like_ur_description.urdf"
-
-
-def _cli(capsys, *args):
-    from kinecal.cli import main
-
-    code = main(list(args))
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 @pytest.fixture(scope="module")

@@ -16,18 +16,11 @@ from kinecal.identification import calibrate
 from kinecal.io import save_model, write_measurements
 from kinecal.robot import load_robot, robot_from_urdf
 from kinecal.simulation import LaserTracker, experiment2
+from tests.cli_contract import run_kinecal as _cli
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 ROSI = DATA / "fanuc_lrmate200id" / "rosi_lrmate200id.urdf"
 UR10E = DATA / "ur_e_series" / "ur10e_like_ur_description.urdf"
-
-
-def _cli(capsys, *args):
-    from kinecal.cli import main
-
-    code = main(list(args))
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 @pytest.fixture(scope="module")
