@@ -12,7 +12,14 @@ import numpy as np
 
 from kinecal.typing import ArrayLike, Float, Int
 
-__all__ = ["distinct_rows", "median", "present", "quantiles", "row_groups"]
+__all__ = [
+    "distinct_rows",
+    "first_rows",
+    "median",
+    "present",
+    "quantiles",
+    "row_groups",
+]
 
 
 def median(values: ArrayLike) -> float:
@@ -43,6 +50,15 @@ def distinct_rows(rows: ArrayLike) -> int:
     return 1 + int(np.count_nonzero(np.any(s[1:] != s[:-1], axis=1)))
 
 
+def first_rows(labels: ArrayLike) -> Int:
+    """The first row of every label 0..max of an array of non-negative integer labels
+    (the array's length for a label that does not occur)."""
+    a = np.ravel(np.asarray(labels))
+    first = np.full(int(a.max()) + 1 if a.size else 0, a.size, np.intp)
+    np.minimum.at(first, a, np.arange(a.size))
+    return first
+
+
 def row_groups(rows: ArrayLike) -> Int:
     """A label per row of a 2-D array, equal rows sharing one, numbered 0, 1, ... by
     first appearance (``np.unique(rows, axis=0, return_inverse=True)`` renumbered,
@@ -57,8 +73,7 @@ def row_groups(rows: ArrayLike) -> Int:
     new[1:] = np.any(s[1:] != s[:-1], axis=1)
     inverse = np.empty(n, np.intp)
     inverse[order] = np.cumsum(new) - 1
-    first = np.full(int(inverse.max()) + 1, n, np.intp)
-    np.minimum.at(first, inverse, np.arange(n))
+    first = first_rows(inverse)
     rank = np.empty(first.size, np.intp)
     rank[np.argsort(first)] = np.arange(first.size)
     return rank[inverse]

@@ -9,7 +9,7 @@ import numpy as np
 
 from kinecal._blas import one_blas_thread
 from kinecal._parallel import parallel_map
-from kinecal._stats import present, row_groups
+from kinecal._stats import first_rows, present
 from kinecal.errors import DataError
 from kinecal.identification._calibrate import CalibrationOptions, calibrate
 from kinecal.identification._calibrated import CalibratedModel
@@ -77,20 +77,6 @@ class Folds:
     @property
     def by_set(self) -> bool:
         return self.unit == "set"
-
-
-def _pose_groups(meas: Measurements) -> np.ndarray:
-    """Group of every row: rows of one set measured at the same joint values (several
-    markers seen at one pose) share one; numbered by first appearance."""
-    return row_groups(np.column_stack([meas.set_index, np.round(meas.q_ctrl, 9)]))
-
-
-def _first_rows(labels: np.ndarray) -> np.ndarray:
-    """The first row of every label 0..max (N for a label that does not occur)."""
-    n = labels.size
-    first = np.full(int(labels.max()) + 1 if n else 0, n, np.intp)
-    np.minimum.at(first, labels, np.arange(n))
-    return first
 
 
 def _member(values: np.ndarray, of: np.ndarray) -> np.ndarray:
@@ -211,7 +197,7 @@ def make_folds(
             "tool offset to predict with)."
         )
     if groups is None:
-        unit, g = "pose", _pose_groups(meas)
+        unit, g = "pose", meas.pose_groups()
         if scheme == "region":
             return _region_folds(meas, k, g, always, notes, robot)
     else:
@@ -226,7 +212,7 @@ def make_folds(
         )
     # Units in the order they first appear, so data whose rows are all different poses
     # fold exactly as rows do.
-    first = _first_rows(g)[units]
+    first = first_rows(g)[units]
     units = units[np.argsort(first)]
     perm = np.random.default_rng(seed).permutation(units.size)
     test = [
@@ -255,7 +241,7 @@ def _region_folds(
             f"{meas.source}: {k}-fold cross-validation needs at least {k} poses to "
             f"hold out; the data have {units.size}."
         )
-    first = _first_rows(np.where(always, g.max() + 1, g))[units]  # a row of every pose
+    first = first_rows(np.where(always, g.max() + 1, g))[units]  # a row of every pose
     region = region_labels(pose_features(meas.q_ctrl[first], robot), k)
     of_unit = np.full(int(g.max()) + 1, -1, np.intp)
     of_unit[units] = region

@@ -141,6 +141,13 @@ class Measurements:
         """Residual components per row: 3 (point, sensor) or 6 (pose)."""
         return 6 if self.kind == "pose" else 3
 
+    def pose_groups(self) -> np.ndarray:
+        """A label per row, shared by the rows of one set measured at the same joint
+        values (several markers seen at one pose), numbered by first appearance."""
+        from kinecal._stats import row_groups
+
+        return row_groups(np.column_stack([self.set_index, np.round(self.q_ctrl, 9)]))
+
     def subset(self, rows: ArrayLike) -> Measurements:
         """The measurements of the selected rows (indices or boolean mask)."""
         idx = np.asarray(rows)

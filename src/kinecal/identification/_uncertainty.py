@@ -93,9 +93,7 @@ def _jackknife(
     meas = problem.meas
     if meas.n != blk.r.shape[0]:
         return None
-    from kinecal._stats import row_groups
-
-    g = row_groups(np.column_stack([meas.set_index, np.round(meas.q_ctrl, 9)]))
+    g = meas.pose_groups()
     G = int(g.max()) + 1 if g.size else 0
     if not 10 <= G <= _JACKKNIFE_POSES or np.any(np.diff(g) < 0):
         return None
