@@ -1,7 +1,8 @@
 """Typed workflows: what a ``kinecal`` command does, as one function a Python user can call.
 
 The command line parses options, checks its arguments, calls the workflow and writes and
-prints its result; the workflow does the work and returns a frozen result.
+prints its result; the workflow does the work and returns a frozen result. Each name
+loads its module on first use (:mod:`kinecal._lazy`); docs/workflows.md shows each one.
 
 >>> from kinecal.io import read_measurements                     # doctest: +SKIP
 >>> from kinecal.robot import load_robot
@@ -11,8 +12,37 @@ prints its result; the workflow does the work and returns a frozen result.
 >>> run.spec.name, run.held_out.transfer.model.rms_mm
 """
 
-from __future__ import annotations
+from typing import TYPE_CHECKING
 
-from kinecal.workflows._calibrate import CalibrationRun, calibrate_measurements
+from kinecal import _lazy
 
-__all__ = ["CalibrationRun", "calibrate_measurements"]
+if TYPE_CHECKING:
+    from kinecal.workflows._calibrate import (
+        CalibrationRun,
+        calibrate_measurements,
+    )
+    from kinecal.workflows._export import (
+        ModelExport,
+        export_model,
+    )
+
+__all__ = [
+    "CalibrationRun",
+    "ModelExport",
+    "calibrate_measurements",
+    "export_model",
+]
+
+__getattr__, __dir__ = _lazy.exports(
+    __name__,
+    {
+        "_calibrate": (
+            "CalibrationRun",
+            "calibrate_measurements",
+        ),
+        "_export": (
+            "ModelExport",
+            "export_model",
+        ),
+    },
+)
