@@ -25,12 +25,22 @@ if TYPE_CHECKING:
         ModelExport,
         export_model,
     )
+    from kinecal.workflows._fk import (
+        ImportedRobot,
+        PoseReport,
+        forward_pose,
+        import_urdf_robot,
+    )
 
 __all__ = [
     "CalibrationRun",
+    "ImportedRobot",
     "ModelExport",
+    "PoseReport",
     "calibrate_measurements",
     "export_model",
+    "forward_pose",
+    "import_urdf_robot",
 ]
 
 __getattr__, __dir__ = _lazy.exports(
@@ -43,6 +53,12 @@ __getattr__, __dir__ = _lazy.exports(
         "_export": (
             "ModelExport",
             "export_model",
+        ),
+        "_fk": (
+            "ImportedRobot",
+            "PoseReport",
+            "forward_pose",
+            "import_urdf_robot",
         ),
     },
 )
