@@ -78,8 +78,8 @@ def breakdown(d: Path, repeat: int) -> dict[str, dict[str, float]]:
     reconstructing from decoded images."""
     import cv2
 
-    from kinecal.cli._sensor import _read_scan_image
     from kinecal.io import image_files, load_sensor
+    from kinecal.workflows._sensor import read_scan_image as _read_scan_image
 
     sen = load_sensor(d / "sensor.yaml")
     files = image_files(d, "plane_*.png")

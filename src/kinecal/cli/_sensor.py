@@ -2,16 +2,11 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import click
 
 from kinecal.cli._common import Progress, common_options, jobs_option
-from kinecal.cli._sensor_args import SameSize, _LazyImages, _plane_index
-
-if TYPE_CHECKING:
-    import numpy as np
 
 _METHOD_HELP = (
     "Stripe extractor: 'ridge' (Hessian ridge detector, any direction) or 'rows' "
@@ -101,21 +96,16 @@ def reconstruct(
 
     Writes ``x_mm, y_mm, z_mm`` in the camera frame plus the pixel and plane of each point.
     """
-    import numpy as np
-
-    from kinecal.io import image_files, load_sensor, write_cloud
+    from kinecal.io import load_sensor, write_cloud
     from kinecal.sensor import Sensor
+    from kinecal.workflows import reconstruct_scan
 
     prog = Progress(quiet)
     sen = load_sensor(sensor_file)
     assert isinstance(sen, Sensor)
-    files = image_files(folder, "plane_*.png")
-    idx = np.array([_plane_index(f) for f in files])
-    prog("images", f"{len(files)} stripe images")
-    # Each image is read in the thread that extracts its stripes, and dropped after.
-    cam = sen.camera
-    read = SameSize(_read_scan_image, (cam.width, cam.height), sensor_file)
-    cloud = sen.scan(_LazyImages(list(files), read), idx, jobs=jobs, method=method)
+    cloud = reconstruct_scan(
+        folder, sen, method=method, jobs=jobs, source=sensor_file, progress=prog
+    )
     write_cloud(
         out,
         cloud.points,
@@ -123,19 +113,6 @@ def reconstruct(
         force=force,
     )
     click.echo(f"{cloud.points.shape[0]} points -> {out}", err=True)
-
-
-def _read_scan_image(path: Path) -> np.ndarray:
-    """A stripe image: grey PNGs by kinecal's fast decoder, anything else by OpenCV
-    (:func:`kinecal.io.read_image`, which also says what is wrong with a file)."""
-    from kinecal.io import read_image
-    from kinecal.sensor import decode_grey_png
-
-    try:
-        img = decode_grey_png(Path(path).read_bytes())
-    except OSError:
-        img = None
-    return read_image(path) if img is None else img
 
 
 def _register() -> None:

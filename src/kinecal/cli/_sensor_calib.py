@@ -6,7 +6,6 @@ Registered on the ``sensor`` group by :mod:`kinecal.cli._sensor`.
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import click
@@ -83,74 +82,30 @@ def fit_sphere_cmd(
     "radius_std_mm", "cap_half_angle_deg", "n_points". Points on a line or a plane (one
     circle), or too flat for their noise, are refused (exit 2).
     """
-    import numpy as np
-
-    from kinecal.errors import DataError
-    from kinecal.io import read_cloud
-    from kinecal.sensor import fit_sphere
+    from kinecal.workflows import fit_cloud_sphere
+    from kinecal.workflows._sensor import sphere_dict
 
     if radius_mm is not None and not radius_mm > 0:
         raise click.BadParameter(
             f"must be positive, got {radius_mm}", param_hint="--radius-mm"
         )
-    P = read_cloud(cloud)
-    if len(P) >= 5 and np.abs(P).max() * 1e3 < 5.0 and np.ptp(P, axis=0).max() > 0:
-        raise DataError(
-            f"{cloud}: columns x_mm, y_mm, z_mm: every value is below 5, which looks "
-            "like metres; convert to millimetres."
-        )
-    try:
-        f = fit_sphere(
-            P,
-            radius=None if radius_mm is None else radius_mm * 1e-3,
-            outlier_k=outlier_k if outlier_k > 0 else None,
-            segment=not no_segment,
-        )
-    except DataError as exc:
-        raise DataError(f"{cloud}: {exc}") from None
-    std = f.center_std * 1e3
+    f = fit_cloud_sphere(
+        cloud, radius_mm=radius_mm, outlier_k=outlier_k, segment=not no_segment
+    )
     if as_json:
-        click.echo(
-            json.dumps(
-                {
-                    "center_mm": (f.center * 1e3).tolist(),
-                    "radius_mm": f.radius * 1e3,
-                    "rms_mm": f.rms * 1e3,
-                    "n": f.n,
-                    "center_std_mm": std.tolist(),
-                    "radius_std_mm": f.radius_std * 1e3,
-                    "cap_half_angle_deg": float(np.degrees(f.cap_half_angle)),
-                    "n_points": int(f.inliers.size),
-                }
-            )
-        )
+        click.echo(json.dumps(sphere_dict(f)))
         return
-    click.echo("centre  x {:.4f}  y {:.4f}  z {:.4f}  mm".format(*(f.center * 1e3)))
-    click.echo("  std   x {:.5f}  y {:.5f}  z {:.5f}  mm".format(*std))
+    d = sphere_dict(f)
+    click.echo("centre  x {:.4f}  y {:.4f}  z {:.4f}  mm".format(*d["center_mm"]))
+    click.echo("  std   x {:.5f}  y {:.5f}  z {:.5f}  mm".format(*d["center_std_mm"]))
     click.echo(
-        f"radius  {f.radius * 1e3:.4f} mm"
-        + (" (fixed)" if radius_mm else f"  std {f.radius_std * 1e3:.5f} mm")
+        f"radius  {d['radius_mm']:.4f} mm"
+        + (" (fixed)" if radius_mm else f"  std {d['radius_std_mm']:.5f} mm")
     )
     click.echo(
-        f"rms     {f.rms * 1e3:.5f} mm over {f.n} of {f.inliers.size} points; cap "
-        f"half-angle {np.degrees(f.cap_half_angle):.1f} deg"
+        f"rms     {d['rms_mm']:.5f} mm over {f.n} of {f.inliers.size} points; cap "
+        f"half-angle {d['cap_half_angle_deg']:.1f} deg"
     )
-
-
-def _camera_info(cc: Any, tgt: Any, square_mm: float) -> dict[str, Any]:
-    from collections import Counter
-
-    return {
-        "method": "bundle adjustment from Zhang's start (OpenCV calibrateCamera)",
-        "images": len(cc.used),
-        "rms_reprojection_px": cc.rms_px,
-        "sigma_corner_px": cc.sigma_px,
-        "std": cc.std,
-        "fixed": list(cc.fixed),
-        "k3_test": cc.k3_test,
-        "detectors": dict(Counter(cc.detectors)),
-        "board": {"cols": tgt.cols, "rows": tgt.rows, "square_mm": square_mm},
-    }
 
 
 def _print_camera(cc: Any) -> None:
@@ -195,38 +150,26 @@ def calibrate_camera_cmd(
 ) -> None:
     """Camera intrinsics from the chessboard images in FOLDER (*.png): Zhang's method
     refined by a bundle adjustment; standard deviations from the residuals."""
-    from kinecal.cli._sensor_args import SameSize, _board, _LazyImages
-    from kinecal.errors import DataError
-    from kinecal.io import image_files, read_image, save_sensor
-    from kinecal.sensor import calibrate_camera
+    from kinecal.cli._sensor_args import _board
+    from kinecal.io import save_sensor
+    from kinecal.workflows import calibrate_camera_images
 
     prog = Progress(quiet)
     tgt = _board(board, square_mm)
-    files = image_files(folder)
-    prog("images", f"{len(files)} in {folder}")
-    paths: list[Path | None] = [*files]
-    imgs = _LazyImages(paths, SameSize(read_image))
-    try:
-        res = calibrate_camera(imgs, tgt, jobs=jobs, k3=k3, detector=detector)
-    except DataError as exc:  # the folder instead of the function's name
-        text = str(exc)
-        if not text.startswith("calibrate_camera: "):
-            raise
-        raise DataError(
-            f"{folder}: {text.removeprefix('calibrate_camera: ')} (--board {board})"
-        ) from None
-    skipped = sorted(set(range(len(files))) - set(res.used) - set(res.rejected))
-    for k in skipped:
+    run = calibrate_camera_images(
+        folder, tgt, k3=k3, detector=detector, jobs=jobs, board=board,
+        square_mm=square_mm, progress=prog,
+    )  # fmt: skip
+    for f in run.skipped:
+        click.echo(f"warning: {f}: chessboard not found; image skipped", err=True)
+    for f in run.rejected:
         click.echo(
-            f"warning: {files[k]}: chessboard not found; image skipped", err=True
-        )
-    for k in res.rejected:
-        click.echo(
-            f"warning: {files[k]}: corners inconsistent with the other views "
+            f"warning: {f}: corners inconsistent with the other views "
             "(re-projection error far above theirs); image left out",
             err=True,
         )
-    save_sensor(out, res.camera, _camera_info(res, tgt, square_mm), force=force)
+    res = run.result
+    save_sensor(out, res.camera, run.info, force=force)
     click.echo(
         f"re-projection RMS {res.rms_px:.4f} px over {len(res.used)} images "
         f"(corner std {res.sigma_px:.4f} px)"
@@ -297,15 +240,10 @@ def calibrate_planes_cmd(
     """
     import numpy as np
 
-    from kinecal.cli._sensor_args import (
-        SameSize,
-        _board,
-        _LazyImages,
-        _plane_index,
-    )
-    from kinecal.errors import DataError
-    from kinecal.io import image_files, load_sensor, read_image, save_sensor
-    from kinecal.sensor import Camera, calibrate_sensor
+    from kinecal.cli._sensor_args import _board
+    from kinecal.io import load_sensor, save_sensor
+    from kinecal.sensor import Camera
+    from kinecal.workflows import calibrate_sensor_images
 
     if camera_file is None and chessboard is None:
         raise click.UsageError("give --chessboard (joint calibration) or --camera")
@@ -315,79 +253,16 @@ def calibrate_planes_cmd(
     if camera_file is not None and chessboard is None:
         loaded = load_sensor(camera_file, need_planes=False)
         cam = loaded if isinstance(loaded, Camera) else loaded.camera
-    root = Path(folder)
-    pose_dirs = sorted(p for p in root.iterdir() if p.is_dir()) if root.is_dir() else []
-    if not pose_dirs:
-        raise DataError(f"{folder}: expected one sub-folder per target pose")
-    boards, sets = [], []
-    highest = 0
-    for d in pose_dirs:
-        if not (d / "board.png").is_file():
-            raise DataError(
-                f"{d}: missing board.png (the chessboard image of this pose)"
-            )
-        files = image_files(d, "plane_*.png")
-        idx = [_plane_index(f) for f in files]
-        highest = max(highest, max(idx) + 1)
-        boards.append(d / "board.png")
-        sets.append(dict(zip(idx, files)))
-    m = n_planes or highest
-    if m < highest:
-        raise DataError(
-            f"{folder}: plane images up to number {highest - 1}, but --n-planes {m}"
-        )
-    cb_files = image_files(chessboard) if chessboard is not None else []
-    prog(
-        "images",
-        f"{len(pose_dirs)} target poses, {sum(len(s) for s in sets)} stripe images, "
-        f"{len(cb_files)} chessboard views",
-    )
-    # Images are read when searched or extracted, on the worker threads, and dropped.
-    cb: list[Path | None] = [*cb_files]
-    pb: list[Path | None] = [*boards]
-    read = SameSize(
-        read_image, None if cam is None else (cam.width, cam.height), str(camera_file)
-    )
-    try:
-        res = calibrate_sensor(
-            _LazyImages(cb, read),
-            tgt,
-            _LazyImages(pb, read),
-            [_LazyImages([s.get(i) for i in range(m)], read) for s in sets],
-            n_planes=m,
-            camera=cam,
-            model=model,
-            k3=k3,
-            detector=detector,
-            jobs=jobs,
-        )
-    except DataError as exc:  # which folder, and which board was looked for
-        where = chessboard if "camera views" in str(exc) else folder
-        raise DataError(f"{where}: {exc} (--board {board})") from None
-    for k in sorted(set(range(len(pose_dirs))) - set(res.plane_poses)):
-        click.echo(
-            f"warning: {boards[k]}: chessboard not found; pose skipped", err=True
-        )
+    run = calibrate_sensor_images(
+        folder, tgt, camera=cam, chessboard=chessboard, n_planes=n_planes,
+        model=model, k3=k3, detector=detector, jobs=jobs, board=board,
+        square_mm=square_mm, camera_source=str(camera_file), progress=prog,
+    )  # fmt: skip
+    for f in run.skipped:
+        click.echo(f"warning: {f}: chessboard not found; pose skipped", err=True)
+    res = run.result
     pc = res.planes
-    status = {k: pc.status.count(k) for k in sorted(set(pc.status))}
-    info: dict[str, Any] = {
-        "method": "bundle adjustment of "
-        + ("camera, " if cam is None else "")
-        + "board poses and light planes (corners and stripes)",
-        "planes_method": model,
-        "target_poses": len(res.plane_poses),
-        "plane_fit_rms_mm": {
-            "mean": pc.mean_rms_mm,
-            "max": float(np.nanmax(pc.rms_mm)),
-        },
-        "plane_std_mm": {"median": float(np.nanmedian(np.asarray(pc.std_mm)))},
-        "plane_status": status,
-        "sigma_stripe_px": res.sigma_stripe_px,
-        "stripe_outliers": res.stripe_outliers,
-    }
-    if cam is None:
-        info["camera"] = _camera_info(res.camera, tgt, square_mm)
-    save_sensor(out, res.sensor, info, force=force)
+    save_sensor(out, res.sensor, run.info, force=force)
     if cam is None:
         cc = res.camera
         click.echo(
@@ -399,7 +274,7 @@ def calibrate_planes_cmd(
         f"{len(pc.planes)} light planes from {len(res.plane_poses)} target poses: fit "
         f"RMS {pc.mean_rms_mm:.4f} mm (mean), {np.nanmax(pc.rms_mm):.4f} mm (max); "
         f"stripe std {res.sigma_stripe_px:.3f} px; "
-        + ", ".join(f"{v} {k}" for k, v in status.items())
+        + ", ".join(f"{v} {k}" for k, v in run.status.items())
     )
     click.echo(f"-> {out}", err=True)
 

@@ -6,49 +6,11 @@ they are written, on a pool of threads, a few at a time: memory stays at a few i
 
 from __future__ import annotations
 
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import click
 
 from kinecal.cli._common import SEED, Progress, common_options, jobs_option
-
-if TYPE_CHECKING:
-    import numpy as np
-
-
-class _Writer:
-    """Renders (on access) and writes images on ``jobs`` threads of one pool, a
-    bounded number at a time (memory: a few images), reporting progress."""
-
-    def __init__(self, jobs: int, prog: Progress) -> None:
-        from concurrent.futures import ThreadPoolExecutor
-
-        from kinecal._parallel import available_cpus
-
-        self.n = jobs if jobs > 0 else available_cpus()
-        self.pool = ThreadPoolExecutor(self.n)
-        self.prog = prog
-
-    def __enter__(self) -> _Writer:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        # on an error or Ctrl-C the images not started are dropped, not rendered
-        self.pool.shutdown(cancel_futures=exc[0] is not None)
-
-    def write(self, items: list[tuple[Path, Any]], what: str) -> None:
-        """Write ``(path, source)`` items: ``source()`` gives the image."""
-        from kinecal.io import write_image
-
-        def one(item: tuple[Path, Any]) -> None:
-            write_image(item[0], item[1](), force=True, sync=False)
-
-        step = max(1, len(items) // 10)
-        for a in range(0, len(items), step):
-            for f in [self.pool.submit(one, it) for it in items[a : a + step]]:
-                f.result()
-            self.prog("render", f"{what} {min(a + step, len(items))}/{len(items)}")
 
 
 def _check_scene(sen: Any, c: Any, r: float, idx: Any) -> None:
@@ -122,13 +84,10 @@ def simulate_scan(
     import numpy as np
 
     from kinecal.cli._sensor_args import _triple
-    from kinecal.io import prepare_output_dir, save_sensor, write_json
-    from kinecal.sensor import (
-        RenderedImages,
-        StripeRenderer,
-        paper_sensor,
-        sphere_scene,
-    )
+    from kinecal.io import prepare_output_dir
+    from kinecal.sensor import paper_sensor
+    from kinecal.workflows import render_scan
+    from kinecal.workflows._sensor_sim import scan_files
 
     prog = Progress(quiet)
     if not radius_mm > 0:
@@ -136,39 +95,15 @@ def simulate_scan(
             f"must be positive, got {radius_mm}", param_hint="--radius-mm"
         )
     sen = paper_sensor()
-    c = np.array(_triple(center_mm, "--center-mm")) * 1e-3
+    center = _triple(center_mm, "--center-mm")
+    c = np.array(center) * 1e-3
     idx = np.arange(0, len(sen.planes), every)
     _check_scene(sen, c, radius_mm * 1e-3, idx)
-    names = [f"plane_{i:03d}.png" for i in idx] + ["sensor.yaml", "truth.json"]
-    d = prepare_output_dir(out, names, force=force)
-    ren = StripeRenderer(sen.camera, sen.planes)
-    scene = sphere_scene(c, radius_mm * 1e-3)
-    imgs = RenderedImages(
-        idx.size,
-        lambda prep, j, rng: ren.render(prep, int(idx[j]), rng),  # type: ignore[arg-type]
-        (seed,),
-        lambda: ren.prepare(scene),
+    d = prepare_output_dir(out, scan_files(every), force=force)
+    ses = render_scan(
+        d, center, radius_mm, every=every, seed=seed, jobs=jobs, progress=prog
     )
-    with _Writer(jobs, prog) as w:
-        w.write(
-            [
-                (d / f"plane_{i:03d}.png", lambda j=j: imgs[j])
-                for j, i in enumerate(idx)
-            ],
-            "stripe images",
-        )
-    save_sensor(
-        d / "sensor.yaml",
-        sen,
-        {"source": "built-in paper sensor (simulated truth)"},
-        force=True,
-    )
-    write_json(
-        d / "truth.json",
-        {"center_mm": c * 1e3, "radius_mm": radius_mm, "seed": seed},
-        force=True,
-    )
-    click.echo(f"{idx.size} stripe images -> {out}", err=True)  # d: staged (issue 21)
+    click.echo(f"{ses.images} stripe images -> {out}", err=True)  # d: staged (issue 21)
 
 
 @click.command("simulate-calibration")
@@ -215,73 +150,16 @@ def simulate_calibration_cmd(
     and ``truth.json`` (the board poses). Images are rendered and written on ``--jobs``
     threads, a few at a time.
     """
-    import numpy as np
-
-    from kinecal.io import prepare_output_dir, save_sensor, write_json
-    from kinecal.sensor import paper_sensor, simulate_calibration
+    from kinecal.io import prepare_output_dir
+    from kinecal.workflows import render_calibration_session
+    from kinecal.workflows._sensor_sim import CALIBRATION_FILES
 
     prog = Progress(quiet)
-    sen = paper_sensor()
-    d = prepare_output_dir(
-        out, ["chessboard", "planes", "truth_sensor.yaml", "truth.json"], force=force
-    )
-    idx = np.arange(0, len(sen.planes), every)
-    prog(
-        "render", f"{views} chessboard views, {poses} target poses x {idx.size} planes"
-    )
-    ses = simulate_calibration(
-        sen,
-        np.random.default_rng(seed),
-        n_views=views,
-        n_plane_poses=poses,
-        plane_indices=idx,
-    )
-    items: list[tuple[Path, Any]] = []
-    for k in range(views):
-        items.append(
-            (
-                d / "chessboard" / f"view_{k:02d}.png",
-                lambda k=k: ses.chessboard_images[k],
-            )
-        )
-    for k in range(poses):
-        pd = d / "planes" / f"pose_{k:02d}"
-        items.append((pd / "board.png", lambda k=k: ses.plane_board_images[k]))
-    with _Writer(jobs, prog) as w:
-        w.write(items, "chessboard images")
-        for k in range(poses):  # pose by pose: one prepared scene in memory at a time
-            pd = d / "planes" / f"pose_{k:02d}"
-            st = ses.plane_stripe_images[k]
-            w.write(
-                [
-                    (pd / f"plane_{i:03d}.png", lambda j=j, st=st: st[j])
-                    for j, i in enumerate(idx)
-                ],
-                f"pose {k + 1}/{poses}: stripe images",
-            )
-            st.release()  # type: ignore[attr-defined]
-    save_sensor(
-        d / "truth_sensor.yaml",
-        sen,
-        {"source": "built-in paper sensor (simulated truth)"},
-        force=True,
-    )
-    write_json(
-        d / "truth.json",
-        {
-            "seed": seed,
-            "chessboard_T_cam_board_mm": _poses_mm(ses.chessboard_poses),
-            "planes_T_cam_board_mm": _poses_mm(ses.plane_poses),
-        },
-        force=True,
+    d = prepare_output_dir(out, list(CALIBRATION_FILES), force=force)
+    render_calibration_session(
+        d, views=views, poses=poses, every=every, seed=seed, jobs=jobs, progress=prog
     )
     click.echo(f"calibration images -> {out}", err=True)  # d: staged (issue 21)
-
-
-def _poses_mm(T: np.ndarray) -> list[list[list[float]]]:
-    out = T.copy()
-    out[:, :3, 3] *= 1e3
-    return out.tolist()
 
 
 COMMANDS = (simulate_scan, simulate_calibration_cmd)

@@ -31,16 +31,38 @@ if TYPE_CHECKING:
         forward_pose,
         import_urdf_robot,
     )
+    from kinecal.workflows._sensor import (
+        CameraRun,
+        SensorRun,
+        calibrate_camera_images,
+        calibrate_sensor_images,
+        fit_cloud_sphere,
+        reconstruct_scan,
+    )
+    from kinecal.workflows._sensor_sim import (
+        RenderedSession,
+        render_calibration_session,
+        render_scan,
+    )
 
 __all__ = [
     "CalibrationRun",
+    "CameraRun",
     "ImportedRobot",
     "ModelExport",
     "PoseReport",
+    "RenderedSession",
+    "SensorRun",
+    "calibrate_camera_images",
     "calibrate_measurements",
+    "calibrate_sensor_images",
     "export_model",
+    "fit_cloud_sphere",
     "forward_pose",
     "import_urdf_robot",
+    "reconstruct_scan",
+    "render_calibration_session",
+    "render_scan",
 ]
 
 __getattr__, __dir__ = _lazy.exports(
@@ -59,6 +81,19 @@ __getattr__, __dir__ = _lazy.exports(
             "PoseReport",
             "forward_pose",
             "import_urdf_robot",
+        ),
+        "_sensor": (
+            "CameraRun",
+            "SensorRun",
+            "calibrate_camera_images",
+            "calibrate_sensor_images",
+            "fit_cloud_sphere",
+            "reconstruct_scan",
+        ),
+        "_sensor_sim": (
+            "RenderedSession",
+            "render_calibration_session",
+            "render_scan",
         ),
     },
 )

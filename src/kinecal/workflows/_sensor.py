@@ -1,0 +1,402 @@
+"""The sensor workflows of ``kinecal sensor``: a scan's point cloud from its stripe
+images, a sphere fitted to a cloud, the camera from chessboard images, and the light
+planes (with or without the camera) from stripes on a planar target."""
+
+from __future__ import annotations
+
+import re
+import threading
+from collections import Counter
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from kinecal.errors import DataError
+
+if TYPE_CHECKING:  # the sensor's modules load when a workflow runs (OpenCV: slow)
+    from kinecal.sensor import (
+        Camera,
+        CameraCalibration,
+        ChessboardTarget,
+        ScanCloud,
+        Sensor,
+        SensorCalibration,
+        SphereFit,
+    )
+
+__all__ = [
+    "CameraRun",
+    "SensorRun",
+    "calibrate_camera_images",
+    "calibrate_sensor_images",
+    "fit_cloud_sphere",
+    "reconstruct_scan",
+]
+
+Progress = Callable[[str, str], None]
+
+
+def _quiet(stage: str, detail: str) -> None:
+    """No progress display."""
+
+
+def reconstruct_scan(
+    folder: str | Path,
+    sensor: Sensor,
+    *,
+    method: str = "ridge",
+    jobs: int = 0,
+    source: str = "",
+    progress: Progress | None = None,
+) -> ScanCloud:
+    """The point cloud of one scan, as ``kinecal sensor reconstruct`` writes it.
+
+    ``folder`` holds ``plane_NNN.png`` (the stripe image of light plane NNN), all of the
+    size of ``sensor``'s camera (``source``: the sensor file, for that message). Each
+    image is read in the thread that extracts its stripes (``jobs`` threads, 0: one per
+    CPU), and dropped after.
+    """
+    from kinecal.io import image_files
+
+    say = progress or _quiet
+    files = image_files(folder, "plane_*.png")
+    idx = np.array([plane_index(f) for f in files])
+    say("images", f"{len(files)} stripe images")
+    cam = sensor.camera
+    read = SameSize(read_scan_image, (cam.width, cam.height), source)
+    return sensor.scan(LazyImages(list(files), read), idx, jobs=jobs, method=method)
+
+
+def fit_cloud_sphere(
+    cloud: str | Path,
+    *,
+    radius_mm: float | None = None,
+    outlier_k: float = 4.0,
+    segment: bool = True,
+) -> SphereFit:
+    """The sphere ``kinecal sensor fit-sphere`` fits to the cloud file ``cloud``
+    (``x_mm, y_mm, z_mm``): segmented from what surrounds it (``segment``), points
+    beyond ``outlier_k`` robust std rejected (0: none), the radius known or fitted.
+
+    Raises
+    ------
+    DataError
+        A cloud in metres, on a line or a plane, or too flat for its noise.
+    """
+    from kinecal.io import read_cloud
+    from kinecal.sensor import fit_sphere
+
+    P = read_cloud(cloud)
+    if len(P) >= 5 and np.abs(P).max() * 1e3 < 5.0 and np.ptp(P, axis=0).max() > 0:
+        raise DataError(
+            f"{cloud}: columns x_mm, y_mm, z_mm: every value is below 5, which looks "
+            "like metres; convert to millimetres."
+        )
+    try:
+        return fit_sphere(
+            P,
+            radius=None if radius_mm is None else radius_mm * 1e-3,
+            outlier_k=outlier_k if outlier_k > 0 else None,
+            segment=segment,
+        )
+    except DataError as exc:
+        raise DataError(f"{cloud}: {exc}") from None
+
+
+def sphere_dict(f: SphereFit) -> dict[str, Any]:
+    """The JSON object of ``kinecal sensor fit-sphere --json`` (mm, deg)."""
+    return {
+        "center_mm": (f.center * 1e3).tolist(),
+        "radius_mm": f.radius * 1e3,
+        "rms_mm": f.rms * 1e3,
+        "n": f.n,
+        "center_std_mm": (f.center_std * 1e3).tolist(),
+        "radius_std_mm": f.radius_std * 1e3,
+        "cap_half_angle_deg": float(np.degrees(f.cap_half_angle)),
+        "n_points": int(f.inliers.size),
+    }
+
+
+@dataclass(frozen=True)
+class CameraRun:
+    """What :func:`calibrate_camera_images` found.
+
+    Attributes
+    ----------
+    result : the camera calibration.
+    files : the chessboard images, in order.
+    skipped : those where no chessboard was found.
+    rejected : those whose corners disagree with the other views.
+    info : the sensor file's ``calibration`` section.
+    """
+
+    result: CameraCalibration
+    files: tuple[Path, ...]
+    skipped: tuple[Path, ...]
+    rejected: tuple[Path, ...]
+    info: dict[str, Any] = field(repr=False)
+
+
+def calibrate_camera_images(
+    folder: str | Path,
+    target: ChessboardTarget,
+    *,
+    k3: str = "auto",
+    detector: str = "auto",
+    jobs: int = 0,
+    board: str = "",
+    square_mm: float | None = None,
+    progress: Progress | None = None,
+) -> CameraRun:
+    """Camera intrinsics from the chessboard images in ``folder`` (``*.png``), as
+    ``kinecal sensor calibrate-camera`` finds them (``board``: its COLSxROWS text, for
+    messages; ``square_mm``: the square as given, for the file).
+
+    Raises
+    ------
+    DataError
+        Images of different sizes, too few boards found.
+    """
+    from kinecal.io import image_files, read_image
+    from kinecal.sensor import calibrate_camera
+
+    say = progress or _quiet
+    files = image_files(folder)
+    say("images", f"{len(files)} in {folder}")
+    paths: list[Path | None] = [*files]
+    imgs = LazyImages(paths, SameSize(read_image))
+    try:
+        res = calibrate_camera(imgs, target, jobs=jobs, k3=k3, detector=detector)
+    except DataError as exc:  # the folder instead of the function's name
+        text = str(exc)
+        if not text.startswith("calibrate_camera: "):
+            raise
+        raise DataError(
+            f"{folder}: {text.removeprefix('calibrate_camera: ')} (--board {board})"
+        ) from None
+    skipped = sorted(set(range(len(files))) - set(res.used) - set(res.rejected))
+    return CameraRun(
+        res,
+        tuple(files),
+        tuple(files[k] for k in skipped),
+        tuple(files[k] for k in res.rejected),
+        camera_info(res, target, square_mm),
+    )
+
+
+def camera_info(
+    cc: CameraCalibration, tgt: ChessboardTarget, square_mm: float | None = None
+) -> dict[str, Any]:
+    """The ``calibration`` section of a camera file."""
+    square = tgt.square * 1e3 if square_mm is None else square_mm
+    return {
+        "method": "bundle adjustment from Zhang's start (OpenCV calibrateCamera)",
+        "images": len(cc.used),
+        "rms_reprojection_px": cc.rms_px,
+        "sigma_corner_px": cc.sigma_px,
+        "std": cc.std,
+        "fixed": list(cc.fixed),
+        "k3_test": cc.k3_test,
+        "detectors": dict(Counter(cc.detectors)),
+        "board": {"cols": tgt.cols, "rows": tgt.rows, "square_mm": square},
+    }
+
+
+@dataclass(frozen=True)
+class SensorRun:
+    """What :func:`calibrate_sensor_images` found.
+
+    Attributes
+    ----------
+    result : the calibration (camera if estimated, target poses, light planes).
+    skipped : the target poses' board images where no chessboard was found.
+    status : how many planes ended in each fit status.
+    info : the sensor file's ``calibration`` section.
+    """
+
+    result: SensorCalibration
+    skipped: tuple[Path, ...]
+    status: dict[str, int]
+    info: dict[str, Any] = field(repr=False)
+
+
+def calibrate_sensor_images(
+    folder: str | Path,
+    target: ChessboardTarget,
+    *,
+    camera: Camera | None = None,
+    chessboard: str | Path | None = None,
+    n_planes: int | None = None,
+    model: str = "auto",
+    k3: str = "auto",
+    detector: str = "auto",
+    jobs: int = 0,
+    board: str = "",
+    square_mm: float | None = None,
+    camera_source: str = "",
+    progress: Progress | None = None,
+) -> SensorRun:
+    """The light planes (and, without ``camera``, the camera from the ``chessboard``
+    images) as ``kinecal sensor calibrate-planes`` finds them.
+
+    ``folder`` holds one sub-folder per target pose with ``board.png`` and
+    ``plane_NNN.png``; ``camera``: intrinsics held fixed (from ``camera_source``).
+
+    Raises
+    ------
+    DataError
+        A missing board image, plane numbers beyond ``n_planes``, images of another
+        size, too few boards or stripes.
+    """
+    from kinecal.io import image_files, read_image
+    from kinecal.sensor import calibrate_sensor
+
+    say = progress or _quiet
+    root = Path(folder)
+    pose_dirs = sorted(p for p in root.iterdir() if p.is_dir()) if root.is_dir() else []
+    if not pose_dirs:
+        raise DataError(f"{folder}: expected one sub-folder per target pose")
+    boards, sets = [], []
+    highest = 0
+    for d in pose_dirs:
+        if not (d / "board.png").is_file():
+            raise DataError(
+                f"{d}: missing board.png (the chessboard image of this pose)"
+            )
+        files = image_files(d, "plane_*.png")
+        idx = [plane_index(f) for f in files]
+        highest = max(highest, max(idx) + 1)
+        boards.append(d / "board.png")
+        sets.append(dict(zip(idx, files)))
+    m = n_planes or highest
+    if m < highest:
+        raise DataError(
+            f"{folder}: plane images up to number {highest - 1}, but --n-planes {m}"
+        )
+    cb_files = image_files(chessboard) if chessboard is not None else []
+    say(
+        "images",
+        f"{len(pose_dirs)} target poses, {sum(len(s) for s in sets)} stripe images, "
+        f"{len(cb_files)} chessboard views",
+    )
+    # Images are read when searched or extracted, on the worker threads, and dropped.
+    cb: list[Path | None] = [*cb_files]
+    pb: list[Path | None] = [*boards]
+    size = None if camera is None else (camera.width, camera.height)
+    read = SameSize(read_image, size, camera_source)
+    try:
+        res = calibrate_sensor(
+            LazyImages(cb, read),
+            target,
+            LazyImages(pb, read),
+            [LazyImages([s.get(i) for i in range(m)], read) for s in sets],
+            n_planes=m,
+            camera=camera,
+            model=model,
+            k3=k3,
+            detector=detector,
+            jobs=jobs,
+        )
+    except DataError as exc:  # which folder, and which board was looked for
+        where = chessboard if "camera views" in str(exc) else folder
+        raise DataError(f"{where}: {exc} (--board {board})") from None
+    skipped = sorted(set(range(len(pose_dirs))) - set(res.plane_poses))
+    pc = res.planes
+    status = {k: pc.status.count(k) for k in sorted(set(pc.status))}
+    info: dict[str, Any] = {
+        "method": "bundle adjustment of "
+        + ("camera, " if camera is None else "")
+        + "board poses and light planes (corners and stripes)",
+        "planes_method": model,
+        "target_poses": len(res.plane_poses),
+        "plane_fit_rms_mm": {
+            "mean": pc.mean_rms_mm,
+            "max": float(np.nanmax(pc.rms_mm)),
+        },
+        "plane_std_mm": {"median": float(np.nanmedian(np.asarray(pc.std_mm)))},
+        "plane_status": status,
+        "sigma_stripe_px": res.sigma_stripe_px,
+        "stripe_outliers": res.stripe_outliers,
+    }
+    if camera is None:
+        info["camera"] = camera_info(res.camera, target, square_mm)
+    return SensorRun(res, tuple(boards[k] for k in skipped), status, info)
+
+
+def plane_index(path: Path) -> int:
+    """The light-plane number a stripe image's name ends with."""
+    m = re.search(r"(\d+)\D*$", path.stem)
+    if not m:
+        raise DataError(
+            f"{path}: stripe images must end with their light-plane number, e.g. plane_007.png"
+        )
+    return int(m.group(1))
+
+
+def read_scan_image(path: Path) -> np.ndarray:
+    """A stripe image: grey PNGs by kinecal's fast decoder, anything else by OpenCV
+    (:func:`kinecal.io.read_image`, which also says what is wrong with a file)."""
+    from kinecal.io import read_image
+    from kinecal.sensor import decode_grey_png
+
+    try:
+        img = decode_grey_png(Path(path).read_bytes())
+    except OSError:
+        img = None
+    return read_image(path) if img is None else img
+
+
+class LazyImages(Sequence[Any]):
+    """Image files read on access (``None`` entries stay ``None``)."""
+
+    def __init__(
+        self, paths: list[Path | None], reader: Callable[[Path], np.ndarray]
+    ) -> None:
+        self._paths, self._read = paths, reader
+
+    def __len__(self) -> int:
+        return len(self._paths)
+
+    def __getitem__(self, i: Any) -> Any:
+        p = self._paths[i]
+        return None if p is None else self._read(p)
+
+
+class SameSize:
+    """A reader of images that refuses one whose size differs from ``expected`` (the
+    sensor file's camera, ``(width, height)``) or, without it, from the first image
+    read: a binned or cropped image would be mapped through the wrong pixels (a 2x2
+    binned scan with a full-size sensor file fitted a 15 mm sphere as 18 mm)."""
+
+    def __init__(
+        self,
+        reader: Callable[[Path], np.ndarray],
+        expected: tuple[int, int] | None = None,
+        source: str = "",
+    ) -> None:
+        self._read, self._size, self._source = reader, expected, source
+        self._first: Path | None = None
+        self._lock = threading.Lock()
+
+    def __call__(self, path: Path) -> np.ndarray:
+        img = self._read(path)
+        size = (int(img.shape[1]), int(img.shape[0]))
+        with self._lock:
+            if self._size is None:
+                self._size, self._first = size, path
+        if size != self._size:
+            w, h = self._size
+            what = (
+                f"the first image read, {self._first}"
+                if self._first is not None
+                else f"the camera of {self._source}"
+            )
+            raise DataError(
+                f"{path}: {size[0]}x{size[1]} pixels; expected {w}x{h}, the size of "
+                f"{what} (binned, cropped or another camera's images need a sensor "
+                "file calibrated at their size)."
+            )
+        return img
