@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -34,7 +35,14 @@ from kinecal.simulation import (
     parameter_recovery,
 )
 
-__all__ = ["DEMO_EXTRAS", "DEMO_FILES", "run_demo", "truth_model"]
+__all__ = [
+    "DEMO_EXTRAS",
+    "DEMO_FILES",
+    "DemoRun",
+    "paper_demo",
+    "run_demo",
+    "truth_model",
+]
 
 DEMO_EXTRAS = ("harmonics", "wrist", "masses")
 # What a demo folder holds (what --force replaces).
@@ -117,6 +125,23 @@ def _without_cam_rotation(tm: Any, x: np.ndarray) -> tuple[Any, np.ndarray]:
     return m, np.array([x[index[n]] for n in m.layout.names])
 
 
+@dataclass(frozen=True)
+class DemoRun:
+    """What :func:`paper_demo` did.
+
+    Attributes
+    ----------
+    text : the summary ``kinecal demo`` prints (also in ``summary.txt``).
+    summary : the figures of ``summary.json`` (per experiment the comparison table,
+        joint ranges and parameter recovery).
+    folder : where the results are.
+    """
+
+    text: str
+    summary: dict[str, Any] = field(repr=False)
+    folder: Path
+
+
 def run_demo(
     out: Path,
     *,
@@ -124,7 +149,20 @@ def run_demo(
     force: bool = False,
     progress: Callable[[str, str], None] | None = None,
 ) -> str:
-    """Run the demo, write everything to ``out`` and return the printed summary.
+    """Run the demo, write everything to ``out`` and return the printed summary
+    (:func:`paper_demo`'s ``text``)."""
+    return paper_demo(out, seed=seed, force=force, progress=progress).text
+
+
+def paper_demo(
+    out: Path,
+    *,
+    seed: int = 0,
+    force: bool = False,
+    progress: Callable[[str, str], None] | None = None,
+) -> DemoRun:
+    """Run the demo (``kinecal demo``): both of the paper's experiments on the digital
+    twin, written to ``out``.
 
     Per experiment, ``out/experiment{1,2}/`` gets train.csv, test.csv (and targets.csv),
     truth.yaml (the hidden true robot), model-{kinematic,ntm,rfcm,full}.yaml,
@@ -224,4 +262,4 @@ def run_demo(
     summary["seconds"] = seconds
     write_json(out / "summary.json", summary, force=True)
     atomic_write_text(out / "summary.txt", "\n".join(text) + "\n", force=True)
-    return "\n".join(text)
+    return DemoRun("\n".join(text), summary, shown)

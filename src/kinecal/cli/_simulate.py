@@ -19,7 +19,6 @@ from kinecal.cli._common import (
 
 EXTRA_CHOICES = ("harmonics", "wrist", "masses", "thermal")
 _SIM_FILES = ("train.csv", "test.csv", "targets.csv", "truth.yaml", "manifest.json")
-_MODELS = ("kinematic", "ntm", "rfcm", "full")
 COMPARE_FILES = ("comparison.json", "model-*.yaml", "report.html", "manifest.json")
 
 
@@ -430,22 +429,22 @@ def compare(
     quiet: bool,
 ) -> None:
     """Fit several models on TRAIN and score each on TEST (Tables 5 and 8)."""
-    from kinecal.identification import CalibrationOptions, compare_models
     from kinecal.io import prepare_output_dir, read_measurements
-    from kinecal.report import comparison_table, format_table
     from kinecal.robot import load_robot
+    from kinecal.workflows import compare_measurements
+    from kinecal.workflows._compare import MODELS, write_comparison
 
     say = Progress(quiet)
     names = tuple(m.strip() for m in models.split(",") if m.strip())
     for n in names:
-        if n not in _MODELS:
+        if n not in MODELS:
             raise click.BadParameter(
-                f"unknown model {n!r}; expected some of {', '.join(_MODELS)}",
+                f"unknown model {n!r}; expected some of {', '.join(MODELS)}",
                 param_hint="--models",
             )
     if not names:
         raise click.BadParameter(
-            f"expected some of {', '.join(_MODELS)}; got {models!r}",
+            f"expected some of {', '.join(MODELS)}; got {models!r}",
             param_hint="--models",
         )
     robot = load_robot(robot_name)
@@ -457,65 +456,27 @@ def compare(
     )
     tr = read_measurements(train, robot, targets)
     te = read_measurements(test, robot, targets)
-    rows = compare_models(
-        robot,
-        tr,
-        te,
-        names,
-        options=CalibrationOptions(priors=priors),
-        refit_user=refit == "user",
-        progress=say,
+    cmp = compare_measurements(
+        robot, tr, te, names, priors=priors, refit_user=refit == "user", progress=say
     )
-    table = comparison_table(rows)
     written = []
     if out is not None:
         say("report", "writing comparison.json, the models and report.html")
+        inputs = {"train": train, "test": test, "targets": targets}
         written = write_comparison(
             out,
-            rows,
-            te,
-            table,
+            cmp,
             f"model comparison: {Path(test).name}",
-            {"train": train, "test": test, "targets": targets},
+            lambda files: manifest(
+                inputs, {"models": [r.model for r in cmp.rows]}, files=files
+            ),
         )
-    if as_json:
-        click.echo(json.dumps(table))
-    else:
-        click.echo(format_table(table))
+    click.echo(json.dumps(cmp.table) if as_json else cmp.text())
     if written:
         click.echo(
             f"wrote     {Path(out_dir or '')}{os.sep}: {', '.join(written)}",
             err=as_json,
         )
-
-
-def write_comparison(
-    out: Path,
-    rows,
-    test,
-    table,
-    title: str,
-    inputs: dict[str, str | None],
-) -> list[str]:
-    """Write a comparison's files into the prepared folder ``out``; return their names
-    (``force``: the folder's --force was checked when it was prepared)."""
-    from kinecal.io import save_model, write_json
-    from kinecal.report import write_comparison_report
-
-    written = ["comparison.json"]
-    write_json(out / "comparison.json", table, force=True)
-    for r in rows:
-        if r.calibrated is not None and r.model != "nominal":
-            save_model(out / f"model-{r.model}.yaml", r.calibrated, force=True)
-            written.append(f"model-{r.model}.yaml")
-    write_comparison_report(out / "report.html", rows, test, title=title)
-    written += ["report.html", "manifest.json"]
-    write_json(
-        out / "manifest.json",
-        manifest(inputs, {"models": [r.model for r in rows]}, files=written[:-1]),
-        force=True,
-    )
-    return written
 
 
 @click.command()
@@ -538,8 +499,7 @@ def demo(out_dir: str, seed: int, force: bool, quiet: bool) -> None:
     them on the rest, checks the parameters against the hidden truth, and writes data,
     models, tables and HTML reports to --out.
     """
-    from kinecal.demo import run_demo
+    from kinecal.workflows import paper_demo
 
     say = Progress(quiet)
-    text = run_demo(Path(out_dir), seed=seed, force=force, progress=say)
-    click.echo(text)
+    click.echo(paper_demo(Path(out_dir), seed=seed, force=force, progress=say).text)

@@ -17,9 +17,17 @@ from typing import TYPE_CHECKING
 from kinecal import _lazy
 
 if TYPE_CHECKING:
+    from kinecal.demo import (
+        DemoRun,
+        paper_demo,
+    )
     from kinecal.workflows._calibrate import (
         CalibrationRun,
         calibrate_measurements,
+    )
+    from kinecal.workflows._compare import (
+        ModelComparison,
+        compare_measurements,
     )
     from kinecal.workflows._export import (
         ModelExport,
@@ -48,7 +56,9 @@ if TYPE_CHECKING:
 __all__ = [
     "CalibrationRun",
     "CameraRun",
+    "DemoRun",
     "ImportedRobot",
+    "ModelComparison",
     "ModelExport",
     "PoseReport",
     "RenderedSession",
@@ -56,10 +66,12 @@ __all__ = [
     "calibrate_camera_images",
     "calibrate_measurements",
     "calibrate_sensor_images",
+    "compare_measurements",
     "export_model",
     "fit_cloud_sphere",
     "forward_pose",
     "import_urdf_robot",
+    "paper_demo",
     "reconstruct_scan",
     "render_calibration_session",
     "render_scan",
@@ -94,6 +106,14 @@ __getattr__, __dir__ = _lazy.exports(
             "RenderedSession",
             "render_calibration_session",
             "render_scan",
+        ),
+        "_compare": (
+            "ModelComparison",
+            "compare_measurements",
+        ),
+        "kinecal.demo": (
+            "DemoRun",
+            "paper_demo",
         ),
     },
 )

@@ -1,0 +1,108 @@
+"""The comparison workflow of ``kinecal compare`` (the paper's Tables 5 and 8): several
+models fitted on one measurement set and scored on another."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from kinecal.identification import ComparisonRow, Measurements
+from kinecal.robot import RobotDescription
+
+__all__ = ["MODELS", "ModelComparison", "compare_measurements", "write_comparison"]
+
+# The models a comparison can fit.
+MODELS = ("kinematic", "ntm", "rfcm", "full")
+
+Progress = Callable[[str, str], None]
+
+
+@dataclass(frozen=True)
+class ModelComparison:
+    """What :func:`compare_measurements` found.
+
+    Attributes
+    ----------
+    rows : per model (the nominal one first), its calibration and held-out figures.
+    table : the comparison as ``comparison.json`` holds it (mm).
+    test : the measurements the models were scored on.
+    """
+
+    rows: tuple[ComparisonRow, ...]
+    table: list[dict[str, Any]] = field(repr=False)
+    test: Measurements = field(repr=False)
+
+    def text(self) -> str:
+        """The table as ``kinecal compare`` prints it."""
+        from kinecal.report import format_table
+
+        return format_table(self.table)
+
+
+def compare_measurements(
+    robot: RobotDescription,
+    train: Measurements,
+    test: Measurements,
+    models: Sequence[str] = MODELS,
+    *,
+    priors: str = "all",
+    refit_user: bool = False,
+    progress: Progress | None = None,
+) -> ModelComparison:
+    """Fit each of ``models`` on ``train`` and score it on ``test``, as ``kinecal
+    compare`` does (``priors``: all, compliance or none; ``refit_user``: refit the user
+    frames on ``test``, a new instrument set-up).
+
+    Raises
+    ------
+    ValueError
+        A model that is not one of :data:`MODELS`, or none.
+    """
+    from kinecal.identification import CalibrationOptions, compare_models
+    from kinecal.report import comparison_table
+
+    names = tuple(models)
+    bad = [n for n in names if n not in MODELS]
+    if bad or not names:
+        raise ValueError(
+            f"models: expected some of {', '.join(MODELS)}; got {', '.join(names)!r}"
+        )
+    rows = compare_models(
+        robot,
+        train,
+        test,
+        names,
+        options=CalibrationOptions(priors=priors),
+        refit_user=refit_user,
+        progress=progress,
+    )
+    return ModelComparison(tuple(rows), comparison_table(rows), test)
+
+
+def write_comparison(
+    out: Path,
+    comparison: ModelComparison,
+    title: str,
+    manifest: Callable[[list[str]], dict[str, Any]],
+) -> list[str]:
+    """Write a comparison's files into the prepared folder ``out``: comparison.json,
+    model-<name>.yaml, report.html and manifest.json (``manifest(files)`` gives its
+    content); return their names."""
+    from kinecal.io import save_model, write_json
+    from kinecal.report import write_comparison_report
+
+    rows = comparison.rows
+    written = ["comparison.json"]
+    write_json(out / "comparison.json", comparison.table, force=True)
+    for r in rows:
+        if r.calibrated is not None and r.model != "nominal":
+            save_model(out / f"model-{r.model}.yaml", r.calibrated, force=True)
+            written.append(f"model-{r.model}.yaml")
+    write_comparison_report(
+        out / "report.html", list(rows), comparison.test, title=title
+    )
+    written += ["report.html", "manifest.json"]
+    write_json(out / "manifest.json", manifest(written[:-1]), force=True)
+    return written
