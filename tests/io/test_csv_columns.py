@@ -223,7 +223,8 @@ def test_issue_26_compensate_diagnostic_columns_equal_the_per_row_ones(rng):
     recomputed a whole column for every row: 44 s for 20,000 targets)."""
     from types import SimpleNamespace
 
-    from kinecal.cli._compensate import _diagnostic_columns, _diagnostics
+    from kinecal.workflows._compensate import diagnostic_columns as _diagnostic_columns
+    from kinecal.workflows._compensate import diagnostics as _diagnostics
 
     n = 500
     res = SimpleNamespace(

@@ -299,26 +299,3 @@ def check_refit_poses(meas: Any, what: tuple[str, ...]) -> None:
                 f"joint angles); --refit {','.join(what)} needs at least 3 different "
                 "poses per set (or no --refit)."
             )
-
-
-# Positions beyond 1 km from the instrument's origin are typing errors, not data (and
-# their squares overflow in the solvers).
-MAX_POSITION_MM = 1e6
-
-
-def check_positions(p_m: Any, lines: Any, path: str, columns: str) -> None:
-    """Refuse positions (N, 3) [m] farther than :data:`MAX_POSITION_MM` from the
-    origin, naming the file line."""
-    import numpy as np
-
-    from kinecal.errors import DataError
-
-    far = np.flatnonzero(np.abs(np.asarray(p_m)).max(axis=1) * 1e3 > MAX_POSITION_MM)
-    if far.size:
-        i = int(far[0])
-        v = np.asarray(p_m)[i] * 1e3
-        raise DataError(
-            f"{path}: line {lines[i]}, columns {columns}: ({v[0]:.6g}, {v[1]:.6g}, "
-            f"{v[2]:.6g}) mm; expected positions within {MAX_POSITION_MM:.0e} mm of the "
-            "origin (a typing error?)."
-        )

@@ -19,7 +19,7 @@ urscript    ``movel/movej/movep(p[x, y, z, rx, ry, rz]``    rotation vector ``se
 
 Units: mm and deg (URScript m and rad). A target is returned with its pose in its own
 frame, the frame ids it names and its configuration as written; which frame an id means
-is for the caller (:mod:`kinecal.cli._compensate`).
+is for the caller (:mod:`kinecal.workflows._compensate`).
 """
 
 from __future__ import annotations

@@ -29,6 +29,12 @@ if TYPE_CHECKING:
         ModelComparison,
         compare_measurements,
     )
+    from kinecal.workflows._compensate import (
+        ProgramCompensation,
+        TargetCompensation,
+        compensate_program,
+        compensate_targets,
+    )
     from kinecal.workflows._export import (
         ModelExport,
         export_model,
@@ -61,12 +67,16 @@ __all__ = [
     "ModelComparison",
     "ModelExport",
     "PoseReport",
+    "ProgramCompensation",
     "RenderedSession",
     "SensorRun",
+    "TargetCompensation",
     "calibrate_camera_images",
     "calibrate_measurements",
     "calibrate_sensor_images",
     "compare_measurements",
+    "compensate_program",
+    "compensate_targets",
     "export_model",
     "fit_cloud_sphere",
     "forward_pose",
@@ -114,6 +124,12 @@ __getattr__, __dir__ = _lazy.exports(
         "kinecal.demo": (
             "DemoRun",
             "paper_demo",
+        ),
+        "_compensate": (
+            "ProgramCompensation",
+            "TargetCompensation",
+            "compensate_program",
+            "compensate_targets",
         ),
     },
 )

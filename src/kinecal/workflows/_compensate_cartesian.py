@@ -1,4 +1,4 @@
-"""``kinecal compensate`` on the Cartesian targets of a program (issue 34).
+"""The Cartesian targets of a program, compensated (issue 34; ``kinecal compensate``).
 
 Each target is a tool pose in a user frame. The wanted flange pose in the robot base frame
 is ``T_base_uframe · T_target · inv(T_flange_tool)``; the taught configuration is the

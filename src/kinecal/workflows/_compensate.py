@@ -1,0 +1,422 @@
+"""The compensation workflows of ``kinecal compensate``: corrected controller angles
+for the targets of a CSV file, or a corrected robot program (its joint targets, and its
+Cartesian targets in their user and tool frames; the rest of the program byte for byte).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kinecal.compensation import CompensationResult
+from kinecal.errors import DataError
+from kinecal.identification import CalibratedModel
+from kinecal.io import CompensationTargets
+
+__all__ = [
+    "ProgramCompensation",
+    "TargetCompensation",
+    "compensate_program",
+    "compensate_targets",
+]
+
+# Positions beyond 1 km from the instrument's origin are typing errors, not data (and
+# their squares overflow in the solvers).
+MAX_POSITION_MM = 1e6
+# err_mm and status stay the last two columns, as before issue 23.
+DIAG_HEADER = ["rot_err_deg", "dq_max_deg", "cond", "limit_joint", "err_mm", "status"]
+
+Say = Callable[[str], None]
+
+
+def _stderr(line: str) -> None:
+    """Nowhere: the lines are kept in the result's ``messages``."""
+
+
+@dataclass(frozen=True)
+class _Compensation:
+    result: CompensationResult
+    where: tuple[str, ...]  # how each row is named in messages
+    messages: tuple[str, ...]  # what the work said on the way (warnings, counts)
+
+    def unreachable(self) -> list[int]:
+        """The rows not corrected for another reason than being left as written."""
+        return [i for i, s in enumerate(self.result.status) if s not in ("ok", "left")]
+
+    def summary(self) -> dict[str, Any]:
+        """The figures of ``kinecal compensate --json`` (without ``out``)."""
+        res = self.result
+        ok = res.status == "ok"
+        return {
+            "n": len(res.status),
+            "ok": int(ok.sum()),
+            "unreachable": len(self.unreachable()),
+            "left": int((res.status == "left").sum()),
+            "max_err_mm": float(res.error[ok].max() * 1e3) if ok.any() else None,
+            "max_dq_deg": float(dq_deg(res)[ok].max()) if ok.any() else None,
+        }
+
+
+@dataclass(frozen=True)
+class TargetCompensation(_Compensation):
+    """What :func:`compensate_targets` found: ``result`` per row of ``targets``."""
+
+    targets: CompensationTargets = field(repr=False)
+
+    def csv_text(self) -> str:
+        """The corrected CSV: the same rows with corrected joints, the program's
+        joints in ``j*_program`` columns and the diagnostic columns."""
+        from kinecal.io import Column, table_csv
+
+        res, tg = self.result, self.targets
+        to_file = {"deg": 180.0 / np.pi, "rad": 1.0, "mm": 1e3, "m": 1.0}
+        new = {
+            c: Column.numbers(res.q_ctrl[:, k] * to_file[c.rsplit("_", 1)[1]], "%.8f")
+            for k, c in enumerate(tg.joint_columns)
+        }
+        cols = [(c, new.get(c) or Column.copy_of(c)) for c in tg.table.header]
+        cols += [(f"{c}_program", Column.copy_of(c)) for c in tg.joint_columns]
+        return table_csv(tg.table, cols + diagnostic_columns(res))
+
+
+@dataclass(frozen=True)
+class ProgramCompensation(_Compensation):
+    """What :func:`compensate_program` found: ``result`` per joint target, then per
+    Cartesian target; ``text`` the corrected program, ``report`` its per-target CSV,
+    ``written_note`` the largest error of the joint targets as written."""
+
+    text: str = field(repr=False)
+    report: str = field(repr=False)
+    written_note: str | None = None
+
+
+def compensate_targets(
+    cal: CalibratedModel,
+    targets: str | Path,
+    *,
+    tol_mm: float = 0.001,
+    payload_kg: float | None = None,
+    allow_out_of_limits: bool = False,
+    say: Say | None = None,
+) -> TargetCompensation:
+    """Corrected controller angles for the targets of ``targets`` (CSV: x_mm, y_mm, z_mm
+    in the user frame, optional qw..qz, the program's joints as seeds), as ``kinecal
+    compensate TARGETS.csv`` finds them.
+
+    A row is reachable when the model's predicted error is below ``tol_mm``;
+    ``payload_kg`` the load (default: the calibration's). ``say`` gets each warning
+    line as it is found (they are also in ``messages``).
+
+    Raises
+    ------
+    DataError
+        A bad file, a set or marker not in the model, a payload the model cannot take.
+    """
+    from kinecal.compensation import compensate as run_compensation
+    from kinecal.io import read_compensation_targets
+
+    lines: list[str] = []
+    emit = _emitter(lines, say)
+    scale = load_scale(cal, payload_kg)
+    tg = read_compensation_targets(
+        targets, cal.model.robot, allow_out_of_limits=allow_out_of_limits
+    )
+    for d in tg.diagnostics:
+        if d.severity == "warning":
+            emit(f"warning   {d.message}")
+    _warn_extrapolation(cal, tg.q_seed, tg.table.lines, str(targets), emit)
+    check_positions(tg.p, tg.table.lines, str(targets), "x_mm, y_mm, z_mm")
+    spec = cal.model.spec
+    path = str(targets)
+    set_index = _map_labels(tg.set_labels, tg.set_index, spec.sets, path, "set")
+    marker_index = _map_labels(
+        tg.marker_labels, tg.marker_index, spec.markers, path, "marker"
+    )
+    N = tg.p.shape[0]
+    res = run_compensation(
+        cal,
+        tg.p,
+        tg.q_seed,
+        R_target=tg.R,
+        set_index=set_index,
+        marker_index=marker_index,
+        load_scale=None if scale is None else np.full(N, scale),
+        tol=tol_mm * 1e-3,
+    )
+    where = tuple(f"line {ln}" for ln in tg.table.lines)
+    return TargetCompensation(res, where, tuple(lines), tg)
+
+
+def compensate_program(
+    cal: CalibratedModel,
+    path: str | Path,
+    fmt: str,
+    *,
+    tol_mm: float = 0.001,
+    payload_kg: float | None = None,
+    decimals: int | None = None,
+    uframes: dict[str, np.ndarray] | None = None,
+    utools: dict[str, np.ndarray] | None = None,
+    say: Say | None = None,
+) -> ProgramCompensation:
+    """The corrected robot program ``path`` (``fmt``: fanuc-ls, urscript, rapid, krl),
+    as ``kinecal compensate PROGRAM`` writes it.
+
+    Each joint target is moved so that the real robot takes the flange pose the
+    nominal robot has at the programmed joints; each Cartesian target (in its user and
+    tool frames: ``uframes``, ``utools``, {id: pose (4, 4) [m]}) becomes the pose the
+    nominal controller must be commanded for the real robot to reach it. ``decimals``:
+    of the written joints (default: the file's). ``say`` gets each message line as it
+    is found (they are also in ``messages``).
+    """
+    from kinecal.io import read_program, write_program, written_joints
+    from kinecal.models import ModelInputs
+    from kinecal.workflows._compensate_cartesian import cartesian_run, written_errors
+
+    lines: list[str] = []
+    emit = _emitter(lines, say)
+    scale = load_scale(cal, payload_kg)
+    robot = cal.model.robot
+    prog = read_program(path, fmt)
+    q_prog, p_t, res_j, ls = _joint_part(cal, prog, scale, tol_mm)
+    run = cartesian_run(
+        cal, prog, q_prog, uframes or {}, utools or {}, scale, tol_mm, decimals
+    )
+    q_all = np.vstack([q_prog, run.q_seed[np.all(np.isfinite(run.q_seed), axis=1)]])
+    _warn_extrapolation(
+        cal, q_all, range(1, q_all.shape[0] + 1), f"{path} (targets in order)", emit
+    )
+    keep = (res_j.status != "ok") if res_j is not None else np.zeros(0, bool)
+    q_w_in = res_j.q_ctrl if res_j is not None else q_prog
+    text = write_program(
+        prog, q_w_in, robot, decimals=decimals, keep=keep, extra=run.edits
+    )
+    # The predicted error of what is written (the joints rounded to the file's decimals).
+    q_w = written_joints(prog, text, robot)
+    err_w = np.zeros(0)
+    if q_w.shape[0]:
+        out = cal.model.evaluate(
+            cal.params, ModelInputs.make(q_w, load_scale=ls)
+        ).p_user
+        err_w = np.linalg.norm(out - p_t, axis=1)
+    err_c, rot_c = written_errors(cal, run, text, prog.format, scale)
+    res = _joined(res_j, run, robot.n_joints)
+    names = [pt.name for pt in prog.points] + [
+        f"{pt.name}, Cartesian" for pt in run.points
+    ]
+    lines_ = [pt.line for pt in prog.points] + [pt.line for pt in run.points]
+    q_w_all = np.vstack([q_w, np.nan_to_num(run.q_new)])
+    err_all = np.concatenate([err_w, err_c])
+    _echo_cartesian(str(path), run, err_c, rot_c, emit)
+    report = _report_text(res, names, lines_, q_w_all, err_all, robot)
+    n_j = int((~keep).sum())
+    note = None
+    if keep.size:
+        note = (
+            f"{path}: {n_j} joint targets corrected; largest error as "
+            f"written {err_w[~keep].max() * 1e3 if n_j else 0:.4f} mm "
+            "(the joints rounded to the file's decimals)."
+        )
+    where = tuple(f"line {ln} ({nm})" for ln, nm in zip(lines_, names))
+    return ProgramCompensation(res, where, tuple(lines), text, report, note)
+
+
+def _emitter(lines: list[str], say: Say | None) -> Say:
+    def emit(line: str) -> None:
+        lines.append(line)
+        (say or _stderr)(line)
+
+    return emit
+
+
+def load_scale(cal: CalibratedModel, payload_kg: float | None) -> float | None:
+    """The load scale of ``payload_kg`` (None: the calibration's)."""
+    if payload_kg is None:
+        return None
+    if not payload_kg >= 0:
+        raise DataError(f"--payload-kg must be >= 0; got {payload_kg}.")
+    ref = cal.reference_payload_kg
+    if ref is None:
+        if cal.model.spec.load:
+            raise DataError(
+                "the model has no reference payload (its compliance is per unit of the "
+                "calibration's load): --payload-kg cannot be used."
+            )
+        return None
+    return payload_kg / ref
+
+
+def check_positions(p_m: Any, lines: Any, path: str, columns: str) -> None:
+    """Refuse positions (N, 3) [m] farther than :data:`MAX_POSITION_MM` from the
+    origin, naming the file line."""
+    far = np.flatnonzero(np.abs(np.asarray(p_m)).max(axis=1) * 1e3 > MAX_POSITION_MM)
+    if far.size:
+        i = int(far[0])
+        v = np.asarray(p_m)[i] * 1e3
+        raise DataError(
+            f"{path}: line {lines[i]}, columns {columns}: ({v[0]:.6g}, {v[1]:.6g}, "
+            f"{v[2]:.6g}) mm; expected positions within {MAX_POSITION_MM:.0e} mm of the "
+            "origin (a typing error?)."
+        )
+
+
+def dq_deg(res: CompensationResult) -> np.ndarray:
+    """The largest joint change of each row [deg]."""
+    return np.degrees(np.abs(res.joint_change)).max(axis=1)
+
+
+def diagnostics(res: CompensationResult, i: int) -> list[str]:
+    """The diagnostic columns of row i: every one numeric, the status last."""
+    return [
+        f"{np.degrees(res.rotation_error[i]):.6f}",
+        f"{dq_deg(res)[i]:.6f}",
+        f"{res.cond[i]:.4g}",
+        str(int(res.limit_joint[i]) + 1),  # 1-based; 0: none
+        f"{res.error[i] * 1e3:.6f}",
+        str(res.status[i]),
+    ]
+
+
+def diagnostic_columns(res: CompensationResult) -> list[tuple[str, Any]]:
+    """The diagnostic columns of every row at once (as :func:`diagnostics` per row)."""
+    from kinecal.io import Column
+
+    values = (
+        Column.numbers(np.degrees(res.rotation_error), "%.6f"),
+        Column.numbers(dq_deg(res), "%.6f"),
+        Column.numbers(res.cond, "%.4g"),
+        Column.numbers(np.asarray(res.limit_joint) + 1, "%d"),  # 1-based; 0: none
+        Column.numbers(res.error * 1e3, "%.6f"),
+        Column.text([str(x) for x in res.status]),
+    )
+    return list(zip(DIAG_HEADER, values))
+
+
+def _warn_extrapolation(
+    cal: CalibratedModel, q: np.ndarray, rows: Any, source: str, emit: Say
+) -> None:
+    """Targets outside the joint ranges the model was calibrated on (a warning)."""
+    from kinecal.io import extrapolation
+
+    found = extrapolation(cal, q, rows, source, what="targets")
+    if found is not None and found.severity == "warning":
+        emit(f"warning   {found.message}")
+
+
+def _joint_part(
+    cal: CalibratedModel, prog: Any, scale: float | None, tol_mm: float
+) -> tuple[np.ndarray, np.ndarray, CompensationResult | None, np.ndarray | None]:
+    """Compensate the joint targets of a program: (q_prog, p_t, res, ls)."""
+    from kinecal.compensation import compensate as run_compensation
+    from kinecal.compensation import program_targets
+    from kinecal.io import program_joints
+
+    q_prog = program_joints(prog, cal.model.robot)
+    N = q_prog.shape[0]
+    ls = None if scale is None else np.full(N, scale)
+    if N == 0:
+        return q_prog, np.zeros((0, 3)), None, ls
+    p_t, R_t = program_targets(cal, q_prog)
+    res = run_compensation(
+        cal, p_t, q_prog, R_target=R_t, load_scale=ls, tol=tol_mm * 1e-3
+    )
+    return q_prog, p_t, res, ls
+
+
+def _joined(res: CompensationResult | None, run: Any, n: int) -> CompensationResult:
+    """The joint targets' result and the Cartesian targets' as one CompensationResult
+    (Cartesian targets left as written: status 'left', NaN errors)."""
+    Nc = len(run.points)
+    err = np.full(Nc, np.nan)
+    rot = np.full(Nc, np.nan)
+    cond = np.full(Nc, np.nan)
+    lim = np.full(Nc, -1)
+    relaxed = np.zeros(Nc, bool)
+    q_new = np.where(np.isfinite(run.q_new), run.q_new, run.q_seed)
+    if run.res is not None:
+        r = run.res
+        err[run.rows], rot[run.rows], cond[run.rows] = r.error, r.rotation_error, r.cond
+        lim[run.rows] = r.limit_joint
+        relaxed[run.rows] = r.relaxed
+    parts = [
+        (np.nan_to_num(q_new), np.nan_to_num(run.q_seed), err, rot,
+         np.asarray(run.status, str), lim, cond, relaxed)
+    ]  # fmt: skip
+    if res is not None:
+        relax = np.zeros(len(res.status), bool) if res.relaxed is None else res.relaxed
+        parts.insert(0, (res.q_ctrl, res.q_program, res.error, res.rotation_error,
+                         res.status, res.limit_joint, res.cond, relax))  # fmt: skip
+    cols = [np.concatenate(c) if c[0].ndim == 1 else np.vstack(c) for c in zip(*parts)]
+    cols[0], cols[1] = (c.reshape(-1, n) for c in cols[:2])
+    it = 0 if res is None else res.iterations
+    q_ctrl, q_program, error, rot_err, status, limit_joint, cond, relaxed = cols
+    return CompensationResult(
+        q_ctrl, q_program, error, rot_err, status, limit_joint, cond, it, relaxed
+    )
+
+
+def _report_text(
+    res: CompensationResult,
+    names: Sequence[str],
+    lines_: Sequence[int],
+    q_w: np.ndarray,
+    err_w: np.ndarray,
+    robot: Any,
+) -> str:
+    head = ["point", "line", *(f"j{k + 1}_program" for k in range(robot.n_joints))]
+    head += [f"j{k + 1}" for k in range(robot.n_joints)]
+    out = [",".join([*head, "err_written_mm", *DIAG_HEADER])]
+    deg = np.where(robot.prismatic, 1e3, 180.0 / np.pi)
+    for i, name in enumerate(names):
+        vals = [f"{v:.8f}" for v in (*(res.q_program[i] * deg), *(q_w[i] * deg))]
+        name = name.replace(",", ";").replace('"', "'")
+        row = [name, str(lines_[i]), *vals, f"{err_w[i] * 1e3:.6f}"]
+        out.append(",".join([*row, *diagnostics(res, i)]))
+    return "\n".join(out) + "\n"
+
+
+def _echo_cartesian(
+    path: str, run: Any, err_c: np.ndarray, rot_c: np.ndarray, emit: Say
+) -> None:
+    """The Cartesian targets' count, and why each one left is left."""
+    if not run.points:
+        return
+    st = np.asarray(run.status, str)
+    for k in np.flatnonzero(st == "left"):
+        pt = run.points[k]
+        emit(f"{path}: line {pt.line} ({pt.name}): left as written: {run.why[k]}")
+    for k, note in run.notes:
+        pt = run.points[k]
+        emit(f"warning   {path}: line {pt.line} ({pt.name}): {note}")
+    ok = st == "ok"
+    worst = np.nanmax(err_c[ok]) * 1e3 if ok.any() else 0.0
+    worst_r = np.degrees(np.nanmax(rot_c[ok])) if ok.any() else 0.0
+    emit(
+        f"{path}: {len(st)} Cartesian targets: {int(ok.sum())} corrected, "
+        f"{int((st == 'left').sum())} left as written, "
+        f"{int(((st != 'ok') & (st != 'left')).sum())} unreachable; largest error of the "
+        f"calibrated robot at the corrected targets as the nominal controller reads them "
+        f"{worst:.4f} mm, {worst_r:.4f} deg."
+    )
+
+
+def _map_labels(
+    labels: Sequence[str],
+    index: np.ndarray,
+    own: tuple[str, ...],
+    path: str,
+    what: str,
+) -> np.ndarray:
+    """Map the file's set/marker labels onto the model's (one frame: any label)."""
+    if len(own) == 1:
+        return np.zeros(index.shape[0], np.intp)
+    missing = [lab for lab in labels if lab not in own]
+    if missing:
+        raise DataError(
+            f"{path}: {what} {missing[0]!r} is not in the model ({', '.join(own)})."
+        )
+    return np.array([own.index(lab) for lab in labels], np.intp)[index]
