@@ -31,8 +31,9 @@ def _ok(capsys, *args):
 def written(tmp_path_factory):
     """Every writer run once, small; {name: path}."""
 
-    from kinecal.cli._simulate import _write_experiment
     from kinecal.simulation import experiment1, experiment2
+    from kinecal.workflows import SimulatedData
+    from kinecal.workflows._simulate import write_simulation
 
     capsys = _Capture()
     root = tmp_path_factory.mktemp("round-trips")
@@ -41,7 +42,7 @@ def written(tmp_path_factory):
     for d, exp in ((e2, experiment2(0, n_train=40, n_side=5)),
                    (e1, experiment1(0, n_train=30, per_sphere=10))):  # fmt: skip
         d.mkdir()
-        _write_experiment(exp, d, d)
+        write_simulation(SimulatedData(exp), d, d)
     _ok(
         capsys, "calibrate", e2 / "train.csv", "--robot", ROBOT, "--model",
         "kinematic", "--out", root / "cal2", "-q",

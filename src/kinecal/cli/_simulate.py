@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -42,10 +43,18 @@ def _run_experiment(
     extras: tuple[str, ...],
     noise_um: float | None,
     outliers: float,
-):
+) -> Any:
+    from kinecal.workflows import simulate_paper_experiment
 
     try:
-        return _experiment(number, seed, n_train, extras, noise_um, outliers)
+        return simulate_paper_experiment(
+            number,
+            seed=seed,
+            n_train=n_train,
+            extras=extras,
+            noise_um=noise_um,
+            outliers=outliers,
+        )
     except ValueError as exc:  # the pose count is known once the poses are planned
         if str(exc).startswith("n_train must be"):
             n_max = str(exc).split(" and ", 1)[1].split(";", 1)[0]
@@ -55,49 +64,6 @@ def _run_experiment(
                 param_hint="--n-train",
             ) from None
         raise
-
-
-def _experiment(number, seed, n_train, extras, noise_um, outliers):
-    from kinecal.simulation import LaserTracker, SphereSensor, experiment1, experiment2
-
-    if number == 2:
-        tracker = (
-            LaserTracker(noise_um * 1e-6, 0.0)
-            if noise_um is not None
-            else LaserTracker(5e-6, 2e-6)
-        )
-        return experiment2(
-            seed,
-            n_train=n_train,
-            extras=extras,
-            tracker=tracker,
-            outlier_fraction=outliers,
-        )
-    sensor = (
-        SphereSensor(noise_um * 1e-6, 2 * noise_um * 1e-6)
-        if noise_um is not None
-        else None
-    )
-    return experiment1(seed, n_train=n_train, extras=extras, sensor=sensor)
-
-
-def _write_experiment(exp, out: Path, final: Path) -> dict[str, str]:
-    """Write the experiment's files into ``out`` (the staged folder); return them by
-    role, named as they will be in ``final`` (the --out folder)."""
-    from kinecal.demo import truth_model
-    from kinecal.io import save_model, write_measurements, write_targets
-
-    robot = exp.truth.robot
-    names = {"train": "train.csv", "test": "test.csv", "truth": "truth.yaml"}
-    # force: prepare_output_dir has checked the folder (the --force of the command)
-    write_measurements(out / "train.csv", exp.train, robot, force=True)
-    write_measurements(out / "test.csv", exp.test, robot, force=True)
-    if exp.targets is not None:
-        labels, p, r = exp.targets
-        write_targets(out / "targets.csv", labels, p, r, force=True)
-        names["targets"] = "targets.csv"
-    save_model(out / "truth.yaml", truth_model(exp), force=True)
-    return {k: str(final / v) for k, v in names.items()}
 
 
 @click.command()
@@ -208,6 +174,7 @@ def simulate(
     them or none (the folder is written at the end).
     """
     from kinecal.io import prepare_output_dir, write_json
+    from kinecal.workflows._simulate import write_simulation
 
     if robot_name is not None:
         if experiment is not None or outliers > 0:
@@ -255,8 +222,9 @@ def simulate(
     ex = _parse_extras(extras)
     out = prepare_output_dir(out_dir, list(_SIM_FILES), force=force)
     say("simulate", f"experiment {experiment}, seed {seed}")
-    exp = _run_experiment(int(experiment), seed, n_train, ex, noise_um, outliers)
-    files = _write_experiment(exp, out, Path(out_dir))
+    sim = _run_experiment(int(experiment), seed, n_train, ex, noise_um, outliers)
+    exp = sim.experiment
+    files = write_simulation(sim, out, Path(out_dir))
     write_json(
         out / "manifest.json",
         manifest(
@@ -305,11 +273,11 @@ def _simulate_robot(
 
     import numpy as np
 
-    from kinecal import _yaml as yaml
     from kinecal.cli._plan import _read_poses
-    from kinecal.io import atomic_write_text, prepare_output_dir, write_json
-    from kinecal.robot import dump_robot, load_robot
-    from kinecal.simulation import LaserTracker, robot_experiment, robot_truth
+    from kinecal.io import prepare_output_dir, write_json
+    from kinecal.robot import load_robot
+    from kinecal.workflows import simulate_robot_twin
+    from kinecal.workflows._simulate import write_simulation
 
     say = Progress(quiet)
     robot = load_robot(robot_name)
@@ -330,27 +298,12 @@ def _simulate_robot(
     files = ["train.csv", "test.csv", "truth.yaml", "robot.yaml", "manifest.json"]
     out = prepare_output_dir(out_dir, files, force=force)
     say("simulate", f"{robot.name}, seed {seed}")
-    tracker = (
-        LaserTracker(noise_um * 1e-6, 0.0) if noise_um is not None else LaserTracker()
-    )
-    truth = robot_truth(robot, seed=seed, extras=extras)
-    exp = robot_experiment(
-        truth,
-        seed,
-        n_train=n_train,
-        n_test=n_test,
-        q_train=q_train,
-        tracker=tracker,
-        new_session=new_session,
-    )
-    written = _write_experiment(exp, out, Path(out_dir))
-    header = f"# {robot.name} as simulated by kinecal simulate ({robot.source}).\n"
-    atomic_write_text(
-        out / "robot.yaml",
-        header + yaml.dump(dump_robot(robot), sort_keys=False),
-        force=True,
-    )
-    written["robot"] = str(Path(out_dir) / "robot.yaml")
+    sim = simulate_robot_twin(
+        robot, seed=seed, n_train=n_train, n_test=n_test, q_train=q_train,
+        extras=extras, noise_um=noise_um, new_session=new_session,
+    )  # fmt: skip
+    exp = sim.experiment
+    written = write_simulation(sim, out, Path(out_dir), robot_file=robot)
     write_json(
         out / "manifest.json",
         manifest(
@@ -362,7 +315,7 @@ def _simulate_robot(
                 "extras": list(extras),
                 "noise_um": noise_um,
                 "payload_kg": robot.payload_kg,
-                "truth": truth.description,
+                "truth": sim.description,
                 "files": written,
                 **exp.info,
             },

@@ -58,6 +58,11 @@ if TYPE_CHECKING:
         render_calibration_session,
         render_scan,
     )
+    from kinecal.workflows._simulate import (
+        SimulatedData,
+        simulate_paper_experiment,
+        simulate_robot_twin,
+    )
 
 __all__ = [
     "CalibrationRun",
@@ -70,6 +75,7 @@ __all__ = [
     "ProgramCompensation",
     "RenderedSession",
     "SensorRun",
+    "SimulatedData",
     "TargetCompensation",
     "calibrate_camera_images",
     "calibrate_measurements",
@@ -85,6 +91,8 @@ __all__ = [
     "reconstruct_scan",
     "render_calibration_session",
     "render_scan",
+    "simulate_paper_experiment",
+    "simulate_robot_twin",
 ]
 
 __getattr__, __dir__ = _lazy.exports(
@@ -130,6 +138,11 @@ __getattr__, __dir__ = _lazy.exports(
             "TargetCompensation",
             "compensate_program",
             "compensate_targets",
+        ),
+        "_simulate": (
+            "SimulatedData",
+            "simulate_paper_experiment",
+            "simulate_robot_twin",
         ),
     },
 )
