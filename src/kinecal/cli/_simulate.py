@@ -273,10 +273,9 @@ def _simulate_robot(
 
     import numpy as np
 
-    from kinecal.cli._plan import _read_poses
     from kinecal.io import prepare_output_dir, write_json
     from kinecal.robot import load_robot
-    from kinecal.workflows import simulate_robot_twin
+    from kinecal.workflows import read_pose_file, simulate_robot_twin
     from kinecal.workflows._simulate import write_simulation
 
     say = Progress(quiet)
@@ -292,7 +291,7 @@ def _simulate_robot(
         vals += [0.0] * (6 - len(vals))
         T = euler_transform([*np.array(vals[:3]) * 1e-3, *np.radians(vals[3:])])
         robot = replace(robot, T_flange_tool=T)
-    q_train = _read_poses(plan_file, robot, None)[2] if plan_file else None
+    q_train = read_pose_file(plan_file, robot, None)[2] if plan_file else None
     if q_train is None and n_train < 1:  # pragma: no cover - click checks it
         raise click.BadParameter("expected at least 1", param_hint="--n-train")
     files = ["train.csv", "test.csv", "truth.yaml", "robot.yaml", "manifest.json"]

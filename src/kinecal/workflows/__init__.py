@@ -45,6 +45,15 @@ if TYPE_CHECKING:
         forward_pose,
         import_urdf_robot,
     )
+    from kinecal.workflows._plan import (
+        PlanRun,
+        PlanSetup,
+        PoseCandidates,
+        plan_candidates,
+        plan_measurements,
+        plan_setup,
+        read_pose_file,
+    )
     from kinecal.workflows._sensor import (
         CameraRun,
         SensorRun,
@@ -71,6 +80,9 @@ __all__ = [
     "ImportedRobot",
     "ModelComparison",
     "ModelExport",
+    "PlanRun",
+    "PlanSetup",
+    "PoseCandidates",
     "PoseReport",
     "ProgramCompensation",
     "RenderedSession",
@@ -88,6 +100,10 @@ __all__ = [
     "forward_pose",
     "import_urdf_robot",
     "paper_demo",
+    "plan_candidates",
+    "plan_measurements",
+    "plan_setup",
+    "read_pose_file",
     "reconstruct_scan",
     "render_calibration_session",
     "render_scan",
@@ -143,6 +159,15 @@ __getattr__, __dir__ = _lazy.exports(
             "SimulatedData",
             "simulate_paper_experiment",
             "simulate_robot_twin",
+        ),
+        "_plan": (
+            "PlanRun",
+            "PlanSetup",
+            "PoseCandidates",
+            "plan_candidates",
+            "plan_measurements",
+            "plan_setup",
+            "read_pose_file",
         ),
     },
 )

@@ -1,0 +1,523 @@
+"""The planning workflow of ``kinecal plan``: the model and instrument a plan is for,
+the candidate poses (read or generated), and the poses chosen, ordered and reported
+(report.json's content, file units: mm, deg)."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kinecal.errors import ConfigError, DataError
+from kinecal.identification import CalibratedModel
+from kinecal.io import Table, Targets
+from kinecal.models import CalibrationModel
+from kinecal.planning import Instrument, Plan
+from kinecal.robot import RobotDescription
+
+__all__ = [
+    "PlanRun",
+    "PlanSetup",
+    "PoseCandidates",
+    "plan_candidates",
+    "plan_measurements",
+    "plan_setup",
+    "read_pose_file",
+]
+
+PRESETS = ("kinematic", "ntm", "rfcm", "full")
+
+Progress = Callable[[str, str], None]
+Say = Callable[[str], None]
+
+
+def _quiet(stage: str, detail: str = "") -> None:
+    """No progress display."""
+
+
+@dataclass(frozen=True)
+class PlanSetup:
+    """What a plan is for.
+
+    Attributes
+    ----------
+    robot : the robot.
+    model, params : the model and the parameters the design is evaluated at (the
+        calibrated ones for a sequential plan).
+    instrument : what measures each pose, and how well.
+    cal : the calibration a sequential plan adds poses to (None: a new plan).
+    targets : a sensor's targets in the user frame.
+    model_name : the model's name, or the model file of a sequential plan.
+    """
+
+    robot: RobotDescription
+    model: CalibrationModel = field(repr=False)
+    params: np.ndarray = field(repr=False)
+    instrument: Instrument
+    cal: CalibratedModel | None = field(default=None, repr=False)
+    targets: Targets | None = field(default=None, repr=False)
+    model_name: str = "full"
+
+    @property
+    def labels(self) -> tuple[str, ...] | None:
+        """The targets' labels (sensor), else None."""
+        return None if self.targets is None else self.targets.labels
+
+
+def plan_setup(
+    robot: RobotDescription,
+    model: str | CalibratedModel = "full",
+    *,
+    instrument: str | None = None,
+    noise_mm: float | None = None,
+    noise_deg: float = 0.002,
+    targets: Targets | None = None,
+    T_user_base: np.ndarray | None = None,
+    T_flange_tool: np.ndarray | None = None,
+    model_name: str | None = None,
+) -> PlanSetup:
+    """The model, design point and instrument of a plan for ``robot``.
+
+    ``model``: kinematic, ntm, rfcm, full (the nominal robot with typical compliance)
+    or a calibrated model (a sequential plan: poses to add to its calibration, at its
+    parameters, with its user and tool frames). ``instrument``: tracker, pose or sensor
+    (default: tracker, or the model's); ``noise_mm`` per axis (default 0.01), ``targets``
+    a sensor's.
+
+    Raises
+    ------
+    ConfigError
+        A calibrated model whose data were of another kind than the instrument's.
+    """
+    from kinecal.planning import planning_model
+
+    cal = model if isinstance(model, CalibratedModel) else None
+    kind_of = {"point": "tracker", "pose": "pose", "sensor": "sensor"}
+    inst_name = instrument or (
+        kind_of.get(str(cal.info.get("kind")), "tracker") if cal else "tracker"
+    )
+    inst = Instrument(
+        inst_name,
+        float(noise_mm or 0.01) * 1e-3,
+        np.radians(noise_deg),
+        None if targets is None else targets.p,
+    )
+    if cal is not None:
+        name = model_name or "model.yaml"
+        cm, x = cal.model, cal.params
+        if (inst.kind == "point") == cm.spec.cam_rotation:
+            raise ConfigError(
+                f"{name}: the model was calibrated from "
+                f"{cal.info.get('kind') or ('sensor or pose' if cm.spec.cam_rotation else 'point')}"
+                " data; "
+                f"--instrument {inst_name} measures other quantities."
+            )
+    else:
+        assert isinstance(model, str)
+        name = model_name or model
+        cm, x = planning_model(robot, model, inst, T_user_base, T_flange_tool)
+    return PlanSetup(robot, cm, x, inst, cal, targets, name)
+
+
+@dataclass(frozen=True)
+class PoseCandidates:
+    """Candidate poses of a plan.
+
+    Attributes
+    ----------
+    q : (N, n) controller joints [rad].
+    target_index : (N,) a sensor's target per pose (None: no targets).
+    table : the candidates file (None: generated).
+    source : the file's name, or ``generated``.
+    info : how they were generated (tried, rejected).
+    """
+
+    q: np.ndarray = field(repr=False)
+    target_index: np.ndarray | None = field(repr=False)
+    table: Table | None = field(repr=False)
+    source: str
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+def plan_candidates(
+    setup: PlanSetup,
+    *,
+    path: str | None = None,
+    n: int = 5000,
+    ranges: np.ndarray | None = None,
+    seed: int = 0,
+    min_j5_deg: float = 10.0,
+    min_conditioning: float = 0.05,
+    floor_mm: float | None = None,
+    station_mm: tuple[float, ...] | None = None,
+    cone_deg: float = 30.0,
+    standoff_mm: tuple[float, float] = (115.0, 135.0),
+    progress: Progress | None = None,
+) -> PoseCandidates:
+    """The candidate poses of a plan: read from ``path`` (j1_deg..jN_deg, a sensor's
+    target), or ``n`` generated within ``ranges`` (n, 2) [rad] (default the limits)
+    that pass the wrist, conditioning and floor tests, face the tracker ``station_mm``
+    within ``cone_deg`` (tracker) or see a target from ``standoff_mm`` (sensor).
+
+    Raises
+    ------
+    DataError
+        A bad candidates file, or no acceptable candidate generated.
+    """
+    from kinecal.planning import joint_candidates, sensor_candidates
+
+    say = progress or _quiet
+    robot, inst = setup.robot, setup.instrument
+    if path:
+        table, _, q, ti = read_pose_file(path, robot, setup.labels)
+        say("candidates", f"{q.shape[0]} poses from {path}")
+        return PoseCandidates(q, ti, table, path)
+    common = {
+        "ranges": ranges,
+        "seed": seed,
+        "min_j5": np.radians(min_j5_deg),
+        "min_conditioning": min_conditioning,
+        "floor_z": None if floor_mm is None else floor_mm * 1e-3,
+    }
+    say("candidates", f"generating {n} ({inst.name})")
+    if inst.name == "sensor":
+        assert inst.targets is not None
+        so = standoff_mm
+        c = sensor_candidates(
+            setup.model, setup.params, inst.targets, n,
+            standoff=(so[0] * 1e-3, so[1] * 1e-3), **common,
+        )  # fmt: skip
+    else:
+        st = station_mm
+        c = joint_candidates(
+            setup.model, setup.params, n,
+            station=None if st is None else np.array(st) * 1e-3,
+            cone=np.radians(cone_deg), **common,
+        )  # fmt: skip
+    if c.q_ctrl.shape[0] < 1:
+        why = ", ".join(f"{v} {k}" for k, v in c.rejected.items() if v)
+        raise DataError(
+            f"--n-candidates {n}: no acceptable candidate among "
+            f"{c.tried} poses drawn ({why}); expected looser --joint-range, "
+            "--min-j5-deg, --min-conditioning, --floor-mm, --station or --cone-deg."
+        )
+    info = {"generated": True, "tried": c.tried, "rejected": c.rejected}
+    return PoseCandidates(c.q_ctrl, c.target_index, None, "generated", info)
+
+
+@dataclass(frozen=True)
+class PlanRun:
+    """What :func:`plan_measurements` chose.
+
+    Attributes
+    ----------
+    plan : the chosen poses, their order and figures.
+    rows : the chosen candidates' rows (file lines, or 1-based generated indices).
+    lines : PLAN.csv's lines (the chosen rows of the candidates file, in order).
+    report : report.json's content (file units: mm, deg), without its manifest.
+    """
+
+    plan: Plan = field(repr=False)
+    rows: list[int]
+    lines: list[str] = field(repr=False)
+    report: dict[str, Any] = field(repr=False)
+
+    def csv_text(self) -> str:
+        """PLAN.csv."""
+        return "\n".join(self.lines) + "\n"
+
+
+def plan_measurements(
+    setup: PlanSetup,
+    candidates: PoseCandidates,
+    n: int,
+    *,
+    criterion: str = "I",
+    exchange: str = "fedorov",
+    priors: str = "all",
+    measured: np.ndarray | None = None,
+    measured_target_index: np.ndarray | None = None,
+    data_path: str | None = None,
+    random_draws: int = 20,
+    seed: int = 0,
+    option: str = "--poses",
+    progress: Progress | None = None,
+) -> PlanRun:
+    """Choose ``n`` of the ``candidates`` that determine ``setup``'s model best, as
+    ``kinecal plan`` does: ``criterion`` I (mean prediction variance, default), D, A,
+    E or G, greedy then ``exchange``; ordered for short joint motion; compared with
+    ``random_draws`` random plans. A sequential plan starts from the information of
+    the ``measured`` poses (its calibration's data, ``data_path``).
+
+    Raises
+    ------
+    DataError
+        Fewer distinct candidates than ``n`` (``option``: the option that asked).
+    """
+    from kinecal.planning import plan_poses
+
+    say = progress or _quiet
+    _check_distinct(candidates, n, option)
+    say("plan", f"{n} of {candidates.q.shape[0]} poses, {criterion}-optimal")
+    cal = setup.cal
+    pl = plan_poses(
+        setup.model,
+        setup.params,
+        candidates.q,
+        n,
+        setup.instrument,
+        criterion=criterion,
+        exchange=exchange,
+        priors=priors,
+        target_index=candidates.target_index,
+        calibrated=cal is not None,
+        measured=measured,
+        measured_target_index=measured_target_index,
+        calibrated_std=None if cal is None else cal.std,
+        random_draws=random_draws,
+        seed=seed,
+    )
+    if candidates.table is not None:
+        t = candidates.table
+        lines = [",".join(t.header)] + [",".join(t.rows[i]) for i in pl.index]
+        rows = [int(t.lines[i]) for i in pl.index]
+    else:
+        lines = pose_lines(setup.robot, pl.q_ctrl, pl.target_index, setup.labels)
+        rows = [int(i) + 1 for i in pl.index]
+    settings = {"criterion": criterion, "exchange": exchange, "priors": priors}
+    doc = _report(pl, setup, candidates, rows, settings, data_path)
+    return PlanRun(pl, rows, lines, doc)
+
+
+def read_pose_file(
+    path: str,
+    robot: RobotDescription,
+    labels: tuple[str, ...] | None,
+    allow: bool | None = None,
+    warn: Say | None = None,
+) -> tuple[Table, list[str], np.ndarray, np.ndarray | None]:
+    """Joint columns (and a sensor's ``target``) of a pose file: (table, cols, q, ti).
+
+    Candidates (``allow`` None) must lie within the limits; measured poses may pass them
+    by 1 deg (1 mm), and further with ``allow`` (--allow-out-of-limits: a ``warn``
+    line)."""
+    from kinecal.io import read_table
+
+    t = read_table(path)
+    pat = re.compile(r"^j(\d+)_(deg|rad|mm|m)$")
+    found = {int(m.group(1)): c for c in t.header if (m := pat.match(c))}
+    n = robot.n_joints
+    if sorted(found) != list(range(1, n + 1)):
+        have = ", ".join(found[k] for k in sorted(found)) or "none"
+        raise DataError(
+            f"{path}: joint columns {have}; robot {robot.name} needs j1_deg .. j{n}_deg."
+        )
+    cols = [found[k] for k in range(1, n + 1)]
+    q = np.empty((len(t.rows), n))
+    for k, c in enumerate(cols):
+        q[:, k] = _joint_column(t, c, k, robot, path, allow, warn)
+    deg = [k for k, c in enumerate(cols) if c.endswith("_deg")]
+    if deg and len(t.rows) >= 5:
+        vals = np.degrees(q[:, deg])
+        if np.abs(vals).max() <= 2 * np.pi + 1e-9 and np.ptp(vals, axis=0).max() > 0.05:
+            raise DataError(
+                f"{path}: columns {cols[deg[0]]}..{cols[deg[-1]]}: every value is within "
+                f"±{2 * np.pi:.2f}, which looks like radians; convert to degrees or name "
+                "the columns jK_rad."
+            )
+    ti = None
+    if labels is not None and "target" in t.header:
+        index = {lab: i for i, lab in enumerate(labels)}
+        names = [s.strip() for s in t.column("target")]
+        for lab, line in zip(names, t.lines):
+            if lab not in index:
+                raise DataError(
+                    f"{path}: line {line}, column 'target': {lab!r} is not in the "
+                    f"targets file ({', '.join(labels)})."
+                )
+        ti = np.array([index[s] for s in names], np.intp)
+    return t, cols, q, ti
+
+
+def _joint_column(
+    t: Table,
+    c: str,
+    k: int,
+    robot: RobotDescription,
+    path: str,
+    allow: bool | None,
+    warn: Say | None,
+) -> np.ndarray:
+    """Joint ``k``'s values [rad; m] from column ``c``, checked against the limits."""
+    lim = robot.limits
+    unit = c.rsplit("_", 1)[1]
+    prismatic = robot.joints[k].kind == "prismatic"
+    if prismatic != (unit in ("mm", "m")):
+        want = f"j{k + 1}_mm" if prismatic else f"j{k + 1}_deg"
+        raise DataError(f"{path}: column '{c}': joint {k + 1} needs {want}.")
+    f = {"deg": np.pi / 180, "rad": 1.0, "mm": 1e-3, "m": 1.0}[unit]
+    q = t.numbers(c) * f
+    slack = 1e-9 if allow is None else (1e-3 if prismatic else np.pi / 180)
+    bad = np.flatnonzero((q < lim[k, 0] - slack) | (q > lim[k, 1] + slack))
+    if bad.size and allow:
+        if warn is not None:
+            warn(
+                f"warning   {path}: {bad.size} rows with {c} beyond the limits of "
+                f"{robot.name} (first: line {t.lines[bad[0]]}), accepted as asked."
+            )
+    elif bad.size:
+        i = int(bad[0])
+        g = 1.0 / f
+        raise DataError(
+            f"{path}: line {t.lines[i]}, column '{c}': {q[i] * g:.6g} is outside "
+            f"the joint limits [{lim[k, 0] * g:.6g}, {lim[k, 1] * g:.6g}] of "
+            f"{robot.name}"
+            + ("." if allow is None else " (use --allow-out-of-limits to accept).")
+        )
+    return q
+
+
+def _check_distinct(cand: PoseCandidates, n: int, option: str) -> None:
+    """Refuse a plan of ``n`` poses from fewer distinct candidates (copies of one pose
+    would be chosen again and again)."""
+    from kinecal._stats import distinct_rows
+
+    ti = cand.target_index
+    key = cand.q if ti is None else np.column_stack([cand.q, ti])
+    distinct = distinct_rows(key)
+    if distinct < n:
+        src = cand.source
+        where = (
+            f"{src}: the {key.shape[0]} rows hold"
+            if src != "generated"
+            else f"the {key.shape[0]} generated candidates (--joint-range) hold"
+        )
+        raise DataError(
+            f"{where} only {distinct} distinct pose{'s' if distinct != 1 else ''}, but "
+            f"{option} {n} asks for {n}; expected at least {n} different candidate poses."
+        )
+
+
+def pose_lines(
+    robot: RobotDescription,
+    q: np.ndarray,
+    ti: np.ndarray | None,
+    labels: tuple[str, ...] | None,
+) -> list[str]:
+    """CSV lines of poses (j1_deg..jN_deg, a sensor's target)."""
+    cols = [
+        f"j{k + 1}_mm" if j.kind == "prismatic" else f"j{k + 1}_deg"
+        for k, j in enumerate(robot.joints)
+    ]
+    f = np.array([1e3 if j.kind == "prismatic" else 180 / np.pi for j in robot.joints])
+    lines = [",".join(cols + (["target"] if ti is not None else []))]
+    for i, row in enumerate(q * f):
+        cells = [f"{v:.6f}" for v in row]
+        if ti is not None and labels is not None:
+            cells.append(labels[ti[i]])
+        lines.append(",".join(cells))
+    return lines
+
+
+def _report(
+    pl: Plan,
+    setup: PlanSetup,
+    cand: PoseCandidates,
+    rows: list[int],
+    settings: dict[str, str],
+    data_path: str | None,
+) -> dict[str, Any]:
+    """The content of the plan's report.json (file units: mm, deg), without the
+    manifest."""
+    from kinecal._version import __version__
+    from kinecal.planning import prior_sigma
+
+    pb = pl.problem
+    L = pb.model.layout
+    free = np.flatnonzero(pb.free)
+    ps = prior_sigma(pb.model, settings["priors"])
+    params = []
+    for k, i in enumerate(free):
+        f = L.specs[i].unit.to_file
+        params.append(
+            {
+                "name": L.names[i],
+                "unit": L.specs[i].unit.file_unit,
+                "std_planned": pl.planned.std[k] * f,
+                "std_random": pl.random.std[k] * f,
+                "std_before": None if pl.before is None else pl.before.std[k] * f,
+                "prior_std": ps[i] * f if np.isfinite(ps[i]) else None,
+            }
+        )
+
+    def pred(p: Any) -> dict[str, float]:
+        return {
+            "heldout_rms_mm": p.heldout_rms * 1e3,
+            "model_rms_mm": p.model_rms * 1e3,
+            "floor_mm": p.floor * 1e3,
+            "ratio": p.ratio,
+        }
+
+    s = pl.selection
+    inst = setup.instrument
+    return {
+        "kinecal_version": __version__,
+        "robot": setup.robot.name,
+        "model": pb.model.spec.name,
+        "instrument": inst.name,
+        **settings,
+        "noise_mm": inst.noise * 1e3,
+        "noise_deg": float(np.degrees(inst.noise_rot)) if inst.kind == "pose" else None,
+        "n_poses": int(pl.index.size),
+        "sequential": None
+        if setup.cal is None
+        else {"model": setup.model_name, "data": data_path},
+        "candidates": {"n": int(cand.q.shape[0]), "source": cand.source, **cand.info},
+        "design": {
+            "parameters": pb.size,
+            "not_determined": [d.name for d in pb.identifiability.dropped],
+            "information": "posterior: sum_c F_c^T F_c + prior precision, F_c = whitened "
+            "Jacobian with scaled columns; covariance of the MAP estimate = its inverse",
+            "design_point": "calibrated parameters"
+            if setup.cal is not None
+            else "nominal kinematics, lambda* = 1e-4 rad/m, link moments 0.3-0.5 m",
+        },
+        "selection": {
+            "value": s.value,
+            "greedy_value": s.greedy_value,
+            "swaps": s.swaps,
+            "sweeps": s.sweeps,
+            "seconds": s.seconds,
+        },
+        "predicted": {
+            **pred(pl.planned),
+            "formula": "sqrt(3 sigma^2 + tr(M^-1 W)), "
+            "W = mean over candidates of G_c^T G_c",
+        },
+        "random": {
+            "draws": int(pl.random.heldout_rms.size),
+            "heldout_rms_mm_mean": pl.random.mean_rms * 1e3,
+            "heldout_rms_mm_sd": float(np.std(pl.random.heldout_rms) * 1e3),
+            "ratio": pl.random.ratio,
+        },
+        "before": None if pl.before is None else pred(pl.before),
+        "parameters": params,
+        "order": {
+            "candidate_rows": rows,
+            "path_deg": float(np.degrees(pl.path)),
+            "path_unordered_deg": float(np.degrees(pl.path_unordered)),
+        },
+        "warnings": pl.warnings,
+    }
+
+
+def report_path(out: str, report: str | None) -> Path:
+    """Where a plan's report goes: ``report``, else PLAN.report.json beside ``out``."""
+    if report:
+        return Path(report)
+    p = Path(out)
+    return p.with_name(p.stem + ".report.json")
