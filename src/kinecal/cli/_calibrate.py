@@ -17,9 +17,7 @@ from kinecal.cli._common import (
     Progress,
     allow_out_of_limits_option,
     check_folds,
-    check_refit_poses,
     common_options,
-    echo_diagnostics,
     jobs_option,
     manifest,
     model_file_option,
@@ -340,24 +338,8 @@ def _refit_groups(text: str | None) -> tuple[str, ...]:
     return tuple(dict.fromkeys(words))
 
 
-# A calibrated model whose median error on a data file exceeds this is not being
-# evaluated on its robot (another robot's data, another frame or units): refused.
-_OTHER_ROBOT_MM = 50.0
-
-
-def _check_same_robot(errors_mm: Any, data: str, model_path: str, robot: str) -> None:
-    import numpy as np
-
-    from kinecal.errors import DataError
-
-    med = float(np.median(errors_mm)) if len(errors_mm) else 0.0
-    if med > _OTHER_ROBOT_MM:
-        raise DataError(
-            f"{data}: the model's median error on these rows is {med:.1f} mm (expected "
-            f"at most {_OTHER_ROBOT_MM:g} mm for any calibrated robot): are they "
-            f"measurements of {robot}, the robot of {model_path}, in the frame and "
-            "set-up it was calibrated in? (--refit user,tool for a new set-up)"
-        )
+def _stderr(line: str) -> None:
+    click.echo(line, err=True)
 
 
 def _load_robot(name: str):
@@ -403,8 +385,8 @@ def evaluate(
     quiet: bool,
 ) -> None:
     """Accuracy of a calibrated model on measurements DATA.csv (held-out poses)."""
-    from kinecal.identification import evaluate as run_evaluate
-    from kinecal.io import atomic_write_text, check_data_for_model, load_model
+    from kinecal.io import atomic_write_text, load_model
+    from kinecal.workflows import evaluate_measurements
 
     if errors_out and Path(errors_out).exists() and not force:  # before the work
         raise FileExistsError(f"{errors_out}: exists; use --force to overwrite it.")
@@ -412,21 +394,14 @@ def evaluate(
     cal = load_model(model_path)
     say.begin("data", f"reading {data}")
     meas, _ = read_data_checked(data, cal.model.robot, targets, allow_out_of_limits)
-    meas, found = check_data_for_model(meas, cal)
-    echo_diagnostics(found)
     what = _refit_groups(refit)
-    check_refit_poses(meas, what)
     say.begin("evaluate", f"{meas.n} rows")
-    ev = run_evaluate(cal, meas, refit=what)
-    _check_same_robot(ev.errors_mm, data, model_path, cal.model.robot.name)
-    for d in ev.diagnostics:
-        if d.severity == "warning":
-            click.echo(f"warning   {d.message}", err=True)
+    run = evaluate_measurements(
+        cal, meas, refit=what, data_name=data, model_name=model_path, say=_stderr
+    )
+    ev, meas = run.evaluation, run.meas
     if errors_out:
-        lines = ["row,ex_mm,ey_mm,ez_mm,err_mm"]
-        for r, e, d in zip(meas.rows, ev.error_xyz_mm, ev.errors_mm):
-            lines.append(f"{r},{e[0]:.6f},{e[1]:.6f},{e[2]:.6f},{d:.6f}")
-        atomic_write_text(errors_out, "\n".join(lines) + "\n", force=force)
+        atomic_write_text(errors_out, run.errors_csv(), force=force)
     m = ev.metrics
     if as_json:
         click.echo(json.dumps(m.contract()))

@@ -271,31 +271,3 @@ def check_folds(meas: Any, k: int, groups: Any, group_name: str | None) -> None:
             f"expected at most {meas.n} (5 or 10 is usual)."
         )
     make_folds(meas, k, groups=groups, group_name=group_name or "group")
-
-
-def check_refit_poses(meas: Any, what: tuple[str, ...]) -> None:
-    """``evaluate --refit``: refuse a set whose rows hold fewer than 3 distinct poses
-    (copies of one pose let the refitted frames absorb every error: an RMS of zero)."""
-    import numpy as np
-
-    from kinecal._stats import distinct_rows
-    from kinecal.errors import IdentifiabilityError
-
-    if not what:
-        return
-    cols = [meas.q_ctrl, meas.marker_index[:, None]]
-    if meas.target_index is not None:
-        cols.append(meas.target_index[:, None])
-    key = np.hstack(cols)
-    labels = meas.set_labels or ("",)
-    for s, label in enumerate(labels):
-        rows = meas.set_index == s
-        distinct = distinct_rows(key[rows])
-        if rows.sum() >= 3 and distinct < 3:
-            name = f"set {label!r}" if label else "the data"
-            raise IdentifiabilityError(
-                f"{meas.source}: {name}: its {int(rows.sum())} rows hold only {distinct} "
-                f"distinct pose{'s' if distinct != 1 else ''} (rows repeat the same "
-                f"joint angles); --refit {','.join(what)} needs at least 3 different "
-                "poses per set (or no --refit)."
-            )

@@ -35,6 +35,10 @@ if TYPE_CHECKING:
         compensate_program,
         compensate_targets,
     )
+    from kinecal.workflows._evaluate import (
+        ModelEvaluation,
+        evaluate_measurements,
+    )
     from kinecal.workflows._export import (
         ModelExport,
         export_model,
@@ -79,6 +83,7 @@ __all__ = [
     "DemoRun",
     "ImportedRobot",
     "ModelComparison",
+    "ModelEvaluation",
     "ModelExport",
     "PlanRun",
     "PlanSetup",
@@ -95,6 +100,7 @@ __all__ = [
     "compare_measurements",
     "compensate_program",
     "compensate_targets",
+    "evaluate_measurements",
     "export_model",
     "fit_cloud_sphere",
     "forward_pose",
@@ -168,6 +174,10 @@ __getattr__, __dir__ = _lazy.exports(
             "plan_measurements",
             "plan_setup",
             "read_pose_file",
+        ),
+        "_evaluate": (
+            "ModelEvaluation",
+            "evaluate_measurements",
         ),
     },
 )

@@ -1,0 +1,133 @@
+"""The evaluation workflow of ``kinecal evaluate``: a calibrated model's accuracy on
+held-out measurements, after re-estimating the user, tool or marker frames if asked."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from kinecal.errors import DataError
+from kinecal.identification import CalibratedModel, Evaluation, Measurements
+
+__all__ = ["ModelEvaluation", "evaluate_measurements"]
+
+# A calibrated model whose median error on a data file exceeds this is not being
+# evaluated on its robot (another robot's data, another frame or units): refused.
+OTHER_ROBOT_MM = 50.0
+
+Say = Callable[[str], None]
+
+
+@dataclass(frozen=True)
+class ModelEvaluation:
+    """What :func:`evaluate_measurements` found.
+
+    Attributes
+    ----------
+    evaluation : the errors (metrics, per row) and the model used (after a refit).
+    meas : the measurements, aligned with the model's sets and markers.
+    refit : what was re-estimated first.
+    messages : the warnings found on the way (data against the model, the refit).
+    """
+
+    evaluation: Evaluation = field(repr=False)
+    meas: Measurements = field(repr=False)
+    refit: tuple[str, ...] = ()
+    messages: tuple[str, ...] = ()
+
+    def errors_csv(self) -> str:
+        """Per-row errors: ``row, ex_mm, ey_mm, ez_mm, err_mm`` (``--errors-out``)."""
+        ev = self.evaluation
+        lines = ["row,ex_mm,ey_mm,ez_mm,err_mm"]
+        for r, e, d in zip(self.meas.rows, ev.error_xyz_mm, ev.errors_mm):
+            lines.append(f"{r},{e[0]:.6f},{e[1]:.6f},{e[2]:.6f},{d:.6f}")
+        return "\n".join(lines) + "\n"
+
+
+def evaluate_measurements(
+    cal: CalibratedModel,
+    meas: Measurements,
+    *,
+    refit: tuple[str, ...] = (),
+    data_name: str | None = None,
+    model_name: str = "the model",
+    say: Say | None = None,
+) -> ModelEvaluation:
+    """The accuracy of ``cal`` on ``meas`` as ``kinecal evaluate`` finds it: the data
+    checked against the model (sets, markers, joint ranges), ``refit`` (any of 'user',
+    'tool', 'marker') re-estimated on ``meas`` first, then the errors.
+
+    ``data_name``, ``model_name``: the files, for messages; ``say`` gets each warning
+    line as it is found (they are also in ``messages``).
+
+    Raises
+    ------
+    DataError
+        Data of another robot, frame or set-up (median error over 50 mm).
+    IdentifiabilityError
+        A set with fewer than 3 distinct poses to refit its frames on.
+    """
+    from kinecal.identification import evaluate
+    from kinecal.io import check_data_for_model
+
+    lines: list[str] = []
+
+    def emit(line: str) -> None:
+        lines.append(line)
+        if say is not None:
+            say(line)
+
+    meas, found = check_data_for_model(meas, cal)
+    for d in found:
+        if d.severity == "warning":
+            emit(f"warning   {d.message}")
+    check_refit_poses(meas, refit)
+    ev = evaluate(cal, meas, refit=refit)
+    _check_same_robot(
+        ev.errors_mm, data_name or meas.source, model_name, cal.model.robot.name
+    )
+    for d in ev.diagnostics:
+        if d.severity == "warning":
+            emit(f"warning   {d.message}")
+    return ModelEvaluation(ev, meas, refit, tuple(lines))
+
+
+def _check_same_robot(
+    errors_mm: np.ndarray, data: str, model_path: str, robot: str
+) -> None:
+    med = float(np.median(errors_mm)) if len(errors_mm) else 0.0
+    if med > OTHER_ROBOT_MM:
+        raise DataError(
+            f"{data}: the model's median error on these rows is {med:.1f} mm (expected "
+            f"at most {OTHER_ROBOT_MM:g} mm for any calibrated robot): are they "
+            f"measurements of {robot}, the robot of {model_path}, in the frame and "
+            "set-up it was calibrated in? (--refit user,tool for a new set-up)"
+        )
+
+
+def check_refit_poses(meas: Measurements, what: tuple[str, ...]) -> None:
+    """``evaluate --refit``: refuse a set whose rows hold fewer than 3 distinct poses
+    (copies of one pose let the refitted frames absorb every error: an RMS of zero)."""
+    from kinecal._stats import distinct_rows
+    from kinecal.errors import IdentifiabilityError
+
+    if not what:
+        return
+    cols = [meas.q_ctrl, meas.marker_index[:, None]]
+    if meas.target_index is not None:
+        cols.append(meas.target_index[:, None])
+    key = np.hstack(cols)
+    labels = meas.set_labels or ("",)
+    for s, label in enumerate(labels):
+        rows = meas.set_index == s
+        distinct = distinct_rows(key[rows])
+        if rows.sum() >= 3 and distinct < 3:
+            name = f"set {label!r}" if label else "the data"
+            raise IdentifiabilityError(
+                f"{meas.source}: {name}: its {int(rows.sum())} rows hold only {distinct} "
+                f"distinct pose{'s' if distinct != 1 else ''} (rows repeat the same "
+                f"joint angles); --refit {','.join(what)} needs at least 3 different "
+                "poses per set (or no --refit)."
+            )
