@@ -151,20 +151,7 @@ def compensate(
     fmt = fmt or detect_program_format(targets) or "csv"
     if not Path(targets).is_file():
         raise FileNotFoundError(f"{targets}: file not found.")
-    # The output is of the input's kind: an --out named for another kind would hold
-    # what its name does not say (a FANUC program in c.csv).
-    suffix = Path(out_path).suffix.lower()
-    out_kind = "csv" if suffix == ".csv" else detect_program_format(out_path)
-    if out_kind is not None and out_kind != fmt:
-        want = "a CSV file (.csv)" if fmt == "csv" else f"a {fmt} program"
-        raise click.BadParameter(
-            f"{out_path}: the corrected {targets} is {want}; name --out for it "
-            f"(as {Path(targets).suffix or '.csv'}), not {suffix}.",
-            param_hint="--out",
-        )
-    for p in (out_path, report_path):  # refuse before the work, not after it
-        if p and Path(p).exists() and not force:
-            raise FileExistsError(f"{p}: exists; use --force to overwrite it.")
+    _check_outputs(targets, fmt, out_path, report_path, force)
     say = Progress(quiet)  # lines only for stages that last (many targets)
     cal = load_model(model_path)
     say.begin("compensate", f"reading {targets} and solving")
@@ -215,6 +202,31 @@ def compensate(
             f"error {summary['max_err_mm'] or 0:.6f} mm; wrote {out_path}"
             + (f" and {report_path}" if report_path and fmt != "csv" else "")
         )
+
+
+def _check_outputs(
+    targets: str, fmt: str, out_path: str, report_path: str | None, force: bool
+) -> None:
+    """Refuse an --out of another kind than the input, or files there without --force
+    (before the work, not after it)."""
+    from pathlib import Path
+
+    from kinecal.io import detect_program_format
+
+    # The output is of the input's kind: an --out named for another kind would hold
+    # what its name does not say (a FANUC program in c.csv).
+    suffix = Path(out_path).suffix.lower()
+    out_kind = "csv" if suffix == ".csv" else detect_program_format(out_path)
+    if out_kind is not None and out_kind != fmt:
+        want = "a CSV file (.csv)" if fmt == "csv" else f"a {fmt} program"
+        raise click.BadParameter(
+            f"{out_path}: the corrected {targets} is {want}; name --out for it "
+            f"(as {Path(targets).suffix or '.csv'}), not {suffix}.",
+            param_hint="--out",
+        )
+    for p in (out_path, report_path):
+        if p and Path(p).exists() and not force:
+            raise FileExistsError(f"{p}: exists; use --force to overwrite it.")
 
 
 def _stderr(line: str) -> None:

@@ -173,7 +173,7 @@ def simulate(
     robot.yaml (--robot: the robot file to calibrate with) and manifest.json; all of
     them or none (the folder is written at the end).
     """
-    from kinecal.io import prepare_output_dir, write_json
+    from kinecal.io import prepare_output_dir
     from kinecal.workflows._simulate import write_simulation
 
     if robot_name is not None:
@@ -199,17 +199,7 @@ def simulate(
             quiet,
         )
         return
-    for name, value in (
-        ("--plan", plan_file),
-        ("--payload-kg", payload_kg),
-        ("--new-session", new_session or None),
-        ("--tool", tool),
-    ):
-        if value is not None:
-            raise click.BadParameter(
-                f"{name} is for a twin of a robot; expected it with --robot",
-                param_hint=name,
-            )
+    _robot_only(plan_file, payload_kg, new_session, tool)
     experiment = experiment or "2"
 
     if experiment == "1" and outliers > 0:
@@ -223,22 +213,56 @@ def simulate(
     out = prepare_output_dir(out_dir, list(_SIM_FILES), force=force)
     say("simulate", f"experiment {experiment}, seed {seed}")
     sim = _run_experiment(int(experiment), seed, n_train, ex, noise_um, outliers)
-    exp = sim.experiment
     files = write_simulation(sim, out, Path(out_dir))
+    config: dict[str, Any] = {
+        "experiment": int(experiment),
+        "seed": seed,
+        "n_train": n_train,
+    }
+    config |= {"extras": list(ex), "noise_um": noise_um, "outliers": outliers}
+    tgt = f" --targets {files['targets']}" if "targets" in files else ""
+    _finish(
+        out, out_dir, sim, files, {}, config,
+        f"next: kinecal compare {files['train']} {files['test']} --robot "
+        f"fanuc-lrmate200id{tgt}",
+    )  # fmt: skip
+
+
+def _robot_only(
+    plan_file: str | None, payload_kg: float | None, new_session: bool, tool: str | None
+) -> None:
+    """Refuse the options of a twin of a robot without --robot."""
+    for name, value in (
+        ("--plan", plan_file),
+        ("--payload-kg", payload_kg),
+        ("--new-session", new_session or None),
+        ("--tool", tool),
+    ):
+        if value is not None:
+            raise click.BadParameter(
+                f"{name} is for a twin of a robot; expected it with --robot",
+                param_hint=name,
+            )
+
+
+def _finish(
+    out: Path,
+    out_dir: str,
+    sim: Any,
+    files: dict[str, str],
+    inputs: dict[str, str | None],
+    config: dict[str, Any],
+    next_line: str,
+) -> None:
+    """Write manifest.json and print what was written and what to run next."""
+    from kinecal.io import write_json
+
+    exp = sim.experiment
     write_json(
         out / "manifest.json",
         manifest(
-            {},
-            {
-                "experiment": int(experiment),
-                "seed": seed,
-                "n_train": n_train,
-                "extras": list(ex),
-                "noise_um": noise_um,
-                "outliers": outliers,
-                "files": files,
-                **exp.info,
-            },
+            inputs,
+            {**config, "files": files, **exp.info},
             files=[Path(f).name for f in files.values()],
         ),
         force=True,
@@ -246,11 +270,7 @@ def simulate(
     click.echo(f"{exp.name}: {exp.train.n} poses to calibrate, {exp.test.n} to test")
     for k, v in {**files, "manifest": str(Path(out_dir) / "manifest.json")}.items():
         click.echo(f"  {k:8s} {v}")
-    robot_arg = "fanuc-lrmate200id"
-    tgt = f" --targets {files['targets']}" if "targets" in files else ""
-    click.echo(
-        f"next: kinecal compare {files['train']} {files['test']} --robot {robot_arg}{tgt}"
-    )
+    click.echo(next_line)
 
 
 def _simulate_robot(
@@ -273,7 +293,7 @@ def _simulate_robot(
 
     import numpy as np
 
-    from kinecal.io import prepare_output_dir, write_json
+    from kinecal.io import prepare_output_dir
     from kinecal.robot import load_robot
     from kinecal.workflows import read_pose_file, simulate_robot_twin
     from kinecal.workflows._simulate import write_simulation
@@ -303,32 +323,18 @@ def _simulate_robot(
     )  # fmt: skip
     exp = sim.experiment
     written = write_simulation(sim, out, Path(out_dir), robot_file=robot)
-    write_json(
-        out / "manifest.json",
-        manifest(
-            {"robot": robot_name, "plan": plan_file},
-            {
-                "seed": seed,
-                "n_train": exp.train.n,
-                "n_test": exp.test.n,
-                "extras": list(extras),
-                "noise_um": noise_um,
-                "payload_kg": robot.payload_kg,
-                "truth": sim.description,
-                "files": written,
-                **exp.info,
-            },
-            files=[Path(f).name for f in written.values()],
-        ),
-        force=True,
-    )
-    click.echo(f"{exp.name}: {exp.train.n} poses to calibrate, {exp.test.n} to test")
-    for k, v in {**written, "manifest": str(Path(out_dir) / "manifest.json")}.items():
-        click.echo(f"  {k:8s} {v}")
-    click.echo(
+    config: dict[str, Any] = {
+        "seed": seed,
+        "n_train": exp.train.n,
+        "n_test": exp.test.n,
+    }
+    config |= {"extras": list(extras), "noise_um": noise_um}
+    config |= {"payload_kg": robot.payload_kg, "truth": sim.description}
+    _finish(
+        out, out_dir, sim, written, {"robot": robot_name, "plan": plan_file}, config,
         f"next: kinecal calibrate {written['train']} --robot {written['robot']} "
-        f"--out CAL; kinecal evaluate {written['test']} --model CAL/model.yaml"
-    )
+        f"--out CAL; kinecal evaluate {written['test']} --model CAL/model.yaml",
+    )  # fmt: skip
 
 
 @click.command()

@@ -255,27 +255,7 @@ def calibrate_sensor_images(
     from kinecal.sensor import calibrate_sensor
 
     say = progress or _quiet
-    root = Path(folder)
-    pose_dirs = sorted(p for p in root.iterdir() if p.is_dir()) if root.is_dir() else []
-    if not pose_dirs:
-        raise DataError(f"{folder}: expected one sub-folder per target pose")
-    boards, sets = [], []
-    highest = 0
-    for d in pose_dirs:
-        if not (d / "board.png").is_file():
-            raise DataError(
-                f"{d}: missing board.png (the chessboard image of this pose)"
-            )
-        files = image_files(d, "plane_*.png")
-        idx = [plane_index(f) for f in files]
-        highest = max(highest, max(idx) + 1)
-        boards.append(d / "board.png")
-        sets.append(dict(zip(idx, files)))
-    m = n_planes or highest
-    if m < highest:
-        raise DataError(
-            f"{folder}: plane images up to number {highest - 1}, but --n-planes {m}"
-        )
+    pose_dirs, boards, sets, m = _pose_folders(folder, n_planes)
     cb_files = image_files(chessboard) if chessboard is not None else []
     say(
         "images",
@@ -324,6 +304,37 @@ def calibrate_sensor_images(
     if camera is None:
         info["camera"] = camera_info(res.camera, target, square_mm)
     return SensorRun(res, tuple(boards[k] for k in skipped), status, info)
+
+
+def _pose_folders(
+    folder: str | Path, n_planes: int | None
+) -> tuple[list[Path], list[Path], list[dict[int, Path]], int]:
+    """The target poses' folders, their board images, their stripe images by plane
+    number, and the number of planes."""
+    from kinecal.io import image_files
+
+    root = Path(folder)
+    pose_dirs = sorted(p for p in root.iterdir() if p.is_dir()) if root.is_dir() else []
+    if not pose_dirs:
+        raise DataError(f"{folder}: expected one sub-folder per target pose")
+    boards, sets = [], []
+    highest = 0
+    for d in pose_dirs:
+        if not (d / "board.png").is_file():
+            raise DataError(
+                f"{d}: missing board.png (the chessboard image of this pose)"
+            )
+        files = image_files(d, "plane_*.png")
+        idx = [plane_index(f) for f in files]
+        highest = max(highest, max(idx) + 1)
+        boards.append(d / "board.png")
+        sets.append(dict(zip(idx, files)))
+    m = n_planes or highest
+    if m < highest:
+        raise DataError(
+            f"{folder}: plane images up to number {highest - 1}, but --n-planes {m}"
+        )
+    return pose_dirs, boards, sets, m
 
 
 def plane_index(path: Path) -> int:
