@@ -90,6 +90,22 @@ def run_cli() -> Callable[..., subprocess.CompletedProcess[str]]:
     return kinecal_cli
 
 
+@pytest.fixture
+def run_cli_here(
+    capsys: pytest.CaptureFixture[str],
+) -> Callable[..., subprocess.CompletedProcess[str]]:
+    """``kinecal ARGS`` in this process (:func:`kinecal.cli.main`), as ``run_cli`` gives
+    it: for tests of what a command computes, prints or writes, where a new interpreter
+    adds only its start-up time."""
+    from tests.cli_contract import run_kinecal
+
+    def run(*args: str, **_: object) -> subprocess.CompletedProcess[str]:
+        res = run_kinecal(capsys, *map(str, args))
+        return subprocess.CompletedProcess(list(args), res.code, res.out, res.err)
+
+    return run
+
+
 # Work units of `make test` on pytest-xdist workers (--dist loadgroup): one per test, but
 # a module below runs whole on one worker, so its module and session fixtures (0.3-2 s
 # each) are built once, not on each worker; modules of one group share session fixtures.

@@ -12,6 +12,12 @@ DATA = Path(__file__).parents[1] / "data" / "fanuc_lrmate200id"
 VECTORS = json.loads((DATA / "test_vectors.json").read_text())
 
 
+@pytest.fixture
+def run_cli(run_cli_here):
+    """The commands in this process: these tests check what they compute and say."""
+    return run_cli_here
+
+
 @pytest.mark.parametrize("key", sorted(VECTORS))
 def test_fk_json_reproduces_reference_vectors(run_cli, key):
     v = VECTORS[key]

@@ -16,6 +16,12 @@ from kinecal.simulation import LaserTracker, experiment2
 ROBOT = "fanuc-lrmate200id"
 
 
+@pytest.fixture
+def run_cli(run_cli_here):
+    """The commands in this process: these tests check what they compute and say."""
+    return run_cli_here
+
+
 def rows_of(path: Path) -> tuple[list[str], list[list[str]]]:
     with open(path, newline="") as f:
         data = list(csv.reader(f))

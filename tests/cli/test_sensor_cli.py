@@ -10,6 +10,12 @@ import pytest
 import yaml
 
 
+@pytest.fixture
+def run_cli(run_cli_here):
+    """The commands in this process: these tests check what they compute and say."""
+    return run_cli_here
+
+
 def test_fit_sphere_json_contract(tmp_path, run_cli):
     rng = np.random.default_rng(0)
     d = rng.normal(size=(3000, 3))
