@@ -124,7 +124,9 @@ class CartesianRun:
     fmt: str = ""
 
 
-def _frames(prog, pts, uframes, utools):
+def _frames(
+    prog: Any, pts: list[Any], uframes: dict[str, Any], utools: dict[str, Any]
+) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Per target: T_base_uframe, T_flange_tool (N, 4, 4) and why a frame is missing."""
     from kinecal.io._cartesian_programs import point_pose, rapid_frames
 
@@ -163,7 +165,9 @@ def _frames(prog, pts, uframes, utools):
     return T_uf, T_tool, why
 
 
-def _near_joints(prog, pts, robot, q_joint):
+def _near_joints(
+    prog: Any, pts: list[Any], robot: Any, q_joint: np.ndarray
+) -> np.ndarray:
     """Per target without flags: the joints to start from (the UR waypoint's own, or the
     program's last joint target before it), NaN where none."""
     n = robot.n_joints
@@ -181,7 +185,14 @@ def _near_joints(prog, pts, robot, q_joint):
     return out
 
 
-def _seeds(cal, fmt, pts, F_want, near, why):
+def _seeds(
+    cal: Any,
+    fmt: str,
+    pts: list[Any],
+    F_want: np.ndarray,
+    near: np.ndarray,
+    why: list[str],
+) -> np.ndarray:
     """The taught configuration of each target (N, n), NaN where it cannot be found."""
     from kinecal.compensation._cartesian import branch_solutions, nearest_solutions
     from kinecal.compensation._configs import config_accept
@@ -218,7 +229,7 @@ def _seeds(cal, fmt, pts, F_want, near, why):
     return seeds
 
 
-def _crossed_flags(cal, run, q_ctrl):
+def _crossed_flags(cal: Any, run: CartesianRun, q_ctrl: np.ndarray) -> list[Any]:
     """New configuration flags (per target, None: kept) where the corrected joints
     cross a configuration boundary (next to J5 = 0 or the stretched arm): the
     controller must be told the branch the correction is on; noted for the screen."""
@@ -246,7 +257,16 @@ def _crossed_flags(cal, run, q_ctrl):
     return out
 
 
-def cartesian_run(cal, prog, q_joint, uframes, utools, scale, tol_mm, decimals):
+def cartesian_run(
+    cal: Any,
+    prog: Any,
+    q_joint: np.ndarray,
+    uframes: dict[str, Any],
+    utools: dict[str, Any],
+    scale: float | None,
+    tol_mm: float,
+    decimals: int | None,
+) -> CartesianRun:
     """Correct the Cartesian targets of ``prog``; joint targets ``q_joint`` (N_j, n)
     [rad] give the starting joints of targets without flags."""
     from kinecal.compensation._cartesian import compensate_poses
@@ -299,7 +319,9 @@ def cartesian_run(cal, prog, q_joint, uframes, utools, scale, tol_mm, decimals):
     return run
 
 
-def written_errors(cal, run, text, fmt, scale):
+def written_errors(
+    cal: Any, run: CartesianRun, text: str, fmt: str, scale: float | None
+) -> tuple[np.ndarray, np.ndarray]:
     """How far the calibrated robot's tool is from each taught pose when the controller's
     nominal model interprets the written program: (position [m], rotation [rad]) (N,),
     NaN for targets not corrected."""
