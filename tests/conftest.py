@@ -180,9 +180,10 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object:
 @pytest.fixture(scope="session")
 def simulated_exp2(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """``kinecal simulate --experiment 2`` with the default seed and tracker."""
+    from kinecal.cli import main
+
     d = tmp_path_factory.mktemp("cli-exp2") / "exp2"
-    res = kinecal_cli("simulate", "--experiment", "2", "--out", str(d), "-q")
-    assert res.returncode == 0, res.stderr
+    assert main(["simulate", "--experiment", "2", "--out", str(d), "-q"]) == 0
     return d
 
 
@@ -190,12 +191,13 @@ def simulated_exp2(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def calibrated_exp1(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """``kinecal simulate --experiment 1`` (folder ``exp1``), then ``kinecal calibrate``
     of its train.csv with its targets.csv, with the report (folder ``cal``)."""
+    from kinecal.cli import main
+
     root = tmp_path_factory.mktemp("cli-exp1")
     d, out = root / "exp1", root / "cal"
-    res = kinecal_cli("simulate", "--experiment", "1", "--out", str(d), "-q")
-    assert res.returncode == 0, res.stderr
+    assert main(["simulate", "--experiment", "1", "--out", str(d), "-q"]) == 0
     assert (d / "targets.csv").is_file()
-    res = kinecal_cli(
+    code = main([
         "calibrate",
         str(d / "train.csv"),
         "--robot",
@@ -205,6 +207,6 @@ def calibrated_exp1(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Pat
         "--out",
         str(out),
         "-q",
-    )
-    assert res.returncode == 0, res.stderr
+    ])  # fmt: skip
+    assert code == 0
     return d, out
