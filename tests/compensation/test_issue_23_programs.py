@@ -16,6 +16,12 @@ from kinecal.io._programs import program_joints, read_program
 from tests.compensation.conftest import box_poses, stretched_poses
 
 
+@pytest.fixture
+def run_cli(run_cli_here):
+    """The commands in this process: these tests check what they compute and say."""
+    return run_cli_here
+
+
 def _fanuc(q_deg):
     out = ["/PROG  COMP_TEST", "/ATTR", "/MN"]
     out += [f"   {i + 1}:J P[{i + 1}] 100% FINE    ;" for i in range(len(q_deg))]

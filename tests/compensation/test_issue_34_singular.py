@@ -32,6 +32,12 @@ from tests.compensation.test_issue_34_cartesian import (
 )
 
 
+@pytest.fixture
+def run_cli(run_cli_here):
+    """The commands in this process: these tests check what they compute and say."""
+    return run_cli_here
+
+
 @pytest.fixture(scope="module")
 def model_file(tracker_twin, tmp_path_factory):
     return save_model(

@@ -27,6 +27,12 @@ ROBOT = load_robot("fanuc-lrmate200id")
 OFFSET_DEG = np.array([0.0, 10.0, 0.0, 0.0, -60.0, 0.0])
 
 
+@pytest.fixture
+def run_cli(run_cli_here):
+    """The commands in this process: these tests check what they compute and say."""
+    return run_cli_here
+
+
 def _pose_data(truth, n, rng):
     q = np.radians(rng.uniform(-50, 50, size=(n, 6)) + OFFSET_DEG)
     p, R = truth.evaluate(q, orientation=True)

@@ -19,6 +19,12 @@ REAL = Path(__file__).resolve().parents[1] / "data" / "real"
 FANUC = load_robot("fanuc-lrmate200id")
 
 
+@pytest.fixture
+def run_cli(run_cli_here):
+    """The commands in this process: these tests check what they compute and say."""
+    return run_cli_here
+
+
 def _edit_cell(text: str, line: int, column: str, value: str) -> str:
     lines = text.splitlines()
     k = lines[0].split(",").index(column)
