@@ -55,6 +55,11 @@ def compare_measurements(
     compare`` does (``priors``: all, compliance or none; ``refit_user``: refit the user
     frames on ``test``, a new instrument set-up).
 
+    Returns
+    -------
+    ModelComparison
+        Per model its calibration and held-out figures, and the table.
+
     Raises
     ------
     ValueError

@@ -111,6 +111,11 @@ def compensate_targets(
     ``payload_kg`` the load (default: the calibration's). ``say`` gets each warning
     line as it is found (they are also in ``messages``).
 
+    Returns
+    -------
+    TargetCompensation
+        The result per row and the corrected CSV (``csv_text()``).
+
     Raises
     ------
     DataError
@@ -172,6 +177,11 @@ def compensate_program(
     nominal controller must be commanded for the real robot to reach it. ``decimals``:
     of the written joints (default: the file's). ``say`` gets each message line as it
     is found (they are also in ``messages``).
+
+    Returns
+    -------
+    ProgramCompensation
+        The corrected program, its per-target report and the result per target.
     """
     from kinecal.io import read_program, write_program, written_joints
     from kinecal.models import ModelInputs

@@ -62,6 +62,11 @@ def evaluate_measurements(
     ``data_name``, ``model_name``: the files, for messages; ``say`` gets each warning
     line as it is found (they are also in ``messages``).
 
+    Returns
+    -------
+    ModelEvaluation
+        The errors and the measurements they are for.
+
     Raises
     ------
     DataError

@@ -82,6 +82,11 @@ def forward_pose(
         frame and tool marker (default: the first).
     ignore_limits : compute a pose beyond the joint limits too.
 
+    Returns
+    -------
+    PoseReport
+        The pose (``as_dict()``: the JSON object of ``kinecal fk --json``).
+
     Raises
     ------
     DataError
@@ -229,6 +234,11 @@ def import_urdf_robot(
     from ``base`` (default the root link) to ``tip`` (default the end of the chain).
 
     The written document is read back and must give the URDF's flange poses.
+
+    Returns
+    -------
+    ImportedRobot
+        The robot and its YAML text.
     """
     from kinecal import _yaml as yaml
     from kinecal.robot import dump_robot, robot_from_dict, robot_from_urdf

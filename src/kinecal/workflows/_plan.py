@@ -88,6 +88,11 @@ def plan_setup(
     (default: tracker, or the model's); ``noise_mm`` per axis (default 0.01), ``targets``
     a sensor's.
 
+    Returns
+    -------
+    PlanSetup
+        The robot, model, design point and instrument.
+
     Raises
     ------
     ConfigError
@@ -162,6 +167,11 @@ def plan_candidates(
     target), or ``n`` generated within ``ranges`` (n, 2) [rad] (default the limits)
     that pass the wrist, conditioning and floor tests, face the tracker ``station_mm``
     within ``cone_deg`` (tracker) or see a target from ``standoff_mm`` (sensor).
+
+    Returns
+    -------
+    PoseCandidates
+        The candidate joints, their targets and where they came from.
 
     Raises
     ------
@@ -253,6 +263,11 @@ def plan_measurements(
     ``random_draws`` random plans. A sequential plan starts from the information of
     the ``measured`` poses (its calibration's data, ``data_path``).
 
+    Returns
+    -------
+    PlanRun
+        The plan, PLAN.csv's lines and report.json's content.
+
     Raises
     ------
     DataError
@@ -304,7 +319,14 @@ def read_pose_file(
 
     Candidates (``allow`` None) must lie within the limits; measured poses may pass them
     by 1 deg (1 mm), and further with ``allow`` (--allow-out-of-limits: a ``warn``
-    line)."""
+    line).
+
+    Returns
+    -------
+    tuple
+        The table, its joint columns, the joints (N, n) [rad] and the target
+        indices (None without targets).
+    """
     from kinecal.io import read_table
 
     t = read_table(path)

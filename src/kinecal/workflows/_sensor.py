@@ -58,6 +58,11 @@ def reconstruct_scan(
     size of ``sensor``'s camera (``source``: the sensor file, for that message). Each
     image is read in the thread that extracts its stripes (``jobs`` threads, 0: one per
     CPU), and dropped after.
+
+    Returns
+    -------
+    ScanCloud
+        The points [m] in the camera frame, their pixels and planes.
     """
     from kinecal.io import image_files
 
@@ -80,6 +85,11 @@ def fit_cloud_sphere(
     """The sphere ``kinecal sensor fit-sphere`` fits to the cloud file ``cloud``
     (``x_mm, y_mm, z_mm``): segmented from what surrounds it (``segment``), points
     beyond ``outlier_k`` robust std rejected (0: none), the radius known or fitted.
+
+    Returns
+    -------
+    SphereFit
+        Centre and radius [m] with their standard deviations.
 
     Raises
     ------
@@ -154,6 +164,11 @@ def calibrate_camera_images(
     """Camera intrinsics from the chessboard images in ``folder`` (``*.png``), as
     ``kinecal sensor calibrate-camera`` finds them (``board``: its COLSxROWS text, for
     messages; ``square_mm``: the square as given, for the file).
+
+    Returns
+    -------
+    CameraRun
+        The calibration and the images skipped or left out.
 
     Raises
     ------
@@ -244,6 +259,11 @@ def calibrate_sensor_images(
 
     ``folder`` holds one sub-folder per target pose with ``board.png`` and
     ``plane_NNN.png``; ``camera``: intrinsics held fixed (from ``camera_source``).
+
+    Returns
+    -------
+    SensorRun
+        The calibration, the poses skipped and the planes' fit status.
 
     Raises
     ------

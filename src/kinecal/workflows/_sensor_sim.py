@@ -84,7 +84,13 @@ def render_scan(
     """Render the stripe images of one scan of a sphere (centre X, Y, Z [mm] in the
     camera frame, radius [mm]) by the built-in sensor into ``folder`` (which exists), every
     ``every``-th plane: ``plane_NNN.png``, ``sensor.yaml`` (the true sensor) and
-    ``truth.json``, as ``kinecal sensor simulate-scan`` does."""
+    ``truth.json``, as ``kinecal sensor simulate-scan`` does.
+
+    Returns
+    -------
+    RenderedSession
+        The folder and what was written.
+    """
     from kinecal.io import save_sensor, write_json
     from kinecal.sensor import (
         RenderedImages,
@@ -149,7 +155,13 @@ def render_calibration_session(
     """Render a calibration session of the built-in sensor into ``folder`` (which
     exists), as ``kinecal sensor simulate-calibration`` does: ``chessboard/view_NN.png``,
     ``planes/pose_NN/board.png`` and ``plane_NNN.png`` (every ``every``-th plane),
-    ``truth_sensor.yaml`` and ``truth.json`` (the board poses)."""
+    ``truth_sensor.yaml`` and ``truth.json`` (the board poses).
+
+    Returns
+    -------
+    RenderedSession
+        The folder and what was written.
+    """
     from kinecal.io import save_sensor, write_json
     from kinecal.sensor import paper_sensor, simulate_calibration
 

@@ -55,6 +55,11 @@ def simulate_paper_experiment(
     ``noise_um`` the per-axis noise (default: tracker 5 um + 2 um/m; sensor 4/8 um),
     ``outliers`` a fraction of tracker rows with gross errors.
 
+    Returns
+    -------
+    SimulatedData
+        The truth, the measurements to calibrate and to test, the targets.
+
     Raises
     ------
     ValueError
@@ -101,6 +106,11 @@ def simulate_robot_twin(
     compliance from its self-weight layout or link masses), as ``kinecal simulate
     --robot`` makes it: ``n_train`` random poses (or ``q_train`` (N, n) [rad]) to
     calibrate, ``n_test`` to test, from a second tracker station with ``new_session``.
+
+    Returns
+    -------
+    SimulatedData
+        The truth, the measurements to calibrate and to test.
     """
     from kinecal.simulation import LaserTracker, robot_experiment, robot_truth
 
