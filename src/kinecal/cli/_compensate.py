@@ -172,10 +172,11 @@ def compensate(
         files = {out_path: program_bytes(run.text)}
         if report_path:
             files[report_path] = run.report
-    res = run.result
-    _warn_motion(targets, res, run.where, warn_dq_deg)
+    for line in run.motion_warnings(targets, warn_dq_deg):
+        click.echo(line, err=True)
     bad = run.unreachable()
-    _echo_bad(targets, res, run.where, bad)
+    for line in run.unreachable_lines(targets):
+        click.echo(line, err=True)
     summary = {**run.summary(), "out": out_path}
     if bad and not allow_unreachable:
         from kinecal.cli._errors import CommandFailed, ExitCode
@@ -233,21 +234,6 @@ def _stderr(line: str) -> None:
     click.echo(line, err=True)
 
 
-def _echo_bad(path: str, res: Any, where: tuple[str, ...], bad: list[int]) -> None:
-    """The unreachable or out-of-limit rows on stderr (the first 50)."""
-    for i in bad[:50]:
-        joint = ""
-        if res.limit_joint[i] >= 0:
-            joint = f" (J{res.limit_joint[i] + 1} beyond its limit)"
-        click.echo(
-            f"{path}: {where[i]}: {res.status[i]}{joint}: predicted error "
-            f"{res.error[i] * 1e3:.4f} mm",
-            err=True,
-        )
-    if len(bad) > 50:
-        click.echo(f"... and {len(bad) - 50} more rows", err=True)
-
-
 def _frames(
     fmt: str, uframes: tuple[str, ...], utools: tuple[str, ...], frames_path: str | None
 ) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -258,30 +244,3 @@ def _frames(
     uf.update(parse_frames(uframes, fmt, "--uframe"))
     ut.update(parse_frames(utools, fmt, "--utool"))
     return uf, ut
-
-
-def _warn_motion(
-    path: str, res: Any, where: tuple[str, ...], warn_dq_deg: float
-) -> None:
-    """Warnings for corrections that move a joint far, and for singular poses solved
-    with the least joint motion."""
-    import numpy as np
-
-    dq = np.degrees(np.abs(res.joint_change))
-    moved = np.flatnonzero((res.status == "ok") & (dq.max(axis=1) > warn_dq_deg))
-    for i in moved[:50]:
-        j = int(np.argmax(dq[i]))
-        click.echo(
-            f"warning   {path}: {where[i]}: the correction moves J{j + 1} by "
-            f"{dq[i, j]:.3f} deg (more than --warn-dq-deg {warn_dq_deg:g})",
-            err=True,
-        )
-    relaxed = np.zeros(0, int) if res.relaxed is None else np.flatnonzero(res.relaxed)
-    for i in relaxed[:50]:
-        click.echo(
-            f"warning   {path}: {where[i]}: next to a singular pose: position met, "
-            f"the tool turned {np.degrees(res.rotation_error[i]):.4f} deg from the wanted "
-            "orientation to keep the joints still (largest joint change "
-            f"{dq[i].max():.4f} deg)",
-            err=True,
-        )

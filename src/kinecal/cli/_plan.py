@@ -17,7 +17,6 @@ from kinecal.cli._common import (
     common_options,
     manifest,
 )
-from kinecal.cli._plan_report import echo_summary
 
 if TYPE_CHECKING:
     from kinecal.workflows import PlanSetup
@@ -321,7 +320,11 @@ def _run(kw: dict[str, Any], say: Progress) -> None:
     files[str(rep)] = json_text(doc)
     atomic_write_files(files, force=kw["force"])  # all of them or none
     saved = [kw["save_candidates"]] if kw["save_candidates"] else []
-    echo_summary(doc, out, rep, kw["as_json"], saved)
+    if kw["as_json"]:
+        click.echo(json.dumps(run.summary(out, rep)))
+        return
+    for line, err in run.summary_lines(out, rep, saved):
+        click.echo(line, err=err)
 
 
 def _stderr(line: str) -> None:

@@ -47,6 +47,47 @@ class _Compensation:
         """The rows not corrected for another reason than being left as written."""
         return [i for i, s in enumerate(self.result.status) if s not in ("ok", "left")]
 
+    def motion_warnings(self, path: str, warn_dq_deg: float = 1.0) -> list[str]:
+        """Warnings for corrections that move a joint by more than ``warn_dq_deg``, and
+        for singular poses solved with the least joint motion (the first 50 each)."""
+        res, where = self.result, self.where
+        dq = np.degrees(np.abs(res.joint_change))
+        moved = np.flatnonzero((res.status == "ok") & (dq.max(axis=1) > warn_dq_deg))
+        out = []
+        for i in moved[:50]:
+            j = int(np.argmax(dq[i]))
+            out.append(
+                f"warning   {path}: {where[i]}: the correction moves J{j + 1} by "
+                f"{dq[i, j]:.3f} deg (more than --warn-dq-deg {warn_dq_deg:g})"
+            )
+        relaxed = (
+            np.zeros(0, int) if res.relaxed is None else np.flatnonzero(res.relaxed)
+        )
+        for i in relaxed[:50]:
+            out.append(
+                f"warning   {path}: {where[i]}: next to a singular pose: position met, "
+                f"the tool turned {np.degrees(res.rotation_error[i]):.4f} deg from the "
+                "wanted orientation to keep the joints still (largest joint change "
+                f"{dq[i].max():.4f} deg)"
+            )
+        return out
+
+    def unreachable_lines(self, path: str) -> list[str]:
+        """The unreachable or out-of-limit rows, one line each (the first 50)."""
+        res, bad = self.result, self.unreachable()
+        out = []
+        for i in bad[:50]:
+            joint = ""
+            if res.limit_joint[i] >= 0:
+                joint = f" (J{res.limit_joint[i] + 1} beyond its limit)"
+            out.append(
+                f"{path}: {self.where[i]}: {res.status[i]}{joint}: predicted error "
+                f"{res.error[i] * 1e3:.4f} mm"
+            )
+        if len(bad) > 50:
+            out.append(f"... and {len(bad) - 50} more rows")
+        return out
+
     def summary(self) -> dict[str, Any]:
         """The figures of ``kinecal compensate --json`` (without ``out``)."""
         res = self.result

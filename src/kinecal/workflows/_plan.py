@@ -240,6 +240,83 @@ class PlanRun:
         """PLAN.csv."""
         return "\n".join(self.lines) + "\n"
 
+    def summary(self, out: Path, rep: Path) -> dict[str, Any]:
+        """The JSON object ``kinecal plan --json`` prints."""
+        keys = ("n_poses", "predicted", "random", "selection", "order")
+        doc = self.report
+        return {k: doc[k] for k in keys} | {"out": str(out), "report": str(rep)}
+
+    def summary_lines(
+        self, out: Path, rep: Path, extra: list[str] | None = None
+    ) -> list[tuple[str, bool]]:
+        """The lines ``kinecal plan`` prints, each with whether it goes to stderr
+        (``extra``: further files written)."""
+        doc = self.report
+        lines: list[tuple[str, bool]] = []
+
+        def say(text: str, err: bool = False) -> None:
+            lines.append((text, err))
+
+        d, pr, rd = doc["design"], doc["predicted"], doc["random"]
+        say(f"candidates {doc['candidates']['n']} ({doc['candidates']['source']})")
+        say(
+            f"model      {doc['model']}: {d['parameters']} parameters in the design"
+            + (
+                f"; not determined by any candidate: {', '.join(d['not_determined'])}"
+                if d["not_determined"]
+                else ""
+            )
+        )
+        s = doc["selection"]
+        say(
+            f"plan       {doc['n_poses']} poses, {doc['criterion']}-optimal (greedy + "
+            f"{doc['exchange']}: {s['swaps']} swaps, {s['seconds']:.2f} s)"
+        )
+        if doc.get("before"):
+            b = doc["before"]
+            say(
+                f"before     held-out RMS {b['heldout_rms_mm']:.4f} mm = {b['ratio']:.3f}x "
+                "the noise floor"
+            )
+        say(
+            f"predicted  held-out RMS {pr['heldout_rms_mm']:.4f} mm = {pr['ratio']:.3f}x the "
+            f"noise floor {pr['floor_mm']:.4f} mm"
+        )
+        say(
+            f"random     held-out RMS {rd['heldout_rms_mm_mean']:.4f} mm = {rd['ratio']:.3f}x "
+            f"(mean of {rd['draws']} random plans of {doc['n_poses']})"
+        )
+        ratios = [
+            (p["std_planned"] / p["std_random"], p["name"])
+            for p in doc["parameters"]
+            if p["std_random"]
+        ]
+        loose = sorted(
+            (
+                (p["std_planned"] / p["prior_std"], p["name"])
+                for p in doc["parameters"]
+                if p["prior_std"]
+            ),
+            reverse=True,
+        )[:3]
+        if ratios:
+            med = sorted(r for r, _ in ratios)[len(ratios) // 2]
+            text = f"std        planned / random: median {med:.2f} over the parameters"
+            if loose:
+                text += "; least determined (std / prior): " + ", ".join(
+                    f"{name} {r:.2f}" for r, name in loose
+                )
+            say(text)
+        o = doc["order"]
+        say(
+            f"motion     {o['path_deg']:.0f} deg of largest-joint motion along the plan "
+            f"({o['path_unordered_deg']:.0f} in the order chosen)"
+        )
+        for w in doc["warnings"]:
+            say(f"warning    {w}", True)
+        say(f"wrote      {', '.join(map(str, [out, rep, *(extra or [])]))}")
+        return lines
+
 
 def plan_measurements(
     setup: PlanSetup,
