@@ -161,15 +161,7 @@ def export_urdf(
         tool_link=tool_link,
         user_link=user_link,
     )
-    if ex.loss_rms_mm is not None:
-        click.echo(
-            f"warning: {out_path} holds the geometry only, not the compliance and "
-            f"transmission terms: without them the prediction moves by "
-            f"{ex.loss_rms_mm:.4f} mm RMS, {ex.loss_max_mm:.4f} mm max over "
-            f"{ex.loss_where}.",
-            err=True,
-        )
-    for w in ex.warnings:
-        click.echo(f"warning: {w}", err=True)
+    for w in ex.warning_lines(out_path):
+        click.echo(w, err=True)
     atomic_write_text(out_path, ex.text, force=force)
     click.echo(f"{ex.robot}: wrote {out_path} {ex.detail}")

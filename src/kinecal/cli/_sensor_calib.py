@@ -83,7 +83,7 @@ def fit_sphere_cmd(
     circle), or too flat for their noise, are refused (exit 2).
     """
     from kinecal.workflows import fit_cloud_sphere
-    from kinecal.workflows._sensor import sphere_dict
+    from kinecal.workflows._sensor import sphere_dict, sphere_lines
 
     if radius_mm is not None and not radius_mm > 0:
         raise click.BadParameter(
@@ -95,34 +95,13 @@ def fit_sphere_cmd(
     if as_json:
         click.echo(json.dumps(sphere_dict(f)))
         return
-    d = sphere_dict(f)
-    click.echo("centre  x {:.4f}  y {:.4f}  z {:.4f}  mm".format(*d["center_mm"]))
-    click.echo("  std   x {:.5f}  y {:.5f}  z {:.5f}  mm".format(*d["center_std_mm"]))
-    click.echo(
-        f"radius  {d['radius_mm']:.4f} mm"
-        + (" (fixed)" if radius_mm else f"  std {d['radius_std_mm']:.5f} mm")
-    )
-    click.echo(
-        f"rms     {d['rms_mm']:.5f} mm over {f.n} of {f.inliers.size} points; cap "
-        f"half-angle {d['cap_half_angle_deg']:.1f} deg"
-    )
+    click.echo("\n".join(sphere_lines(f, fixed=bool(radius_mm))))
 
 
 def _print_camera(cc: Any) -> None:
-    cam = cc.camera
-    for name in ("fx", "fy", "u0", "v0", "k1", "k2", "k3", "p1", "p2"):
-        if name in cc.fixed:
-            why = ""
-            if name == "k3" and cc.k3_test:
-                t = cc.k3_test
-                why = (
-                    "  (not determined: its std would move the image corner by "
-                    f"{t.get('corner_px', float('nan')):.3f} px, over the "
-                    f"{t.get('limit_px', float('nan')):.3f} px limit)"
-                )
-            click.echo(f"  {name:3s} {getattr(cam, name):14.6f}  fixed{why}")
-        else:
-            click.echo(f"  {name:3s} {getattr(cam, name):14.6f}  ± {cc.std[name]:.6f}")
+    from kinecal.workflows._sensor import camera_lines
+
+    click.echo("\n".join(camera_lines(cc)))
 
 
 @click.command("calibrate-camera")

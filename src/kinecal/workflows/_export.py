@@ -46,6 +46,19 @@ class ModelExport:
     loss_where: str = ""
     warnings: tuple[str, ...] = ()
 
+    def warning_lines(self, path: str) -> list[str]:
+        """The warnings ``kinecal export-urdf`` prints for the file ``path``: what the
+        file leaves out, then the others."""
+        out = []
+        if self.loss_rms_mm is not None:
+            out.append(
+                f"warning: {path} holds the geometry only, not the compliance and "
+                f"transmission terms: without them the prediction moves by "
+                f"{self.loss_rms_mm:.4f} mm RMS, {self.loss_max_mm:.4f} mm max over "
+                f"{self.loss_where}."
+            )
+        return out + [f"warning: {w}" for w in self.warnings]
+
 
 def export_model(
     cal: CalibratedModel,

@@ -130,6 +130,41 @@ def sphere_dict(f: SphereFit) -> dict[str, Any]:
     }
 
 
+def sphere_lines(f: SphereFit, fixed: bool = False) -> list[str]:
+    """The lines ``kinecal sensor fit-sphere`` prints (``fixed``: the radius was
+    given)."""
+    d = sphere_dict(f)
+    return [
+        "centre  x {:.4f}  y {:.4f}  z {:.4f}  mm".format(*d["center_mm"]),
+        "  std   x {:.5f}  y {:.5f}  z {:.5f}  mm".format(*d["center_std_mm"]),
+        f"radius  {d['radius_mm']:.4f} mm"
+        + (" (fixed)" if fixed else f"  std {d['radius_std_mm']:.5f} mm"),
+        f"rms     {d['rms_mm']:.5f} mm over {f.n} of {f.inliers.size} points; cap "
+        f"half-angle {d['cap_half_angle_deg']:.1f} deg",
+    ]
+
+
+def camera_lines(cc: CameraCalibration) -> list[str]:
+    """The intrinsics as the calibration commands print them: value and std, or why
+    a term is fixed."""
+    cam = cc.camera
+    out = []
+    for name in ("fx", "fy", "u0", "v0", "k1", "k2", "k3", "p1", "p2"):
+        if name in cc.fixed:
+            why = ""
+            if name == "k3" and cc.k3_test:
+                t = cc.k3_test
+                why = (
+                    "  (not determined: its std would move the image corner by "
+                    f"{t.get('corner_px', float('nan')):.3f} px, over the "
+                    f"{t.get('limit_px', float('nan')):.3f} px limit)"
+                )
+            out.append(f"  {name:3s} {getattr(cam, name):14.6f}  fixed{why}")
+        else:
+            out.append(f"  {name:3s} {getattr(cam, name):14.6f}  ± {cc.std[name]:.6f}")
+    return out
+
+
 @dataclass(frozen=True)
 class CameraRun:
     """What :func:`calibrate_camera_images` found.
