@@ -1,0 +1,56 @@
+"""ISO 9283 pose accuracy and repeatability (ISO 9283:1998, 6.2, 7.2 and 7.4).
+
+The test cube and its five points (:class:`IsoCube`), the test program by inverse
+kinematics (:func:`iso_plan`, :func:`plan_iso9283`), the standard's characteristics
+(:func:`pose_characteristics`: AP, RP per point; :func:`distance_characteristics`: AD, RD)
+and the evaluation of measured cycles with a calibrated model and with the nominal robot
+(:func:`evaluate_iso9283`). Definitions and how they differ from RMS: docs/iso9283.md.
+"""
+
+from kinecal.iso9283._characteristics import (
+    DistanceFigures,
+    PointFigures,
+    distance_characteristics,
+    orientation_abc,
+    pose_characteristics,
+)
+from kinecal.iso9283._cube import PLANES, POINT_LABELS, VISIT_ORDER, IsoCube, iso_cube
+from kinecal.iso9283._evaluate import (
+    IsoEvaluation,
+    IsoFigures,
+    evaluate_iso9283,
+    nominal_placed,
+)
+from kinecal.iso9283._plan import (
+    DEFAULT_CYCLES,
+    TOOL_DOWN,
+    IsoPlan,
+    iso_plan,
+    nominal_model,
+    place_cube,
+    plan_iso9283,
+)
+
+__all__ = [
+    "DEFAULT_CYCLES",
+    "PLANES",
+    "POINT_LABELS",
+    "TOOL_DOWN",
+    "VISIT_ORDER",
+    "DistanceFigures",
+    "IsoCube",
+    "IsoEvaluation",
+    "IsoFigures",
+    "IsoPlan",
+    "PointFigures",
+    "distance_characteristics",
+    "evaluate_iso9283",
+    "iso_cube",
+    "iso_plan",
+    "nominal_model",
+    "nominal_placed",
+    "orientation_abc",
+    "place_cube",
+    "plan_iso9283",
+    "pose_characteristics",
+]
