@@ -27,6 +27,7 @@ from kinecal.cli._common import (
     read_data_checked,
     targets_option,
 )
+from kinecal.cli._iso9283 import iso_evaluate_options, run_iso_evaluate
 
 
 def _options_from(loss: str, priors: str, stage2: str):
@@ -388,8 +389,9 @@ def _load_robot(name: str):
     type=click.Path(dir_okay=False),
     help="Write per-row errors (row, ex_mm, ey_mm, ez_mm, err_mm) to this CSV.",
 )
+@iso_evaluate_options
 @allow_out_of_limits_option
-@click.option("--force", is_flag=True, help="Overwrite --errors-out.")
+@click.option("--force", is_flag=True, help="Overwrite --errors-out (and --out).")
 @common_options
 def evaluate(
     data: str,
@@ -398,11 +400,15 @@ def evaluate(
     refit: str | None,
     as_json: bool,
     errors_out: str | None,
+    iso9283: bool,
+    iso_out: str | None,
     allow_out_of_limits: bool,
     force: bool,
     quiet: bool,
 ) -> None:
-    """Accuracy of a calibrated model on measurements DATA.csv (held-out poses)."""
+    """Accuracy of a calibrated model on measurements DATA.csv (held-out poses).
+
+    With --iso9283: the ISO 9283 figures of a pose test (docs/iso9283.md)."""
     from kinecal.identification import evaluate as run_evaluate
     from kinecal.io import atomic_write_text, check_data_for_model, load_model
 
@@ -427,6 +433,12 @@ def evaluate(
         for r, e, d in zip(meas.rows, ev.error_xyz_mm, ev.errors_mm):
             lines.append(f"{r},{e[0]:.6f},{e[1]:.6f},{e[2]:.6f},{d:.6f}")
         atomic_write_text(errors_out, "\n".join(lines) + "\n", force=force)
+    if iso9283 or iso_out:
+        if not iso9283:
+            raise click.UsageError("--out is for --iso9283.")
+        return run_iso_evaluate(
+            cal, meas, data, what, iso_out, force, as_json, model_path
+        )
     m = ev.metrics
     if as_json:
         click.echo(json.dumps(m.contract()))

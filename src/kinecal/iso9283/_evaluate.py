@@ -36,7 +36,7 @@ from kinecal.iso9283._characteristics import (
     pose_characteristics,
 )
 from kinecal.iso9283._cube import POINT_LABELS
-from kinecal.iso9283._plan import DEFAULT_CYCLES
+from kinecal.iso9283._plan import DEFAULT_CYCLES, joint_samples
 from kinecal.typing import ArrayLike, Float
 
 __all__ = ["IsoEvaluation", "IsoFigures", "evaluate_iso9283", "nominal_placed"]
@@ -212,9 +212,7 @@ def nominal_placed(cal: CalibratedModel, *, seed: int = 0) -> CalibratedModel:
     ``cal``'s predictions over random joint values within the limits (every set and
     marker): the robot as the controller knows it, placed where ``cal`` says it is."""
     model = cal.model
-    lim = model.robot.limits
-    rng = np.random.default_rng(seed)
-    q = lim[:, 0] + rng.random((_PLACE_SAMPLES, lim.shape[0])) * (lim[:, 1] - lim[:, 0])
+    q = joint_samples(model.robot, _PLACE_SAMPLES, seed)
     S, K = len(model.spec.sets), len(model.spec.markers)
     si = np.repeat(np.arange(S), K * _PLACE_SAMPLES)
     mi = np.tile(np.repeat(np.arange(K), _PLACE_SAMPLES), S)

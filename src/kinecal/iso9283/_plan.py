@@ -86,13 +86,22 @@ def nominal_model(
     )
 
 
+def joint_samples(robot: RobotDescription, n: int, seed: int) -> Float:
+    """``n`` controller poses (n, joints) uniform within the joint limits (+-170 deg or
+    +-0.5 m where a joint has none), seeded."""
+    lim = robot.limits.copy()
+    wide = np.where(robot.prismatic, 0.5, np.radians(170.0))
+    lim[:, 0] = np.where(np.isfinite(lim[:, 0]), lim[:, 0], -wide)
+    lim[:, 1] = np.where(np.isfinite(lim[:, 1]), lim[:, 1], wide)
+    rng = np.random.default_rng(seed)
+    return lim[:, 0] + rng.random((n, lim.shape[0])) * (lim[:, 1] - lim[:, 0])
+
+
 def _samples(
     model: CalibrationModel, params: Float, seed: int
 ) -> tuple[Float, Float, Float]:
     """Random joint samples within the limits and their tool poses: (q, p, R)."""
-    lim = model.robot.limits
-    rng = np.random.default_rng(seed)
-    q = lim[:, 0] + rng.random((_SAMPLES, lim.shape[0])) * (lim[:, 1] - lim[:, 0])
+    q = joint_samples(model.robot, _SAMPLES, seed)
     out = model.evaluate(params, ModelInputs.make(q), orientation=True)
     assert out.R_user_cam is not None
     return q, out.p_user, out.R_user_cam
@@ -142,6 +151,7 @@ def _centre_solutions(
     near = np.argsort(_distance(samples, centres, R), axis=1)[:, :S]  # (K, S)
     q, ok = _reach(model, params, np.repeat(centres, S, 0), R, samples[0][near.ravel()])
     lim = model.robot.limits
+    lim = np.where(np.isfinite(lim), lim, np.sign(lim) * np.pi)
     off = (q - lim.mean(axis=1)) / (lim[:, 1] - lim[:, 0])
     spread = np.where(ok, np.sum(off**2, axis=1), np.inf).reshape(K, S)
     best = np.argmin(spread, axis=1)

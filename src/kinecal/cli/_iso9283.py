@@ -1,0 +1,337 @@
+"""ISO 9283 hooks of ``kinecal plan --iso9283`` and ``kinecal evaluate --iso9283``.
+
+The options and the work live here; ``cli/_plan.py`` and ``cli/_calibrate.py`` only apply
+the option decorators and call :func:`run_iso_plan` / :func:`run_iso_evaluate`.
+File columns (docs/iso9283.md): the plan's joint columns, ``iso_point`` (P1..P5),
+``iso_cycle`` (1..n), ``cmd_x_mm, cmd_y_mm, cmd_z_mm`` (command position in the robot
+base frame) and ``cmd_a_deg, cmd_b_deg, cmd_c_deg`` (command orientation about x, y, z).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import click
+
+from kinecal.cli._common import FiniteFloat, Progress
+
+POINT_COLUMN, CYCLE_COLUMN = "iso_point", "iso_cycle"
+_PLAN_FLAGS = ("candidates", "poses", "add_n")
+
+
+def iso_plan_options(f: Callable[..., Any]) -> Callable[..., Any]:
+    """The ``--iso9283`` options of ``kinecal plan``."""
+    opts = [
+        click.option(
+            "--iso9283",
+            is_flag=True,
+            help="Write the ISO 9283 pose test instead: the cube's test points P1-P5 "
+            "in cycles (P1, P5, P4, P3, P2), joints by the nominal IK, columns "
+            "iso_point, iso_cycle and the command pose cmd_*.",
+        ),
+        click.option(
+            "--cube-mm",
+            type=FiniteFloat(0.0, low_open=True),
+            help="ISO 9283: cube edge [mm; default the largest reachable].",
+        ),
+        click.option(
+            "--cube-centre",
+            metavar="X,Y,Z",
+            help="ISO 9283: cube centre in the robot base frame [mm; default searched "
+            "in front of the robot].",
+        ),
+        click.option(
+            "--cycles",
+            type=click.IntRange(min=2),
+            default=30,
+            show_default=True,
+            help="ISO 9283: cycles of the test.",
+        ),
+        click.option(
+            "--orientation",
+            metavar="R,W,P",
+            help="ISO 9283: tool orientation in the robot base frame [deg; Rz(R) Ry(W) "
+            "Rx(P); default the tool z axis down: 0,0,180].",
+        ),
+        click.option(
+            "--iso-plane",
+            type=click.Choice(
+                ("C1-C2-C7-C8", "C2-C3-C8-C5", "C3-C4-C5-C6", "C4-C1-C6-C7")
+            ),
+            default="C1-C2-C7-C8",
+            show_default=True,
+            help="ISO 9283: the cube's diagonal test plane.",
+        ),
+    ]
+    for o in reversed(opts):
+        f = o(f)
+    return f
+
+
+def _numbers(text: str, n: int, name: str) -> list[float]:
+    import math
+
+    try:
+        vals = [float(t) for t in text.split(",")]
+    except ValueError:
+        vals = []
+    if len(vals) != n or not all(math.isfinite(v) for v in vals):
+        raise click.BadParameter(
+            f"expected {n} comma-separated numbers; got {text!r}", param_hint=name
+        )
+    return vals
+
+
+def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
+    """``kinecal plan --iso9283``: PLAN.csv and PLAN.report.json."""
+    import numpy as np
+
+    from kinecal.geometry import euler_zyx_to_matrix
+    from kinecal.io import atomic_write_files, json_text
+    from kinecal.iso9283 import POINT_LABELS, VISIT_ORDER, orientation_abc, plan_iso9283
+    from kinecal.robot import load_robot
+
+    given = [f"--{k.replace('_n', '')}" for k in _PLAN_FLAGS if kw.get(k)]
+    if given:
+        raise click.UsageError(
+            f"--iso9283 writes the standard's test poses; {', '.join(given)} choose "
+            "calibration poses (give one or the other)."
+        )
+    if not kw["robot_name"]:
+        raise click.UsageError("--iso9283 needs --robot NAME|FILE.")
+    out = Path(kw["out_path"])
+    rep = (
+        Path(kw["report_path"])
+        if kw["report_path"]
+        else out.with_name(out.stem + ".report.json")
+    )
+    for p in (out, rep):
+        if p.exists() and not kw["force"]:
+            raise FileExistsError(f"{p} exists; use --force to overwrite it.")
+    robot = load_robot(kw["robot_name"])
+    R = None
+    if kw["orientation"]:
+        rwp = _numbers(kw["orientation"], 3, "--orientation")
+        R = euler_zyx_to_matrix(np.radians(rwp))
+    centre = None
+    if kw["cube_centre"]:
+        centre = np.array(_numbers(kw["cube_centre"], 3, "--cube-centre")) * 1e-3
+    edge = None if kw["cube_mm"] is None else kw["cube_mm"] * 1e-3
+    say("iso9283", "placing the cube" if edge is None else "checking the cube")
+    pl = plan_iso9283(
+        robot,
+        edge=edge,
+        centre=centre,
+        R_base_tool=R,
+        cycles=kw["cycles"],
+        plane=kw["iso_plane"],
+        seed=kw["seed"],
+    )
+    joint_cols = [
+        f"j{k + 1}_mm" if j.kind == "prismatic" else f"j{k + 1}_deg"
+        for k, j in enumerate(robot.joints)
+    ]
+    f = np.array([1e3 if j.kind == "prismatic" else 180 / np.pi for j in robot.joints])
+    abc = np.degrees(orientation_abc(pl.R_base_tool))
+    cmd_cols = [
+        "cmd_x_mm",
+        "cmd_y_mm",
+        "cmd_z_mm",
+        "cmd_a_deg",
+        "cmd_b_deg",
+        "cmd_c_deg",
+    ]
+    lines = [",".join([*joint_cols, POINT_COLUMN, CYCLE_COLUMN, *cmd_cols])]
+    pts_mm = pl.cube.points * 1e3
+    for q, k, c in zip(pl.q_ctrl * f, pl.point_index, pl.cycle):
+        cells = [f"{v:.6f}" for v in q] + [POINT_LABELS[k], str(c)]
+        cells += [f"{v:.4f}" for v in pts_mm[k]] + [f"{v:.6f}" for v in abc]
+        lines.append(",".join(cells))
+    cube = pl.cube
+    doc = {
+        "iso9283_plan": {
+            "standard": "ISO 9283:1998, 6.2 (cube, test plane, P1..P5), 7.2.1 (cycles)",
+            "robot": robot.name,
+            "frame": "robot base (the robot file's base; FANUC: World)",
+            "cube": {
+                "centre_mm": (cube.centre * 1e3).tolist(),
+                "edge_mm": cube.edge * 1e3,
+                "plane": cube.plane,
+                "diagonal_mm": cube.diagonal * 1e3,
+                "corners_mm": {
+                    f"C{i + 1}": c.tolist() for i, c in enumerate(cube.corners * 1e3)
+                },
+            },
+            "orientation_abc_deg": abc.tolist(),
+            "cycles": pl.cycles,
+            "order": list(VISIT_ORDER),
+            "points": [
+                {
+                    "point": lab,
+                    "command_mm": pts_mm[i].tolist(),
+                    "joints": dict(zip(joint_cols, (pl.q_points[i] * f).tolist())),
+                }
+                for i, lab in enumerate(POINT_LABELS)
+            ],
+            "rows": len(lines) - 1,
+        }
+    }
+    atomic_write_files(
+        {str(out): "\n".join(lines) + "\n", str(rep): json_text(doc)},
+        force=kw["force"],
+    )
+    if kw["as_json"]:
+        click.echo(json.dumps(doc))
+        return
+    click.echo(
+        f"cube      edge {cube.edge * 1e3:.1f} mm, centre "
+        + ", ".join(f"{v:.1f}" for v in cube.centre * 1e3)
+        + f" mm (robot base), plane {cube.plane}"
+    )
+    for i, lab in enumerate(POINT_LABELS):
+        click.echo(
+            f"{lab}        "
+            + ", ".join(f"{v:8.2f}" for v in pts_mm[i])
+            + " mm   joints "
+            + " ".join(f"{v:.2f}" for v in pl.q_points[i] * f)
+        )
+    click.echo(
+        f"program   {pl.cycles} cycles of {' -> '.join(VISIT_ORDER)}: "
+        f"{len(lines) - 1} rows"
+    )
+    click.echo(f"wrote     {out}, {rep}")
+
+
+def iso_evaluate_options(f: Callable[..., Any]) -> Callable[..., Any]:
+    """The ``--iso9283`` options of ``kinecal evaluate``."""
+    f = click.option(
+        "--out",
+        "iso_out",
+        type=click.Path(file_okay=False),
+        help="With --iso9283: folder for report.json (an iso9283 block) and "
+        "report.html.",
+    )(f)
+    return click.option(
+        "--iso9283",
+        is_flag=True,
+        help="ISO 9283 figures of a pose test (plan --iso9283 with measured x_mm.. "
+        "and iso_point, iso_cycle columns): AP, RP per point, AD, RD; with the model "
+        "and with the nominal robot.",
+    )(f)
+
+
+def _labels(data: str, rows: Any) -> tuple[Any, Any]:
+    """``iso_point`` and ``iso_cycle`` of the data rows (by file line)."""
+    import numpy as np
+
+    from kinecal.errors import DataError
+    from kinecal.io import read_table
+
+    t = read_table(data)
+    missing = [c for c in (POINT_COLUMN, CYCLE_COLUMN) if c not in t.header]
+    if missing:
+        raise DataError(
+            f"{data}: no column {' or '.join(repr(c) for c in missing)}; --iso9283 needs "
+            f"the test point ({POINT_COLUMN}: P1..P5) and the cycle ({CYCLE_COLUMN}: "
+            "1, 2, ...) of every row, as plan --iso9283 writes them."
+        )
+    kp, kc = t.header.index(POINT_COLUMN), t.header.index(CYCLE_COLUMN)
+    by_line = {line: row for line, row in zip(t.lines, t.rows)}
+    points, cycles = [], []
+    for r in rows:
+        row = by_line[int(r)]
+        text = row[kc].strip()
+        try:
+            c = int(text)
+            if c < 1 or str(c) != text.lstrip("+"):
+                raise ValueError
+        except ValueError:
+            raise DataError(
+                f"{data}: line {r}, column '{CYCLE_COLUMN}': {text!r} is not a cycle "
+                "number; expected an integer 1, 2, ..."
+            ) from None
+        points.append(row[kp].strip())
+        cycles.append(c)
+    return np.array(points, dtype=object), np.array(cycles, dtype=np.intp)
+
+
+def run_iso_evaluate(
+    cal: Any,
+    meas: Any,
+    data: str,
+    refit: tuple[str, ...],
+    out_dir: str | None,
+    force: bool,
+    as_json: bool,
+    model_path: str,
+) -> None:
+    """``kinecal evaluate --iso9283``: console table, optional report.json/.html."""
+    from kinecal.iso9283 import evaluate_iso9283
+
+    if out_dir:
+        from kinecal.io import prepare_output_dir
+
+        prepare_output_dir(out_dir, ["report.json", "report.html"], force=force)
+    point, cycle = _labels(data, meas.rows)
+    iso = evaluate_iso9283(cal, meas, point, cycle, refit=refit)
+    block = iso.as_dict()
+    if out_dir:
+        from kinecal.io import atomic_write_files, json_text
+        from kinecal.report._iso9283 import render_iso9283_report
+
+        doc = {"data": data, "model": model_path, "iso9283": block}
+        title = f"ISO 9283 evaluation: {Path(data).name}"
+        atomic_write_files(
+            {
+                str(Path(out_dir) / "report.json"): json_text(doc),
+                str(Path(out_dir) / "report.html"): render_iso9283_report(
+                    block, title=title
+                ),
+            },
+            force=True,
+        )
+    if as_json:
+        click.echo(json.dumps({"iso9283": block}))
+        return
+    _echo(block)
+    if out_dir:
+        click.echo(f"wrote     {out_dir}: report.json, report.html")
+
+
+def _echo(block: dict[str, Any]) -> None:
+    """The console table: AP, RP per point, before and after."""
+    orient = block["kind"] == "pose"
+    for key, name in (
+        ("nominal", "nominal robot (before)"),
+        ("model", "model (after)"),
+    ):
+        fig = block.get(key)
+        if not fig:
+            continue
+        click.echo(f"ISO 9283  {name}")
+        head = "point  n    AP_P     AP_x     AP_y     AP_z     RP_l  [mm]"
+        click.echo(head + ("   AP_a/b/c, RP_a/b/c [deg]" if orient else ""))
+        for p in fig["points"]:
+            line = f"{p['point']:<5} {p['n']:<3}" + "".join(
+                f"{p[k]:9.4f}"
+                for k in ("ap_mm", "ap_x_mm", "ap_y_mm", "ap_z_mm", "rp_mm")
+            )
+            if orient:
+                line += (
+                    "   "
+                    + " ".join(f"{p[f'ap_{a}_deg']:.4f}" for a in "abc")
+                    + ", "
+                    + " ".join(f"±{p[f'rp_{a}_deg']:.4f}" for a in "abc")
+                )
+            click.echo(line)
+        d = fig.get("distance")
+        if d:
+            click.echo(
+                f"distance  {d['pair'][0]}-{d['pair'][1]}: AD_P {d['ad_mm']:.4f} mm  "
+                f"RD ±{d['rd_mm']:.4f} mm  ({d['n']} cycles)"
+            )
+    for note in block["notes"]:
+        click.echo(f"note      {note}")
