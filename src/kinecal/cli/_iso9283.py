@@ -271,14 +271,17 @@ def run_iso_evaluate(
     """``kinecal evaluate --iso9283``: console table, optional report.json/.html."""
     from kinecal.iso9283 import evaluate_iso9283
 
-    if out_dir:
+    folder = None
+    if out_dir:  # the command's staged folder, moved into place when it succeeds
         from kinecal.io import prepare_output_dir
 
-        prepare_output_dir(out_dir, ["report.json", "report.html"], force=force)
+        folder = prepare_output_dir(
+            out_dir, ["report.json", "report.html"], force=force
+        )
     point, cycle = _labels(data, meas.rows)
     iso = evaluate_iso9283(cal, meas, point, cycle, refit=refit)
     block = iso.as_dict()
-    if out_dir:
+    if folder is not None:
         from kinecal.io import atomic_write_files, json_text
         from kinecal.report._iso9283 import render_iso9283_report
 
@@ -286,10 +289,8 @@ def run_iso_evaluate(
         title = f"ISO 9283 evaluation: {Path(data).name}"
         atomic_write_files(
             {
-                str(Path(out_dir) / "report.json"): json_text(doc),
-                str(Path(out_dir) / "report.html"): render_iso9283_report(
-                    block, title=title
-                ),
+                str(folder / "report.json"): json_text(doc),
+                str(folder / "report.html"): render_iso9283_report(block, title=title),
             },
             force=True,
         )

@@ -32,7 +32,8 @@ def fig_iso9283(block: Mapping[str, Any]) -> str:
     series.append(("RP (both)", [p["rp_mm"] for p in model["points"]]))
     labels = [p["point"] for p in model["points"]]
     vals = np.array([v for _, v in series], float)
-    top = float(np.nanmax(vals)) * 1.15 if np.isfinite(vals).any() else 1.0
+    # headroom above the bars for the legend
+    top = float(np.nanmax(vals)) * 1.5 if np.isfinite(vals).any() else 1.0
     f = Figure(_W, 300)
     k_pts = len(labels)
     p = f.panel(
