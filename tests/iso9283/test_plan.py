@@ -9,7 +9,6 @@ import pytest
 from kinecal.errors import DataError
 from kinecal.iso9283 import (
     PLANES,
-    TOOL_DOWN,
     VISIT_ORDER,
     iso_cube,
     nominal_model,
@@ -20,6 +19,7 @@ from kinecal.robot import load_robot
 from tests.cli_contract import failed_with, run_kinecal
 
 ROBOT = "fanuc-lrmate200id"
+TOOL_DOWN = np.diag([1.0, -1.0, -1.0])  # the default test orientation
 
 
 @pytest.mark.parametrize("plane", list(PLANES))

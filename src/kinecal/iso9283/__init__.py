@@ -23,7 +23,6 @@ from kinecal.iso9283._evaluate import (
 )
 from kinecal.iso9283._plan import (
     DEFAULT_CYCLES,
-    TOOL_DOWN,
     IsoPlan,
     iso_plan,
     nominal_model,
@@ -35,7 +34,6 @@ __all__ = [
     "DEFAULT_CYCLES",
     "PLANES",
     "POINT_LABELS",
-    "TOOL_DOWN",
     "VISIT_ORDER",
     "DistanceFigures",
     "IsoCube",

@@ -21,7 +21,6 @@ from kinecal.typing import ArrayLike, Float, Int, Rotation
 
 __all__ = [
     "DEFAULT_CYCLES",
-    "TOOL_DOWN",
     "IsoPlan",
     "iso_plan",
     "nominal_model",
@@ -328,7 +327,8 @@ def plan_iso9283(
     robot : the robot (its nominal kinematics, limits and tool).
     edge : cube edge [m]; default the largest reachable (:func:`place_cube`).
     centre : (3,) cube centre in the robot base frame [m]; default searched.
-    R_base_tool : (3, 3) test orientation of the tool; default :data:`TOOL_DOWN`.
+    R_base_tool : (3, 3) test orientation of the tool; default the tool's z axis
+        down and its x axis along the base's x (``diag(1, -1, -1)``).
     cycles : cycles of the test (the standard: 30).
     plane : the diagonal test plane (:data:`~kinecal.iso9283.PLANES`).
     seed : seed of the random IK seeds (the result is reproducible).
