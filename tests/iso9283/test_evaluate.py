@@ -137,6 +137,10 @@ def test_issue_38_evaluate_iso9283_end_to_end(case, capsys):
     assert "ISO 9283  nominal robot (before)" in res.out
     assert "ISO 9283  model (after)" in res.out
     assert "distance  P2-P4: AD_P" in res.out
+    # kinecal report redraws the page from report.json
+    res = run_kinecal(capsys, "report", d / "ev", "--force", "-q")
+    assert res.code == 0, str(res)
+    assert "<h2 id=iso9283>" in (d / "ev" / "report.html").read_text()
     # results are not overwritten without --force
     res = run_kinecal(
         capsys, "evaluate", d / "data.csv", "--model", d / "model.yaml", "--iso9283",

@@ -124,3 +124,25 @@ def test_issue_38_plan_iso9283_bad_input(capsys, tmp_path):
     )  # fmt: skip
     failed_with(res, "--cube-centre", "expected 3 comma-separated numbers")
     assert not out.exists()
+
+
+def test_issue_38_plan_iso9283_points_are_for_the_given_tool(capsys, tmp_path):
+    out = tmp_path / "iso.csv"
+    res = run_kinecal(
+        capsys, "plan", "--iso9283", "--robot", ROBOT, "--cube-mm", "150",
+        "--cube-centre", "380,0,200", "--cycles", "2", "--tool", "0,20,120",
+        "--orientation", "0,0,180", "--out", out, "-q",
+    )  # fmt: skip
+    assert res.code == 0, str(res)
+    from kinecal.io import read_table
+
+    t = read_table(out)
+    q = np.radians(np.column_stack([t.numbers(f"j{k}_deg") for k in range(1, 7)]))
+    T_tool = np.eye(4)
+    T_tool[:3, 3] = [0.0, 0.02, 0.12]
+    T = load_robot(ROBOT).fk_flange(q) @ T_tool
+    cmd = np.column_stack([t.numbers(f"cmd_{a}_mm") for a in "xyz"])
+    np.testing.assert_allclose(T[:, :3, 3] * 1e3, cmd, atol=1e-3)
+    np.testing.assert_allclose(
+        T[:, :3, :3], np.broadcast_to(TOOL_DOWN, (10, 3, 3)), atol=1e-7
+    )

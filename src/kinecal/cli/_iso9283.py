@@ -89,7 +89,7 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
     """``kinecal plan --iso9283``: PLAN.csv and PLAN.report.json."""
     import numpy as np
 
-    from kinecal.geometry import euler_zyx_to_matrix
+    from kinecal.geometry import euler_transform, euler_zyx_to_matrix
     from kinecal.io import atomic_write_files, json_text
     from kinecal.iso9283 import POINT_LABELS, VISIT_ORDER, orientation_abc, plan_iso9283
     from kinecal.robot import load_robot
@@ -120,6 +120,11 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
     if kw["cube_centre"]:
         centre = np.array(_numbers(kw["cube_centre"], 3, "--cube-centre")) * 1e-3
     edge = None if kw["cube_mm"] is None else kw["cube_mm"] * 1e-3
+    T_tool = None
+    if kw["tool"]:  # the tool point the cube's points are for
+        n = len(kw["tool"].split(","))
+        tool = _numbers(kw["tool"], n if n in (3, 6) else 6, "--tool") + [0.0] * (6 - n)
+        T_tool = euler_transform([*np.array(tool[:3]) * 1e-3, *np.radians(tool[3:])])
     say("iso9283", "placing the cube" if edge is None else "checking the cube")
     pl = plan_iso9283(
         robot,
@@ -129,6 +134,7 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
         cycles=kw["cycles"],
         plane=kw["iso_plane"],
         seed=kw["seed"],
+        T_flange_tool=T_tool,
     )
     joint_cols = [
         f"j{k + 1}_mm" if j.kind == "prismatic" else f"j{k + 1}_deg"

@@ -17,7 +17,7 @@ from kinecal.errors import DataError
 from kinecal.iso9283._cube import POINT_LABELS, VISIT_ORDER, IsoCube
 from kinecal.models import CalibrationModel, ModelInputs, solve_ik
 from kinecal.robot import RobotDescription
-from kinecal.typing import ArrayLike, Float, Int, Rotation
+from kinecal.typing import ArrayLike, Float, Int, Pose, Rotation
 
 __all__ = [
     "DEFAULT_CYCLES",
@@ -74,15 +74,17 @@ class IsoPlan:
 
 
 def nominal_model(
-    robot: RobotDescription, orientation: bool = True
+    robot: RobotDescription,
+    orientation: bool = True,
+    T_flange_tool: Pose | None = None,
 ) -> tuple[CalibrationModel, Float]:
     """The robot's nominal kinematic model with the user frame on the robot base and
-    the robot file's tool: ``(model, params)``."""
+    the tool ``T_flange_tool`` (4, 4) [m] (default the robot file's): ``(model,
+    params)``."""
     from kinecal.planning import Instrument, planning_model
 
-    return planning_model(
-        robot, "kinematic", Instrument("pose" if orientation else "tracker")
-    )
+    inst = Instrument("pose" if orientation else "tracker")
+    return planning_model(robot, "kinematic", inst, None, T_flange_tool)
 
 
 def joint_samples(robot: RobotDescription, n: int, seed: int) -> Float:
@@ -319,6 +321,7 @@ def plan_iso9283(
     cycles: int = DEFAULT_CYCLES,
     plane: str = "C1-C2-C7-C8",
     seed: int = 0,
+    T_flange_tool: Pose | None = None,
 ) -> IsoPlan:
     """The ISO 9283 pose test of ``robot`` (what ``kinecal plan --iso9283`` writes).
 
@@ -332,11 +335,13 @@ def plan_iso9283(
     cycles : cycles of the test (the standard: 30).
     plane : the diagonal test plane (:data:`~kinecal.iso9283.PLANES`).
     seed : seed of the random IK seeds (the result is reproducible).
+    T_flange_tool : (4, 4) the tool (TCP, reflector) in the flange frame [m]; default
+        the robot file's.
     """
     R = TOOL_DOWN if R_base_tool is None else np.asarray(R_base_tool, np.float64)
     if R.shape != (3, 3) or not np.allclose(R @ R.T, np.eye(3), atol=1e-9):
         raise ValueError("R_base_tool must be a (3, 3) rotation matrix.")
-    model, params = nominal_model(robot)
+    model, params = nominal_model(robot, True, T_flange_tool)
     cube = place_cube(
         model, params, R, edge=edge, centre=centre, plane=plane, seed=seed
     )
