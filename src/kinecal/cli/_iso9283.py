@@ -229,6 +229,21 @@ def iso_evaluate_options(f: Callable[..., Any]) -> Callable[..., Any]:
     )(f)
 
 
+def read_iso_data(
+    data: str, robot: Any, targets: str | None, allow_out_of_limits: bool
+) -> Any:
+    """The measurements of an ISO test, its findings printed except ``poor_excitation``
+    (one tool orientation over a small cube is the test, not a flaw of the data)."""
+    from kinecal.cli._common import echo_diagnostics
+    from kinecal.io import read_data
+
+    meas, found = read_data(
+        data, robot, targets, allow_out_of_limits=allow_out_of_limits
+    )
+    echo_diagnostics([d for d in found if d.code != "poor_excitation"])
+    return meas
+
+
 def _labels(data: str, rows: Any) -> tuple[Any, Any]:
     """``iso_point`` and ``iso_cycle`` of the data rows (by file line)."""
     import numpy as np
@@ -327,12 +342,8 @@ def _echo(block: dict[str, Any]) -> None:
                 for k in ("ap_mm", "ap_x_mm", "ap_y_mm", "ap_z_mm", "rp_mm")
             )
             if orient:
-                line += (
-                    "   "
-                    + " ".join(f"{p[f'ap_{a}_deg']:.4f}" for a in "abc")
-                    + ", "
-                    + " ".join(f"±{p[f'rp_{a}_deg']:.4f}" for a in "abc")
-                )
+                line += "  " + "".join(f"{p[f'ap_{a}_deg']:9.4f}" for a in "abc")
+                line += "  " + "".join(f" ±{p[f'rp_{a}_deg']:.4f}" for a in "abc")
             click.echo(line)
         d = fig.get("distance")
         if d:
