@@ -247,15 +247,16 @@ def test_issue_38_bad_iso_data_get_a_clear_error(case, capsys, tmp_path):
 
     res = run(_write(case, tmp_path / "g.csv", edit=half))
     failed_with(res, "column 'iso_cycle': '2.5' is not a cycle number")
+    # the plain column names are accepted too
+    plain = tmp_path / "h.csv"
+    text = (case["dir"] / "data.csv").read_text()
+    plain.write_text(text.replace("iso_point,iso_cycle", "point,Cycle", 1))
+    res = run(plain)
+    assert res.code == 0 and "ISO 9283  model (after)" in res.out, str(res)
     res = run_kinecal(
-        capsys,
-        "evaluate",
-        case["dir"] / "data.csv",
-        "--model",
-        model,
-        "--out",
-        tmp_path / "x",
-    )
+        capsys, "evaluate", case["dir"] / "data.csv", "--model", model,
+        "--out", tmp_path / "x",
+    )  # fmt: skip
     failed_with(res, "--out is for --iso9283")
 
 

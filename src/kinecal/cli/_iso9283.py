@@ -252,14 +252,21 @@ def _labels(data: str, rows: Any) -> tuple[Any, Any]:
     from kinecal.io import read_table
 
     t = read_table(data)
-    missing = [c for c in (POINT_COLUMN, CYCLE_COLUMN) if c not in t.header]
+    # the plan's names, or the plain ones a measurement program may write
+    names = {c.strip().lower(): k for k, c in enumerate(t.header)}
+    found = [
+        next((names[c] for c in (want, want[4:]) if c in names), None)
+        for want in (POINT_COLUMN, CYCLE_COLUMN)
+    ]
+    missing = [c for c, k in zip((POINT_COLUMN, CYCLE_COLUMN), found) if k is None]
     if missing:
         raise DataError(
             f"{data}: no column {' or '.join(repr(c) for c in missing)}; --iso9283 needs "
             f"the test point ({POINT_COLUMN}: P1..P5) and the cycle ({CYCLE_COLUMN}: "
-            "1, 2, ...) of every row, as plan --iso9283 writes them."
+            "1, 2, ...) of every row, as plan --iso9283 writes them (also accepted: "
+            "'point', 'cycle')."
         )
-    kp, kc = t.header.index(POINT_COLUMN), t.header.index(CYCLE_COLUMN)
+    kp, kc = (int(k) for k in found if k is not None)
     by_line = {line: row for line, row in zip(t.lines, t.rows)}
     points, cycles = [], []
     for r in rows:
@@ -271,7 +278,7 @@ def _labels(data: str, rows: Any) -> tuple[Any, Any]:
                 raise ValueError
         except ValueError:
             raise DataError(
-                f"{data}: line {r}, column '{CYCLE_COLUMN}': {text!r} is not a cycle "
+                f"{data}: line {r}, column '{t.header[kc]}': {text!r} is not a cycle "
                 "number; expected an integer 1, 2, ..."
             ) from None
         points.append(row[kp].strip())
