@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 
 from kinecal.geometry import euler_transform
 from kinecal.identification import CalibratedModel, Measurements
-from kinecal.io import save_model
+from kinecal.io import read_table, save_model
 from kinecal.iso9283 import POINT_LABELS, evaluate_iso9283, plan_iso9283
 from kinecal.models import ModelInputs
 from kinecal.planning import Instrument, planning_model
@@ -293,3 +293,31 @@ def test_issue_38_iso_section_renders_in_a_real_browser(case, capsys):
     assert shot.returncode == 0, shot.stderr[-2000:]
     data = png.read_bytes()
     assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 20_000  # not a blank page
+
+
+def test_issue_38_program_compensated_with_the_model_reaches_the_cube(capsys, tmp_path):
+    """plan --iso9283 --model: the joints the calibrated model puts on the cube points
+    (through its user frame); the true robot (here the model) lands on them, so the
+    test measured there shows only the bias left."""
+    truth = _truth("point")
+    save_model(tmp_path / "model.yaml", truth)
+    out = tmp_path / "after.csv"
+    res = run_kinecal(
+        capsys, "plan", "--iso9283", "--model", tmp_path / "model.yaml", "--cube-mm",
+        "200", "--cube-centre", "350,0,200", "--cycles", "3", "--out", out, "-q",
+    )  # fmt: skip
+    assert res.code == 0, str(res)
+    assert "compensated with" in res.out
+    t = read_table(out)
+    q = np.radians(np.column_stack([t.numbers(f"j{k}_deg") for k in range(1, 7)]))
+    cmd = np.column_stack([t.numbers(f"cmd_{a}_mm") for a in "xyz"]) * 1e-3
+    p = truth.model.evaluate(truth.params, ModelInputs.make(q)).p_user
+    want = cmd @ T_USER_BASE[:3, :3].T + T_USER_BASE[:3, 3]
+    np.testing.assert_allclose(p, want, atol=1e-8)  # 6-decimal degrees in the file
+    nominal = load_robot(ROBOT).fk_tool(q)[:, :3, 3]
+    assert np.max(np.linalg.norm(nominal - cmd, axis=1)) > 1e-4  # really compensated
+    res = run_kinecal(
+        capsys, "plan", "--iso9283", "--model", tmp_path / "model.yaml", "--robot",
+        "fanuc-lrmate200id-7l", "--out", tmp_path / "x.csv",
+    )  # fmt: skip
+    failed_with(res, "a model and a robot of different kinds")

@@ -29,8 +29,9 @@ def iso_plan_options(f: Callable[..., Any]) -> Callable[..., Any]:
             "--iso9283",
             is_flag=True,
             help="Write the ISO 9283 pose test instead: the cube's test points P1-P5 "
-            "in cycles (P1, P5, P4, P3, P2), joints by the nominal IK, columns "
-            "iso_point, iso_cycle and the command pose cmd_*.",
+            "in cycles (P1, P5, P4, P3, P2), joints by the nominal IK (compensated "
+            "with --model MODEL.yaml when given), columns iso_point, iso_cycle and the "
+            "command pose cmd_*.",
         ),
         click.option(
             "--cube-mm",
@@ -100,8 +101,17 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
             f"--iso9283 writes the standard's test poses; {', '.join(given)} choose "
             "calibration poses (give one or the other)."
         )
-    if not kw["robot_name"]:
-        raise click.UsageError("--iso9283 needs --robot NAME|FILE.")
+    cal = None
+    if kw["model_name"] not in ("kinematic", "ntm", "rfcm", "full"):
+        from kinecal.io import load_model
+
+        cal = load_model(kw["model_name"])  # compensate the program with it
+        if kw["tool"]:
+            raise click.UsageError("--tool: a calibrated model has its own tool frame.")
+    if not kw["robot_name"] and cal is None:
+        raise click.UsageError(
+            "--iso9283 needs --robot NAME|FILE (or --model MODEL.yaml)."
+        )
     out = Path(kw["out_path"])
     rep = (
         Path(kw["report_path"])
@@ -111,7 +121,18 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
     for p in (out, rep):
         if p.exists() and not kw["force"]:
             raise FileExistsError(f"{p} exists; use --force to overwrite it.")
-    robot = load_robot(kw["robot_name"])
+    if kw["robot_name"]:
+        robot = load_robot(kw["robot_name"])
+    else:
+        assert cal is not None  # checked above
+        robot = cal.model.robot
+    if cal is not None and robot.name != cal.model.robot.name:
+        from kinecal.errors import ConfigError
+
+        raise ConfigError(
+            f"--robot {kw['robot_name']}, but {kw['model_name']} was calibrated for "
+            f"{cal.model.robot.name}: a model and a robot of different kinds."
+        )
     R = None
     if kw["orientation"]:
         rwp = _numbers(kw["orientation"], 3, "--orientation")
@@ -136,6 +157,11 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
         seed=kw["seed"],
         T_flange_tool=T_tool,
     )
+    if cal is not None:
+        from kinecal.iso9283 import compensated_plan
+
+        say("iso9283", f"compensating the program with {kw['model_name']}")
+        pl = compensated_plan(pl, cal)
     joint_cols = [
         f"j{k + 1}_mm" if j.kind == "prismatic" else f"j{k + 1}_deg"
         for k, j in enumerate(robot.joints)
@@ -183,6 +209,7 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
                 for i, lab in enumerate(POINT_LABELS)
             ],
             "rows": len(lines) - 1,
+            "compensated_with": kw["model_name"] if cal is not None else None,
         }
     }
     atomic_write_files(
@@ -208,6 +235,11 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
         f"program   {pl.cycles} cycles of {' -> '.join(VISIT_ORDER)}: "
         f"{len(lines) - 1} rows"
     )
+    if cal is not None:
+        click.echo(
+            f"joints    compensated with {kw['model_name']} (the points through its "
+            "user frame; evaluate --iso9283 gives the accuracy after compensation)"
+        )
     click.echo(f"wrote     {out}, {rep}")
 
 

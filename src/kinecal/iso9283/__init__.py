@@ -4,7 +4,9 @@ The test cube and its five points (:class:`IsoCube`), the test program by invers
 kinematics (:func:`iso_plan`, :func:`plan_iso9283`), the standard's characteristics
 (:func:`pose_characteristics`: AP, RP per point; :func:`distance_characteristics`: AD, RD)
 and the evaluation of measured cycles with a calibrated model and with the nominal robot
-(:func:`evaluate_iso9283`). Definitions and how they differ from RMS: docs/iso9283.md.
+(:func:`evaluate_iso9283`); the program compensated with a calibrated model
+(:func:`compensated_plan`) for the test after compensation. Definitions and how they
+differ from RMS: docs/iso9283.md.
 """
 
 from kinecal.iso9283._characteristics import (
@@ -14,6 +16,7 @@ from kinecal.iso9283._characteristics import (
     orientation_abc,
     pose_characteristics,
 )
+from kinecal.iso9283._compensate import compensated_plan, user_from_base
 from kinecal.iso9283._cube import PLANES, POINT_LABELS, VISIT_ORDER, IsoCube, iso_cube
 from kinecal.iso9283._evaluate import (
     IsoEvaluation,
@@ -41,6 +44,7 @@ __all__ = [
     "IsoFigures",
     "IsoPlan",
     "PointFigures",
+    "compensated_plan",
     "distance_characteristics",
     "evaluate_iso9283",
     "iso_cube",
@@ -51,4 +55,5 @@ __all__ = [
     "place_cube",
     "plan_iso9283",
     "pose_characteristics",
+    "user_from_base",
 ]

@@ -35,6 +35,7 @@ from kinecal.iso9283._characteristics import (
     distance_characteristics,
     pose_characteristics,
 )
+from kinecal.iso9283._compensate import user_from_base
 from kinecal.iso9283._cube import POINT_LABELS
 from kinecal.iso9283._plan import DEFAULT_CYCLES, joint_samples
 from kinecal.typing import ArrayLike, Float
@@ -198,12 +199,9 @@ def _check_labels(
 def _to_base(cal: CalibratedModel, set_index: np.ndarray) -> tuple[Float, Float]:
     """Per row ``(R_base_user (N, 3, 3), t_base_user (N, 3))``: the robot base frame
     (the robot description's) from the user frame of each row's set."""
-    R_um, t_um = cal.model.base_frames(cal.params)  # user <- model base, per set
-    T_rm = cal.model.T_robotbase_modelbase  # robot base <- model base
-    R_ur = R_um @ T_rm[:3, :3].T  # user <- robot base
-    t_ur = t_um - np.einsum("sij,j->si", R_ur, T_rm[:3, 3])
-    R_ru = np.swapaxes(R_ur, 1, 2)
-    t_ru = -np.einsum("sij,sj->si", R_ru, t_ur)
+    frames = [user_from_base(cal, s) for s in range(len(cal.model.spec.sets))]
+    R_ru = np.stack([R.T for R, _ in frames])
+    t_ru = np.stack([-R.T @ t for R, t in frames])
     return R_ru[set_index], t_ru[set_index]
 
 
