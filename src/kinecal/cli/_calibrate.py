@@ -386,7 +386,8 @@ def _load_robot(name: str):
     "--json",
     "as_json",
     is_flag=True,
-    help='Print {"n", "rms_mm", "std_mm", "mean_mm", "max_mm"}.',
+    help='Print {"n", "rms_mm", "std_mm", "mean_mm", "max_mm"} (with --iso9283: '
+    '{"iso9283": ...}).',
 )
 @click.option(
     "--errors-out",
