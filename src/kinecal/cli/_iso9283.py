@@ -92,7 +92,7 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
 
     from kinecal.geometry import euler_transform, euler_zyx_to_matrix
     from kinecal.io import atomic_write_files, json_text
-    from kinecal.iso9283 import POINT_LABELS, VISIT_ORDER, orientation_abc, plan_iso9283
+    from kinecal.iso9283 import POINT_LABELS, VISIT_ORDER, plan_iso9283
     from kinecal.robot import load_robot
 
     given = [f"--{k.replace('_n', '')}" for k in _PLAN_FLAGS if kw.get(k)]
@@ -162,6 +162,46 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
 
         say("iso9283", f"compensating the program with {kw['model_name']}")
         pl = compensated_plan(pl, cal)
+    lines, joint_cols, f = _plan_lines(robot, pl)
+    doc = _plan_doc(robot, pl, joint_cols, f, kw, cal is not None)
+    atomic_write_files(
+        {str(out): "\n".join(lines) + "\n", str(rep): json_text(doc)},
+        force=kw["force"],
+    )
+    if kw["as_json"]:
+        click.echo(json.dumps(doc))
+        return
+    cube, pts_mm = pl.cube, pl.cube.points * 1e3
+    click.echo(
+        f"cube      edge {cube.edge * 1e3:.1f} mm, centre "
+        + ", ".join(f"{v:.1f}" for v in cube.centre * 1e3)
+        + f" mm (robot base), plane {cube.plane}"
+    )
+    for i, lab in enumerate(POINT_LABELS):
+        click.echo(
+            f"{lab}        "
+            + ", ".join(f"{v:8.2f}" for v in pts_mm[i])
+            + " mm   joints "
+            + " ".join(f"{v:.2f}" for v in pl.q_points[i] * f)
+        )
+    click.echo(
+        f"program   {pl.cycles} cycles of {' -> '.join(VISIT_ORDER)}: "
+        f"{len(lines) - 1} rows"
+    )
+    if cal is not None:
+        click.echo(
+            f"joints    compensated with {kw['model_name']} (the points through its "
+            "user frame; evaluate --iso9283 gives the accuracy after compensation)"
+        )
+    click.echo(f"wrote     {out}, {rep}")
+
+
+def _plan_lines(robot: Any, pl: Any) -> tuple[list[str], list[str], Any]:
+    """The program's CSV lines, its joint columns and their factors from SI."""
+    import numpy as np
+
+    from kinecal.iso9283 import POINT_LABELS, orientation_abc
+
     joint_cols = [
         f"j{k + 1}_mm" if j.kind == "prismatic" else f"j{k + 1}_deg"
         for k, j in enumerate(robot.joints)
@@ -182,6 +222,19 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
         cells = [f"{v:.6f}" for v in q] + [POINT_LABELS[k], str(c)]
         cells += [f"{v:.4f}" for v in pts_mm[k]] + [f"{v:.6f}" for v in abc]
         lines.append(",".join(cells))
+    return lines, joint_cols, f
+
+
+def _plan_doc(
+    robot: Any, pl: Any, joint_cols: list[str], f: Any, kw: dict[str, Any], comp: bool
+) -> dict[str, Any]:
+    """The program's report.json."""
+    import numpy as np
+
+    from kinecal.iso9283 import POINT_LABELS, VISIT_ORDER, orientation_abc
+
+    abc = np.degrees(orientation_abc(pl.R_base_tool))
+    pts_mm = pl.cube.points * 1e3
     cube = pl.cube
     doc = {
         "iso9283_plan": {
@@ -208,39 +261,11 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
                 }
                 for i, lab in enumerate(POINT_LABELS)
             ],
-            "rows": len(lines) - 1,
-            "compensated_with": kw["model_name"] if cal is not None else None,
+            "rows": len(pl.point_index),
+            "compensated_with": kw["model_name"] if comp else None,
         }
     }
-    atomic_write_files(
-        {str(out): "\n".join(lines) + "\n", str(rep): json_text(doc)},
-        force=kw["force"],
-    )
-    if kw["as_json"]:
-        click.echo(json.dumps(doc))
-        return
-    click.echo(
-        f"cube      edge {cube.edge * 1e3:.1f} mm, centre "
-        + ", ".join(f"{v:.1f}" for v in cube.centre * 1e3)
-        + f" mm (robot base), plane {cube.plane}"
-    )
-    for i, lab in enumerate(POINT_LABELS):
-        click.echo(
-            f"{lab}        "
-            + ", ".join(f"{v:8.2f}" for v in pts_mm[i])
-            + " mm   joints "
-            + " ".join(f"{v:.2f}" for v in pl.q_points[i] * f)
-        )
-    click.echo(
-        f"program   {pl.cycles} cycles of {' -> '.join(VISIT_ORDER)}: "
-        f"{len(lines) - 1} rows"
-    )
-    if cal is not None:
-        click.echo(
-            f"joints    compensated with {kw['model_name']} (the points through its "
-            "user frame; evaluate --iso9283 gives the accuracy after compensation)"
-        )
-    click.echo(f"wrote     {out}, {rep}")
+    return doc
 
 
 def iso_evaluate_options(f: Callable[..., Any]) -> Callable[..., Any]:
