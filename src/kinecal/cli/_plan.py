@@ -17,6 +17,7 @@ from kinecal.cli._common import (
     common_options,
     manifest,
 )
+from kinecal.cli._iso9283 import iso_plan_options, run_iso_plan
 from kinecal.cli._plan_report import echo_summary
 
 if TYPE_CHECKING:
@@ -144,6 +145,7 @@ def _options(f: Any) -> Any:
 
 @click.command()
 @_options
+@iso_plan_options
 @allow_out_of_limits_option
 @common_options
 def plan(**kw: Any) -> None:
@@ -154,8 +156,11 @@ def plan(**kw: Any) -> None:
     the model (I-optimal, default) or another optimal-design criterion, order them for
     short joint motion and write them to PLAN.csv (rows copied from CAND.csv). The
     report gives the expected parameter standard deviations and held-out accuracy, and
-    the same for random plans of the same size.
+    the same for random plans of the same size. With --iso9283: the ISO 9283 pose
+    test instead (docs/iso9283.md).
     """
+    if kw["iso9283"]:
+        return run_iso_plan(kw, Progress(kw["quiet"]))
     _run(kw, Progress(kw["quiet"]))
 
 
