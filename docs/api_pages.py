@@ -21,6 +21,7 @@ PACKAGES = (
     "sensor",
     "models",
     "workflows",
+    "iso9283",
 )
 HERE = Path(__file__).resolve().parent / "api"
 

@@ -16,6 +16,7 @@ LAZY = (
     "kinecal",
     "kinecal.identification",
     "kinecal.io",
+    "kinecal.iso9283",
     "kinecal.models",
     "kinecal.report",
     "kinecal.robot",

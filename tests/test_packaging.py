@@ -29,6 +29,7 @@ PACKAGES = (
     "sensor",
     "models",
     "workflows",
+    "iso9283",
 )
 _DIRECTIVE = re.compile(r"^\.\. auto(?:class|function|data):: (\w+)\s*$", re.M)
 

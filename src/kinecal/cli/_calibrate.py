@@ -25,6 +25,11 @@ from kinecal.cli._common import (
     read_data_checked,
     targets_option,
 )
+from kinecal.cli._iso9283 import (
+    iso_evaluate_options,
+    read_iso_data,
+    run_iso_evaluate,
+)
 
 
 def _options_from(loss: str, priors: str, stage2: str):
@@ -363,15 +368,17 @@ def _load_robot(name: str):
     "--json",
     "as_json",
     is_flag=True,
-    help='Print {"n", "rms_mm", "std_mm", "mean_mm", "max_mm"}.',
+    help='Print {"n", "rms_mm", "std_mm", "mean_mm", "max_mm"} (with --iso9283: '
+    '{"iso9283": ...}).',
 )
 @click.option(
     "--errors-out",
     type=click.Path(dir_okay=False),
     help="Write per-row errors (row, ex_mm, ey_mm, ez_mm, err_mm) to this CSV.",
 )
+@iso_evaluate_options
 @allow_out_of_limits_option
-@click.option("--force", is_flag=True, help="Overwrite --errors-out.")
+@click.option("--force", is_flag=True, help="Overwrite --errors-out (and --out).")
 @common_options
 def evaluate(
     data: str,
@@ -380,11 +387,15 @@ def evaluate(
     refit: str | None,
     as_json: bool,
     errors_out: str | None,
+    iso9283: bool,
+    iso_out: str | None,
     allow_out_of_limits: bool,
     force: bool,
     quiet: bool,
 ) -> None:
-    """Accuracy of a calibrated model on measurements DATA.csv (held-out poses)."""
+    """Accuracy of a calibrated model on measurements DATA.csv (held-out poses).
+
+    With --iso9283: the ISO 9283 figures of a pose test (docs/iso9283.md)."""
     from kinecal.io import atomic_write_text, load_model
     from kinecal.workflows import evaluate_measurements
 
@@ -393,7 +404,10 @@ def evaluate(
     say = Progress(quiet)  # lines only for stages that last (a large file)
     cal = load_model(model_path)
     say.begin("data", f"reading {data}")
-    meas, _ = read_data_checked(data, cal.model.robot, targets, allow_out_of_limits)
+    if iso9283:  # one tool orientation over a small cube by design: not a finding
+        meas = read_iso_data(data, cal.model.robot, targets, allow_out_of_limits)
+    else:
+        meas, _ = read_data_checked(data, cal.model.robot, targets, allow_out_of_limits)
     what = _refit_groups(refit)
     say.begin("evaluate", f"{meas.n} rows")
     run = evaluate_measurements(
@@ -402,6 +416,12 @@ def evaluate(
     ev, meas = run.evaluation, run.meas
     if errors_out:
         atomic_write_text(errors_out, run.errors_csv(), force=force)
+    if iso9283 or iso_out:
+        if not iso9283:
+            raise click.UsageError("--out is for --iso9283.")
+        return run_iso_evaluate(
+            cal, meas, data, what, iso_out, force, as_json, model_path
+        )
     m = ev.metrics
     if as_json:
         click.echo(json.dumps(m.contract()))

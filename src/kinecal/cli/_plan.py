@@ -17,6 +17,7 @@ from kinecal.cli._common import (
     common_options,
     manifest,
 )
+from kinecal.cli._iso9283 import iso_plan_options, run_iso_plan
 
 if TYPE_CHECKING:
     from kinecal.workflows import PlanSetup
@@ -143,6 +144,7 @@ def _options(f: Any) -> Any:
 
 @click.command()
 @_options
+@iso_plan_options
 @allow_out_of_limits_option
 @common_options
 def plan(**kw: Any) -> None:
@@ -153,8 +155,11 @@ def plan(**kw: Any) -> None:
     the model (I-optimal, default) or another optimal-design criterion, order them for
     short joint motion and write them to PLAN.csv (rows copied from CAND.csv). The
     report gives the expected parameter standard deviations and held-out accuracy, and
-    the same for random plans of the same size.
+    the same for random plans of the same size. With --iso9283: the ISO 9283 pose
+    test instead (docs/iso9283.md).
     """
+    if kw["iso9283"]:
+        return run_iso_plan(kw, Progress(kw["quiet"]))
     _run(kw, Progress(kw["quiet"]))
 
 
@@ -266,7 +271,8 @@ def _candidates(kw: dict[str, Any], setup: PlanSetup, say: Progress) -> Any:
 def _run(kw: dict[str, Any], say: Progress) -> None:
     from kinecal.io import atomic_write_files, json_text
     from kinecal.workflows import plan_measurements, read_pose_file
-    from kinecal.workflows._plan import pose_lines, report_path
+    from kinecal.workflows._plan import report_path
+    from kinecal.workflows._poses import pose_lines
 
     out = Path(kw["out_path"])
     rep = report_path(kw["out_path"], kw["report_path"])

@@ -479,6 +479,12 @@ def write_report(
         ) from None
     except json.JSONDecodeError as exc:
         raise DataError(f"{js}: not valid JSON ({exc}).") from None
+    if "iso9283" in summary and "identifiability" not in summary:
+        from kinecal.report._iso9283 import render_iso9283_report  # evaluate --iso9283
+
+        title = f"ISO 9283 evaluation: {Path(str(summary.get('data', d))).name}"
+        html = render_iso9283_report(summary["iso9283"], title=title)
+        return atomic_write_text(target, html, force=True)
     for key in ("identifiability", "before", "after", "parameters"):
         if key not in summary:
             raise DataError(

@@ -56,6 +56,8 @@ if TYPE_CHECKING:
         plan_candidates,
         plan_measurements,
         plan_setup,
+    )
+    from kinecal.workflows._poses import (
         read_pose_file,
     )
     from kinecal.workflows._sensor import (
@@ -173,11 +175,11 @@ __getattr__, __dir__ = _lazy.exports(
             "plan_candidates",
             "plan_measurements",
             "plan_setup",
-            "read_pose_file",
         ),
         "_evaluate": (
             "ModelEvaluation",
             "evaluate_measurements",
         ),
+        "_poses": ("read_pose_file",),
     },
 )
