@@ -153,3 +153,14 @@ def test_sensor_workflows_are_the_commands(tmp_path, capsys):
 
     want = sphere_dict(fit_cloud_sphere(cloud_csv))
     assert json.loads(res.out) == json.loads(json.dumps(want))
+
+
+def test_iso9283_program_workflow_is_the_command(tmp_path, capsys):
+    from kinecal.workflows import iso_test_program
+
+    out = tmp_path / "iso.csv"
+    res = _ok(capsys, "plan", "--iso9283", "--robot", "fanuc-lrmate200id", "--cycles",
+              "3", "--out", out)  # fmt: skip
+    prog = iso_test_program(load_robot("fanuc-lrmate200id"), cycles=3)
+    assert out.read_text() == prog.csv_text()
+    assert res.out.splitlines()[:-1] == prog.summary_lines()

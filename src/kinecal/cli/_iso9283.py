@@ -1,10 +1,8 @@
 """ISO 9283 hooks of ``kinecal plan --iso9283`` and ``kinecal evaluate --iso9283``.
 
-The options and the work live here; ``cli/_plan.py`` and ``cli/_calibrate.py`` only apply
+The options, argument checks, writing and printing live here (the work: the workflows of
+:mod:`kinecal.workflows._iso9283`); ``cli/_plan.py`` and ``cli/_calibrate.py`` only apply
 the option decorators and call :func:`run_iso_plan` / :func:`run_iso_evaluate`.
-File columns (docs/iso9283.md): the plan's joint columns, ``iso_point`` (P1..P5),
-``iso_cycle`` (1..n), ``cmd_x_mm, cmd_y_mm, cmd_z_mm`` (command position in the robot
-base frame) and ``cmd_a_deg, cmd_b_deg, cmd_c_deg`` (command orientation about x, y, z).
 """
 
 from __future__ import annotations
@@ -18,7 +16,6 @@ import click
 
 from kinecal.cli._common import FiniteFloat, Progress
 
-POINT_COLUMN, CYCLE_COLUMN = "iso_point", "iso_cycle"
 _PLAN_FLAGS = ("candidates", "poses", "add_n")
 
 
@@ -92,8 +89,8 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
 
     from kinecal.geometry import euler_transform, euler_zyx_to_matrix
     from kinecal.io import atomic_write_files, json_text
-    from kinecal.iso9283 import POINT_LABELS, VISIT_ORDER, plan_iso9283
     from kinecal.robot import load_robot
+    from kinecal.workflows import iso_test_program
 
     given = [f"--{k.replace('_n', '')}" for k in _PLAN_FLAGS if kw.get(k)]
     if given:
@@ -139,133 +136,27 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
         R = euler_zyx_to_matrix(np.radians(rwp))
     centre = None
     if kw["cube_centre"]:
-        centre = np.array(_numbers(kw["cube_centre"], 3, "--cube-centre")) * 1e-3
-    edge = None if kw["cube_mm"] is None else kw["cube_mm"] * 1e-3
+        c = _numbers(kw["cube_centre"], 3, "--cube-centre")
+        centre = (c[0], c[1], c[2])
     T_tool = None
     if kw["tool"]:  # the tool point the cube's points are for
         n = len(kw["tool"].split(","))
         tool = _numbers(kw["tool"], n if n in (3, 6) else 6, "--tool") + [0.0] * (6 - n)
         T_tool = euler_transform([*np.array(tool[:3]) * 1e-3, *np.radians(tool[3:])])
-    say("iso9283", "placing the cube" if edge is None else "checking the cube")
-    pl = plan_iso9283(
-        robot,
-        edge=edge,
-        centre=centre,
-        R_base_tool=R,
-        cycles=kw["cycles"],
-        plane=kw["iso_plane"],
-        seed=kw["seed"],
-        T_flange_tool=T_tool,
-    )
-    if cal is not None:
-        from kinecal.iso9283 import compensated_plan
-
-        say("iso9283", f"compensating the program with {kw['model_name']}")
-        pl = compensated_plan(pl, cal)
-    lines, joint_cols, f = _plan_lines(robot, pl)
-    doc = _plan_doc(robot, pl, joint_cols, f, kw, cal is not None)
+    prog = iso_test_program(
+        robot, cal=cal, edge_mm=kw["cube_mm"], centre_mm=centre, R_base_tool=R,
+        cycles=kw["cycles"], plane=kw["iso_plane"], seed=kw["seed"],
+        T_flange_tool=T_tool, model_name=kw["model_name"], progress=say,
+    )  # fmt: skip
     atomic_write_files(
-        {str(out): "\n".join(lines) + "\n", str(rep): json_text(doc)},
+        {str(out): prog.csv_text(), str(rep): json_text(prog.report)},
         force=kw["force"],
     )
     if kw["as_json"]:
-        click.echo(json.dumps(doc))
+        click.echo(json.dumps(prog.report))
         return
-    cube, pts_mm = pl.cube, pl.cube.points * 1e3
-    click.echo(
-        f"cube      edge {cube.edge * 1e3:.1f} mm, centre "
-        + ", ".join(f"{v:.1f}" for v in cube.centre * 1e3)
-        + f" mm (robot base), plane {cube.plane}"
-    )
-    for i, lab in enumerate(POINT_LABELS):
-        click.echo(
-            f"{lab}        "
-            + ", ".join(f"{v:8.2f}" for v in pts_mm[i])
-            + " mm   joints "
-            + " ".join(f"{v:.2f}" for v in pl.q_points[i] * f)
-        )
-    click.echo(
-        f"program   {pl.cycles} cycles of {' -> '.join(VISIT_ORDER)}: "
-        f"{len(lines) - 1} rows"
-    )
-    if cal is not None:
-        click.echo(
-            f"joints    compensated with {kw['model_name']} (the points through its "
-            "user frame; evaluate --iso9283 gives the accuracy after compensation)"
-        )
+    click.echo("\n".join(prog.summary_lines()))
     click.echo(f"wrote     {out}, {rep}")
-
-
-def _plan_lines(robot: Any, pl: Any) -> tuple[list[str], list[str], Any]:
-    """The program's CSV lines, its joint columns and their factors from SI."""
-    import numpy as np
-
-    from kinecal.iso9283 import POINT_LABELS, orientation_abc
-
-    joint_cols = [
-        f"j{k + 1}_mm" if j.kind == "prismatic" else f"j{k + 1}_deg"
-        for k, j in enumerate(robot.joints)
-    ]
-    f = np.array([1e3 if j.kind == "prismatic" else 180 / np.pi for j in robot.joints])
-    abc = np.degrees(orientation_abc(pl.R_base_tool))
-    cmd_cols = [
-        "cmd_x_mm",
-        "cmd_y_mm",
-        "cmd_z_mm",
-        "cmd_a_deg",
-        "cmd_b_deg",
-        "cmd_c_deg",
-    ]
-    lines = [",".join([*joint_cols, POINT_COLUMN, CYCLE_COLUMN, *cmd_cols])]
-    pts_mm = pl.cube.points * 1e3
-    for q, k, c in zip(pl.q_ctrl * f, pl.point_index, pl.cycle):
-        cells = [f"{v:.6f}" for v in q] + [POINT_LABELS[k], str(c)]
-        cells += [f"{v:.4f}" for v in pts_mm[k]] + [f"{v:.6f}" for v in abc]
-        lines.append(",".join(cells))
-    return lines, joint_cols, f
-
-
-def _plan_doc(
-    robot: Any, pl: Any, joint_cols: list[str], f: Any, kw: dict[str, Any], comp: bool
-) -> dict[str, Any]:
-    """The program's report.json."""
-    import numpy as np
-
-    from kinecal.iso9283 import POINT_LABELS, VISIT_ORDER, orientation_abc
-
-    abc = np.degrees(orientation_abc(pl.R_base_tool))
-    pts_mm = pl.cube.points * 1e3
-    cube = pl.cube
-    doc = {
-        "iso9283_plan": {
-            "standard": "ISO 9283:1998, 6.2 (cube, test plane, P1..P5), 7.2.1 (cycles)",
-            "robot": robot.name,
-            "frame": "robot base (the robot file's base; FANUC: World)",
-            "cube": {
-                "centre_mm": (cube.centre * 1e3).tolist(),
-                "edge_mm": cube.edge * 1e3,
-                "plane": cube.plane,
-                "diagonal_mm": cube.diagonal * 1e3,
-                "corners_mm": {
-                    f"C{i + 1}": c.tolist() for i, c in enumerate(cube.corners * 1e3)
-                },
-            },
-            "orientation_abc_deg": abc.tolist(),
-            "cycles": pl.cycles,
-            "order": list(VISIT_ORDER),
-            "points": [
-                {
-                    "point": lab,
-                    "command_mm": pts_mm[i].tolist(),
-                    "joints": dict(zip(joint_cols, (pl.q_points[i] * f).tolist())),
-                }
-                for i, lab in enumerate(POINT_LABELS)
-            ],
-            "rows": len(pl.point_index),
-            "compensated_with": kw["model_name"] if comp else None,
-        }
-    }
-    return doc
 
 
 def iso_evaluate_options(f: Callable[..., Any]) -> Callable[..., Any]:
@@ -301,48 +192,6 @@ def read_iso_data(
     return meas
 
 
-def _labels(data: str, rows: Any) -> tuple[Any, Any]:
-    """``iso_point`` and ``iso_cycle`` of the data rows (by file line)."""
-    import numpy as np
-
-    from kinecal.errors import DataError
-    from kinecal.io import read_table
-
-    t = read_table(data)
-    # the plan's names, or the plain ones a measurement program may write
-    names = {c.strip().lower(): k for k, c in enumerate(t.header)}
-    found = [
-        next((names[c] for c in (want, want[4:]) if c in names), None)
-        for want in (POINT_COLUMN, CYCLE_COLUMN)
-    ]
-    missing = [c for c, k in zip((POINT_COLUMN, CYCLE_COLUMN), found) if k is None]
-    if missing:
-        raise DataError(
-            f"{data}: no column {' or '.join(repr(c) for c in missing)}; --iso9283 needs "
-            f"the test point ({POINT_COLUMN}: P1..P5) and the cycle ({CYCLE_COLUMN}: "
-            "1, 2, ...) of every row, as plan --iso9283 writes them (also accepted: "
-            "'point', 'cycle')."
-        )
-    kp, kc = (int(k) for k in found if k is not None)
-    by_line = {line: row for line, row in zip(t.lines, t.rows)}
-    points, cycles = [], []
-    for r in rows:
-        row = by_line[int(r)]
-        text = row[kc].strip()
-        try:
-            c = int(text)
-            if c < 1 or str(c) != text.lstrip("+"):
-                raise ValueError
-        except ValueError:
-            raise DataError(
-                f"{data}: line {r}, column '{t.header[kc]}': {text!r} is not a cycle "
-                "number; expected an integer 1, 2, ..."
-            ) from None
-        points.append(row[kp].strip())
-        cycles.append(c)
-    return np.array(points, dtype=object), np.array(cycles, dtype=np.intp)
-
-
 def run_iso_evaluate(
     cal: Any,
     meas: Any,
@@ -354,7 +203,7 @@ def run_iso_evaluate(
     model_path: str,
 ) -> None:
     """``kinecal evaluate --iso9283``: console table, optional report.json/.html."""
-    from kinecal.iso9283 import evaluate_iso9283
+    from kinecal.workflows import evaluate_iso_test
 
     folder = None
     if out_dir:  # the command's staged folder, moved into place when it succeeds
@@ -363,9 +212,8 @@ def run_iso_evaluate(
         folder = prepare_output_dir(
             out_dir, ["report.json", "report.html"], force=force
         )
-    point, cycle = _labels(data, meas.rows)
-    iso = evaluate_iso9283(cal, meas, point, cycle, refit=refit)
-    block = iso.as_dict()
+    res = evaluate_iso_test(cal, meas, data, refit=refit)
+    block = res.block
     if folder is not None:
         from kinecal.io import atomic_write_files, json_text
         from kinecal.report._iso9283 import render_iso9283_report
@@ -382,38 +230,6 @@ def run_iso_evaluate(
     if as_json:
         click.echo(json.dumps({"iso9283": block}))
         return
-    _echo(block)
+    click.echo("\n".join(res.table_lines()))
     if out_dir:
         click.echo(f"wrote     {out_dir}: report.json, report.html")
-
-
-def _echo(block: dict[str, Any]) -> None:
-    """The console table: AP, RP per point, before and after."""
-    orient = block["kind"] == "pose"
-    for key, name in (
-        ("nominal", "nominal robot (before)"),
-        ("model", "model (after)"),
-    ):
-        fig = block.get(key)
-        if not fig:
-            continue
-        click.echo(f"ISO 9283  {name}")
-        head = "point  n    AP_P     AP_x     AP_y     AP_z     RP_l  [mm]"
-        click.echo(head + ("   AP_a/b/c, RP_a/b/c [deg]" if orient else ""))
-        for p in fig["points"]:
-            line = f"{p['point']:<5} {p['n']:<3}" + "".join(
-                f"{p[k]:9.4f}"
-                for k in ("ap_mm", "ap_x_mm", "ap_y_mm", "ap_z_mm", "rp_mm")
-            )
-            if orient:
-                line += "  " + "".join(f"{p[f'ap_{a}_deg']:9.4f}" for a in "abc")
-                line += "  " + "".join(f" ±{p[f'rp_{a}_deg']:.4f}" for a in "abc")
-            click.echo(line)
-        d = fig.get("distance")
-        if d:
-            click.echo(
-                f"distance  {d['pair'][0]}-{d['pair'][1]}: AD_P {d['ad_mm']:.4f} mm  "
-                f"RD ±{d['rd_mm']:.4f} mm  ({d['n']} cycles)"
-            )
-    for note in block["notes"]:
-        click.echo(f"note      {note}")

@@ -49,6 +49,12 @@ if TYPE_CHECKING:
         forward_pose,
         import_urdf_robot,
     )
+    from kinecal.workflows._iso9283 import (
+        IsoTestProgram,
+        IsoTestResult,
+        evaluate_iso_test,
+        iso_test_program,
+    )
     from kinecal.workflows._plan import (
         PlanRun,
         PlanSetup,
@@ -84,6 +90,8 @@ __all__ = [
     "CameraRun",
     "DemoRun",
     "ImportedRobot",
+    "IsoTestProgram",
+    "IsoTestResult",
     "ModelComparison",
     "ModelEvaluation",
     "ModelExport",
@@ -102,11 +110,13 @@ __all__ = [
     "compare_measurements",
     "compensate_program",
     "compensate_targets",
+    "evaluate_iso_test",
     "evaluate_measurements",
     "export_model",
     "fit_cloud_sphere",
     "forward_pose",
     "import_urdf_robot",
+    "iso_test_program",
     "paper_demo",
     "plan_candidates",
     "plan_measurements",
@@ -181,5 +191,11 @@ __getattr__, __dir__ = _lazy.exports(
             "evaluate_measurements",
         ),
         "_poses": ("read_pose_file",),
+        "_iso9283": (
+            "IsoTestProgram",
+            "IsoTestResult",
+            "evaluate_iso_test",
+            "iso_test_program",
+        ),
     },
 )
