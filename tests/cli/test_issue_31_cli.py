@@ -7,6 +7,13 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
+
+
+@pytest.fixture
+def run_cli(run_cli_here):
+    """The commands in this process: these tests check what they compute and say."""
+    return run_cli_here
 
 
 def _rows(path):

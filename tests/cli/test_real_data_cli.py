@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from kinecal.identification import calibrate, evaluate, registered_model
 from kinecal.io import load_model, read_measurements
@@ -14,6 +15,12 @@ from kinecal.robot import load_robot
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "real"
 FR3 = load_robot("franka-fr3")
+
+
+@pytest.fixture
+def run_cli(run_cli_here):
+    """The commands in this process: these tests check what they compute and say."""
+    return run_cli_here
 
 
 def _cli(run_cli, args):

@@ -16,6 +16,12 @@ DATA = ROOT / "tests" / "data" / "real" / "tiago_mocap.csv"
 ROBOT = ROOT / "examples" / "data" / "tiago_figaroh_qualisys" / "tiago.yaml"
 
 
+@pytest.fixture
+def run_cli(run_cli_here):
+    """The commands in this process: these tests check what they compute and say."""
+    return run_cli_here
+
+
 def test_tiago_calibrates_and_predicts_held_out_poses_better_than_nominal(
     tmp_path, run_cli
 ):

@@ -31,6 +31,12 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 OFFSET_DEG = np.array([0.0, 10.0, 0.0, 0.0, -60.0, 0.0])  # poses around a working one
 
 
+@pytest.fixture
+def run_cli(run_cli_here):
+    """The commands in this process: these tests check what they compute and say."""
+    return run_cli_here
+
+
 @pytest.fixture(scope="module")
 def twin():
     e = experiment2(21)

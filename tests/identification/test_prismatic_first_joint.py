@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from kinecal.identification import (
     CalibrationOptions,
@@ -47,6 +48,12 @@ LIFT = robot_from_dict(
 
 
 TRUTH = random_truth(LIFT, seed=5)
+
+
+@pytest.fixture
+def run_cli(run_cli_here):
+    """The commands in this process: these tests check what they compute and say."""
+    return run_cli_here
 
 
 def _points(n: int, seed: int) -> tuple[Measurements, object]:

@@ -15,6 +15,12 @@ from tests.urdf_reference import urdf_chain_fk
 DATA = Path(__file__).resolve().parents[1] / "data" / "fanuc_lrmate200id"
 
 
+@pytest.fixture
+def run_cli(run_cli_here):
+    """The commands in this process: these tests check what they compute and say."""
+    return run_cli_here
+
+
 @pytest.mark.parametrize(
     ("file", "tip"),
     [
