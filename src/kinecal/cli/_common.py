@@ -183,6 +183,22 @@ class Progress:
         self._stop.set()
 
 
+def parse_floats(text: str, n: int, name: str) -> list[float]:
+    """``"1,2,3"`` -> [1.0, 2.0, 3.0]: ``n`` finite numbers, else a usage error naming
+    the option ``name``."""
+    import math
+
+    try:
+        vals = [float(t) for t in text.split(",")]
+    except ValueError:
+        vals = []
+    if len(vals) != n or not all(math.isfinite(v) for v in vals):
+        raise click.BadParameter(
+            f"expected {n} comma-separated numbers; got {text!r}", param_hint=name
+        )
+    return vals
+
+
 def parse_int_list(
     text: str | None, name: str, n_max: int | None = None
 ) -> tuple[int, ...] | None:

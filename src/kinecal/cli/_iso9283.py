@@ -14,7 +14,7 @@ from typing import Any
 
 import click
 
-from kinecal.cli._common import FiniteFloat, Progress
+from kinecal.cli._common import FiniteFloat, Progress, parse_floats
 
 _PLAN_FLAGS = ("candidates", "poses", "add_n")
 
@@ -69,20 +69,6 @@ def iso_plan_options(f: Callable[..., Any]) -> Callable[..., Any]:
     return f
 
 
-def _numbers(text: str, n: int, name: str) -> list[float]:
-    import math
-
-    try:
-        vals = [float(t) for t in text.split(",")]
-    except ValueError:
-        vals = []
-    if len(vals) != n or not all(math.isfinite(v) for v in vals):
-        raise click.BadParameter(
-            f"expected {n} comma-separated numbers; got {text!r}", param_hint=name
-        )
-    return vals
-
-
 def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
     """``kinecal plan --iso9283``: PLAN.csv and PLAN.report.json."""
     import numpy as np
@@ -132,16 +118,18 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
         )
     R = None
     if kw["orientation"]:
-        rwp = _numbers(kw["orientation"], 3, "--orientation")
+        rwp = parse_floats(kw["orientation"], 3, "--orientation")
         R = euler_zyx_to_matrix(np.radians(rwp))
     centre = None
     if kw["cube_centre"]:
-        c = _numbers(kw["cube_centre"], 3, "--cube-centre")
+        c = parse_floats(kw["cube_centre"], 3, "--cube-centre")
         centre = (c[0], c[1], c[2])
     T_tool = None
     if kw["tool"]:  # the tool point the cube's points are for
         n = len(kw["tool"].split(","))
-        tool = _numbers(kw["tool"], n if n in (3, 6) else 6, "--tool") + [0.0] * (6 - n)
+        tool = parse_floats(kw["tool"], n if n in (3, 6) else 6, "--tool") + [0.0] * (
+            6 - n
+        )
         T_tool = euler_transform([*np.array(tool[:3]) * 1e-3, *np.radians(tool[3:])])
     prog = iso_test_program(
         robot, cal=cal, edge_mm=kw["cube_mm"], centre_mm=centre, R_base_tool=R,

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -16,6 +15,7 @@ from kinecal.cli._common import (
     allow_out_of_limits_option,
     common_options,
     manifest,
+    parse_floats,
 )
 from kinecal.cli._iso9283 import iso_plan_options, run_iso_plan
 
@@ -26,17 +26,7 @@ _PRESETS = ("kinematic", "ntm", "rfcm", "full")
 
 
 def _floats(text: str | None, n: int, name: str) -> list[float] | None:
-    if text is None:
-        return None
-    try:
-        vals = [float(t) for t in text.split(",")]
-    except ValueError:
-        vals = []
-    if len(vals) != n or not all(math.isfinite(v) for v in vals):
-        raise click.BadParameter(
-            f"expected {n} comma-separated numbers; got {text!r}", param_hint=name
-        )
-    return vals
+    return None if text is None else parse_floats(text, n, name)
 
 
 def _joint_ranges(text: str | None, robot: Any) -> Any:
