@@ -14,6 +14,12 @@ from kinecal.simulation import LaserTracker, experiment2
 from tests.cli_contract import run_kinecal as _in_process
 
 
+@pytest.fixture
+def run_cli(run_cli_here):
+    """The commands in this process: these tests check what they compute and say."""
+    return run_cli_here
+
+
 @pytest.fixture(scope="module")
 def models(tmp_path_factory):
     """A kinematic and a full model of the tracker twin, and held-out data."""

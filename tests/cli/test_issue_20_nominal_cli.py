@@ -5,10 +5,18 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
 from kinecal.io import measurements_to_csv
 from kinecal.robot import load_robot
 
 DATA = Path(__file__).resolve().parents[2] / "examples" / "data"
+
+
+@pytest.fixture
+def run_cli(run_cli_here):
+    """The commands in this process: these tests check what they compute and say."""
+    return run_cli_here
 
 
 def test_issue_20_the_wrong_nominal_robot_is_named(run_cli, tmp_path):
