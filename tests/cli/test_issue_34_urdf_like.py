@@ -695,3 +695,19 @@ def test_issue_33_model_yaml_accepts_joint_name_aliases(models, tmp_path):
     aliased.write_text(_yaml.safe_dump(doc))
     with pytest.raises(ConfigError, match="name one parameter"):
         load_model(aliased)
+
+
+def test_issue_33_refit_names_accept_joint_name_aliases(models):
+    """refit(names=...) takes shoulder_lift_joint.a for joint2.a: the same result."""
+    from kinecal.identification import refit
+    from kinecal.io import load_model
+
+    cal = load_model(models / "ur_imported.yaml")
+    imported = robot_from_urdf(UR10E, base="world", tip="tool0")
+    m = read_measurements(DATA / "real" / "ur10_mocap.csv", imported)
+    m = m.subset(np.arange(min(60, m.n)))
+    a = refit(cal, m, names=["joint2.a"])
+    b = refit(cal, m, names=["shoulder_lift_joint.a"])
+    np.testing.assert_array_equal(a.params, b.params)
+    with pytest.raises(ValueError, match="unknown parameter"):
+        refit(cal, m, names=["no_such_joint.a"])
