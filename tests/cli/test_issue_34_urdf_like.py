@@ -666,3 +666,48 @@ def test_issue_34_like_with_hayati_rows_sets_and_markers(key, tmp_path):
                 T = urdf_chain_fk(f, "user", res.tips[marker], th)
                 np.testing.assert_allclose(T[:3, 3], out.p_user[k], atol=1e-10)
                 np.testing.assert_allclose(T[:3, :3], out.R_user_cam[k], atol=1e-10)
+
+
+def test_issue_33_model_yaml_accepts_joint_name_aliases(models, tmp_path):
+    """A parameter key may be the robot's joint name (shoulder_lift_joint.d) for the
+    canonical joint2.d; both at once is an error naming them."""
+    import yaml as _yaml
+
+    from kinecal.errors import ConfigError
+    from kinecal.io import load_model
+    from kinecal.robot._param_names import display_parameter_name
+
+    src = models / "ur_imported.yaml"
+    canon = load_model(src)
+    doc = _yaml.safe_load(src.read_text())
+    names = canon.model.robot.joint_names
+    doc["parameters"] = {
+        display_parameter_name(k, names): v for k, v in doc["parameters"].items()
+    }
+    assert "shoulder_lift_joint.theta_offset" in doc["parameters"] or any(
+        k.startswith("shoulder_lift_joint.") for k in doc["parameters"]
+    )
+    aliased = tmp_path / "aliased.yaml"
+    aliased.write_text(_yaml.safe_dump(doc))
+    np.testing.assert_array_equal(load_model(aliased).params, canon.params)
+    k = next(k for k in doc["parameters"] if k.startswith("shoulder_lift_joint."))
+    doc["parameters"]["joint2." + k.partition(".")[2]] = doc["parameters"][k]
+    aliased.write_text(_yaml.safe_dump(doc))
+    with pytest.raises(ConfigError, match="name one parameter"):
+        load_model(aliased)
+
+
+def test_issue_33_refit_names_accept_joint_name_aliases(models):
+    """refit(names=...) takes shoulder_lift_joint.a for joint2.a: the same result."""
+    from kinecal.identification import refit
+    from kinecal.io import load_model
+
+    cal = load_model(models / "ur_imported.yaml")
+    imported = robot_from_urdf(UR10E, base="world", tip="tool0")
+    m = read_measurements(DATA / "real" / "ur10_mocap.csv", imported)
+    m = m.subset(np.arange(min(60, m.n)))
+    a = refit(cal, m, names=["joint2.a"])
+    b = refit(cal, m, names=["shoulder_lift_joint.a"])
+    np.testing.assert_array_equal(a.params, b.params)
+    with pytest.raises(ValueError, match="unknown parameter"):
+        refit(cal, m, names=["no_such_joint.a"])

@@ -108,6 +108,9 @@ def refit_diagnosed(
         if "marker" in groups:  # each marker's offset: the cam-frame translations
             free[layout.select(group="cam", field=("x", "y", "z"))] = True
     else:
+        from kinecal.robot._param_names import canonical_parameter_name
+
+        names = [canonical_parameter_name(n, old.robot.joint_names) for n in names]
         unknown = [n for n in names if n not in layout]
         if unknown:
             raise ValueError(

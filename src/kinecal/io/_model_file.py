@@ -29,6 +29,7 @@ from kinecal.io._model_bounds import (
 from kinecal.io._parameters import parameter_records
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import dump_robot, robot_from_dict
+from kinecal.robot._param_names import canonical_parameter_name
 
 __all__ = ["FORMAT_VERSION", "load_model", "model_to_dict", "save_model"]
 
@@ -354,6 +355,13 @@ def _parameters(
     if not isinstance(params_doc, dict):
         raise ConfigError(f"{p}: parameters must be a mapping of name to value.")
     names = model.layout.names
+    canon: dict[str, Any] = {}
+    for k, v in params_doc.items():
+        c = canonical_parameter_name(str(k), model.robot.joint_names)
+        if c in canon:
+            raise ConfigError(f"{p}: parameters: {k!r} and {c!r} name one parameter.")
+        canon[c] = v
+    params_doc = canon
     missing = [n for n in names if n not in params_doc]
     extra = [n for n in params_doc if n not in names]
     if missing or extra:
