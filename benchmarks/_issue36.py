@@ -236,8 +236,23 @@ def passes_per_command(record: Callable[..., None], train: Path, test: Path) -> 
     with tempfile.TemporaryDirectory() as tmp_s:
         out = Path(tmp_s)
         base = ["calibrate", str(train), "--robot", _ROBOT, "--force", "-q"]
+        # The same poses without their sigma column: the noise is estimated, and the
+        # last stage refits under the new weights (its first Jacobian rescaled).
+        lines = train.read_text().splitlines()
+        assert lines[0].endswith(",sigma_mm")
+        no_sigma = out / "no_sigma.csv"
+        no_sigma.write_text("".join(ln.rsplit(",", 1)[0] + "\n" for ln in lines))
         commands = {
             "calibrate_full": [*base, "--out", str(out / "f")],
+            "calibrate_full_no_sigma": [
+                *base[:1],
+                str(no_sigma),
+                *base[2:],
+                "--model",
+                "full",
+                "--out",
+                str(out / "s"),
+            ],
             "calibrate_full_no_report": [*base, "--out", str(out / "n"), "--no-report"],
             "evaluate": ["evaluate", str(test), "--model", str(out / "f/model.yaml")],
             "calibrate_auto_serial": [

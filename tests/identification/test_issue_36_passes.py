@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 
 from kinecal.identification import CalibrationOptions, calibrate, default_stages
 from kinecal.identification._nominal_check import _without_geometry_priors
@@ -111,3 +112,49 @@ def test_the_rejection_probe_from_the_shared_state_is_the_same(exp2_exact):
     np.testing.assert_array_equal(shared.x, fresh.x)
     np.testing.assert_array_equal(row_z(rob, shared)[0], row_z(rob, fresh)[0])
     assert n_shared < n_fresh
+
+
+def _cache_case(e, kind):
+    """An evaluation cache of ``e``'s training data (positions, or poses), its model
+    and a point off the nominal."""
+    from kinecal.identification._problem import EvaluationCache
+    from kinecal.identification._residuals import Weights
+    from kinecal.models import CalibrationModel, ModelSpec
+
+    meas = e.train
+    if kind == "pose":
+        p, R = e.truth.evaluate(meas.q_ctrl, orientation=True)
+        meas = dataclasses.replace(
+            meas,
+            kind="pose",
+            p=p,
+            R_user_cam=R,
+            sigma=np.full(meas.n, 1e-5),
+            sigma_rot=np.full(meas.n, 1e-4),
+        )
+    cm = CalibrationModel(e.truth.robot, ModelSpec.preset("full"))
+    x = cm.nominal + 1e-4 * np.random.default_rng(3).standard_normal(cm.size)
+    cache = EvaluationCache(meas, meas.model_inputs())
+    return cache, cm, x, Weights.default(meas), meas
+
+
+@pytest.mark.parametrize("kind", ["position", "pose"])
+def test_new_weights_at_a_kept_point_take_no_jacobian_pass(exp2_exact, kind):
+    """The noise re-estimation changes only the weights: the Jacobian kept at that
+    point is rescaled row by row (no pass), and equals a fresh evaluation."""
+    from kinecal.identification._residuals import Weights, residuals
+
+    cache, cm, x, w, meas = _cache_case(exp2_exact, kind)
+    first = cache(cm, x, w, jacobian=True, products=True)
+    scale = np.linspace(0.5, 2.0, meas.n)
+    w2 = Weights(w.sigma * scale, None if w.sigma_rot is None else w.sigma_rot / scale)
+    blk, n = _jacobians(lambda: cache(cm, x, w2, jacobian=True, products=True))
+    assert n == 0
+    fresh = residuals(
+        cm, x, meas, w2, inputs=meas.model_inputs(), jacobian=True, products=True
+    )
+    assert blk.J is not None and fresh.J is not None and first.J is not None
+    assert blk.J.shape == fresh.J.shape and blk.J is not first.J
+    np.testing.assert_array_equal(blk.r, fresh.r)
+    np.testing.assert_allclose(blk.J, fresh.J, rtol=1e-14, atol=0.0)
+    assert cache(cm, x, w2, jacobian=True) is blk  # kept under the new weights

@@ -100,7 +100,9 @@ class EvaluationCache:
     error before and after each stage). The last few blocks are kept, keyed by the model,
     the parameters and the weights; raw position errors do not depend on the weights.
     Each block also keeps the model's forward state, so the Jacobian at a point evaluated
-    before (the LM's accepted trial point, typically) skips the forward kinematics.
+    before (the LM's accepted trial point, typically) skips the forward kinematics, and a
+    Jacobian kept at a point serves new weights there too, rescaled (the noise
+    re-estimation's refit starts where the last fit ended).
     """
 
     def __init__(self, meas: Measurements, inputs: ModelInputs, keep: int = 3) -> None:
@@ -122,22 +124,28 @@ class EvaluationCache:
         key = np.asarray(x, np.float64).tobytes()
         n_cols = cm.size + (len(cm.link_products) if products else 0)
         forward = None  # the model's forward state at x, from any block (any weights)
+        other = None  # a held Jacobian at x under other weights, to be reweighted
         for m, k, ww, blk in reversed(self._blocks):
             if m is cm and k == key:
                 if ww is w and (not jacobian or blk.has_jacobian(n_cols)):
                     return blk
                 forward = forward or blk.forward
-        blk = residuals(
-            cm,
-            x,
-            self.meas,
-            w,
-            inputs=self.inputs,
-            jacobian=jacobian,
-            products=products,
-            keep=True,
-            reuse=forward,
-        )
+                if other is None and blk.J is not None and blk.J.shape[-1] >= n_cols:
+                    other = (ww, blk)
+        if jacobian and other is not None:
+            blk = _reweighted(other[1], other[0], w)
+        else:
+            blk = residuals(
+                cm,
+                x,
+                self.meas,
+                w,
+                inputs=self.inputs,
+                jacobian=jacobian,
+                products=products,
+                keep=True,
+                reuse=forward,
+            )
         self._blocks = [*self._blocks[-(self._keep - 1) :], (cm, key, w, blk)]
         return blk
 
@@ -153,6 +161,30 @@ class EvaluationCache:
         """RMS of the 3-D position errors at ``x`` [mm]."""
         e_p = self.raw_position(cm, x, w)
         return float(np.sqrt(np.mean(np.sum(e_p**2, axis=1)))) * 1e3
+
+
+def _reweighted(blk: ResidualBlock, was: Weights, w: Weights) -> ResidualBlock:
+    """``blk`` (evaluated under the weights ``was``) whitened with ``w`` instead: the
+    residuals from the raw errors, the Jacobian's rows rescaled (the same point, so no
+    new Jacobian pass; the noise re-estimation changes only the weights)."""
+    assert blk.J is not None
+    inv_s = 1.0 / w.sigma
+    ratio = was.sigma * inv_s
+    if blk.raw_rotation is None:
+        r = blk.raw_position * inv_s[:, None]
+        J = blk.J * ratio[:, None, None]
+    else:
+        assert w.sigma_rot is not None and was.sigma_rot is not None
+        inv_sr = 1.0 / w.sigma_rot
+        r = np.concatenate(
+            [blk.raw_position * inv_s[:, None], blk.raw_rotation * inv_sr[:, None]],
+            axis=1,
+        )
+        J = np.empty_like(blk.J)  # keeps the block's (parameter-major) layout
+        np.multiply(blk.J[:, :3], ratio[:, None, None], out=J[:, :3])
+        rr = was.sigma_rot * inv_sr
+        np.multiply(blk.J[:, 3:], rr[:, None, None], out=J[:, 3:])
+    return replace(blk, r=r, J=J)
 
 
 def spec_for(
