@@ -170,3 +170,70 @@ def test_issue_19_no_module_over_600_lines():
         if lines > MAX_LINES:
             too_long[rel] = lines
     assert too_long == {}
+
+
+# Issue 32 point 2: the vocabulary (measurement/) sits below the fitter (identification/).
+EDGE_PACKAGES = (
+    "cli",
+    "compensation",
+    "io",
+    "iso9283",
+    "planning",
+    "report",
+    "sensor",
+    "simulation",
+    "workflows",
+)
+
+
+def _vocabulary_from_the_fitter(source: str) -> list[str]:
+    """The measurement names ``source`` imports from ``kinecal.identification``."""
+    import kinecal.measurement
+
+    vocabulary = set(kinecal.measurement.__all__)
+    return [
+        a.name
+        for node in ast.walk(ast.parse(source))
+        if isinstance(node, ast.ImportFrom)
+        and (node.module or "").startswith("kinecal.identification")
+        for a in node.names
+        if a.name in vocabulary
+    ]
+
+
+def test_issue_32_the_vocabulary_check_finds_an_edge_import():
+    probe = "def f():\n    from kinecal.identification import Measurements, calibrate\n"
+    assert _vocabulary_from_the_fitter(probe) == ["Measurements"]
+    assert _vocabulary_from_the_fitter("from kinecal.measurement import Weights") == []
+
+
+def test_issue_32_edge_packages_import_the_vocabulary_from_measurement():
+    found = {}
+    for package in EDGE_PACKAGES:
+        for path in sorted((SRC / "kinecal" / package).rglob("*.py")):
+            names = _vocabulary_from_the_fitter(path.read_text())
+            if names:
+                found[path.relative_to(SRC).as_posix()] = names
+    assert found == {}, "import these from kinecal.measurement"
+
+
+def test_issue_32_measurement_imports_nothing_from_identification():
+    modules = _modules()
+    found = {
+        name: sorted(m for m in _imports(name, path, modules) if "identification" in m)
+        for name, path in modules.items()
+        if name.startswith("kinecal.measurement")
+    }
+    assert found and all(found), "no measurement module found"
+    assert {k: v for k, v in found.items() if v} == {}
+
+
+def test_issue_32_identification_re_exports_the_vocabulary_unchanged():
+    import kinecal.identification
+    import kinecal.measurement
+
+    for name in kinecal.measurement.__all__:
+        assert name in kinecal.identification.__all__
+        assert getattr(kinecal.identification, name) is getattr(
+            kinecal.measurement, name
+        )

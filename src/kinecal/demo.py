@@ -89,7 +89,7 @@ def _recovery_html(rec: Any, to_file: dict[str, float], units: dict[str, str]) -
 def truth_model(exp: Any) -> Any:
     """The true robot of a simulated experiment as a model file's contents (a
     :class:`CalibratedModel` with no standard deviations, every parameter 'fixed')."""
-    from kinecal.identification import CalibratedModel
+    from kinecal.measurement import CalibratedModel
 
     tm, x = exp.truth.model, exp.truth.params
     if exp.train.kind == "point" and tm.spec.cam_rotation:
