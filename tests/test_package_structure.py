@@ -237,3 +237,75 @@ def test_issue_32_identification_re_exports_the_vocabulary_unchanged():
         assert getattr(kinecal.identification, name) is getattr(
             kinecal.measurement, name
         )
+
+
+# Issue 32: no function over 100 lines (``def`` to its last line, docstring included).
+MAX_FUNCTION_LINES = 100
+# Temporary: files other helpers of this wave edit (cli/ and workflows/: wf; the stages,
+# the problem, the solver and the nominal check: perf); removed after their merge.
+FUNCTION_LENGTH_OTHERS = (
+    "kinecal/cli/",
+    "kinecal/workflows/",
+    "kinecal/identification/_stages.py",
+    "kinecal/identification/_problem.py",
+    "kinecal/identification/_lm.py",
+    "kinecal/identification/_nominal_check.py",
+)
+# Temporary: functions not yet split into named steps (issue 32, still open).
+FUNCTION_LENGTH_NOT_YET_SPLIT = {
+    "kinecal/compensation/_compensate.py": ("compensate",),
+    "kinecal/demo.py": ("paper_demo",),
+    "kinecal/io/_urdf_like.py": ("like_urdf",),
+    "kinecal/models/_definition.py": ("build",),
+    "kinecal/models/_ik.py": ("solve_ik",),
+    "kinecal/models/_numpy_jacobian.py": ("jacobian",),
+    "kinecal/planning/_design.py": ("design_problem",),
+    "kinecal/planning/_plan.py": ("plan_poses",),
+    "kinecal/report/_calibration.py": ("render_calibration_report",),
+    "kinecal/report/_html.py": ("write_comparison_report",),
+    "kinecal/robot/_schema.py": ("robot_from_dict",),
+    "kinecal/robot/_urdf.py": ("robot_from_urdf",),
+    "kinecal/sensor/_bundle.py": ("_bundle_adjust",),
+    "kinecal/sensor/_joint.py": ("calibrate_sensor",),
+    "kinecal/sensor/_ridge.py": ("_points",),
+    "kinecal/sensor/_sphere.py": ("fit_sphere",),
+}
+
+
+def _long_functions(source: str, limit: int = MAX_FUNCTION_LINES) -> dict[str, int]:
+    """Name -> lines of every function (methods and nested ones too) over ``limit``."""
+    return {
+        node.name: node.end_lineno - node.lineno + 1
+        for node in ast.walk(ast.parse(source))
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
+        and node.end_lineno is not None
+        and node.end_lineno - node.lineno + 1 > limit
+    }
+
+
+def test_issue_32_the_length_check_finds_a_long_function():
+    body = "".join(f"    x{i} = {i}\n" for i in range(100))
+    assert _long_functions(f"def f():\n{body}") == {"f": 101}
+    assert _long_functions(f"def f():\n{body[: -len('    x99 = 99') - 1]}") == {}
+
+
+def test_issue_32_no_function_over_100_lines():
+    too_long = {}
+    for path in sorted((SRC / "kinecal").rglob("*.py")):
+        rel = path.relative_to(SRC).as_posix()
+        if rel.startswith(FUNCTION_LENGTH_OTHERS):
+            continue
+        allowed = FUNCTION_LENGTH_NOT_YET_SPLIT.get(rel, ())
+        found = _long_functions(path.read_text())
+        too_long.update({f"{rel}:{n}": k for n, k in found.items() if n not in allowed})
+    assert too_long == {}
+
+
+def test_issue_32_the_not_yet_split_list_holds_only_long_functions():
+    stale = [
+        f"{rel}:{name}"
+        for rel, names in FUNCTION_LENGTH_NOT_YET_SPLIT.items()
+        for name in names
+        if name not in _long_functions((SRC / rel).read_text())
+    ]
+    assert stale == [], "split: remove from FUNCTION_LENGTH_NOT_YET_SPLIT"
