@@ -259,7 +259,6 @@ FUNCTION_LENGTH_NOT_YET_SPLIT = {
     "kinecal/models/_definition.py": ("build",),
     "kinecal/models/_ik.py": ("solve_ik",),
     "kinecal/models/_numpy_jacobian.py": ("jacobian",),
-    "kinecal/planning/_plan.py": ("plan_poses",),
     "kinecal/report/_calibration.py": ("render_calibration_report",),
     "kinecal/report/_html.py": ("write_comparison_report",),
     "kinecal/robot/_schema.py": ("robot_from_dict",),
