@@ -254,7 +254,6 @@ FUNCTION_LENGTH_OTHERS = (
 # Temporary: functions not yet split into named steps (issue 32, still open).
 FUNCTION_LENGTH_NOT_YET_SPLIT = {
     "kinecal/compensation/_compensate.py": ("compensate",),
-    "kinecal/demo.py": ("paper_demo",),
     "kinecal/io/_urdf_like.py": ("like_urdf",),
     "kinecal/models/_definition.py": ("build",),
     "kinecal/models/_ik.py": ("solve_ik",),
