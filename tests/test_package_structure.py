@@ -265,7 +265,6 @@ FUNCTION_LENGTH_NOT_YET_SPLIT = {
     "kinecal/sensor/_bundle.py": ("_bundle_adjust",),
     "kinecal/sensor/_joint.py": ("calibrate_sensor",),
     "kinecal/sensor/_ridge.py": ("_points",),
-    "kinecal/sensor/_sphere.py": ("fit_sphere",),
 }
 
 
