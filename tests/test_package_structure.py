@@ -263,7 +263,6 @@ FUNCTION_LENGTH_NOT_YET_SPLIT = {
     "kinecal/robot/_schema.py": ("robot_from_dict",),
     "kinecal/robot/_urdf.py": ("robot_from_urdf",),
     "kinecal/sensor/_joint.py": ("calibrate_sensor",),
-    "kinecal/sensor/_ridge.py": ("_points",),
 }
 
 
