@@ -14,6 +14,7 @@ from pathlib import Path
 
 PACKAGES = (
     "identification",
+    "measurement",
     "io",
     "planning",
     "compensation",
@@ -48,13 +49,29 @@ def page(package: str) -> str:
     ]
     for n in names:
         obj = getattr(module, n)
+        # A name re-exported from another documented package is indexed there only.
+        again = ["   :no-index:"] if _home(package, n, obj) != package else []
         if inspect.isclass(obj):
-            lines += [f".. autoclass:: {n}", "   :members:", ""]
+            lines += [f".. autoclass:: {n}", "   :members:", *again, ""]
         elif callable(obj):
-            lines += [f".. autofunction:: {n}", ""]
+            lines += [f".. autofunction:: {n}", *again, ""]
         else:
-            lines += [f".. autodata:: {n}", "   :no-value:", ""]
+            lines += [f".. autodata:: {n}", "   :no-value:", *again, ""]
     return "\n".join(lines)
+
+
+def _home(package: str, name: str, obj: object) -> str:
+    """The documented package whose private module defines ``name`` (the package
+    itself where no other one does)."""
+    source = inspect.getsource(importlib.import_module(f"kinecal.{package}"))
+    for other in PACKAGES:
+        if other == package:
+            continue
+        there = importlib.import_module(f"kinecal.{other}")
+        if name in there.__all__ and getattr(there, name) is obj:
+            if f"kinecal.{other}._" in source:
+                return other
+    return package
 
 
 def main() -> int:

@@ -17,6 +17,7 @@ LAZY = (
     "kinecal.identification",
     "kinecal.io",
     "kinecal.iso9283",
+    "kinecal.measurement",
     "kinecal.models",
     "kinecal.report",
     "kinecal.robot",

@@ -170,3 +170,136 @@ def test_issue_19_no_module_over_600_lines():
         if lines > MAX_LINES:
             too_long[rel] = lines
     assert too_long == {}
+
+
+# Issue 32 point 2: the vocabulary (measurement/) sits below the fitter (identification/).
+EDGE_PACKAGES = (
+    "cli",
+    "compensation",
+    "io",
+    "iso9283",
+    "planning",
+    "report",
+    "sensor",
+    "simulation",
+    "workflows",
+)
+
+
+def _vocabulary_from_the_fitter(source: str) -> list[str]:
+    """The measurement names ``source`` imports from ``kinecal.identification``."""
+    import kinecal.measurement
+
+    vocabulary = set(kinecal.measurement.__all__)
+    return [
+        a.name
+        for node in ast.walk(ast.parse(source))
+        if isinstance(node, ast.ImportFrom)
+        and (node.module or "").startswith("kinecal.identification")
+        for a in node.names
+        if a.name in vocabulary
+    ]
+
+
+def test_issue_32_the_vocabulary_check_finds_an_edge_import():
+    probe = "def f():\n    from kinecal.identification import Measurements, calibrate\n"
+    assert _vocabulary_from_the_fitter(probe) == ["Measurements"]
+    assert _vocabulary_from_the_fitter("from kinecal.measurement import Weights") == []
+
+
+def test_issue_32_edge_packages_import_the_vocabulary_from_measurement():
+    found = {}
+    for package in EDGE_PACKAGES:
+        for path in sorted((SRC / "kinecal" / package).rglob("*.py")):
+            names = _vocabulary_from_the_fitter(path.read_text())
+            if names:
+                found[path.relative_to(SRC).as_posix()] = names
+    assert found == {}, "import these from kinecal.measurement"
+
+
+def test_issue_32_measurement_imports_nothing_from_identification():
+    modules = _modules()
+    found = {
+        name: sorted(m for m in _imports(name, path, modules) if "identification" in m)
+        for name, path in modules.items()
+        if name.startswith("kinecal.measurement")
+    }
+    assert found and all(found), "no measurement module found"
+    assert {k: v for k, v in found.items() if v} == {}
+
+
+def test_issue_32_identification_re_exports_the_vocabulary_unchanged():
+    import kinecal.identification
+    import kinecal.measurement
+
+    for name in kinecal.measurement.__all__:
+        assert name in kinecal.identification.__all__
+        assert getattr(kinecal.identification, name) is getattr(
+            kinecal.measurement, name
+        )
+
+
+# Issue 32: no function over 100 lines (``def`` to its last line, docstring included).
+MAX_FUNCTION_LINES = 100
+# Temporary: files other helpers of this wave edit (cli/ and workflows/: wf; the stages,
+# the problem, the solver and the nominal check: perf); removed after their merge.
+FUNCTION_LENGTH_OTHERS = (
+    "kinecal/cli/",
+    "kinecal/workflows/",
+    "kinecal/identification/_stages.py",
+    "kinecal/identification/_problem.py",
+    "kinecal/identification/_lm.py",
+    "kinecal/identification/_nominal_check.py",
+)
+# Temporary: functions not yet split into named steps (issue 32, still open).
+FUNCTION_LENGTH_NOT_YET_SPLIT = {
+    "kinecal/compensation/_compensate.py": ("compensate",),
+    "kinecal/io/_urdf_like.py": ("like_urdf",),
+    "kinecal/models/_definition.py": ("build",),
+    "kinecal/models/_ik.py": ("solve_ik",),
+    "kinecal/models/_numpy_jacobian.py": ("jacobian",),
+    "kinecal/report/_calibration.py": ("render_calibration_report",),
+    "kinecal/report/_html.py": ("write_comparison_report",),
+    "kinecal/robot/_schema.py": ("robot_from_dict",),
+    "kinecal/robot/_urdf.py": ("robot_from_urdf",),
+    "kinecal/sensor/_joint.py": ("calibrate_sensor",),
+}
+
+
+def _long_functions(source: str, limit: int = MAX_FUNCTION_LINES) -> dict[str, int]:
+    """Name -> lines of every function (methods and nested ones too) over ``limit``."""
+    return {
+        node.name: node.end_lineno - node.lineno + 1
+        for node in ast.walk(ast.parse(source))
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
+        and node.end_lineno is not None
+        and node.end_lineno - node.lineno + 1 > limit
+    }
+
+
+def test_issue_32_the_length_check_finds_a_long_function():
+    body = "".join(f"    x{i} = {i}\n" for i in range(100))
+    assert _long_functions(f"def f():\n{body}") == {"f": 101}
+    assert _long_functions(f"def f():\n{body[: -len('    x99 = 99') - 1]}") == {}
+
+
+def test_issue_32_no_function_over_100_lines():
+    too_long = {}
+    for path in sorted((SRC / "kinecal").rglob("*.py")):
+        rel = path.relative_to(SRC).as_posix()
+        if rel.startswith(FUNCTION_LENGTH_OTHERS):
+            continue
+        allowed = FUNCTION_LENGTH_NOT_YET_SPLIT.get(rel, ())
+        found = _long_functions(path.read_text())
+        too_long.update({f"{rel}:{n}": k for n, k in found.items() if n not in allowed})
+    assert too_long == {}
+
+
+def test_issue_32_the_not_yet_split_list_holds_only_long_functions():
+    stale = [
+        f"{rel}:{name}"
+        for rel, names in FUNCTION_LENGTH_NOT_YET_SPLIT.items()
+        for name in names
+        if name not in _long_functions((SRC / rel).read_text())
+    ]
+    assert stale == [], "split: remove from FUNCTION_LENGTH_NOT_YET_SPLIT"

@@ -22,6 +22,7 @@ ROOT = Path(__file__).resolve().parent.parent
 API = ROOT / "docs" / "api"
 PACKAGES = (
     "identification",
+    "measurement",
     "io",
     "planning",
     "compensation",

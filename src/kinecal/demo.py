@@ -28,6 +28,7 @@ from kinecal.io import (
 )
 from kinecal.report import comparison_table, format_table, write_comparison_report
 from kinecal.simulation import (
+    Experiment,
     LaserTracker,
     experiment1,
     experiment2,
@@ -89,7 +90,7 @@ def _recovery_html(rec: Any, to_file: dict[str, float], units: dict[str, str]) -
 def truth_model(exp: Any) -> Any:
     """The true robot of a simulated experiment as a model file's contents (a
     :class:`CalibratedModel` with no standard deviations, every parameter 'fixed')."""
-    from kinecal.identification import CalibratedModel
+    from kinecal.measurement import CalibratedModel
 
     tm, x = exp.truth.model, exp.truth.params
     if exp.train.kind == "point" and tm.spec.cam_rotation:
@@ -154,6 +155,23 @@ def run_demo(
     return paper_demo(out, seed=seed, force=force, progress=progress).text
 
 
+def _simulate(number: int, seed: int, d: Path) -> Experiment:
+    """Simulate the paper's experiment ``number`` and write its data and truth to
+    the directory ``d`` (made here)."""
+    if number == 2:
+        exp = experiment2(seed, extras=DEMO_EXTRAS, tracker=LaserTracker(5e-6, 2e-6))
+    else:
+        exp = experiment1(seed, extras=DEMO_EXTRAS)
+    d.mkdir(exist_ok=True)
+    robot = exp.truth.robot
+    write_measurements(d / "train.csv", exp.train, robot, force=True)
+    write_measurements(d / "test.csv", exp.test, robot, force=True)
+    if exp.targets is not None:
+        write_targets(d / "targets.csv", *exp.targets, force=True)
+    save_model(d / "truth.yaml", truth_model(exp), force=True)
+    return exp
+
+
 def paper_demo(
     out: Path,
     *,
@@ -184,20 +202,9 @@ def paper_demo(
     }
     for number in (2, 1):
         say(f"experiment {number}", "simulating")
-        if number == 2:
-            exp = experiment2(
-                seed, extras=DEMO_EXTRAS, tracker=LaserTracker(5e-6, 2e-6)
-            )
-        else:
-            exp = experiment1(seed, extras=DEMO_EXTRAS)
         d = out / f"experiment{number}"
-        d.mkdir(exist_ok=True)
+        exp = _simulate(number, seed, d)
         robot = exp.truth.robot
-        write_measurements(d / "train.csv", exp.train, robot, force=True)
-        write_measurements(d / "test.csv", exp.test, robot, force=True)
-        if exp.targets is not None:
-            write_targets(d / "targets.csv", *exp.targets, force=True)
-        save_model(d / "truth.yaml", truth_model(exp), force=True)
         say(f"experiment {number}", "calibrating kinematic, ntm, rfcm, full")
         rows = compare_models(robot, exp.train, exp.test, progress=say)
         table = comparison_table(rows)

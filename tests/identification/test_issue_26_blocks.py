@@ -12,12 +12,12 @@ import pytest
 from kinecal.identification import (
     Measurements,
     Weights,
-    _blocks,
     analyse_identifiability,
     calibrate,
     residuals,
 )
 from kinecal.identification._identifiability import identifiability_from_normal
+from kinecal.measurement import _blocks
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import load_robot
 from kinecal.simulation import PoseTracker, random_truth

@@ -17,7 +17,7 @@ from kinecal.identification import (
     select_model,
     spec_for,
 )
-from kinecal.identification._measurements import Measurements
+from kinecal.measurement._measurements import Measurements
 from kinecal.robot import robot_from_dict
 from kinecal.simulation import random_truth
 

@@ -17,9 +17,9 @@ import pytest
 
 from kinecal.errors import ConfigError
 from kinecal.identification import CalibratedModel
-from kinecal.identification._measurements import Measurements
 from kinecal.identification._select import candidate_specs
 from kinecal.io import load_model, save_model
+from kinecal.measurement._measurements import Measurements
 from kinecal.models import CalibrationModel
 from kinecal.robot import builtin_robot_names, load_robot
 from tests.conftest import kinecal_cli as run_cli

@@ -27,7 +27,7 @@ import numpy as np
 from kinecal.compensation._compensate import CompensationResult, compensate
 from kinecal.compensation._export import flange_offset, kinematic_params
 from kinecal.geometry import make_transform, transform_inv
-from kinecal.identification import CalibratedModel
+from kinecal.measurement import CalibratedModel
 from kinecal.models import ModelInputs, solve_ik_lm
 from kinecal.typing import Float, Pose
 

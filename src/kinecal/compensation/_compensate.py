@@ -22,7 +22,7 @@ import numpy as np
 
 from kinecal._blas import one_blas_thread
 from kinecal.errors import DataError
-from kinecal.identification import CalibratedModel
+from kinecal.measurement import CalibratedModel
 from kinecal.models import ModelInputs, solve_ik_lm
 from kinecal.typing import ArrayLike, Float
 

@@ -36,7 +36,7 @@ from collections.abc import Callable
 import numpy as np
 
 from kinecal.compensation._cartesian import arm_features, stretch_sign
-from kinecal.identification import CalibratedModel
+from kinecal.measurement import CalibratedModel
 from kinecal.typing import Float
 
 __all__ = ["config_accept", "encode_config"]

@@ -34,7 +34,7 @@ import numpy as np
 
 from kinecal.errors import ConfigError, DataError
 from kinecal.geometry import make_transform, rot_x, rot_y, rot_z
-from kinecal.identification import CalibratedModel
+from kinecal.measurement import CalibratedModel
 from kinecal.models import ModelInputs
 from kinecal.robot import JointSpec, RobotDescription
 from kinecal.typing import Float, Pose

@@ -13,7 +13,6 @@ if TYPE_CHECKING:
         calibrate,
         default_stages,
     )
-    from kinecal.identification._calibrated import STATUSES, CalibratedModel
     from kinecal.identification._crossval import (
         ComparisonRow,
         CrossValidation,
@@ -28,7 +27,6 @@ if TYPE_CHECKING:
         train_test_split,
     )
     from kinecal.identification._diagnose import Diagnose
-    from kinecal.identification._diagnostics import CODES, Diagnostic, Outlier, StageLog
     from kinecal.identification._evaluate import (
         Evaluation,
         evaluate,
@@ -56,8 +54,6 @@ if TYPE_CHECKING:
         solve_fixed_step,
         solve_lm,
     )
-    from kinecal.identification._measurements import KINDS, Measurements
-    from kinecal.identification._metrics import Metrics, metrics_from_errors
     from kinecal.identification._noise import NoiseModel
     from kinecal.identification._nominal_check import nominal_check
     from kinecal.identification._options import PRIOR_SIGMA, CalibrationOptions
@@ -75,7 +71,6 @@ if TYPE_CHECKING:
         initial_registration,
         register,
     )
-    from kinecal.identification._residuals import ResidualBlock, Weights, residuals
     from kinecal.identification._robust import RobustRejection
     from kinecal.identification._select import (
         Candidate,
@@ -92,6 +87,11 @@ if TYPE_CHECKING:
         TransmissionStage,
     )
     from kinecal.identification._uncertainty import Uncertainty
+    from kinecal.measurement._calibrated import STATUSES, CalibratedModel
+    from kinecal.measurement._diagnostics import CODES, Diagnostic, Outlier, StageLog
+    from kinecal.measurement._measurements import KINDS, Measurements
+    from kinecal.measurement._metrics import Metrics, metrics_from_errors
+    from kinecal.measurement._residuals import ResidualBlock, Weights, residuals
 
 __all__ = [
     "CODES",
@@ -179,7 +179,7 @@ __getattr__, __dir__ = _lazy.exports(
             "calibrate",
             "default_stages",
         ),
-        "_calibrated": (
+        "kinecal.measurement._calibrated": (
             "STATUSES",
             "CalibratedModel",
         ),
@@ -197,7 +197,7 @@ __getattr__, __dir__ = _lazy.exports(
             "train_test_split",
         ),
         "_diagnose": ("Diagnose",),
-        "_diagnostics": (
+        "kinecal.measurement._diagnostics": (
             "CODES",
             "Diagnostic",
             "Outlier",
@@ -226,11 +226,11 @@ __getattr__, __dir__ = _lazy.exports(
             "solve_fixed_step",
             "solve_lm",
         ),
-        "_measurements": (
+        "kinecal.measurement._measurements": (
             "KINDS",
             "Measurements",
         ),
-        "_metrics": (
+        "kinecal.measurement._metrics": (
             "Metrics",
             "metrics_from_errors",
         ),
@@ -258,7 +258,7 @@ __getattr__, __dir__ = _lazy.exports(
             "initial_registration",
             "register",
         ),
-        "_residuals": (
+        "kinecal.measurement._residuals": (
             "ResidualBlock",
             "Weights",
             "residuals",

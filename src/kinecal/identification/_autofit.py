@@ -42,15 +42,15 @@ from kinecal.identification._calibrate import (
 )
 from kinecal.identification._diagnose import Diagnose
 from kinecal.identification._lm import LMOptions, Prior, objective
-from kinecal.identification._measurements import Measurements
-from kinecal.identification._metrics import Metrics
 from kinecal.identification._options import MU0_WARM
 from kinecal.identification._priors import EvidencePriors, build_prior, evidence_group
 from kinecal.identification._problem import Problem, State, run_stages
-from kinecal.identification._residuals import Weights
 from kinecal.identification._solve import lift_kept, run_lm
 from kinecal.identification._stages import Identify
 from kinecal.identification._uncertainty import Uncertainty
+from kinecal.measurement._measurements import Measurements
+from kinecal.measurement._metrics import Metrics
+from kinecal.measurement._residuals import Weights
 from kinecal.models import CalibrationModel, ModelSpec, ParameterLayout
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float

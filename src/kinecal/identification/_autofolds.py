@@ -16,13 +16,13 @@ from kinecal.identification._autofit import (
     active_prior,
     warm_options,
 )
-from kinecal.identification._calibrated import CalibratedModel
 from kinecal.identification._evaluate import evaluate
 from kinecal.identification._lm import Prior, spd_solve
-from kinecal.identification._metrics import metrics_from_errors
 from kinecal.identification._problem import Problem, State
-from kinecal.identification._residuals import ResidualBlock, Weights
 from kinecal.identification._solve import run_lm
+from kinecal.measurement._calibrated import CalibratedModel
+from kinecal.measurement._metrics import metrics_from_errors
+from kinecal.measurement._residuals import ResidualBlock, Weights
 from kinecal.models import CalibrationModel
 from kinecal.typing import Float
 

@@ -17,17 +17,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinecal._blas import one_blas_thread
-from kinecal.identification._blocks import reporting
-from kinecal.identification._calibrated import CalibratedModel
 from kinecal.identification._diagnose import Diagnose
-from kinecal.identification._diagnostics import Diagnostic, Outlier, StageLog
 from kinecal.identification._identifiability import (
     Identifiability,
     correlation_from_covariance,
 )
 from kinecal.identification._lm import Prior
-from kinecal.identification._measurements import Measurements
-from kinecal.identification._metrics import Metrics, metrics_from_errors
 from kinecal.identification._noise import NoiseModel
 from kinecal.identification._options import PRIOR_SIGMA, CalibrationOptions
 from kinecal.identification._priors import EvidencePriors, Priors, build_prior
@@ -38,7 +33,6 @@ from kinecal.identification._problem import (
     run_stages,
     spec_for,
 )
-from kinecal.identification._residuals import Weights
 from kinecal.identification._robust import RobustRejection, chi2_isf
 from kinecal.identification._stages import (
     FullStage,
@@ -48,6 +42,12 @@ from kinecal.identification._stages import (
     TransmissionStage,
 )
 from kinecal.identification._uncertainty import Uncertainty
+from kinecal.measurement._blocks import reporting
+from kinecal.measurement._calibrated import CalibratedModel
+from kinecal.measurement._diagnostics import Diagnostic, Outlier, StageLog
+from kinecal.measurement._measurements import Measurements
+from kinecal.measurement._metrics import Metrics, metrics_from_errors
+from kinecal.measurement._residuals import Weights
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float

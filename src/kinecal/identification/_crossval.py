@@ -12,10 +12,10 @@ from kinecal._parallel import parallel_map
 from kinecal._stats import first_rows, present
 from kinecal.errors import DataError
 from kinecal.identification._calibrate import CalibrationOptions, calibrate
-from kinecal.identification._calibrated import CalibratedModel
 from kinecal.identification._evaluate import evaluate, registered_model
-from kinecal.identification._measurements import Measurements
-from kinecal.identification._metrics import Metrics
+from kinecal.measurement._calibrated import CalibratedModel
+from kinecal.measurement._measurements import Measurements
+from kinecal.measurement._metrics import Metrics
 from kinecal.models import ModelSpec
 from kinecal.robot import RobotDescription, dh_transforms
 from kinecal.typing import Float

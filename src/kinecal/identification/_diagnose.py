@@ -8,7 +8,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from kinecal.identification._diagnostics import Diagnostic
 from kinecal.identification._priors import build_prior
 from kinecal.identification._problem import Problem, State
 from kinecal.identification._robust import (
@@ -16,6 +15,7 @@ from kinecal.identification._robust import (
     residual_structure,
     systematic_diagnostic,
 )
+from kinecal.measurement._diagnostics import Diagnostic
 from kinecal.typing import Float
 
 __all__ = ["Diagnose"]

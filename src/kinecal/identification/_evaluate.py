@@ -11,11 +11,11 @@ from kinecal._blas import one_blas_thread
 from kinecal.identification._calibrate import (
     CalibrationResult,
 )
-from kinecal.identification._calibrated import CalibratedModel
-from kinecal.identification._diagnostics import Diagnostic
-from kinecal.identification._measurements import Measurements
-from kinecal.identification._metrics import Metrics, metrics_from_errors
 from kinecal.identification._registration import register
+from kinecal.measurement._calibrated import CalibratedModel
+from kinecal.measurement._diagnostics import Diagnostic
+from kinecal.measurement._measurements import Measurements
+from kinecal.measurement._metrics import Metrics, metrics_from_errors
 from kinecal.models import CalibrationModel
 from kinecal.typing import Float
 

@@ -16,8 +16,8 @@ import math
 
 import numpy as np
 
-from kinecal.identification._diagnostics import Diagnostic
-from kinecal.identification._measurements import Measurements
+from kinecal.measurement._diagnostics import Diagnostic
+from kinecal.measurement._measurements import Measurements
 from kinecal.robot import RobotDescription, dh_transforms
 from kinecal.typing import Float
 

@@ -25,8 +25,8 @@ from kinecal.identification._crossval import (
     cross_validate_many,
     make_folds,
 )
-from kinecal.identification._measurements import Measurements
 from kinecal.identification._select import Selection, cross_validate_models
+from kinecal.measurement._measurements import Measurements
 from kinecal.models import ModelSpec
 from kinecal.robot import RobotDescription
 

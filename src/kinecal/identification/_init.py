@@ -26,8 +26,8 @@ from kinecal.geometry import (
     solve_axyb,
     transform_inv,
 )
-from kinecal.identification import _blocks
-from kinecal.identification._measurements import Measurements
+from kinecal.measurement import _blocks
+from kinecal.measurement._measurements import Measurements
 from kinecal.models import CalibrationModel
 from kinecal.typing import Float
 

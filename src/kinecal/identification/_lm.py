@@ -145,7 +145,7 @@ def loss_weights(z: Float, loss: str) -> tuple[Float, Float]:
 
 class NormalSource(Protocol):
     """A Jacobian that gives its normal equations without being held
-    (:class:`~kinecal.identification._blocks.BlockJacobian`)."""
+    (:class:`~kinecal.measurement._blocks.BlockJacobian`)."""
 
     def normal(
         self, cols: np.ndarray, scales: Float, row_weights: Float | None = None

@@ -32,13 +32,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from kinecal._stats import median, present
-from kinecal.identification._diagnostics import Diagnostic
 from kinecal.identification._lm import Prior
-from kinecal.identification._measurements import Measurements
 from kinecal.identification._press import loo_position_errors, rms_mm
 from kinecal.identification._problem import Problem, State
-from kinecal.identification._residuals import ResidualBlock, Weights
 from kinecal.identification._solve import run_lm
+from kinecal.measurement._diagnostics import Diagnostic
+from kinecal.measurement._measurements import Measurements
+from kinecal.measurement._residuals import ResidualBlock, Weights
 from kinecal.typing import Float
 
 __all__ = ["NoiseModel", "estimate_noise", "helmert"]

@@ -41,8 +41,6 @@ from kinecal.identification._calibrate import (
     default_stages,
 )
 from kinecal.identification._diagnose import Diagnose
-from kinecal.identification._diagnostics import Diagnostic
-from kinecal.identification._measurements import Measurements
 from kinecal.identification._noise import estimate_noise
 from kinecal.identification._options import CalibrationOptions
 from kinecal.identification._priors import EvidencePriors
@@ -55,6 +53,8 @@ from kinecal.identification._stages import (
     Register,
     TransmissionStage,
 )
+from kinecal.measurement._diagnostics import Diagnostic
+from kinecal.measurement._measurements import Measurements
 from kinecal.models import KINDS
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float

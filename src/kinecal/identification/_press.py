@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinecal.identification._problem import Problem, State
-from kinecal.identification._residuals import Weights
+from kinecal.measurement._residuals import Weights
 from kinecal.typing import Float
 
 __all__ = ["loo_position_errors"]

@@ -15,7 +15,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from kinecal._stats import median
-from kinecal.identification._diagnostics import Diagnostic
 from kinecal.identification._lm import Prior, loss_weights, psd_inverse
 from kinecal.identification._noise import estimate_noise
 from kinecal.identification._options import (
@@ -26,6 +25,7 @@ from kinecal.identification._options import (
 )
 from kinecal.identification._problem import Problem, State
 from kinecal.identification._solve import run_lm
+from kinecal.measurement._diagnostics import Diagnostic
 from kinecal.models import CalibrationModel, ParamSpec
 from kinecal.typing import Float
 

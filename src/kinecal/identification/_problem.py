@@ -17,16 +17,16 @@ from typing import Protocol
 import numpy as np
 
 from kinecal.errors import DataError, IdentifiabilityError
-from kinecal.identification._diagnostics import Diagnostic, Outlier, StageLog
 from kinecal.identification._identifiability import Identifiability
 from kinecal.identification._lm import LMOptions, Prior
-from kinecal.identification._measurements import Measurements
 from kinecal.identification._options import (
     KINEMATIC_GROUPS,
     STOL,
     CalibrationOptions,
 )
-from kinecal.identification._residuals import ResidualBlock, Weights, residuals
+from kinecal.measurement._diagnostics import Diagnostic, Outlier, StageLog
+from kinecal.measurement._measurements import Measurements
+from kinecal.measurement._residuals import ResidualBlock, Weights, residuals
 from kinecal.models import CalibrationModel, ModelInputs, ModelSpec
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float

@@ -28,11 +28,11 @@ import numpy as np
 
 from kinecal.errors import IdentifiabilityError
 from kinecal.geometry import project_to_so3, rigid_fit_nearest, so3_log
-from kinecal.identification._diagnostics import Diagnostic
 from kinecal.identification._init import closed_form_frames, euler_with_reference
 from kinecal.identification._lm import LMOptions, LMResult, NormalSource, solve_lm
-from kinecal.identification._measurements import Measurements
-from kinecal.identification._residuals import Weights, residuals
+from kinecal.measurement._diagnostics import Diagnostic
+from kinecal.measurement._measurements import Measurements
+from kinecal.measurement._residuals import Weights, residuals
 from kinecal.models import CalibrationModel, ModelInputs
 from kinecal.typing import Float
 

@@ -35,14 +35,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from kinecal._stats import present, quantiles
-from kinecal.identification._diagnostics import Diagnostic, Outlier
-from kinecal.identification._measurements import Measurements
 from kinecal.identification._options import MU0_WARM
 from kinecal.identification._press import loo_position_errors, rms_mm
 from kinecal.identification._problem import Problem, Stage, State, run_stages
-from kinecal.identification._residuals import Weights, residuals
 from kinecal.identification._solve import run_lm
 from kinecal.identification._stages import robust_sigma, run_shared
+from kinecal.measurement._diagnostics import Diagnostic, Outlier
+from kinecal.measurement._measurements import Measurements
+from kinecal.measurement._residuals import Weights, residuals
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.typing import Float
 

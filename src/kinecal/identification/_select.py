@@ -40,7 +40,7 @@ from kinecal.identification._calibrate import (
     spec_for,
 )
 from kinecal.identification._crossval import CrossValidation, Folds, make_folds
-from kinecal.identification._measurements import Measurements
+from kinecal.measurement._measurements import Measurements
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import RobotDescription
 

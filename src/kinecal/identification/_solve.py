@@ -14,7 +14,6 @@ from dataclasses import replace
 
 import numpy as np
 
-from kinecal.identification._diagnostics import Diagnostic, StageLog
 from kinecal.identification._lift import lifted_start
 from kinecal.identification._lm import (
     LMOptions,
@@ -27,7 +26,8 @@ from kinecal.identification._lm import (
 )
 from kinecal.identification._options import MU0_WARM
 from kinecal.identification._problem import Problem, State
-from kinecal.identification._residuals import Weights
+from kinecal.measurement._diagnostics import Diagnostic, StageLog
+from kinecal.measurement._residuals import Weights
 from kinecal.models import CalibrationModel
 from kinecal.typing import Float
 

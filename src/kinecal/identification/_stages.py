@@ -27,7 +27,6 @@ import numpy as np
 
 from kinecal._stats import median
 from kinecal.errors import IdentifiabilityError
-from kinecal.identification._diagnostics import Diagnostic, StageLog
 from kinecal.identification._identifiability import (
     identifiability_from_normal,
 )
@@ -36,8 +35,9 @@ from kinecal.identification._noise import estimate_noise
 from kinecal.identification._options import MU0_WARM, STOL
 from kinecal.identification._problem import Problem, Stage, State, run_stages
 from kinecal.identification._registration import initial_registration
-from kinecal.identification._residuals import Weights, residuals
 from kinecal.identification._solve import run_lm
+from kinecal.measurement._diagnostics import Diagnostic, StageLog
+from kinecal.measurement._residuals import Weights, residuals
 from kinecal.models import CalibrationModel, ntm_basis
 from kinecal.typing import Float
 

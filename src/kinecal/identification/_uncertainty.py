@@ -7,10 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinecal.identification._diagnostics import Diagnostic
 from kinecal.identification._lm import loss_weights, psd_inverse
 from kinecal.identification._problem import Problem, State
-from kinecal.identification._residuals import ResidualBlock
+from kinecal.measurement._diagnostics import Diagnostic
+from kinecal.measurement._residuals import ResidualBlock
 from kinecal.typing import Float
 
 __all__ = ["Uncertainty"]

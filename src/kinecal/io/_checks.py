@@ -30,7 +30,7 @@ import numpy as np
 from kinecal._stats import median, present
 from kinecal.errors import DataError
 from kinecal.geometry import matrix_to_quat_wxyz, quat_wxyz_to_matrix, so3_log
-from kinecal.identification import CalibratedModel, Diagnostic, Measurements
+from kinecal.measurement import CalibratedModel, Diagnostic, Measurements
 from kinecal.robot import RobotDescription
 
 __all__ = [

@@ -33,9 +33,9 @@ import numpy as np
 
 from kinecal.errors import DataError
 from kinecal.geometry import quat_wxyz_to_matrix, wpr_to_matrix
-from kinecal.identification import Diagnostic, Measurements
 from kinecal.io._checks import DataWarning, data_diagnostics, near_miss
 from kinecal.io._table import Table, read_table
+from kinecal.measurement import Diagnostic, Measurements
 from kinecal.robot import RobotDescription
 from kinecal.units import deg_to_rad, mm_to_m
 

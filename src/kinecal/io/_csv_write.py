@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 
 from kinecal.geometry import matrix_to_quat_wxyz
-from kinecal.identification import Measurements
 from kinecal.io._csv_format import Column, csv_text
 from kinecal.io._files import atomic_write_text
+from kinecal.measurement import Measurements
 from kinecal.robot import RobotDescription
 
 _POINT = ("x_mm", "y_mm", "z_mm")

@@ -17,8 +17,6 @@ from kinecal import _yaml as yaml
 from kinecal._version import __version__
 from kinecal.errors import ConfigError
 from kinecal.geometry import euler_zyx_to_matrix, matrix_to_euler_zyx
-from kinecal.identification import CalibratedModel
-from kinecal.identification._calibrated import STATUSES
 from kinecal.io._files import atomic_write_text
 from kinecal.io._model_bounds import (
     check_frames,
@@ -27,6 +25,8 @@ from kinecal.io._model_bounds import (
     robot_fingerprint,
 )
 from kinecal.io._parameters import parameter_records
+from kinecal.measurement import CalibratedModel
+from kinecal.measurement._calibrated import STATUSES
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import dump_robot, robot_from_dict
 from kinecal.robot._param_names import canonical_parameter_name

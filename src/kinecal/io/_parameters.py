@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from kinecal.identification import CalibratedModel
+from kinecal.measurement import CalibratedModel
 from kinecal.typing import Float
 
 __all__ = ["parameter_records"]

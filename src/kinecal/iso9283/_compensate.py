@@ -15,9 +15,9 @@ from dataclasses import replace
 import numpy as np
 
 from kinecal.errors import DataError
-from kinecal.identification import CalibratedModel
 from kinecal.iso9283._cube import POINT_LABELS
 from kinecal.iso9283._plan import IsoPlan
+from kinecal.measurement import CalibratedModel
 from kinecal.models import solve_ik
 from kinecal.typing import Float
 

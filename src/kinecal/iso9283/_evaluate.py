@@ -22,12 +22,7 @@ from typing import Any
 import numpy as np
 
 from kinecal.errors import DataError
-from kinecal.identification import (
-    CalibratedModel,
-    Measurements,
-    evaluate,
-    refit_diagnosed,
-)
+from kinecal.identification import evaluate, refit_diagnosed
 from kinecal.iso9283._characteristics import (
     MIN_CYCLES,
     DistanceFigures,
@@ -38,6 +33,7 @@ from kinecal.iso9283._characteristics import (
 from kinecal.iso9283._compensate import user_from_base
 from kinecal.iso9283._cube import POINT_LABELS
 from kinecal.iso9283._plan import DEFAULT_CYCLES, joint_samples
+from kinecal.measurement import CalibratedModel, Measurements
 from kinecal.typing import ArrayLike, Float
 
 __all__ = ["IsoEvaluation", "IsoFigures", "evaluate_iso9283", "nominal_placed"]

@@ -223,7 +223,6 @@ def design_problem(
     sig = np.broadcast_to(np.asarray(sigma, np.float64), (N,)).copy()
     if not np.all(np.isfinite(sig) & (sig > 0)):
         raise ValueError(f"sigma must be positive and finite; got {sigma!r}.")
-    pose = sigma_rot is not None
     x = np.asarray(params, np.float64)
     x_design = x if compliance is None else design_point(model, x, compliance)
     x_struct = (
@@ -232,26 +231,8 @@ def design_problem(
         else np.asarray(structural, np.float64)
     )
     scales = model.layout.scales
-
-    def whitened(point: Float) -> tuple[Float, Float]:
-        out = model.evaluate(point, inputs, orientation=pose, jacobian=True)
-        assert out.J_p is not None
-        Jp = out.J_p  # (N, 3, P)
-        if not pose:
-            return Jp / sig[:, None, None], Jp
-        assert out.J_w is not None
-        sr = np.broadcast_to(np.asarray(sigma_rot, np.float64), (N,))
-        if not np.all(np.isfinite(sr) & (sr > 0)):
-            raise ValueError(
-                f"sigma_rot must be positive and finite; got {sigma_rot!r}."
-            )
-        Jw = np.concatenate(
-            [Jp / sig[:, None, None], out.J_w / sr[:, None, None]], axis=1
-        )
-        return Jw, Jp
-
-    Fs, _ = whitened(x_struct)
-    Fd, Jpos = whitened(x_design)
+    Fs, _ = _whitened(model, x_struct, inputs, sig, sigma_rot)
+    Fd, Jpos = _whitened(model, x_design, inputs, sig, sigma_rot)
     P = model.size
     J_struct = np.moveaxis(Fs, 2, 0).reshape(P, -1).T  # (m, P)
     if J_struct.shape[0] < P:  # fewer rows than parameters: zero rows change nothing
@@ -270,11 +251,39 @@ def design_problem(
     has_prior = np.isfinite(ps)
     prec = np.where(has_prior, (sc / np.where(has_prior, ps, 1.0)) ** 2, 0.0)
     prec[~has_prior] = 1.0 / _VAGUE_PRIOR_SCALES**2
-    if weight is None:
-        w = np.full(N, 1.0 / N)
-    else:
-        w = np.asarray(weight, np.float64).reshape(N)
-        if np.any(w < 0) or w.sum() <= 0:
-            raise ValueError("weight must be non-negative with a positive sum.")
-        w = w / w.sum()
+    w = _average_weights(weight, N)
     return DesignProblem(model, x_design, free, F, G, prec, has_prior, sig, ident, w)
+
+
+def _whitened(
+    model: CalibrationModel,
+    point: Float,
+    inputs: ModelInputs,
+    sig: Float,
+    sigma_rot: Float | float | None,
+) -> tuple[Float, Float]:
+    """``(whitened Jacobian (N, c, P), position Jacobian (N, 3, P))`` at ``point``:
+    positions over ``sig``, and orientations over ``sigma_rot`` for pose data."""
+    N = inputs.n
+    pose = sigma_rot is not None
+    out = model.evaluate(point, inputs, orientation=pose, jacobian=True)
+    assert out.J_p is not None
+    Jp = out.J_p  # (N, 3, P)
+    if not pose:
+        return Jp / sig[:, None, None], Jp
+    assert out.J_w is not None
+    sr = np.broadcast_to(np.asarray(sigma_rot, np.float64), (N,))
+    if not np.all(np.isfinite(sr) & (sr > 0)):
+        raise ValueError(f"sigma_rot must be positive and finite; got {sigma_rot!r}.")
+    Jw = np.concatenate([Jp / sig[:, None, None], out.J_w / sr[:, None, None]], axis=1)
+    return Jw, Jp
+
+
+def _average_weights(weight: Float | None, N: int) -> Float:
+    """Weights (N,) of the candidates in the average prediction error, summing to 1."""
+    if weight is None:
+        return np.full(N, 1.0 / N)
+    w = np.asarray(weight, np.float64).reshape(N)
+    if np.any(w < 0) or w.sum() <= 0:
+        raise ValueError("weight must be non-negative with a positive sum.")
+    return w / w.sum()

@@ -124,15 +124,9 @@ def plan_poses(
             f"the number of poses must be between 1 and {N} (the candidates); got {n}."
         )
     inputs, ti = candidate_inputs(model, params, qc, inst, target_index)
-    n_meas = 0
-    all_inputs = inputs
-    if measured is not None:
-        qm = np.asarray(measured, np.float64)
-        n_meas = qm.shape[0]
-        inp_m, _ = candidate_inputs(model, params, qm, inst, measured_target_index)
-        all_inputs = ModelInputs.make(
-            np.concatenate([qc, qm]), p_cam=np.concatenate([inputs.p_cam, inp_m.p_cam])
-        )
+    all_inputs, n_meas = _with_measured(
+        model, params, qc, inputs, inst, measured, measured_target_index
+    )
     weight = np.concatenate([np.full(N, 1.0 / N), np.zeros(n_meas)])
     pb = design_problem(
         model,
@@ -145,29 +139,10 @@ def plan_poses(
         weight=weight,
     )
     warnings: list[str] = []
-    base = None
-    exclude = None
-    if n_meas:
-        base = pb.information(np.arange(N, N + n_meas))
-        exclude = np.arange(N + n_meas) >= N
-    elif calibrated_std is not None:
-        std = np.asarray(calibrated_std, np.float64)[pb.free]
-        known = np.isfinite(std) & (std > 0)
-        prec = pb.prior_precision.copy()
-        prec[known] = (pb.scales[known] / std[known]) ** 2
-        base = np.diag(prec)
-        warnings.append(
-            "without the poses measured before, their information is taken from the "
-            "calibrated standard deviations alone (correlations ignored)."
-        )
+    base, exclude = _information_before(pb, N, n_meas, calibrated_std, warnings)
     m_res = (n + n_meas) * pb.rows
     if m_res < 2 * pb.size:
-        warnings.append(
-            f"{n + n_meas} poses give {m_res} residuals for {pb.size} parameters: the "
-            "calibration's first, unconstrained stage is poorly determined by so few, "
-            "and the result can fall far short of the prediction; plan at least "
-            f"{-(-2 * pb.size // pb.rows)} poses."
-        )
+        warnings.append(_few_poses(n + n_meas, pb))
     sel = select_poses(
         pb, n, criterion=criterion, exchange=exchange, base=base, exclude=exclude
     )
@@ -176,9 +151,7 @@ def plan_poses(
     rand = predict_random(
         pb, n, draws=random_draws, seed=seed, base=base, exclude=exclude
     )
-    before = None
-    if base is not None:
-        before = predict(pb, base, 0)
+    before = None if base is None else predict(pb, base, 0)
     order = tour(qc[chosen], home)
     idx = chosen[order]
     dropped = [d.name for d in pb.identifiability.dropped]
@@ -197,3 +170,60 @@ def plan_poses(
         path_unordered=path_length(qc[chosen]),
         warnings=warnings,
     )
+
+
+def _with_measured(
+    model: CalibrationModel,
+    params: Float,
+    qc: Float,
+    inputs: ModelInputs,
+    inst: Instrument,
+    measured: Float | None,
+    measured_target_index: np.ndarray | None,
+) -> tuple[ModelInputs, int]:
+    """``(inputs of the candidates then the poses measured before, how many of
+    those)``."""
+    if measured is None:
+        return inputs, 0
+    qm = np.asarray(measured, np.float64)
+    inp_m, _ = candidate_inputs(model, params, qm, inst, measured_target_index)
+    all_inputs = ModelInputs.make(
+        np.concatenate([qc, qm]), p_cam=np.concatenate([inputs.p_cam, inp_m.p_cam])
+    )
+    return all_inputs, qm.shape[0]
+
+
+def _few_poses(poses: int, pb: DesignProblem) -> str:
+    """The warning for ``poses`` too few for the first, unconstrained stage."""
+    m_res = poses * pb.rows
+    return (
+        f"{poses} poses give {m_res} residuals for {pb.size} parameters: the "
+        "calibration's first, unconstrained stage is poorly determined by so few, "
+        "and the result can fall far short of the prediction; plan at least "
+        f"{-(-2 * pb.size // pb.rows)} poses."
+    )
+
+
+def _information_before(
+    pb: DesignProblem,
+    N: int,
+    n_meas: int,
+    calibrated_std: Float | None,
+    warnings: list[str],
+) -> tuple[Float | None, np.ndarray | None]:
+    """``(information of what is known before, candidates excluded)``: the ``n_meas``
+    poses measured before (rows after the ``N`` candidates), else a calibration's
+    standard deviations (a warning appended), else nothing."""
+    if n_meas:
+        return pb.information(np.arange(N, N + n_meas)), np.arange(N + n_meas) >= N
+    if calibrated_std is None:
+        return None, None
+    std = np.asarray(calibrated_std, np.float64)[pb.free]
+    known = np.isfinite(std) & (std > 0)
+    prec = pb.prior_precision.copy()
+    prec[known] = (pb.scales[known] / std[known]) ** 2
+    warnings.append(
+        "without the poses measured before, their information is taken from the "
+        "calibrated standard deviations alone (correlations ignored)."
+    )
+    return np.diag(prec), None

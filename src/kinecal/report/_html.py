@@ -8,7 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from kinecal.identification import ComparisonRow, Measurements
+from kinecal.identification import ComparisonRow
+from kinecal.measurement import Measurements
 from kinecal.report import _figures as F
 from kinecal.report._format import e, figure, num, page, table
 from kinecal.typing import Float

@@ -138,7 +138,7 @@ class PoseErrors:
 def pose_errors(result, meas) -> PoseErrors:
     """The per-pose errors of a :class:`~kinecal.identification.CalibrationResult` on
     its calibration data ``meas`` (Measurements)."""
-    from kinecal.identification import Weights, residuals
+    from kinecal.measurement import Weights, residuals
 
     cal = result.calibrated
     m = cal.model

@@ -10,7 +10,8 @@ from kinecal._stats import median
 from kinecal._version import __version__
 
 if TYPE_CHECKING:  # annotations only: a calibration's summary needs no cross-validation
-    from kinecal.identification import CalibrationResult, ComparisonRow, Metrics
+    from kinecal.identification import CalibrationResult, ComparisonRow
+    from kinecal.measurement import Metrics
 
 __all__ = ["calibration_summary", "comparison_table", "format_table", "parameter_table"]
 

@@ -418,38 +418,12 @@ def _bundle_adjust(
     # What each fixed intrinsic would give if it were estimated as well, at this
     # solution: its standard deviation and variance inflation factor (its variance
     # with the others estimated over its variance with the others known).
-    if_free: dict[str, dict[str, float]] = {}
-    if not free.all():
-        full = _Problem(corners, obj, stripes, np.ones(9, bool), adjust)
-        full.w_px = pb.w_px  # the same weights (the same stripe order)
-        A_full = full.normal(st, sig)[0]
-        try:
-            inv_full = np.linalg.inv(A_full)
-        except np.linalg.LinAlgError:
-            inv_full = np.full_like(A_full, np.inf)
-        for kk in np.flatnonzero(~free):
-            var = float(inv_full[kk, kk])
-            if_free[INTRINSICS[kk]] = {
-                "std": float(np.sqrt(var)) if var >= 0 else float("inf"),
-                "vif": var * float(A_full[kk, kk]),
-            }
+    if_free = _if_free(pb, st, sig, stripes)
     std = dict.fromkeys(INTRINSICS, 0.0)
     for k, name in enumerate(np.array(INTRINSICS)[free]):
         std[str(name)] = float(np.sqrt(cov[k, k]))
     # Std of each plane's position (signed distance) at the centroid of its points.
-    plane_std = np.full(adjust.size, np.nan)
-    if pb.stripes is not None:
-        sp = pb.stripes
-        xy = st.camera.normalised(sp.uv)
-        r = np.concatenate([xy, np.ones_like(xy[:, :1])], axis=1)
-        m = st.R[sp.view, :, 2]
-        d = np.einsum("ij,ij->i", m, st.t[sp.view])
-        X = r * (d / np.einsum("ij,ij->i", m, r))[:, None]
-        B = _across(st.n)
-        for ip in np.flatnonzero(adjust):
-            c0 = int(pb.plane_col[ip])
-            j = np.r_[np.mean(X[sp.plane == ip], axis=0) @ B[ip], 1.0]
-            plane_std[ip] = float(np.sqrt(j @ cov[c0 : c0 + 3, c0 : c0 + 3] @ j))
+    plane_std = _plane_std(pb, st, cov)
     return BundleResult(
         camera=st.camera,
         T_cam_board=_poses(st.R, st.t),
@@ -467,3 +441,46 @@ def _bundle_adjust(
         iterations=iters,
         details={"converged": converged, "normal_matrix": A, "if_free": if_free},
     )
+
+
+def _if_free(
+    pb: _Problem, st: _State, sig: tuple[float, float], stripes: Stripes | None
+) -> dict[str, dict[str, float]]:
+    """Per fixed intrinsic: its std and variance inflation factor were it estimated
+    (``stripes``: as given to the adjustment)."""
+    if_free: dict[str, dict[str, float]] = {}
+    free, adjust = pb.free, pb.adjust
+    if not free.all():
+        full = _Problem(pb.corners, pb.obj, stripes, np.ones(9, bool), adjust)
+        full.w_px = pb.w_px  # the same weights (the same stripe order)
+        A_full = full.normal(st, sig)[0]
+        try:
+            inv_full = np.linalg.inv(A_full)
+        except np.linalg.LinAlgError:
+            inv_full = np.full_like(A_full, np.inf)
+        for kk in np.flatnonzero(~free):
+            var = float(inv_full[kk, kk])
+            if_free[INTRINSICS[kk]] = {
+                "std": float(np.sqrt(var)) if var >= 0 else float("inf"),
+                "vif": var * float(A_full[kk, kk]),
+            }
+    return if_free
+
+
+def _plane_std(pb: _Problem, st: _State, cov: np.ndarray) -> Float:
+    """Std of each adjusted plane's position at the centroid of its points (NaN else)."""
+    adjust = pb.adjust
+    plane_std = np.full(adjust.size, np.nan)
+    if pb.stripes is not None:
+        sp = pb.stripes
+        xy = st.camera.normalised(sp.uv)
+        r = np.concatenate([xy, np.ones_like(xy[:, :1])], axis=1)
+        m = st.R[sp.view, :, 2]
+        d = np.einsum("ij,ij->i", m, st.t[sp.view])
+        X = r * (d / np.einsum("ij,ij->i", m, r))[:, None]
+        B = _across(st.n)
+        for ip in np.flatnonzero(adjust):
+            c0 = int(pb.plane_col[ip])
+            j = np.r_[np.mean(X[sp.plane == ip], axis=0) @ B[ip], 1.0]
+            plane_std[ip] = float(np.sqrt(j @ cov[c0 : c0 + 3, c0 : c0 + 3] @ j))
+    return plane_std

@@ -283,14 +283,13 @@ def _centres(
     )
 
 
-def _points(pre: _Image, sigma: float, low: float, cv2: Any) -> RidgePoints | None:
-    """Ridge points of the tiles at scale ``sigma``, linked into curves."""
-    img = pre.img
+def _smoothed_strip(
+    img: np.ndarray, ty: np.ndarray, tx: np.ndarray, sigma: float, cv2: Any
+) -> tuple[np.ndarray, int]:
+    """``(the N tiles with a border of P pixels side by side (T2, N * T2), smoothed at
+    scale sigma; P)``, ``T2 = _TILE + 2 P``."""
     H, W = img.shape
-    ty, tx = _tiles(pre, cv2)
     N = ty.size
-    if N == 0:
-        return None
     kg, R = _kernel(sigma)
     P = R + 1
     T2 = _TILE + 2 * P
@@ -305,6 +304,18 @@ def _points(pre: _Image, sigma: float, low: float, cv2: Any) -> RidgePoints | No
     # Tiles side by side in one strip (T2, N * T2): one smoothing call for all.
     strip = view[ty, tx].transpose(1, 0, 2).reshape(T2, N * T2)
     r = cv2.sepFilter2D(strip, cv2.CV_32F, kg, kg, borderType=cv2.BORDER_REPLICATE)
+    return r, P
+
+
+def _points(pre: _Image, sigma: float, low: float, cv2: Any) -> RidgePoints | None:
+    """Ridge points of the tiles at scale ``sigma``, linked into curves."""
+    H, W = pre.img.shape
+    ty, tx = _tiles(pre, cv2)
+    N = ty.size
+    if N == 0:
+        return None
+    r, P = _smoothed_strip(pre.img, ty, tx, sigma, cv2)
+    T2 = _TILE + 2 * P
     # The interiors and a one-pixel ring, contiguous: (T + 2, N * (T + 2)). Differences
     # along a row cross from tile to tile only at the ring columns, not searched.
     T1 = _TILE + 2

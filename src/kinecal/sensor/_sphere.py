@@ -336,17 +336,7 @@ def fit_sphere(
         Too few or non-finite points; points on a line or a plane (one circle); a cloud
         whose curvature does not stand out of its noise (no sphere is determined).
     """
-    P = np.asarray(points, dtype=float)
-    if P.ndim != 2 or P.shape[1] != 3:
-        raise DataError(f"points must be (N, 3), got {P.shape}")
-    if not np.isfinite(P).all():
-        bad = int(np.flatnonzero(~np.isfinite(P).all(axis=1))[0])
-        raise DataError(f"point {bad} is not finite; expected finite x, y, z")
-    need = max(min_points, 4)
-    if P.shape[0] < need:
-        raise DataError(f"{P.shape[0]} points; a sphere fit needs at least {need}")
-    if radius is not None and not radius > 0:
-        raise DataError(f"the radius must be positive, got {radius}")
+    P, need = _checked_points(points, radius, min_points)
     Q = np.array(P.T, order="C")  # (3, N), contiguous rows
     origin = Q.mean(axis=1)
     Q -= origin[:, None]
@@ -415,6 +405,30 @@ def fit_sphere(
         iterations=iters,
         cap_half_angle=_cap_half_angle(Q[:, inl], c),
     )
+
+
+def _checked_points(
+    points: Float, radius: float | None, min_points: int
+) -> tuple[Float, int]:
+    """``(points (N, 3), the fewest points a fit needs)``, checked.
+
+    Raises
+    ------
+    DataError
+        Points not (N, 3), not finite, fewer than needed; a radius not positive.
+    """
+    P = np.asarray(points, dtype=float)
+    if P.ndim != 2 or P.shape[1] != 3:
+        raise DataError(f"points must be (N, 3), got {P.shape}")
+    if not np.isfinite(P).all():
+        bad = int(np.flatnonzero(~np.isfinite(P).all(axis=1))[0])
+        raise DataError(f"point {bad} is not finite; expected finite x, y, z")
+    need = max(min_points, 4)
+    if P.shape[0] < need:
+        raise DataError(f"{P.shape[0]} points; a sphere fit needs at least {need}")
+    if radius is not None and not radius > 0:
+        raise DataError(f"the radius must be positive, got {radius}")
+    return P, need
 
 
 def _check_curvature(Q: Float, rms: float, R: float, cov: Float, scale: float) -> None:

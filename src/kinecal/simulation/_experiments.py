@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from kinecal.identification import Measurements
+from kinecal.measurement import Measurements
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.simulation._instruments import LaserTracker, SphereSensor, add_outliers
 from kinecal.simulation._planning import PlannedPoses, grid_poses, sphere_poses

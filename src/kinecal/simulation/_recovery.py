@@ -15,13 +15,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from kinecal.identification import (
-    CalibrationResult,
-    LMOptions,
-    Measurements,
-    residuals,
-    solve_lm,
-)
+from kinecal.identification import CalibrationResult, LMOptions, solve_lm
+from kinecal.measurement import Measurements, residuals
 from kinecal.simulation._truth import TrueRobot
 from kinecal.typing import Float
 

@@ -21,7 +21,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from kinecal.identification import Measurements
+from kinecal.measurement import Measurements
 from kinecal.models import CalibrationModel
 from kinecal.robot import RobotDescription
 from kinecal.simulation._experiments import Experiment, _split

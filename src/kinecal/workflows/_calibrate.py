@@ -18,7 +18,6 @@ from kinecal.identification import (
     CalibrationOptions,
     CalibrationResult,
     HeldOutAccuracy,
-    Measurements,
     Selection,
     calibrate,
     held_out_accuracy,
@@ -26,6 +25,7 @@ from kinecal.identification import (
     select_model,
     spec_for,
 )
+from kinecal.measurement import Measurements
 from kinecal.models import CalibrationModel, ModelSpec, parallel_pairs
 from kinecal.robot import RobotDescription
 

@@ -8,7 +8,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from kinecal.identification import ComparisonRow, Measurements
+from kinecal.identification import ComparisonRow
+from kinecal.measurement import Measurements
 from kinecal.robot import RobotDescription
 
 __all__ = ["MODELS", "ModelComparison", "compare_measurements", "write_comparison"]

@@ -14,8 +14,8 @@ import numpy as np
 
 from kinecal.compensation import CompensationResult
 from kinecal.errors import DataError
-from kinecal.identification import CalibratedModel
 from kinecal.io import CompensationTargets
+from kinecal.measurement import CalibratedModel
 
 __all__ = [
     "ProgramCompensation",

@@ -9,7 +9,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinecal.errors import DataError
-from kinecal.identification import CalibratedModel, Evaluation, Measurements
+from kinecal.identification import Evaluation
+from kinecal.measurement import CalibratedModel, Measurements
 
 __all__ = ["ModelEvaluation", "evaluate_measurements"]
 

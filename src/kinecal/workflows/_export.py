@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from kinecal.identification import CalibratedModel
+from kinecal.measurement import CalibratedModel
 from kinecal.robot import RobotDescription
 
 __all__ = ["ModelExport", "coupling_line", "export_model", "labels_text"]

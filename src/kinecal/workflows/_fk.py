@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from kinecal.errors import DataError
-from kinecal.identification import CalibratedModel
+from kinecal.measurement import CalibratedModel
 from kinecal.robot import RobotDescription
 
 __all__ = ["ImportedRobot", "PoseReport", "forward_pose", "import_urdf_robot"]

@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 
 from kinecal.errors import ConfigError, DataError
-from kinecal.identification import CalibratedModel
 from kinecal.io import Table, Targets
+from kinecal.measurement import CalibratedModel
 from kinecal.models import CalibrationModel
 from kinecal.planning import Instrument, Plan
 from kinecal.robot import RobotDescription

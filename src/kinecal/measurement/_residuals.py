@@ -11,7 +11,7 @@ Rows are whitened by their standard deviations: ``r / sigma``.
 
 A Jacobian of more than :data:`BLOCK_ROWS` residual rows is not held whole (a million
 poses of the full model would take 1.3 GB): the block carries a
-:class:`~kinecal.identification._blocks.BlockJacobian` that evaluates it by blocks of
+:class:`~kinecal.measurement._blocks.BlockJacobian` that evaluates it by blocks of
 poses whenever a product is needed (``normal``), with the same numbers to rounding.
 """
 
@@ -22,9 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinecal.geometry import so3_log, so3_right_jacobian_inv
-from kinecal.identification import _blocks
-from kinecal.identification._blocks import BlockJacobian
-from kinecal.identification._measurements import Measurements
+from kinecal.measurement import _blocks
+from kinecal.measurement._blocks import BlockJacobian
+from kinecal.measurement._measurements import Measurements
 from kinecal.models import CalibrationModel, ForwardState, ModelInputs, ModelOutput
 from kinecal.typing import Float
 
@@ -95,11 +95,15 @@ class ResidualBlock:
         self, cols: np.ndarray, scales: Float, row_weights: Float | None = None
     ) -> tuple[Float, Float]:
         """``(Jsᵀ Js, Jsᵀ r)`` of the columns ``cols`` in scaled units
-        (:func:`~kinecal.identification.normal_equations`), held or by blocks."""
-        from kinecal.identification._lm import normal_equations
-
+        (as :func:`~kinecal.identification.normal_equations`), held or by blocks."""
         if self.J is not None:
-            return normal_equations(self.r, self.J, cols, scales, row_weights)
+            cols = np.asarray(cols, dtype=np.intp)
+            if cols.size == 0:
+                return np.zeros((0, 0)), np.zeros(0)
+            lo, hi = int(cols.min()), int(cols.max()) + 1
+            A, g = _blocks.span_product(self.J, self.r, slice(lo, hi), row_weights)
+            sel = cols - lo
+            return A[np.ix_(sel, sel)] * np.outer(scales, scales), g[sel] * scales
         if self.blocks is None:
             raise ValueError("this residual block was evaluated without a Jacobian.")
         return self.blocks.normal(cols, scales, row_weights)
@@ -153,7 +157,7 @@ def residuals(
 
     Notes
     -----
-    Data of more than :data:`~kinecal.identification._blocks.BLOCK_ROWS` residual rows
+    Data of more than :data:`~kinecal.measurement._blocks.BLOCK_ROWS` residual rows
     are evaluated by blocks of poses: ``J`` is then None whatever ``jacobian`` says, and
     ``blocks`` evaluates the Jacobian's products on demand; nothing is kept (``keep``).
     """

@@ -7,9 +7,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinecal.errors import DataError
-from kinecal.identification._measurements import Measurements
-from kinecal.identification._metrics import Metrics, metrics_from_errors
-from kinecal.identification._residuals import ResidualBlock, Weights, residuals
+from kinecal.measurement._measurements import Measurements
+from kinecal.measurement._metrics import Metrics, metrics_from_errors
+from kinecal.measurement._residuals import ResidualBlock, Weights, residuals
 from kinecal.models import CalibrationModel
 from kinecal.typing import Float
 
