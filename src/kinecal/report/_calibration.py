@@ -302,11 +302,11 @@ def render_calibration_report(
     ]
     body += _heldout_section(summary)
     body += [
-        "<h2>Frames (Tables 3, 6)</h2>",
+        "<h2>User and tool frames <small class=muted>(paper Tables 3, 6)</small></h2>",
         frames_table(cal),
-        "<h2>Joint geometry (Tables 4, 7)</h2>",
+        "<h2>Joint geometry (DH parameters) <small class=muted>(paper Tables 4, 7)</small></h2>",
         dh_table(cal),
-        "<h2>Joint compliance (Tables 4, 7)</h2>",
+        "<h2>Joint compliance and stiffness <small class=muted>(paper Tables 4, 7)</small></h2>",
         compliance_table(cal),
         "<h2>All parameters</h2>",
         "<p class=muted>Change from nominal: estimate − start value (the nominal robot; "
