@@ -145,6 +145,14 @@ def _options_from(loss: str, priors: str, stage2: str):
     help="Reject every row beyond Z robust sigmas (whitened error over the robust noise) "
     "instead of the automatic test.",
 )
+@click.option(
+    "--accept",
+    "accept",
+    metavar="RMS_MM[,MAX_MM]",
+    help="Acceptance limits: a PASS/FAIL verdict on the held-out errors (on the "
+    "calibration data when cross-validation is off) in the console, report.json "
+    "('acceptance') and report.html; the exit code does not change.",
+)
 @jobs_option("Worker processes for the cross-validation of --model auto and --cv")
 @allow_out_of_limits_option
 @click.option("--force", is_flag=True, help="Overwrite results already in --out.")
@@ -166,6 +174,7 @@ def calibrate(
     cv_groups: str | None,
     reject: str,
     reject_z: float | None,
+    accept: str | None,
     jobs: int,
     allow_out_of_limits: bool,
     force: bool,
@@ -197,6 +206,14 @@ def calibrate(
         "manifest.json",
     )
 
+    from kinecal.report._acceptance import acceptance, parse_accept, verdict_line
+
+    limits = None
+    if accept is not None:
+        try:
+            limits = parse_accept(accept)
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint="--accept") from None
     say = Progress(quiet)
     jobs = jobs or available_cpus()
     robot = _load_robot(robot_name)
@@ -242,6 +259,8 @@ def calibrate(
     if held is not None:
         for note in dict.fromkeys(n for fig in held.figures for n in fig.folds.notes):
             click.echo(f"warning   {note}", err=True)
+    if limits is not None:
+        extra["acceptance"] = acceptance(*limits, held, result.metrics_after)
     say("write", "model.yaml, report.json, residuals.csv, manifest.json")
     summary = calibration_summary(result, extra=extra)
     save_model(out / "model.yaml", result.calibrated, force=True)
@@ -269,6 +288,7 @@ def calibrate(
                 "cv_groups": cv_groups,
                 "reject": reject,
                 "reject_z": reject_z,
+                "accept": accept,
                 "model_code": kernel_name(result.calibrated.model),
             },
             files=written,
@@ -302,6 +322,8 @@ def calibrate(
             )
         for note in held.notes:
             click.echo(f"note      {note}")
+    if limits is not None:
+        click.echo(f"accept    {verdict_line(extra['acceptance'])}")  # type: ignore[arg-type]
     for line in result.identifiability.summary()[1:]:
         click.echo(f"note      {line}")
     for w in result.warnings:

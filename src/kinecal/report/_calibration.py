@@ -185,6 +185,24 @@ def _heldout_section(summary: Mapping[str, Any]) -> list[str]:
     return out
 
 
+def _acceptance(summary: Mapping[str, Any]) -> str:
+    """The --accept verdict, or nothing without limits."""
+    acc = summary.get("acceptance")
+    if not acc:
+        return ""
+    ok = bool(acc.get("pass"))
+    checks = ", ".join(
+        f"{e(str(c['figure']).replace('_mm', '').upper())} {num(c['value'])} mm "
+        f"{'≤' if c['pass'] else '>'} {num(c['limit'])} mm"
+        for c in acc.get("checks", [])
+    )
+    return (
+        f"<p class=accept><b class={'ok' if ok else 'warn'}>"
+        f"Acceptance: {'PASS' if ok else 'FAIL'}</b> — {checks}; judged on "
+        f"{e(acc.get('judged'))}.</p>"
+    )
+
+
 def _warnings(summary: Mapping[str, Any]) -> str:
     """Every warning, with the full list of the rows or parameters it concerns (the
     message names only the first few)."""
@@ -285,6 +303,7 @@ def render_calibration_report(
         f"{e(data.get('kind', ''))} poses ({e(data.get('source', ''))}). {conv} "
         f"Noise estimate {num(summary.get('noise_sigma_mm'))} mm per axis; fit "
         f"{num(summary.get('seconds'), 3)} s.</p>",
+        _acceptance(summary),
         _accuracy_table(summary),
         "<p class=muted>Errors are 3-D position errors; before: nominal kinematics with "
         "fitted user and tool frames. Validate on poses not used here with "
