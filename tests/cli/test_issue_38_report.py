@@ -34,7 +34,7 @@ def _calibrate(capsys, twin, name, *extra):
 
 
 def test_accept_verdict_console_json_exit_code(twin, capsys):
-    res = _calibrate(capsys, twin, "acc_pass", "--accept", "100,500")
+    res = _calibrate(capsys, twin, "acc_pass", "--accept", "100,500", "--cv", "off")
     assert res.code == 0
     assert "accept    PASS" in res.out and "calibration data" in res.out
     acc = json.loads((twin / "acc_pass" / "report.json").read_text())["acceptance"]
@@ -48,7 +48,7 @@ def test_accept_verdict_console_json_exit_code(twin, capsys):
     html = (twin / "acc_pass" / "report.html").read_text()
     assert "Acceptance: PASS" in html and "judged on" in html
     # a limit below the fit's own RMS fails; the exit code stays 0
-    res = _calibrate(capsys, twin, "acc_fail", "--accept", "1e-6")
+    res = _calibrate(capsys, twin, "acc_fail", "--accept", "1e-6", "--cv", "off")
     assert res.code == 0
     assert "accept    FAIL" in res.out
     acc = json.loads((twin / "acc_fail" / "report.json").read_text())["acceptance"]
@@ -59,3 +59,42 @@ def test_accept_verdict_console_json_exit_code(twin, capsys):
 def test_accept_bad_limits(twin, capsys, bad):
     res = _calibrate(capsys, twin, f"bad_{len(bad)}", "--accept", bad)
     assert res.code == 2 and "--accept" in res.err
+
+
+def test_held_out_by_default_leads_the_summary(twin, capsys):
+    """No --cv: 5-fold held-out figures, first in the console, in report.json's
+    ``accuracy`` (with the percentiles of the fit's errors) and first in the report."""
+    res = _calibrate(capsys, twin, "cv_default", "--accept", "100")
+    assert res.code == 0
+    lines = [ln for ln in res.out.splitlines() if ln.strip()]
+    first = next(i for i, ln in enumerate(lines) if ln.startswith("held-out"))
+    after = next(i for i, ln in enumerate(lines) if ln.startswith("after"))
+    assert first < after and "5-fold CV" in lines[first]
+    rep = json.loads((twin / "cv_default" / "report.json").read_text())
+    assert rep["cross_validation"]["folds"] == 5
+    acc = rep["accuracy"]
+    assert acc["leads"] == "held-out"
+    h = acc["held_out"][0]
+    assert h["max_mm"] >= h["rms_mm"] > 0 and h["folds"] == 5
+    d = acc["calibration_after"]
+    assert d["p50_mm"] <= d["p95_mm"] <= d["p99_mm"] <= d["max_mm"]
+    assert d["rms_mm"] == pytest.approx(rep["after"]["rms_mm"], rel=1e-9)
+    # the verdict judges the held-out figure
+    assert rep["acceptance"]["judged"].startswith("held-out")
+    assert rep["acceptance"]["rms_mm"] == pytest.approx(h["rms_mm"])
+    manifest = json.loads((twin / "cv_default" / "manifest.json").read_text())
+    assert manifest["config"]["cv"] == 5
+    from kinecal.report import write_report
+
+    write_report(twin / "cv_default", force=True)
+    html = (twin / "cv_default" / "report.html").read_text()
+    i = html.index("Expected accuracy on new poses")
+    assert i < html.index("calibration data, before") and "P95" in html[i:]
+    # --cv off: no held-out figures, the fit's own errors lead, said so
+    res = _calibrate(capsys, twin, "cv_off", "--cv", "off")
+    assert res.code == 0 and "held-out" not in res.out
+    rep = json.loads((twin / "cv_off" / "report.json").read_text())
+    assert "cross_validation" not in rep
+    assert rep["accuracy"]["leads"] == "calibration data"
+    bad = _calibrate(capsys, twin, "cv_bad", "--cv", "1")
+    assert bad.code == 2 and "--cv" in bad.err

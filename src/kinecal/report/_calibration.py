@@ -18,6 +18,7 @@ import numpy as np
 
 from kinecal.report import _figures as F
 from kinecal.report._format import details, e, figure, num, page, ratio, table
+from kinecal.report._headline import accuracy_html
 from kinecal.report._poses import (
     FIGURE_POSES,
     RESIDUALS_CSV,
@@ -303,6 +304,7 @@ def render_calibration_report(
         f"{e(data.get('kind', ''))} poses ({e(data.get('source', ''))}). {conv} "
         f"Noise estimate {num(summary.get('noise_sigma_mm'))} mm per axis; fit "
         f"{num(summary.get('seconds'), 3)} s.</p>",
+        accuracy_html(summary),
         _acceptance(summary),
         _accuracy_table(summary),
         "<p class=muted>Errors are 3-D position errors; before: nominal kinematics with "
