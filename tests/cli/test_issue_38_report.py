@@ -98,3 +98,47 @@ def test_held_out_by_default_leads_the_summary(twin, capsys):
     assert rep["accuracy"]["leads"] == "calibration data"
     bad = _calibrate(capsys, twin, "cv_bad", "--cv", "1")
     assert bad.code == 2 and "--cv" in bad.err
+
+
+def test_certificate_meta_temperature_toc_csv_print(twin, capsys):
+    """--meta in manifest.json and the report; the temperature_c range; a table of
+    contents whose links reach their headings; a CSV link per table; print CSS."""
+    import re
+
+    src = (twin / "sim" / "train.csv").read_text().splitlines()
+    temps = [20.0 + 0.05 * k for k in range(len(src) - 1)]
+    lines = [src[0] + ",temperature_c"]
+    lines += [f"{ln},{t:.2f}" for ln, t in zip(src[1:], temps, strict=True)]
+    data = twin / "temp.csv"
+    data.write_text("\n".join(lines) + "\n")
+    res = run_kinecal(
+        capsys, "calibrate", data, "--robot", "fanuc-lrmate200id", "--model",
+        "kinematic", "--out", twin / "cert", "--cv", "off",
+        "--meta", "serial=R-2024-117", "--meta", "operator=J. Doe",
+    )  # fmt: skip
+    check_contract(res)
+    assert res.code == 0, str(res)
+    man = json.loads((twin / "cert" / "manifest.json").read_text())
+    assert man["meta"] == {"serial": "R-2024-117", "operator": "J. Doe"}
+    cert = json.loads((twin / "cert" / "report.json").read_text())["certificate"]
+    assert cert["temperature_c"]["min"] == pytest.approx(min(temps), abs=0.006)
+    assert cert["temperature_c"]["max"] == pytest.approx(max(temps), abs=0.006)
+    html = (twin / "cert" / "report.html").read_text()
+    assert "R-2024-117" in html and "J. Doe" in html and "Certificate" in html
+    assert "@media print" in html and "a.download=" in html
+    links = re.findall(r"<a href='#([\w-]+)'>", html)
+    assert "certificate" in links and len(links) >= 5
+    for target in links:
+        assert f"<h2 id={target}>" in html, target
+    # a temperature that is not one (Kelvin) is bad input, named by line and column
+    bad = lines[:]
+    bad[3] = bad[3].rsplit(",", 1)[0] + ",293.15"
+    data.write_text("\n".join(bad) + "\n")
+    res = run_kinecal(
+        capsys, "calibrate", data, "--robot", "fanuc-lrmate200id", "--model",
+        "kinematic", "--out", twin / "cert_bad", "--cv", "off",
+    )  # fmt: skip
+    check_contract(res)
+    assert res.code != 0 and "temperature_c" in res.err and "line 4" in res.err
+    res = _calibrate(capsys, twin, "meta_bad", "--meta", "no-equals-sign")
+    assert res.code == 2 and "--meta" in res.err

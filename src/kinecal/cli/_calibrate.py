@@ -158,6 +158,15 @@ def _options_from(loss: str, priors: str, stage2: str):
     "calibration data when cross-validation is off) in the console, report.json "
     "('acceptance') and report.html; the exit code does not change.",
 )
+@click.option(
+    "--meta",
+    "meta",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="A certificate field (repeatable): robot serial, instrument and its "
+    "certificate, operator, site, standard, ...; stored in manifest.json and "
+    "report.json and shown in report.html.",
+)
 @jobs_option("Worker processes for the cross-validation of --model auto and --cv")
 @allow_out_of_limits_option
 @click.option("--force", is_flag=True, help="Overwrite results already in --out.")
@@ -180,6 +189,7 @@ def calibrate(
     reject: str,
     reject_z: float | None,
     accept: str | None,
+    meta: tuple[str, ...],
     jobs: int,
     allow_out_of_limits: bool,
     force: bool,
@@ -213,7 +223,16 @@ def calibrate(
 
     from kinecal.errors import DataError
     from kinecal.report._acceptance import acceptance, parse_accept, verdict_line
+    from kinecal.report._certificate import (
+        certificate_block,
+        parse_meta,
+        temperature_range,
+    )
 
+    try:
+        meta_fields = parse_meta(meta)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="--meta") from None
     cv_folds = _cv_folds(cv_text)
     cv_default = cv_text == str(DEFAULT_CV_FOLDS)
 
@@ -245,6 +264,9 @@ def calibrate(
             click.echo(f"note      no cross-validation: {exc}", err=True)
             cv_folds = None
     extra: dict[str, object] = {"data_checks": [d.as_dict() for d in data_checks]}
+    extra["certificate"] = certificate_block(
+        meta_fields, temperature_range(data, meas.rows)
+    )
     nj = parse_int_list(ntm_joints, "--ntm-joints", robot.n_joints) or robot.ntm_joints
     revolute = [i + 1 for i, j in enumerate(robot.joints) if j.kind != "prismatic"]
     bad = [j for j in nj if j not in revolute]
@@ -292,30 +314,28 @@ def calibrate(
     )
     written = ["model.yaml", "report.json", RESIDUALS_CSV, "manifest.json"]
     written += ["report.html"] if report else []
-    write_json(
-        out / "manifest.json",
-        manifest(
-            {"data": data, "targets": targets, "robot": robot_name},
-            {
-                "model": model_name,
-                "loss": loss,
-                "priors": priors,
-                "stage2": stage2,
-                "hayati": list(hay),
-                "ntm_joints": list(nj),
-                "ntm_order": ntm_order,
-                "cv": cv_folds,
-                "cv_groups": cv_groups,
-                "reject": reject,
-                "reject_z": reject_z,
-                "accept": accept,
-                "model_code": kernel_name(result.calibrated.model),
-            },
-            files=written,
-            folder=out,
-        ),
-        force=True,
+    run_manifest = manifest(
+        {"data": data, "targets": targets, "robot": robot_name},
+        {
+            "model": model_name,
+            "loss": loss,
+            "priors": priors,
+            "stage2": stage2,
+            "hayati": list(hay),
+            "ntm_joints": list(nj),
+            "ntm_order": ntm_order,
+            "cv": cv_folds,
+            "cv_groups": cv_groups,
+            "reject": reject,
+            "reject_z": reject_z,
+            "accept": accept,
+            "model_code": kernel_name(result.calibrated.model),
+        },
+        files=written,
+        folder=out,
     )
+    run_manifest["meta"] = meta_fields
+    write_json(out / "manifest.json", run_manifest, force=True)
     if report:  # drawn from the files just written, as `kinecal report DIR` does
         from kinecal.report import write_report
 

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from kinecal.report import _figures as F
+from kinecal.report._certificate import certificate_html
 from kinecal.report._format import details, e, figure, num, page, ratio, table
 from kinecal.report._headline import accuracy_html
 from kinecal.report._poses import (
@@ -321,6 +322,7 @@ def render_calibration_report(
         _warnings(summary),
         "</div>",
     ]
+    body.append(certificate_html(summary))
     body += _heldout_section(summary)
     body += [
         "<h2>User and tool frames <small class=muted>(paper Tables 3, 6)</small></h2>",
