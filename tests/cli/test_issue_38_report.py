@@ -142,3 +142,60 @@ def test_certificate_meta_temperature_toc_csv_print(twin, capsys):
     assert res.code != 0 and "temperature_c" in res.err and "line 4" in res.err
     res = _calibrate(capsys, twin, "meta_bad", "--meta", "no-equals-sign")
     assert res.code == 2 and "--meta" in res.err
+
+
+def test_report_compare_two_calibrations(twin, capsys):
+    """Two calibrations of one twin (two samples of its poses): few parameters move
+    beyond their combined uncertainty, each model is about as accurate on the other's
+    data; a different robot serial is refused."""
+    import shutil
+
+    test = (twin / "sim" / "test.csv").read_text().splitlines()
+    # poses spread over the workspace (every k-th row of the test grid)
+    step = max(1, (len(test) - 1) // 100)
+    (twin / "second.csv").write_text("\n".join([test[0], *test[1::step]]) + "\n")
+    for name, data in (
+        ("cmp_a", twin / "sim" / "train.csv"),
+        ("cmp_b", twin / "second.csv"),
+    ):
+        res = run_kinecal(
+            capsys, "calibrate", data, "--robot", "fanuc-lrmate200id", "--model",
+            "kinematic", "--out", twin / name, "--cv", "off", "--no-report",
+            "--meta", "serial=R-1",
+        )  # fmt: skip
+        assert res.code == 0, str(res)
+    res = run_kinecal(
+        capsys, "report", "--compare", twin / "cmp_a", twin / "cmp_b", "-q"
+    )
+    check_contract(res)
+    assert res.code == 0, str(res)
+    html = (twin / "cmp_b" / "compare.html").read_text()
+    assert "old model on new data" in html and "new model on old data" in html
+    acc = {
+        ln.split(":")[0]: float(ln.split("RMS ")[1].split(" mm")[0])
+        for ln in res.out.splitlines()
+        if ln.startswith("accuracy") and "RMS" in ln
+    }
+    assert len(acc) == 4, res.out
+    # the same robot: the other model is about as good on each data set
+    own_a = acc["accuracy  old model on old data"]
+    assert acc["accuracy  new model on old data"] < 3 * own_a + 0.02
+    moved = int(res.out.split("moved     ")[1].split(" of")[0])
+    n_par = int(res.out.split(" of ")[1].split(" parameters")[0])
+    assert moved <= max(2, n_par // 10), res.out
+    # written once; again only with --force
+    again = run_kinecal(
+        capsys, "report", "--compare", twin / "cmp_a", twin / "cmp_b", "-q"
+    )
+    assert again.code != 0 and "--force" in again.err
+    # another robot (by its serial) is refused
+    shutil.copytree(twin / "cmp_b", twin / "cmp_c")
+    man = json.loads((twin / "cmp_c" / "manifest.json").read_text())
+    man["meta"]["serial"] = "R-2"
+    (twin / "cmp_c" / "manifest.json").write_text(json.dumps(man))
+    res = run_kinecal(
+        capsys, "report", "--compare", twin / "cmp_a", twin / "cmp_c", "--out",
+        twin / "x.html",
+    )  # fmt: skip
+    check_contract(res)
+    assert res.code != 0 and "different robots" in res.err
