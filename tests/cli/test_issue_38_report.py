@@ -199,3 +199,33 @@ def test_report_compare_two_calibrations(twin, capsys):
     )  # fmt: skip
     check_contract(res)
     assert res.code != 0 and "different robots" in res.err
+
+
+def test_report_compare_sees_drift(tmp_path, capsys):
+    """Two twins with different random tolerances (a robot whose geometry changed):
+    parameters move beyond their uncertainty and each model is worse on the other's
+    data than on its own."""
+    dirs = []
+    for seed in (1, 2):
+        res = run_kinecal(
+            capsys, "simulate", "--robot", "fanuc-lrmate200id", "--seed", seed,
+            "--n-train", 80, "--n-test", 10, "--out", tmp_path / f"r{seed}", "-q",
+        )  # fmt: skip
+        assert res.code == 0, str(res)
+        res = run_kinecal(
+            capsys, "calibrate", tmp_path / f"r{seed}" / "train.csv", "--robot",
+            "fanuc-lrmate200id", "--model", "kinematic", "--cv", "off", "--no-report",
+            "--out", tmp_path / f"d{seed}", "-q",
+        )  # fmt: skip
+        assert res.code == 0, str(res)
+        dirs.append(tmp_path / f"d{seed}")
+    from kinecal.report._compare import compare_calibrations
+
+    c = compare_calibrations(*dirs)
+    assert len(c["moved"]) >= 3
+    acc = {(r["model"], r["data"]): r["rms_mm"] for r in c["cross"]}
+    assert acc[("new", "old")] > 1.5 * acc[("old", "old")]
+    assert acc[("old", "new")] > 1.5 * acc[("new", "new")]
+    for p in c["parameters"]:
+        if p["moved"]:
+            assert abs(p["change"]) > 3 * p["combined_std"]
