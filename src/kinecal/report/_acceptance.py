@@ -40,13 +40,13 @@ def acceptance(
 ) -> dict[str, Any]:
     """report.json's ``acceptance`` block.
 
-    held_out : HeldOutAccuracy or None; its new-session figure (else its first) is
-        judged, its max the largest error over the held-out folds.
+    held_out : HeldOutAccuracy or None; its figure that imitates a new session (new
+        session, new region, or the user's groups) is judged, its max the largest error over the held-out folds.
     after : Metrics of the calibrated model on the calibration data (judged without
         ``held_out``).
     """
     if held_out is not None:
-        fig = held_out.figure("new session") or held_out.figures[0]
+        fig = held_out.transfer  # new session, new region or the user's groups
         rms = float(fig.model.rms_mm)
         mx = max((float(f.max_mm) for f in fig.model.folds), default=math.nan)
         judged = f"held-out ({fig.name}, {len(fig.folds.test)}-fold cross-validation)"

@@ -126,7 +126,7 @@ _CSV = """<script>(function(){var t=document.querySelectorAll("table");
 for(var i=0;i<t.length;i++){(function(tb,k){var rows=[];
 tb.querySelectorAll("tr").forEach(function(r){var c=[];
 r.querySelectorAll("th,td").forEach(function(x){var v=x.textContent.trim();
-c.push(/[",\n]/.test(v)?'"'+v.replace(/"/g,'""')+'"':v)});rows.push(c.join(","))});
+c.push(/[",\\n]/.test(v)?'"'+v.replace(/"/g,'""')+'"':v)});rows.push(c.join(","))});
 var a=document.createElement("a");a.className="csv";a.textContent="CSV";
 a.download=(tb.getAttribute("data-name")||("table-"+(k+1)))+".csv";
 var u="data:text/csv;charset=utf-8,"+encodeURIComponent(rows.join("\\n")+"\\n");a.href=u;
