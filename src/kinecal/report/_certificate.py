@@ -41,6 +41,7 @@ def temperature_range(path: str, rows: Any) -> dict[str, Any] | None:
     temperature in °C."""
     import numpy as np
 
+    from kinecal._stats import median
     from kinecal.errors import DataError
     from kinecal.io import read_table
 
@@ -67,7 +68,7 @@ def temperature_range(path: str, rows: Any) -> dict[str, Any] | None:
     return {
         "min": float(a.min()),
         "max": float(a.max()),
-        "median": float(np.median(a)),
+        "median": median(a),
         "n": int(a.size),
     }
 

@@ -24,7 +24,9 @@ def _dist(err_mm: np.ndarray) -> dict[str, float]:
     if d.size == 0:
         return {}
     out = {"rms_mm": float(np.sqrt(np.mean(d**2)))}
-    for p, v in zip(_PCT, np.percentile(d, _PCT), strict=True):
+    from kinecal._stats import quantiles  # np.percentile would import numpy.ma
+
+    for p, v in zip(_PCT, quantiles(d, [p / 100 for p in _PCT]), strict=True):
         out[f"p{p}_mm"] = float(v)
     out["max_mm"] = float(d.max())
     return out
