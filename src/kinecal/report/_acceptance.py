@@ -41,7 +41,8 @@ def acceptance(
     """report.json's ``acceptance`` block.
 
     held_out : HeldOutAccuracy or None; its figure that imitates a new session (new
-        session, new region, or the user's groups) is judged, its max the largest error over the held-out folds.
+        session, new region, or the user's groups) is judged, its max the largest
+        error over the held-out folds.
     after : Metrics of the calibrated model on the calibration data (judged without
         ``held_out``).
     """
