@@ -303,7 +303,8 @@ def main(argv: list[str] | None = None) -> int:
         csv.write_text(measurements_to_csv(sub, robot))
         cmd = [sys.executable, "-m", "kinecal", "calibrate", str(csv), "--robot"]
         cmd += ["fanuc-lrmate200id", "--model", "full", "--out", str(Path(tmp) / "o")]
-        cmd += ["--force", "-q"]
+        # the fit alone against scipy: without the held-out folds run by default
+        cmd += ["--force", "-q", "--cv", "off"]
         _run(cmd)  # warm-up: bytecode cache
         t_cli, _ = _median_time(lambda: _run(cmd), rep)
         from kinecal.io import load_model
@@ -356,6 +357,25 @@ def main(argv: list[str] | None = None) -> int:
         t_nr,
         "the same with --no-report",
         speedup_process_to_process=t_fdp / t_nr,
+    )
+    # 3c. issue 38: the default `kinecal calibrate` (held-out accuracy by 5-fold
+    # cross-validation, --model auto, the HTML report) on a `kinecal simulate` twin,
+    # against the same command with --cv off; paired runs, the ratio of the medians
+    with tempfile.TemporaryDirectory() as tmp:
+        sim = Path(tmp) / "sim"
+        _run([sys.executable, "-m", "kinecal", "simulate", "--out", str(sim), "-q"])
+        base = [sys.executable, "-m", "kinecal", "calibrate", str(sim / "train.csv")]
+        base += ["--robot", "fanuc-lrmate200id", "--out", str(Path(tmp) / "o")]
+        base += ["--force", "-q"]
+        _run(base)  # warm-up
+        t_on, _ = _median_time(lambda: _run(base), rep)
+        t_off, _ = _median_time(lambda: _run([*base, "--cv", "off"]), rep)
+    record(
+        "calibrate_default_cv_twin",
+        t_on,
+        "<= 1.5x the same command with --cv off (issue 38)",
+        cv_off_seconds=float(t_off),
+        ratio_to_cv_off=float(t_on) / float(t_off),
     )
     record("report_html_2000", t_rep, "well under 1 s (in-process, from the folder)")
     record("report_cli_2000", t_rep_p, "`kinecal report DIR` as a whole process")

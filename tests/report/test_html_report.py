@@ -112,7 +112,8 @@ def test_issue_26_figure_files_for_readmes(reports):
 def test_calibration_report_content(reports):
     text = reports[0].read_text()
     for needle in (
-        "Frames (Tables 3, 6)",
+        "User and tool frames",
+        "(paper Tables 3, 6)",
         "Joint geometry",
         "Joint compliance",
         "Not identifiable",
@@ -129,6 +130,34 @@ def test_calibration_report_content(reports):
         "parameter correlations",
     ):
         assert needle in text, needle
+
+
+def test_issue_38_compliance_in_physical_units(result):
+    """lambda* / weight is compliance [rad/(N·m)], its inverse stiffness [N·m/rad]; with
+    no known weight the two columns are left out rather than left empty."""
+    from dataclasses import replace
+
+    from kinecal.io import parameter_records
+    from kinecal.report._tables import compliance_table
+
+    cal = result.calibrated
+    recs = [r for r in parameter_records(cal) if r["group"] == "load"]
+    assert recs
+    with_payload = compliance_table(replace(cal, reference_payload_kg=2.0))
+    assert "compliance [rad/(N·m)]" in with_payload
+    assert "stiffness [N·m/rad]" in with_payload
+    # the row of joint2.lambda: value in rad/m, then compliance and stiffness (+- std)
+    row = re.search(r"joint2\.lambda</td>(.*?)</tr>", with_payload).group(1)
+    cells = [re.sub("<.*?>", "", c) for c in row.split("</td>")]
+    lam = recs[1]["value"]
+    c = float(cells[2].split("±")[0])
+    assert c == pytest.approx(lam / (2.0 * 9.80665), rel=0.05, abs=1e-12)
+    if c > 0 and "±" in cells[3]:
+        k = float(cells[3].split("±")[0])
+        assert k == pytest.approx(1 / c, rel=0.05)
+    none = compliance_table(replace(cal, reference_payload_kg=None))
+    if cal.model.robot.payload_kg is None:
+        assert "rad/(N·m)" not in none and "<td></td>" not in none
 
 
 def test_issue_26_change_from_nominal_and_significance(result, twin):

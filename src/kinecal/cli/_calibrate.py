@@ -31,6 +31,9 @@ from kinecal.cli._iso9283 import (
     run_iso_evaluate,
 )
 
+# Folds of the held-out figure `kinecal calibrate` reports by default (issue 38).
+DEFAULT_CV_FOLDS = 5
+
 
 def _options_from(loss: str, priors: str, stage2: str):
     from kinecal.identification import CalibrationOptions
@@ -113,12 +116,14 @@ def _options_from(loss: str, priors: str, stage2: str):
 )
 @click.option(
     "--cv",
-    "cv_folds",
-    type=click.IntRange(min=2),
-    default=None,
-    metavar="K",
-    help="Also report K-fold cross-validated held-out errors of the chosen model "
-    "(whole sessions per fold when DATA has several sets) and of the nominal one.",
+    "cv_text",
+    default=str(DEFAULT_CV_FOLDS),
+    show_default=True,
+    metavar="K|off",
+    help="Report K-fold cross-validated held-out errors of the chosen model "
+    "(random poses, and whole sessions or regions) and of the nominal one; the summary "
+    "leads with them. 'off' skips them (the summary then has the errors on the "
+    "calibration data only).",
 )
 @click.option(
     "--cv-groups",
@@ -145,6 +150,23 @@ def _options_from(loss: str, priors: str, stage2: str):
     help="Reject every row beyond Z robust sigmas (whitened error over the robust noise) "
     "instead of the automatic test.",
 )
+@click.option(
+    "--accept",
+    "accept",
+    metavar="RMS_MM[,MAX_MM]",
+    help="Acceptance limits: a PASS/FAIL verdict on the held-out errors (on the "
+    "calibration data when cross-validation is off) in the console, report.json "
+    "('acceptance') and report.html; the exit code does not change.",
+)
+@click.option(
+    "--meta",
+    "meta",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="A certificate field (repeatable): robot serial, instrument and its "
+    "certificate, operator, site, standard, ...; stored in manifest.json and "
+    "report.json and shown in report.html.",
+)
 @jobs_option("Worker processes for the cross-validation of --model auto and --cv")
 @allow_out_of_limits_option
 @click.option("--force", is_flag=True, help="Overwrite results already in --out.")
@@ -162,10 +184,12 @@ def calibrate(
     ntm_joints: str | None,
     ntm_order: int,
     report: bool,
-    cv_folds: int | None,
+    cv_text: str,
     cv_groups: str | None,
     reject: str,
     reject_z: float | None,
+    accept: str | None,
+    meta: tuple[str, ...],
     jobs: int,
     allow_out_of_limits: bool,
     force: bool,
@@ -197,6 +221,27 @@ def calibrate(
         "manifest.json",
     )
 
+    from kinecal.errors import DataError
+    from kinecal.report._acceptance import acceptance, parse_accept, verdict_line
+    from kinecal.report._certificate import (
+        certificate_block,
+        parse_meta,
+        temperature_range,
+    )
+
+    try:
+        meta_fields = parse_meta(meta)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="--meta") from None
+    cv_folds = _cv_folds(cv_text)
+    cv_default = cv_text == str(DEFAULT_CV_FOLDS)
+
+    limits = None
+    if accept is not None:
+        try:
+            limits = parse_accept(accept)
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint="--accept") from None
     say = Progress(quiet)
     jobs = jobs or available_cpus()
     robot = _load_robot(robot_name)
@@ -210,8 +255,18 @@ def calibrate(
     )
     groups = _group_labels(data, cv_groups, meas.rows) if cv_groups else None
     if cv_folds is not None:  # the folds' own check, before the calibration runs
-        check_folds(meas, cv_folds, groups, cv_groups)
+        try:
+            check_folds(meas, cv_folds, groups, cv_groups)
+        except DataError as exc:
+            if not cv_default:
+                raise
+            # the default folds do not fit these data: no held-out figure, said so
+            click.echo(f"note      no cross-validation: {exc}", err=True)
+            cv_folds = None
     extra: dict[str, object] = {"data_checks": [d.as_dict() for d in data_checks]}
+    extra["certificate"] = certificate_block(
+        meta_fields, temperature_range(data, meas.rows)
+    )
     nj = parse_int_list(ntm_joints, "--ntm-joints", robot.n_joints) or robot.ntm_joints
     revolute = [i + 1 for i, j in enumerate(robot.joints) if j.kind != "prismatic"]
     bad = [j for j in nj if j not in revolute]
@@ -242,66 +297,67 @@ def calibrate(
     if held is not None:
         for note in dict.fromkeys(n for fig in held.figures for n in fig.folds.notes):
             click.echo(f"warning   {note}", err=True)
+    if limits is not None:
+        extra["acceptance"] = acceptance(*limits, held, result.metrics_after)
+    from kinecal.report._headline import accuracy_block, accuracy_lines
+
+    errors = pose_errors(result, meas)
+    extra["accuracy"] = accuracy_block(errors, held)
     say("write", "model.yaml, report.json, residuals.csv, manifest.json")
     summary = calibration_summary(result, extra=extra)
     save_model(out / "model.yaml", result.calibrated, force=True)
     write_json(out / "report.json", summary, force=True)
     # In blocks of rows: a large file's text is never held whole.
-    blocks = pose_errors(result, meas).csv_blocks()
+    blocks = errors.csv_blocks()
     atomic_write_bytes(
         out / RESIDUALS_CSV, (b.encode("utf-8") for b in blocks), force=True
     )
     written = ["model.yaml", "report.json", RESIDUALS_CSV, "manifest.json"]
     written += ["report.html"] if report else []
-    write_json(
-        out / "manifest.json",
-        manifest(
-            {"data": data, "targets": targets, "robot": robot_name},
-            {
-                "model": model_name,
-                "loss": loss,
-                "priors": priors,
-                "stage2": stage2,
-                "hayati": list(hay),
-                "ntm_joints": list(nj),
-                "ntm_order": ntm_order,
-                "cv": cv_folds,
-                "cv_groups": cv_groups,
-                "reject": reject,
-                "reject_z": reject_z,
-                "model_code": kernel_name(result.calibrated.model),
-            },
-            files=written,
-            folder=out,
-        ),
-        force=True,
+    run_manifest = manifest(
+        {"data": data, "targets": targets, "robot": robot_name},
+        {
+            "model": model_name,
+            "loss": loss,
+            "priors": priors,
+            "stage2": stage2,
+            "hayati": list(hay),
+            "ntm_joints": list(nj),
+            "ntm_order": ntm_order,
+            "cv": cv_folds,
+            "cv_groups": cv_groups,
+            "reject": reject,
+            "reject_z": reject_z,
+            "accept": accept,
+            "model_code": kernel_name(result.calibrated.model),
+        },
+        files=written,
+        folder=out,
     )
+    run_manifest["meta"] = meta_fields
+    write_json(out / "manifest.json", run_manifest, force=True)
     if report:  # drawn from the files just written, as `kinecal report DIR` does
         from kinecal.report import write_report
 
         say("report", "drawing report.html")
         write_report(out, force=True)
         say("report", f"wrote {Path(out_dir) / 'report.html'}")
-    b, a = result.metrics_before, result.metrics_after
+    b = result.metrics_before
     click.echo(
         f"model     {spec.name}: {result.identifiability.rank} of "
         f"{result.calibrated.model.size} parameters estimated"
     )
+    # the figure the user will get first: held-out (when it ran), then the fit's own
+    for line in accuracy_lines(extra["accuracy"]):  # type: ignore[arg-type]
+        click.echo(line)
     click.echo(
         f"before    RMS {b.rms_mm:.4f} mm  max {b.max_mm:.4f} mm  (nominal, frames fitted)"
     )
-    click.echo(
-        f"after     RMS {a.rms_mm:.4f} mm  max {a.max_mm:.4f} mm  (calibration data)"
-    )
     if held is not None:
-        for fig in held.figures:
-            click.echo(
-                f"held-out  RMS {fig.model.rms_mm:.4f} ± {fig.model.rms_se_mm:.4f} mm "
-                f"{fig.name} ({len(fig.folds.test)}-fold CV by {fig.folds.unit}; "
-                f"nominal {fig.nominal.rms_mm:.4f} mm)"
-            )
         for note in held.notes:
             click.echo(f"note      {note}")
+    if limits is not None:
+        click.echo(f"accept    {verdict_line(extra['acceptance'])}")  # type: ignore[arg-type]
     for line in result.identifiability.summary()[1:]:
         click.echo(f"note      {line}")
     for w in result.warnings:
@@ -309,6 +365,22 @@ def calibrate(
     click.echo(f"wrote     {Path(out_dir)}{os.sep}: {', '.join(written)}")
     if not result.success:
         sys.exit(EXIT_NOT_CONVERGED)
+
+
+def _cv_folds(text: str) -> int | None:
+    """``--cv K|off`` -> K (>= 2) or None."""
+    if text.strip().lower() == "off":
+        return None
+    try:
+        k = int(text)
+    except ValueError:
+        k = 0
+    if k < 2:
+        raise click.BadParameter(
+            f"expected a number of folds >= 2 or 'off'; got {text!r}.",
+            param_hint="--cv",
+        )
+    return k
 
 
 def _group_labels(data: str, column: str, rows: Any) -> Any:

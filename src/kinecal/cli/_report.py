@@ -2,13 +2,25 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import click
 
 from kinecal.cli._common import Progress, common_options
 
 
 @click.command()
-@click.argument("folder", type=click.Path(file_okay=False))
+@click.argument("folder", type=click.Path(file_okay=False), required=False)
+@click.option(
+    "--compare",
+    "compare",
+    nargs=2,
+    type=click.Path(file_okay=False),
+    metavar="OLD_DIR NEW_DIR",
+    help="Compare two calibrations of one robot instead: parameters that moved beyond "
+    "their combined uncertainty, each model's accuracy on the other's data (when the "
+    "manifests' data files are still there); writes NEW_DIR/compare.html (or --out).",
+)
 @click.option(
     "--out",
     "out_path",
@@ -17,7 +29,13 @@ from kinecal.cli._common import Progress, common_options
 )
 @click.option("--force", is_flag=True, help="Overwrite an existing report.")
 @common_options
-def report(folder: str, out_path: str | None, force: bool, quiet: bool) -> None:
+def report(
+    folder: str | None,
+    compare: tuple[str, str] | None,
+    out_path: str | None,
+    force: bool,
+    quiet: bool,
+) -> None:
     """Draw report.html from a folder written by `kinecal calibrate`.
 
     Reads DIR/model.yaml, DIR/report.json and DIR/residuals.csv (per-pose errors; without
@@ -29,6 +47,13 @@ def report(folder: str, out_path: str | None, force: bool, quiet: bool) -> None:
     from kinecal.report import write_report
 
     say = Progress(quiet)
+    if compare:
+        if folder is not None:
+            raise click.UsageError("give either DIR or --compare OLD_DIR NEW_DIR.")
+        _compare(*compare, out_path, force, say)
+        return
+    if folder is None:
+        raise click.UsageError("missing DIR (a folder written by kinecal calibrate).")
     d = Path(folder)
     if not d.is_dir():
         raise DataError(
@@ -48,3 +73,32 @@ def report(folder: str, out_path: str | None, force: bool, quiet: bool) -> None:
             "calibrate again)."
         ) from exc
     click.echo(f"wrote     {path}")
+
+
+def _compare(old: str, new: str, out_path: str | None, force: bool, say: Any) -> None:
+    from pathlib import Path
+
+    from kinecal.io import atomic_write_text
+    from kinecal.report._compare import compare_calibrations, render_comparison
+
+    target = Path(out_path) if out_path else Path(new) / "compare.html"
+    if target.exists() and not force:
+        raise FileExistsError(f"{target} exists; use --force to overwrite it.")
+    say("compare", f"{old} against {new}")
+    c = compare_calibrations(old, new)
+    atomic_write_text(target, render_comparison(c), force=True)
+    click.echo(
+        f"moved     {len(c['moved'])} of {len(c['parameters'])} parameters beyond "
+        f"{c['significance']:g} combined std"
+        + (f": {', '.join(c['moved'])}" if c["moved"] else "")
+    )
+    for r in c["cross"]:
+        label = f"{r['model']} model on {r['data']} data"
+        if "skipped" in r:
+            click.echo(f"accuracy  {label}: not computed ({r['skipped']})")
+        else:
+            click.echo(
+                f"accuracy  {label}: RMS {r['rms_mm']:.4f} mm  max {r['max_mm']:.4f} mm"
+                + ("  (user frame refitted)" if r["refit_user"] else "")
+            )
+    click.echo(f"wrote     {target}")

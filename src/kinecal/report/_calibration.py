@@ -17,7 +17,9 @@ from typing import Any
 import numpy as np
 
 from kinecal.report import _figures as F
+from kinecal.report._certificate import certificate_html
 from kinecal.report._format import details, e, figure, num, page, ratio, table
+from kinecal.report._headline import accuracy_html
 from kinecal.report._poses import (
     FIGURE_POSES,
     RESIDUALS_CSV,
@@ -185,6 +187,24 @@ def _heldout_section(summary: Mapping[str, Any]) -> list[str]:
     return out
 
 
+def _acceptance(summary: Mapping[str, Any]) -> str:
+    """The --accept verdict, or nothing without limits."""
+    acc = summary.get("acceptance")
+    if not acc:
+        return ""
+    ok = bool(acc.get("pass"))
+    checks = ", ".join(
+        f"{e(str(c['figure']).replace('_mm', '').upper())} {num(c['value'])} mm "
+        f"{'≤' if c['pass'] else '>'} {num(c['limit'])} mm"
+        for c in acc.get("checks", [])
+    )
+    return (
+        f"<p class=accept><b class={'ok' if ok else 'warn'}>"
+        f"Acceptance: {'PASS' if ok else 'FAIL'}</b> — {checks}; judged on "
+        f"{e(acc.get('judged'))}.</p>"
+    )
+
+
 def _warnings(summary: Mapping[str, Any]) -> str:
     """Every warning, with the full list of the rows or parameters it concerns (the
     message names only the first few)."""
@@ -285,6 +305,8 @@ def render_calibration_report(
         f"{e(data.get('kind', ''))} poses ({e(data.get('source', ''))}). {conv} "
         f"Noise estimate {num(summary.get('noise_sigma_mm'))} mm per axis; fit "
         f"{num(summary.get('seconds'), 3)} s.</p>",
+        accuracy_html(summary),
+        _acceptance(summary),
         _accuracy_table(summary),
         "<p class=muted>Errors are 3-D position errors; before: nominal kinematics with "
         "fitted user and tool frames. Validate on poses not used here with "
@@ -300,13 +322,14 @@ def render_calibration_report(
         _warnings(summary),
         "</div>",
     ]
+    body.append(certificate_html(summary))
     body += _heldout_section(summary)
     body += [
-        "<h2>Frames (Tables 3, 6)</h2>",
+        "<h2>User and tool frames <small class=muted>(paper Tables 3, 6)</small></h2>",
         frames_table(cal),
-        "<h2>Joint geometry (Tables 4, 7)</h2>",
+        "<h2>Joint geometry (DH parameters) <small class=muted>(paper Tables 4, 7)</small></h2>",
         dh_table(cal),
-        "<h2>Joint compliance (Tables 4, 7)</h2>",
+        "<h2>Joint compliance and stiffness <small class=muted>(paper Tables 4, 7)</small></h2>",
         compliance_table(cal),
         "<h2>All parameters</h2>",
         "<p class=muted>Change from nominal: estimate − start value (the nominal robot; "

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import html
 import math
+import re
 import time
 from collections.abc import Iterable, Sequence
 
@@ -112,7 +113,58 @@ tr.sig td{background:#fff4e0}tr.fixed td{color:#777}
 details{margin:.3em 0}summary{cursor:pointer}
 figure{margin:1.2em 0}figure svg{width:100%;max-width:980px;height:auto;
 border:1px solid #eee}
+nav.toc{font-size:.9em}nav.toc ol{columns:2;margin:.3em 0}
+a.csv{font-size:.8em;margin-left:.5em}
+@media print{body{max-width:none;margin:0;font-size:10pt}nav.toc,a.csv{display:none}
+h2,h3{break-after:avoid}table,figure,tr{break-inside:avoid}
+.box{border:1px solid #999;background:none}figure svg{max-width:100%}}
 """
+
+# Each table gets a "CSV" link that saves its cells (text, comma-separated, quoted where
+# needed) as a file; before printing every collapsed block opens.
+_CSV = """<script>(function(){var t=document.querySelectorAll("table");
+for(var i=0;i<t.length;i++){(function(tb,k){var rows=[];
+tb.querySelectorAll("tr").forEach(function(r){var c=[];
+r.querySelectorAll("th,td").forEach(function(x){var v=x.textContent.trim();
+c.push(/[",\\n]/.test(v)?'"'+v.replace(/"/g,'""')+'"':v)});rows.push(c.join(","))});
+var a=document.createElement("a");a.className="csv";a.textContent="CSV";
+a.download=(tb.getAttribute("data-name")||("table-"+(k+1)))+".csv";
+var u="data:text/csv;charset=utf-8,"+encodeURIComponent(rows.join("\\n")+"\\n");a.href=u;
+tb.insertAdjacentElement("beforebegin",a)})(t[i],i)}
+window.addEventListener("beforeprint",function(){
+document.querySelectorAll("details").forEach(function(d){d.open=true})})})();</script>"""
+
+
+def _slug(text: str, used: set[str]) -> str:
+    base = re.sub(r"[^a-z0-9]+", "-", re.sub(r"<.*?>", "", text).lower()).strip("-")
+    slug, k = base or "section", 2
+    while slug in used:
+        slug, k = f"{base}-{k}", k + 1
+    used.add(slug)
+    return slug
+
+
+def with_toc(body: str) -> str:
+    """``body`` with an id on every <h2> that has none and a table of contents (links to
+    every <h2>) before the first of them; unchanged when it has fewer than three."""
+    heads = list(re.finditer(r"<h2( id=([\w-]+))?>(.*?)</h2>", body, flags=re.S))
+    if len(heads) < 3:
+        return body
+    used = {m.group(2) for m in heads if m.group(2)}
+    out, items, last = [], [], 0
+    for m in heads:
+        hid = m.group(2) or _slug(m.group(3), used)
+        out.append(body[last : m.start()])
+        out.append(f"<h2 id={hid}>{m.group(3)}</h2>")
+        title = re.sub(r"<small.*?</small>|<.*?>", "", m.group(3)).strip()
+        items.append(f"<li><a href='#{hid}'>{title}</a></li>")
+        last = m.end()
+    out.append(body[last:])
+    text = "".join(out)
+    first = text.index("<h2 id=")
+    toc = f"<nav class=toc><b>Contents</b><ol>{''.join(items)}</ol></nav>"
+    return text[:first] + toc + text[first:]
+
 
 # After loading, record how many figures are drawn and visible (``data-figures="k/n"`` on
 # <html>) and flag broken ones on the page; tests read it with a headless browser.
@@ -130,7 +182,8 @@ def page(title: str, body: str) -> str:
     return (
         f"<!DOCTYPE html><html lang=en><head><meta charset=utf-8><title>{e(title)}</title>"
         f"<style>{_CSS}</style></head><body><h1>{e(title)}</h1>"
-        f"<p class=muted>kinecal {__version__}, {stamp}</p>{body}{_CHECK}</body></html>\n"
+        f"<p class=muted>kinecal {__version__}, {stamp}</p>{with_toc(body)}{_CSV}{_CHECK}"
+        "</body></html>\n"
     )
 
 

@@ -89,22 +89,58 @@ def dh_table(cal: Any) -> str:
     return table(["joint"] + [h for _, h in fields], rows)
 
 
+def _payload_weight(cal: Any) -> tuple[float | None, str]:
+    """The weight [N] that is the unit of lambda* and where it comes from: the data's
+    reference payload, else the robot's stated payload (its gravity model); None if
+    neither is known."""
+    kg = cal.reference_payload_kg
+    if kg:
+        return kg * G, "the data's reference payload"
+    robot = getattr(cal.model, "robot", None)
+    kg = getattr(robot, "payload_kg", None)
+    if kg:
+        return kg * G, "the robot's stated payload"
+    return None, ""
+
+
+G = 9.80665  # standard gravity [m/s^2]
+
+
 def compliance_table(cal: Any) -> str:
+    """Compliance terms; lambda* (per unit weight) also as compliance in rad/(N·m) and
+    stiffness in N·m/rad where the unit weight is known. Columns that no row fills are
+    left out."""
     rows = []
-    payload = cal.reference_payload_kg
+    w, source = _payload_weight(cal)
+    any_phys = False
     for rec in _records(cal).values():
         if rec["group"] not in ("ntm", "load", "link"):
             continue
-        phys = ""
-        if rec["group"] == "load" and payload:
-            w = payload * 9.80665  # the unit weight of lambda*: rad/m -> rad/(N m)
-            sd = rec["std"]
-            phys = pm(rec["value"] / w, np.nan if sd is None else sd / w)
+        comp = stiff = "—"
+        if rec["group"] == "load" and w:
+            # lambda* [rad/m] / weight [N] = compliance [rad/(N·m)]
+            v, sd = rec["value"] / w, rec["std"]
+            sd = np.nan if sd is None else sd / w
+            comp = pm(v, sd)
+            # stiffness 1/c, its std by first-order propagation sd / c^2
+            stiff = pm(1.0 / v, sd / v**2) if v > 0 else "—"
+            any_phys = True
         unit = rec["unit"] + (" (per unit weight)" if rec["group"] == "load" else "")
-        rows.append([e(rec["name"]), _pm(rec), e(unit), phys, e(rec["status"])])
+        rows.append([e(rec["name"]), _pm(rec), e(unit), comp, stiff, e(rec["status"])])
     if not rows:
         return "<p class=muted>This model has no compliance terms.</p>"
-    return table(["parameter", "value ± std", "unit", "rad/(N·m)", "status"], rows)
+    head = ["parameter", "value ± std", "unit"]
+    if any_phys:
+        head += ["compliance [rad/(N·m)]", "stiffness [N·m/rad]"]
+    else:
+        rows = [r[:3] + r[5:] for r in rows]
+    note = (
+        f"<p class=muted>Compliance = λ* / weight, with the weight of {e(source)} "
+        f"({num(w, 2)} N); stiffness = 1 / compliance.</p>"
+        if any_phys
+        else ""
+    )
+    return table([*head, "status"], rows) + note
 
 
 def parameter_table(params: list[Mapping[str, Any]]) -> str:
