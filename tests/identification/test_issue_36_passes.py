@@ -118,7 +118,7 @@ def _cache_case(e, kind):
     """An evaluation cache of ``e``'s training data (positions, or poses), its model
     and a point off the nominal."""
     from kinecal.identification._problem import EvaluationCache
-    from kinecal.identification._residuals import Weights
+    from kinecal.measurement._residuals import Weights
     from kinecal.models import CalibrationModel, ModelSpec
 
     meas = e.train
@@ -142,7 +142,7 @@ def _cache_case(e, kind):
 def test_new_weights_at_a_kept_point_take_no_jacobian_pass(exp2_exact, kind):
     """The noise re-estimation changes only the weights: the Jacobian kept at that
     point is rescaled row by row (no pass), and equals a fresh evaluation."""
-    from kinecal.identification._residuals import Weights, residuals
+    from kinecal.measurement._residuals import Weights, residuals
 
     cache, cm, x, w, meas = _cache_case(exp2_exact, kind)
     first = cache(cm, x, w, jacobian=True, products=True)
