@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 
 from kinecal.errors import DataError
-from kinecal.identification import CalibratedModel, Measurements
 from kinecal.iso9283 import IsoEvaluation, IsoPlan
+from kinecal.measurement import CalibratedModel, Measurements
 from kinecal.robot import RobotDescription
 
 __all__ = ["IsoTestProgram", "IsoTestResult", "evaluate_iso_test", "iso_test_program"]
