@@ -40,7 +40,7 @@ def data(tmp_path_factory):
 
 def _calibrate(capsys, data, out, *extra):
     return run_kinecal(
-        capsys, "calibrate", data["train"], "--robot", ROBOT, "--model", "kinematic",
+        capsys, "calibrate", "--cv", "off", data["train"], "--robot", ROBOT, "--model", "kinematic",
         "--out", out, "-q", *extra,
     )  # fmt: skip
 
@@ -347,7 +347,18 @@ def _ctrl_c_at(stage, data, tmp_path, capsys):
     out = tmp_path / "cal"
     assert _calibrate(capsys, data, out).code == 0  # an earlier result
     before = snapshot(out)
-    args = ["calibrate", big, "--robot", ROBOT, "--model", "full", "--out", out]
+    args = [
+        "calibrate",
+        "--cv",
+        "off",
+        big,
+        "--robot",
+        ROBOT,
+        "--model",
+        "full",
+        "--out",
+        out,
+    ]
     code, err = _interrupt([*args, "--force"], stage)
     assert stage in err and "Traceback" not in err
     last = err.strip().splitlines()[-1]
@@ -390,6 +401,8 @@ def test_issue_21_sigterm_removes_the_staged_result(data, tmp_path, capsys):
     code, err = _interrupt(
         [
             "calibrate",
+            "--cv",
+            "off",
             big,
             "--robot",
             ROBOT,

@@ -27,7 +27,7 @@ COMMANDS = {
         "--n-candidates", "60", "--out", "{out}", "-q",
     ],
     "calibrate": [
-        "calibrate", "{train}", "--robot", ROBOT, "--model", "kinematic",
+        "calibrate", "--cv", "off", "{train}", "--robot", ROBOT, "--model", "kinematic",
         "--out", "{out}", "-q",
     ],
 }  # fmt: skip

@@ -28,7 +28,7 @@ def _with_sigma(src, dst, sigma, row=3):
 
 def test_issue_35_tracker_data_with_targets_is_refused(data, capsys, tmp_path):
     res = run_kinecal(
-        capsys, "calibrate", data["train"], "--robot", ROBOT, "--model", "kinematic",
+        capsys, "calibrate", "--cv", "off", data["train"], "--robot", ROBOT, "--model", "kinematic",
         "--targets", data["dir"] / "spheres.csv", "--out", tmp_path / "o", "-q",
     )  # fmt: skip
     failed_with(res, "train.csv", "point data", "spheres.csv", "no --targets")
@@ -57,7 +57,7 @@ def test_issue_35_weights_within_a_factor_1000_are_kept(data, tmp_path):
 def test_issue_35_one_sigma_row_among_others_in_calibrate(data, capsys, tmp_path):
     f = _with_sigma(data["train"], tmp_path / "w.csv", "1e-12")
     res = run_kinecal(
-        capsys, "calibrate", f, "--robot", ROBOT, "--model", "kinematic",
+        capsys, "calibrate", "--cv", "off", f, "--robot", ROBOT, "--model", "kinematic",
         "--out", tmp_path / "o", "-q",
     )  # fmt: skip
     failed_with(res, "w.csv", "line 4", "sigma_mm")

@@ -72,7 +72,7 @@ def test_issue_35_calibrate_out_folder_holding_its_data_as_a_result_file(capsys,
     out.mkdir()
     shutil.copy(work / "train.csv", out / "residuals.csv")
     _refused(
-        capsys, work, "calibrate", out / "residuals.csv", "--robot", ROBOT,
+        capsys, work, "calibrate", "--cv", "off", out / "residuals.csv", "--robot", ROBOT,
         "--model", "kinematic", "--out", out, "--force", "-q",
     )  # fmt: skip
 
@@ -80,7 +80,7 @@ def test_issue_35_calibrate_out_folder_holding_its_data_as_a_result_file(capsys,
 def test_issue_35_report_out_onto_the_folders_model(capsys, data, tmp_path):
     out = tmp_path / "cal"
     res = run_kinecal(
-        capsys, "calibrate", data["train"], "--robot", ROBOT, "--model", "kinematic",
+        capsys, "calibrate", "--cv", "off", data["train"], "--robot", ROBOT, "--model", "kinematic",
         "--out", out, "-q",
     )  # fmt: skip
     assert res.code == 0, res
@@ -101,7 +101,7 @@ def test_issue_35_report_refuses_files_of_different_runs(capsys, data, tmp_path)
     for name, model in (("a", "kinematic"), ("b", "full")):
         out = tmp_path / name
         res = run_kinecal(
-            capsys, "calibrate", data["train"], "--robot", ROBOT, "--model", model,
+            capsys, "calibrate", "--cv", "off", data["train"], "--robot", ROBOT, "--model", model,
             "--out", out, "-q",
         )  # fmt: skip
         assert res.code == 0, res

@@ -44,11 +44,11 @@ def written(tmp_path_factory):
         d.mkdir()
         write_simulation(SimulatedData(exp), d, d)
     _ok(
-        capsys, "calibrate", e2 / "train.csv", "--robot", ROBOT, "--model",
+        capsys, "calibrate", "--cv", "off", e2 / "train.csv", "--robot", ROBOT, "--model",
         "kinematic", "--out", root / "cal2", "-q",
     )  # fmt: skip
     _ok(
-        capsys, "calibrate", e1 / "train.csv", "--robot", ROBOT, "--model",
+        capsys, "calibrate", "--cv", "off", e1 / "train.csv", "--robot", ROBOT, "--model",
         "kinematic", "--targets", e1 / "targets.csv", "--out", root / "cal1", "-q",
     )  # fmt: skip
     _ok(
@@ -166,7 +166,7 @@ def test_round_trip_robot_yaml(written, capsys, tmp_path, robot):
     r = written.get(robot, robot)
     _ok(capsys, "fk", "--robot", r, "0", "0", "0", "0", "90", "0")
     _ok(
-        capsys, "calibrate", written["exp2"] / "train.csv", "--robot", r, "--model",
+        capsys, "calibrate", "--cv", "off", written["exp2"] / "train.csv", "--robot", r, "--model",
         "kinematic", "--out", tmp_path / "cal", "-q",
     )  # fmt: skip
     _ok(

@@ -41,6 +41,8 @@ def test_issue_21_fuzz_calibrate_and_evaluate(point_data, capsys, tmp_path):
         res = run_kinecal(
             capsys,
             "calibrate",
+            "--cv",
+            "off",
             f,
             "--robot",
             ROBOT,
@@ -63,6 +65,8 @@ def test_issue_21_fuzz_calibrate_and_evaluate(point_data, capsys, tmp_path):
         res2 = run_kinecal(
             capsys,
             "calibrate",
+            "--cv",
+            "off",
             f,
             "--robot",
             ROBOT,

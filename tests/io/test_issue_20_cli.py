@@ -46,7 +46,16 @@ def test_issue_20_calibrate_refuses_a_joint_beyond_its_limit(tmp_path, run_cli):
     text = _edit_cell((REAL / "fr3_session_a.csv").read_text(), 12, "j4_deg", "5.0")
     f = tmp_path / "fr3.csv"
     f.write_text(text)
-    args = ["calibrate", str(f), "--robot", "franka-fr3", "--model", "kinematic"]
+    args = [
+        "calibrate",
+        "--cv",
+        "off",
+        str(f),
+        "--robot",
+        "franka-fr3",
+        "--model",
+        "kinematic",
+    ]
     args += ["--no-report", "-q"]
     res = run_cli(*args, "--out", str(tmp_path / "a"))
     _one_error_line(res, str(f), "line 12, column 'j4_deg': 5 is outside", "-8.7]")
@@ -63,7 +72,14 @@ def test_issue_20_calibrate_refuses_a_near_miss_column(tmp_path, run_cli):
     f = tmp_path / "m.csv"
     f.write_text("\n".join(["markers," + a[0]] + ["m1," + r for r in a[1:]]) + "\n")
     res = run_cli(
-        "calibrate", str(f), "--robot", "franka-fr3", "--out", str(tmp_path / "o")
+        "calibrate",
+        "--cv",
+        "off",
+        str(f),
+        "--robot",
+        "franka-fr3",
+        "--out",
+        str(tmp_path / "o"),
     )
     _one_error_line(res, "column 'markers'", "did you mean 'marker'")
 
@@ -75,6 +91,8 @@ def test_issue_20_duplicates_reach_stderr_and_the_report(tmp_path, run_cli):
     out = tmp_path / "cal"
     res = run_cli(
         "calibrate",
+        "--cv",
+        "off",
         str(f),
         "--robot",
         "franka-fr3",
