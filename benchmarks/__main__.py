@@ -3,7 +3,7 @@
 Each case runs several times; the median wall time is reported with the machine it ran
 on, in a JSON file and a short table. Baselines run in the same process on the same data:
 scipy's ``least_squares`` with finite-difference Jacobians and the paper's fixed-step
-update (zeta = 0.005). Not part of ``make test``.
+update (zeta = 0.005). Not part of ``make test``. The cases: benchmarks/_sections.py.
 """
 
 from __future__ import annotations
@@ -11,66 +11,16 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
-import subprocess
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from benchmarks._common import (
-    _machine,
-    _median_time,
-    _model_code,
-    _process_env,
-    _run,
-)
+from benchmarks import _sections as sec
+from benchmarks._common import _machine
 
 
-def _jacobian_instructions(
-    model: Any, params: Any, inputs: Any, code: str
-) -> float | None:
-    """Instructions per FK + Jacobian evaluation by ``code`` ('c' on one thread, or
-    'numpy'; callgrind; None without valgrind or for inputs with several sets or
-    markers, which the helper does not rebuild)."""
-    import dataclasses
-    import shutil
-    import tempfile
-
-    several = len(set(inputs.set_index)) > 1 or len(set(inputs.marker_index)) > 1
-    if shutil.which("valgrind") is None or several:
-        return None
-    with tempfile.TemporaryDirectory() as tmp:
-        path = str(Path(tmp) / "case.npz")
-        np.savez(
-            path,
-            spec=json.dumps(dataclasses.asdict(model.spec)),
-            robot=model.robot.name,
-            params=params,
-            q_ctrl=inputs.q_ctrl,
-            p_cam=inputs.p_cam,
-            load_scale=inputs.load_scale,
-        )
-        env = {**_process_env(), "OPENBLAS_NUM_THREADS": "1", "KINECAL_KERNEL": code}
-        # A plain run first, so both counted runs load the same bytecode caches.
-        helper = [sys.executable, "-m", "benchmarks._instructions", path]
-        subprocess.run([*helper, "0"], check=True, capture_output=True, env=env)
-        counts = []
-        for k in (0, 4):
-            out = str(Path(tmp) / f"callgrind.{k}")
-            cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}"]
-            cmd += [*helper, str(k)]
-            r = subprocess.run(cmd, capture_output=True, text=True, env=env)
-            found = [ln for ln in r.stderr.splitlines() if "Collected :" in ln]
-            if r.returncode != 0 or not found:
-                return None
-            counts.append(int(found[-1].split(":")[-1].replace(",", "")))
-    return (counts[1] - counts[0]) / 4
-
-
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="python -m benchmarks")
     ap.add_argument("--out", default="benchmarks/results.json")
     ap.add_argument("--quick", action="store_true", help="fewer repeats")
@@ -106,6 +56,17 @@ def main(argv: list[str] | None = None) -> int:
         help="with --issue36: only the rows of sensor reconstruct (a 120-image scan), "
         "merged in",
     )
+    ap.add_argument(
+        "--issue38",
+        action="store_true",
+        help="only the issue-38 row (the default calibrate against --cv off), merged "
+        "into --out",
+    )
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = _parser()
     args = ap.parse_args(argv)
     if args.issue36:
         from benchmarks._issue36 import main as issue36
@@ -135,379 +96,58 @@ def main(argv: list[str] | None = None) -> int:
         if args.out == ap.get_default("out"):  # not the main benchmarks' file
             args.out = "benchmarks/planning.json"
         return planning(args)
+    if args.issue38:
+        b = sec.Bench(3 if args.quick else 7, 0)
+        sec.default_cv_case(b)
+        return _merge(args.out, b.results)
     rep = 3 if args.quick else 7
     # Model evaluations take milliseconds: many more repeats steady their median on a
     # shared VM (its speed drifts by 20-30 % within minutes).
-    rep_fast = 10 * rep
-
-    from kinecal.compensation import compensate
-    from kinecal.identification import (
-        calibrate,
-        evaluate,
-        residuals,
-        solve_fixed_step,
-    )
-    from kinecal.sensor import (
-        StripeRenderer,
-        extract_stripes,
-        fit_sphere,
-        paper_sensor,
-        sphere_scene,
-    )
+    b = sec.Bench(rep, 10 * rep)
+    print("kinecal benchmarks", json.dumps(_machine()), flush=True)
     from kinecal.simulation import LaserTracker, experiment2
 
-    results: dict[str, dict[str, Any]] = {}
-
-    def record(name: str, seconds: float, target: str, **extra: Any) -> None:
-        best = getattr(seconds, "best", seconds)
-        results[name] = {
-            "seconds": float(seconds),
-            "best_seconds": float(best),
-            "target": target,
-            **extra,
-        }
-        print(f"  {name:38s} {seconds * 1e3:10.2f} ms   ({target})", flush=True)
-
-    print("kinecal benchmarks", json.dumps(_machine()), flush=True)
     e = experiment2(3, tracker=LaserTracker(5e-6, 0.0))
-    big = e.test  # ~6900 poses
-    robot = e.truth.robot
-
-    # 1. FK + parameter Jacobian of the full model
-    res100 = calibrate(robot, e.train, "full")
-    cal = res100.calibrated
-    inputs = big.model_inputs(cal.reference_payload_kg)
-
-    def jac() -> object:
-        return cal.model.evaluate(cal.params, inputs, jacobian=True)
-
-    from kinecal.models import kernel_name, set_kernel_threads
-
-    code = kernel_name(cal.model)  # 'c' where the compiled kernel is built
-    # First with the C library's default allocator (a library user who has not called
-    # kinecal.keep_freed_memory()), then with the setting the kinecal command applies.
-    t, _ = _median_time(jac, rep_fast)
-    record("fk_jacobian_full_default_malloc", t, "library default", poses=big.n)
-    t, _ = _median_time(lambda: calibrate(robot, big, "full"), 1)
-    record("calibrate_full_7000_default_malloc", t, "library default", poses=big.n)
-    from kinecal import keep_freed_memory
-
-    keep_freed_memory()
-    t, _ = _median_time(jac, rep_fast)
-    record(
-        "fk_jacobian_full",
-        t,
-        "<= 10 ms for 7000 poses",
-        poses=big.n,
-        parameters=cal.model.size,
-        code=code,
-    )
-    if code == "c":  # the compiled kernel on one thread, and the numpy code
-        set_kernel_threads(1)
-        t, _ = _median_time(jac, rep_fast)
-        set_kernel_threads(None)
-        record("fk_jacobian_full_one_thread", t, "compiled kernel, one thread")
-        with _model_code("numpy"):
-            t, _ = _median_time(jac, rep_fast)
-        record("fk_jacobian_full_numpy", t, "the numpy code (no compiler)")
-    # The same on a new inputs object each time: what the quantities of the poses alone
-    # (kept per inputs object, as every solver iteration reuses them) cost on top.
-    t, _ = _median_time(
-        lambda: cal.model.evaluate(
-            cal.params,
-            type(inputs).make(
-                inputs.q_ctrl, p_cam=inputs.p_cam, load_scale=inputs.load_scale
-            ),
-            jacobian=True,
-        ),
-        rep_fast,
-    )
-    record("fk_jacobian_full_new_inputs", t, "first evaluation of new poses")
-    for c in ("c", "numpy") if code == "c" else ("numpy",):
-        instructions = _jacobian_instructions(cal.model, cal.params, inputs, c)
-        if instructions is not None:
-            key = "fk_jacobian_full_instructions" + ("_numpy" if c == "numpy" else "")
-            results[key] = {
-                "instructions": instructions,
-                "target": "deterministic (callgrind): compares code, not machines",
-                "code": c,
-            }
-            print(f"  {key:38s} {instructions / 1e6:10.2f} M")
-
-    # 1b. plain FK (nominal kinematic model) and the full model without Jacobians
-    from kinecal.simulation import planning_model
-
-    pm, x_nom = planning_model(e.truth)
-    inp_nom = big.model_inputs()
-    t_fk, _ = _median_time(lambda: pm.evaluate(x_nom, inp_nom), rep_fast)
-    record("fk_plain_7000", t_fk, "vectorised, no loop over poses", poses=big.n)
-    t_full, _ = _median_time(lambda: cal.model.evaluate(cal.params, inputs), rep_fast)
-    record("fk_full_model_7000", t_full, "< 3x plain FK", ratio=t_full / t_fk)
-
-    # 2. calibrate, all three stages, ~7000 poses, in-process
-    t, r7 = _median_time(lambda: calibrate(robot, big, "full"), max(rep // 2, 1))
-    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    record(
-        "calibrate_full_7000",
-        t,
-        "<= 1 s",
-        poses=big.n,
-        rms_mm=r7.metrics_after.rms_mm,
-        peak_rss_mb=peak_mb,
-        stage_iterations={st.name: st.iterations for st in r7.stages},
-        code=code,
-    )
-    if code == "c":
-        with _model_code("numpy"):
-            t, _ = _median_time(lambda: calibrate(robot, big, "full"), max(rep // 2, 1))
-        record("calibrate_full_7000_numpy", t, "the numpy code (no compiler)")
-
-    # 3. 2000 poses: kinecal against scipy least_squares with finite differences
-    perm = np.random.default_rng(1).permutation(big.n)  # a representative subset
-    sub = big.subset(perm[:2000])
-    t_k, rk = _median_time(lambda: calibrate(robot, sub, "full"), max(rep // 2, 1))
-    test = big.subset(perm[2000:])
-    rms_k = evaluate(rk.calibrated, test).metrics.rms_mm
-    model = rk.calibrated.model
-    free = np.array([s == "estimated" for s in rk.calibrated.status])
-    x0 = rk.registered.copy()
-    w = rk.weights
-    inp = sub.model_inputs(rk.calibrated.reference_payload_kg)
-
-    from benchmarks._scipy_fd import fd_fit
-
-    t_fd, x_fd = _median_time(lambda: fd_fit(model, x0, free, sub, w, inp), 1)
-    from dataclasses import replace
-
-    rms_fd = evaluate(replace(rk.calibrated, params=x_fd), test).metrics.rms_mm
-    record("calibrate_full_2000", t_k, ">= 5x faster than scipy FD", rms_test_mm=rms_k)
-    record(
-        "scipy_least_squares_fd_2000",
-        t_fd,
-        "baseline",
-        rms_test_mm=rms_fd,
-        speedup=t_fd / t_k,
-    )
-
-    # 3b. the same as a whole `kinecal calibrate` process with its default output
-    # (start-up, CSV, model.yaml, report.json, residuals.csv and the HTML report), against
-    # the same scipy baseline, in-process as above and as a whole process too (start-up,
-    # the same CSV, the fit, its result); also without the report, and the report alone
-    import dataclasses
-    import tempfile
-
-    from kinecal.io import measurements_to_csv
-
-    with tempfile.TemporaryDirectory() as tmp:
-        csv = Path(tmp) / "poses.csv"
-        csv.write_text(measurements_to_csv(sub, robot))
-        cmd = [sys.executable, "-m", "kinecal", "calibrate", str(csv), "--robot"]
-        cmd += ["fanuc-lrmate200id", "--model", "full", "--out", str(Path(tmp) / "o")]
-        # the fit alone against scipy: without the held-out folds run by default
-        cmd += ["--force", "-q", "--cv", "off"]
-        _run(cmd)  # warm-up: bytecode cache
-        t_cli, _ = _median_time(lambda: _run(cmd), rep)
-        from kinecal.io import load_model
-
-        rms_cli = evaluate(
-            load_model(Path(tmp) / "o" / "model.yaml"), test
-        ).metrics.rms_mm
-        t_nr, _ = _median_time(lambda: _run([*cmd, "--no-report"]), rep)
-        from kinecal.report import write_report
-
-        out_html = Path(tmp) / "r.html"
-        t_rep, _ = _median_time(
-            lambda: write_report(Path(tmp) / "o", out=out_html, force=True), rep_fast
-        )
-        rep_cmd = [sys.executable, "-m", "kinecal", "report", str(Path(tmp) / "o")]
-        rep_cmd += ["--out", str(out_html), "--force", "-q"]
-        t_rep_p, _ = _median_time(lambda: _run(rep_cmd), rep)
-        case = Path(tmp) / "case.npz"
-        np.savez(
-            case,
-            spec=json.dumps(dataclasses.asdict(model.spec)),
-            robot=robot.name,
-            x0=x0,
-            free=free,
-            sigma=w.sigma,
-            payload=rk.calibrated.reference_payload_kg or 0.0,
-        )
-        x_out = Path(tmp) / "x.npy"
-        fd_cmd = [sys.executable, "-m", "benchmarks._scipy_fd", str(case), str(csv)]
-        t_fdp, _ = _median_time(lambda: _run([*fd_cmd, str(x_out)]), 1)
-        rms_fdp = evaluate(
-            replace(rk.calibrated, params=np.load(x_out)), test
-        ).metrics.rms_mm
-    record(
-        "scipy_least_squares_fd_2000_process",
-        t_fdp,
-        "baseline, as a whole process",
-        rms_test_mm=rms_fdp,
-    )
-    record(
-        "calibrate_cli_2000",
-        t_cli,
-        ">= 5x faster than scipy FD, as a whole process with the default HTML report",
-        speedup=t_fd / t_cli,
-        speedup_process_to_process=t_fdp / t_cli,
-        rms_test_mm=rms_cli,
-    )
-    record(
-        "calibrate_cli_2000_no_report",
-        t_nr,
-        "the same with --no-report",
-        speedup_process_to_process=t_fdp / t_nr,
-    )
-    # 3c. issue 38: the default `kinecal calibrate` (held-out accuracy by 5-fold
-    # cross-validation, --model auto, the HTML report) on a `kinecal simulate` twin,
-    # against the same command with --cv off; paired runs, the ratio of the medians
-    with tempfile.TemporaryDirectory() as tmp:
-        sim = Path(tmp) / "sim"
-        _run([sys.executable, "-m", "kinecal", "simulate", "--out", str(sim), "-q"])
-        base = [sys.executable, "-m", "kinecal", "calibrate", str(sim / "train.csv")]
-        base += ["--robot", "fanuc-lrmate200id", "--out", str(Path(tmp) / "o")]
-        base += ["--force", "-q"]
-        _run(base)  # warm-up
-        t_on, _ = _median_time(lambda: _run(base), rep)
-        t_off, _ = _median_time(lambda: _run([*base, "--cv", "off"]), rep)
-    record(
-        "calibrate_default_cv_twin",
-        t_on,
-        "<= 1.5x the same command with --cv off (issue 38)",
-        cv_off_seconds=float(t_off),
-        ratio_to_cv_off=float(t_on) / float(t_off),
-    )
-    record("report_html_2000", t_rep, "well under 1 s (in-process, from the folder)")
-    record("report_cli_2000", t_rep_p, "`kinecal report DIR` as a whole process")
-
-    # 4. the paper's fixed-step update from the same start, 200 iterations
-    def fun(x: np.ndarray, jac: bool) -> tuple[np.ndarray, np.ndarray | None]:
-        blk = residuals(model, x, sub, w, inputs=inp, jacobian=jac)
-        return blk.r, blk.J
-
-    t_fs, (x_fs, costs) = _median_time(
-        lambda: solve_fixed_step(fun, x0, free, n_iter=200), 1
-    )
-    rms_fs = evaluate(replace(rk.calibrated, params=x_fs), test).metrics.rms_mm
-    record(
-        "paper_fixed_step_200_iter_2000",
-        t_fs,
-        "baseline",
-        rms_test_mm=rms_fs,
-        note="zeta=0.005 removes 0.5 % of the step per iteration",
-        cost_first_last=[costs[0], costs[-1]],
-    )
-
-    # 4b. --model auto on the same 2000 poses: 10 cross-validated candidate runs of 5
-    # folds, serially and on one worker process per CPU
-    from kinecal._parallel import available_cpus
-    from kinecal.identification import select_model
-
-    cpus = available_cpus()
-    t_a1, sel1 = _median_time(lambda: select_model(robot, sub, jobs=1), 1)
-    t_an, seln = _median_time(lambda: select_model(robot, sub, jobs=cpus), 1)
-    record("select_model_auto_2000_serial", t_a1, "baseline", chosen=sel1.spec.name)
-    record(
-        "select_model_auto_2000_workers",
-        t_an,
-        "one worker process per CPU",
-        workers=cpus,
-        speedup=t_a1 / t_an,
-        same_choice=sel1.as_dict() == seln.as_dict(),
-    )
-
-    # 5. compensation of 10,000 targets
-    rng = np.random.default_rng(0)
-    q = big.q_ctrl[rng.integers(0, big.n, 10_000)]
-    p_t, _ = e.truth.evaluate(q)
-    q_seed = q + np.radians(0.2) * rng.standard_normal(q.shape)
-    t, cr = _median_time(lambda: compensate(cal, p_t, q_seed), max(rep // 2, 1))
-    record("compensate_10000", t, "<= 1 s", ok=int(np.sum(cr.status == "ok")))
-    from benchmarks._compensation import compensation_cases
-
-    compensation_cases(record, max(rep // 2, 1), _median_time)
-
-    # 6. stripe extraction, 1280 x 1024 images
-    sen = paper_sensor()
-    ren = StripeRenderer(sen.camera, sen.planes)
-    imgs = ren.render_scan(
-        sphere_scene([0.0, 0.0, 0.14], 0.015), rng, np.arange(0, 120, 4)
-    )
-    t, _ = _median_time(lambda: [extract_stripes(im) for im in imgs], rep)
-    record(
-        "stripes_per_image",
-        t / len(imgs),
-        ">= 90 images/s on one core",
-        images_per_s=len(imgs) / t,
-    )
-
-    # 6b. a whole scan from files: `kinecal sensor reconstruct` on 120 PNG images of
-    # 1280 x 1024 (decoding, stripes on one thread per CPU, points, CSV)
-    from kinecal.io import save_sensor, write_image
-
-    scan = ren.render_scan(sphere_scene([0.0, 0.0, 0.14], 0.015), rng)
-    with tempfile.TemporaryDirectory() as tmp:
-        for k, im in enumerate(scan):
-            write_image(Path(tmp) / f"plane_{k:03d}.png", im)
-        save_sensor(Path(tmp) / "sensor.yaml", sen)
-        cmd = [sys.executable, "-m", "kinecal", "sensor", "reconstruct", tmp]
-        cmd += ["--sensor", str(Path(tmp) / "sensor.yaml"), "--force", "-q"]
-        cmd += ["--out", str(Path(tmp) / "cloud.csv")]
-        _run(cmd)  # warm-up: bytecode cache
-        t, _ = _median_time(lambda: _run(cmd), max(rep // 2, 1))
-    record(
-        "reconstruct_scan_120_png_cli",
-        t,
-        "whole process, one thread per CPU",
-        images=len(scan),
-        images_per_s=len(scan) / t,
-    )
-
-    # 7. sphere fit of 50k points
-    d = rng.normal(size=(50_000, 3))
-    d[:, 2] = -np.abs(d[:, 2])
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    P = np.array([0.0, 0.0, 0.14]) + d * (
-        0.015 + 10e-6 * rng.standard_normal((50_000, 1))
-    )
-    t, _ = _median_time(lambda: fit_sphere(P), rep_fast)
-    record("fit_sphere_50k", t, "<= 20 ms")
-
-    # 7b. the sensor: simulated session, calibrations, spheres, std (issue 24)
-    from benchmarks._sensor_calib import run as run_sensor
-
-    run_sensor(record, results, rep, args.quick)
-
-    # 7c. CSV files of 1e5 and 1e6 rows (issue 26.3), each case in its own process
-    from benchmarks._csv import csv_cases
-
-    csv_cases(record, max(rep // 3, 1))
-
-    # 8. CLI start-up
-    def start() -> None:
-        _run([sys.executable, "-m", "kinecal", "--help"])
-
-    start()  # warm-up: bytecode cache
-    t, _ = _median_time(start, rep)
-    record("cli_help_startup", t, "<= 0.3 s")
-
+    cal, code = sec.kernel_cases(b, e)
+    sec.calibration_cases(b, e, code)
+    fit = sec.scipy_cases(b, e)
+    sec.process_cases(b, e, fit)
+    sec.default_cv_case(b)
+    sec.fixed_step_case(b, fit)
+    sec.auto_cases(b, e, fit)
+    rng = sec.compensation_cases(b, e, cal)
+    sec.sensor_cases(b, rng, args.quick)
+    sec.file_and_startup_cases(b)
     # 9. stripe extraction: accuracy per method, a whole scan on one core (issue 24)
     from benchmarks._stripes import stripe_benchmarks
 
     stripes = stripe_benchmarks(args.quick)
-
     out = {
         "machine": _machine(),
-        "results": results,
+        "results": b.results,
         "stripes": stripes,
         "created_unix": time.time(),
         "repeats": rep,
     }
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(args.out).with_suffix(".tmp")
+    _write(args.out, out)
+    return 0
+
+
+def _write(path: str, out: dict[str, Any]) -> None:
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(path).with_suffix(".tmp")
     tmp.write_text(json.dumps(out, indent=2) + "\n")
-    os.replace(tmp, args.out)
-    print(f"-> {args.out}")
+    os.replace(tmp, path)
+    print(f"-> {path}")
+
+
+def _merge(path: str, rows: dict[str, dict[str, Any]]) -> int:
+    """Rows merged into the results file at ``path`` (kept: every other row)."""
+    p = Path(path)
+    out = json.loads(p.read_text()) if p.exists() else {"machine": _machine()}
+    out.setdefault("results", {}).update(rows)
+    out["issue38_created_unix"] = time.time()
+    _write(path, out)
     return 0
 
 
