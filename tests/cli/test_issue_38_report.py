@@ -246,3 +246,48 @@ def test_report_compare_sees_drift(tmp_path, capsys):
     for p in c["parameters"]:
         if p["moved"]:
             assert abs(p["change"]) > 3 * p["combined_std"]
+
+
+def test_held_out_percentiles_pool_every_fold(twin, capsys):
+    """The held-out P50/P95/P99 are over the held-out error of every pose of every fold:
+    their RMS and max are the figure's own, and they match folds calibrated one by one
+    from nominal and scored on their held-out poses (an independent path, within the
+    agreement the shared cross-validation path keeps with it)."""
+    import numpy as np
+
+    from kinecal.identification import (
+        calibrate,
+        evaluate,
+        held_out_accuracy,
+        spec_for,
+    )
+    from kinecal.io import read_measurements
+    from kinecal.robot import load_robot
+
+    res = _calibrate(capsys, twin, "cv_pct")
+    assert res.code == 0
+    line = next(ln for ln in res.out.splitlines() if ln.startswith("held-out"))
+    assert "P50" in line and "P95" in line and "P99" in line
+    acc = json.loads((twin / "cv_pct" / "report.json").read_text())["accuracy"]
+    for h in acc["held_out"]:
+        assert 0 < h["p50_mm"] <= h["p95_mm"] <= h["p99_mm"] <= h["max_mm"]
+
+    robot = load_robot("fanuc-lrmate200id")
+    meas = read_measurements(twin / "sim" / "train.csv", robot=robot)
+    ho = held_out_accuracy(robot, meas, spec_for(robot, meas, "kinematic"), 5)
+    for fig, h in zip(ho.figures, acc["held_out"], strict=True):
+        d = fig.model.norms_mm
+        assert d is not None and d.size == meas.n
+        assert np.sqrt(np.mean(d**2)) == pytest.approx(fig.model.rms_mm, rel=1e-12)
+        assert d.max() == pytest.approx(h["max_mm"], rel=1e-12)
+        p = np.percentile(d, [50, 95, 99])
+        assert [h["p50_mm"], h["p95_mm"], h["p99_mm"]] == pytest.approx(p, rel=1e-9)
+        # independent: every fold calibrated from nominal on its training poses
+        norms = []
+        for test_idx in fig.folds.test:
+            mask = np.zeros(meas.n, bool)
+            mask[test_idx] = True
+            fit = calibrate(robot, meas.subset(~mask), "kinematic")
+            norms.append(evaluate(fit.calibrated, meas.subset(mask)).metrics.norms_mm)
+        q = np.percentile(np.concatenate(norms), [50, 95, 99])
+        assert p == pytest.approx(q, rel=0.05)

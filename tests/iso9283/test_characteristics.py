@@ -164,3 +164,40 @@ def test_issue_38_too_few_cycles_is_a_clear_error(rng):
         pose_characteristics(p_att[keep], p_cmd[keep], idx[keep], POINT_LABELS)
     with pytest.raises(ValueError, match="must both have shape"):
         pose_characteristics(p_att[:, :2], p_cmd, idx, POINT_LABELS)
+
+
+def test_issue_38_orientation_ad_rd_equal_an_independent_implementation(rng):
+    """ISO 9283 7.4 for orientation: D_aj = a_1j - a_2j, AD_a = mean(D_aj) - D_ca,
+    RD_a = 3 S_Da, with P2 and P4 commanded at different orientations (and one angle
+    near +-pi, where the angles wrap)."""
+    n = 30
+    cmd_abc = rng.uniform(-1.0, 1.0, (5, 3))
+    cmd_abc[1, 0] = np.pi - 1e-3  # P2's a close to pi: attained values wrap to -pi
+    idx = np.tile(np.array([0, 4, 3, 2, 1]), n)
+    cyc = np.repeat(np.arange(1, n + 1), 5)
+    p_cmd = rng.uniform(-0.3, 0.3, (5, 3))[idx]
+    p_att = p_cmd + rng.normal(0.0, 2e-5, p_cmd.shape)
+    R_cmd = Rotation.from_euler("xyz", cmd_abc[idx]).as_matrix()
+    bias = np.array([0.0, 0.0, 3e-4])  # about the base z: P2 and P4 alike
+    turn = Rotation.from_rotvec(rng.normal(0.0, 2e-4, (idx.size, 3)) + bias)
+    R_att = (turn * Rotation.from_matrix(R_cmd)).as_matrix()
+    d = distance_characteristics(
+        p_att, p_cmd, idx, cyc, POINT_LABELS, R_attained=R_att, R_command=R_cmd
+    )
+    assert d is not None and d.ad_abc is not None and d.rd_abc is not None
+    r2 = [i for i in range(len(idx)) if idx[i] == 1]
+    r4 = [i for i in range(len(idx)) if idx[i] == 3]
+    e_att = Rotation.from_matrix(R_att).as_euler("xyz")
+    for j in range(3):
+        diffs = [e_att[a, j] - e_att[b, j] for a, b in zip(r2, r4, strict=True)]
+        diffs = [(v + np.pi) % (2 * np.pi) - np.pi for v in diffs]
+        cmd = (cmd_abc[1, j] - cmd_abc[3, j] + np.pi) % (2 * np.pi) - np.pi
+        ad, rd = standard_orientation(diffs, cmd)
+        assert d.ad_abc[j] == pytest.approx(ad, abs=1e-12)
+        assert d.rd_abc[j] == pytest.approx(rd, rel=1e-9)
+    # the noise's spread: RD_a ~ 3 sqrt(2) x its per-angle std (two poses per cycle)
+    assert np.all(d.rd_abc < 3 * math.sqrt(2) * 2e-4 * 2)
+    # position data only: no orientation figures; one of the two: an error
+    assert distance_characteristics(p_att, p_cmd, idx, cyc, POINT_LABELS).ad_abc is None
+    with pytest.raises(ValueError, match="both"):
+        distance_characteristics(p_att, p_cmd, idx, cyc, POINT_LABELS, R_attained=R_att)

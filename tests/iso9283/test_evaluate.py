@@ -165,6 +165,17 @@ def test_issue_38_pose_data_give_orientation_accuracy_and_repeatability():
     d = iso.as_dict()
     assert {"ap_a_deg", "rp_c_deg"} <= set(d["model"]["points"][0])
     assert d["kind"] == "pose" and d["notes"] == []
+    # distance test, orientation: the same turn at P2 and P4 cancels in the change of
+    # orientation between them (AD_a,b,c ~ 0); the noise of two poses per cycle gives
+    # RD ~ 3 sqrt(2) 5e-5 rad
+    dist = iso.model.distance
+    assert dist is not None and dist.ad_abc is not None and dist.rd_abc is not None
+    assert np.all(np.abs(dist.ad_abc) < 4 * math.sqrt(2) * 5e-5 / math.sqrt(30))
+    assert np.all((dist.rd_abc > 1.4e-4) & (dist.rd_abc < 3.0e-4))
+    assert {"ad_a_deg", "rd_c_deg"} <= set(d["model"]["distance"])
+    from kinecal.report._iso9283 import iso9283_section
+
+    assert "AD_a [deg]" in iso9283_section(d) and "RD_c ± [deg]" in iso9283_section(d)
 
 
 def test_issue_38_refit_user_is_the_evaluate_choice(case, capsys, tmp_path):

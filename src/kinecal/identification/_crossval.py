@@ -279,6 +279,15 @@ class CrossValidation:
         v = np.array([f.rms_mm for f in self.folds])
         return float(v.std(ddof=1) / np.sqrt(v.size)) if v.size > 1 else float("nan")
 
+    @property
+    def norms_mm(self) -> np.ndarray | None:
+        """The held-out 3-D error norm of every pose of every fold (mm), pooled; None
+        when a fold's metrics do not keep them."""
+        parts = [f.norms_mm for f in self.folds]
+        if not parts or any(p is None for p in parts):
+            return None
+        return np.concatenate([p for p in parts if p is not None])
+
 
 @one_blas_thread()
 def cross_validate(

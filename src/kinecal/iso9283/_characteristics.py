@@ -92,6 +92,10 @@ class DistanceFigures:
     ad : distance accuracy AD_P = D_bar - D_c [m].
     ad_xyz : (3,) AD_x, AD_y, AD_z (on the absolute coordinate differences) [m].
     rd : distance repeatability RD = 3 S_D [m] (the standard writes ±).
+    ad_abc : (3,) or None, orientation distance accuracy AD_a, AD_b, AD_c: the mean
+        attained change of the orientation angles from the first point to the second
+        minus the command change [rad] (pose data).
+    rd_abc : (3,) or None, orientation distance repeatability RD_a,b,c = 3 S [rad].
     """
 
     pair: tuple[str, str]
@@ -101,6 +105,8 @@ class DistanceFigures:
     ad: float
     ad_xyz: Float
     rd: float
+    ad_abc: Float | None = None
+    rd_abc: Float | None = None
 
 
 def orientation_abc(R: Float) -> Float:
@@ -222,6 +228,9 @@ def distance_characteristics(
     cycle: Int,
     labels: Sequence[str],
     pair: tuple[str, str] = ("P2", "P4"),
+    *,
+    R_attained: Float | None = None,
+    R_command: Float | None = None,
 ) -> DistanceFigures | None:
     """AD and RD (ISO 9283 7.4) between the two points of ``pair``, over the cycles in
     which both were attained; None when fewer than two such cycles exist.
@@ -231,8 +240,12 @@ def distance_characteristics(
     p_attained, p_command, point_index, labels : as :func:`pose_characteristics`.
     cycle : (N,) int, the cycle of each row (one row per point and cycle).
     pair : the two points (the standard's distance test: P2 and P4).
+    R_attained, R_command : (N, 3, 3), optional
+        Attained and command orientations (pose data): adds AD_a,b,c and RD_a,b,c.
     """
     p, pc, idx = _check(p_attained, p_command, point_index, labels)
+    if (R_attained is None) != (R_command is None):
+        raise ValueError("give both R_attained and R_command, or neither.")
     cyc = np.asarray(cycle)
     if cyc.shape != idx.shape:
         raise ValueError(f"cycle must have shape {idx.shape}; got {cyc.shape}.")
@@ -250,6 +263,29 @@ def distance_characteristics(
     d_bar = float(d_j.mean())
     ad_xyz = np.abs(p[a] - p[b]).mean(axis=0) - np.abs(c1 - c2)  # AD_x, AD_y, AD_z
     rd = 3.0 * float(d_j.std(ddof=1))  # RD = ±3 S_D
+    ad_abc = rd_abc = None
+    if R_attained is not None and R_command is not None:
+        abc = orientation_abc(np.asarray(R_attained, np.float64))
+        abc_c = orientation_abc(np.asarray(R_command, np.float64))
+        d_abc = _wrap(abc[a] - abc[b])  # D_aj = a_1j - a_2j, ...
+        # D_ca = a_c1 - a_c2 from the points' mean command angles (equal in a test)
+        c_abc = _wrap(_mean_angle(abc_c[r1]) - _mean_angle(abc_c[r2]))
+        ad_abc = _wrap(_mean_angle(d_abc) - c_abc)  # AD_a = D_bar_a - D_ca
+        dev = _wrap(d_abc - _mean_angle(d_abc))
+        rd_abc = 3.0 * np.sqrt(np.sum(dev**2, axis=0) / (d_abc.shape[0] - 1))
     return DistanceFigures(
-        (pair[0], pair[1]), int(both.size), d_c, d_bar, d_bar - d_c, ad_xyz, rd
+        (pair[0], pair[1]),
+        int(both.size),
+        d_c,
+        d_bar,
+        d_bar - d_c,
+        ad_xyz,
+        rd,
+        ad_abc,
+        rd_abc,
     )
+
+
+def _mean_angle(a: Float) -> Float:
+    """Mean of angles (N, 3) [rad] about their first value (no jump at ±pi)."""
+    return a[0] + _wrap(a - a[0]).mean(axis=0)

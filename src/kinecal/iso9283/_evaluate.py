@@ -101,6 +101,10 @@ class IsoFigures:
                 "ad_z_mm": float(dd.ad_xyz[2] * _M),
                 "rd_mm": dd.rd * _M,
             }
+            if dd.ad_abc is not None and dd.rd_abc is not None:
+                for k, a in enumerate("abc"):
+                    out["distance"][f"ad_{a}_deg"] = float(dd.ad_abc[k] * _DEG)
+                    out["distance"][f"rd_{a}_deg"] = float(dd.rd_abc[k] * _DEG)
         return out
 
 
@@ -265,7 +269,9 @@ def _figures(
     pts = pose_characteristics(
         p_att, p_cmd, idx, POINT_LABELS, R_attained=R_att, R_command=R_cmd
     )
-    dist = distance_characteristics(p_att, p_cmd, idx, cyc, POINT_LABELS)
+    dist = distance_characteristics(
+        p_att, p_cmd, idx, cyc, POINT_LABELS, R_attained=R_att, R_command=R_cmd
+    )
     rms = float(np.sqrt(np.mean(np.sum((p_att - p_cmd) ** 2, axis=1))))
     return IsoFigures(name, pts, dist, rms)
 

@@ -6,7 +6,7 @@ holds exactly (it does for the paper's tables to their printed precision).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -25,6 +25,10 @@ class Metrics:
     rms_mm, std_mm, mean_mm, max_mm : of the 3-D position error norms.
     rms_xyz_mm : RMS of the error along x, y, z of the user frame.
     rot_rms_deg, rot_max_deg : of the orientation errors (pose data), else None.
+    norms_mm : the 3-D position error norm of every pose (N,) when the metrics were
+        computed from errors (:func:`metrics_from_errors`), so that statistics over
+        several sets of poses (the percentiles of all held-out folds) can be pooled;
+        not part of the comparison nor of :meth:`as_dict`.
     """
 
     n: int
@@ -35,9 +39,12 @@ class Metrics:
     rms_xyz_mm: tuple[float, float, float]
     rot_rms_deg: float | None = None
     rot_max_deg: float | None = None
+    norms_mm: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def as_dict(self) -> dict[str, object]:
-        return asdict(self)
+        return {
+            f.name: getattr(self, f.name) for f in fields(self) if f.name != "norms_mm"
+        }
 
     def contract(self) -> dict[str, float | int]:
         """The object ``kinecal evaluate --json`` prints: ``n, rms_mm, std_mm, mean_mm,
@@ -61,7 +68,7 @@ def metrics_from_errors(e_pos_m: Float, e_rot_rad: Float | None = None) -> Metri
         raise ValueError(f"e_pos_m must have shape (N, 3); got {e.shape}.")
     if e.shape[0] == 0:
         nan = float("nan")
-        return Metrics(0, nan, nan, nan, nan, (nan, nan, nan))
+        return Metrics(0, nan, nan, nan, nan, (nan, nan, nan), norms_mm=np.empty(0))
     d = np.linalg.norm(e, axis=1)
     rot_rms = rot_max = None
     if e_rot_rad is not None:
@@ -77,4 +84,5 @@ def metrics_from_errors(e_pos_m: Float, e_rot_rad: Float | None = None) -> Metri
         rms_xyz_mm=(float(xyz[0]), float(xyz[1]), float(xyz[2])),
         rot_rms_deg=rot_rms,
         rot_max_deg=rot_max,
+        norms_mm=d,
     )

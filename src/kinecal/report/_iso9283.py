@@ -69,11 +69,11 @@ def _point_rows(fig: Mapping[str, Any], orient: bool) -> list[list[str]]:
     return rows
 
 
-def _distance(fig: Mapping[str, Any]) -> list[str]:
+def _distance(fig: Mapping[str, Any], orient: bool) -> list[str]:
     d = fig.get("distance")
     if not d:
         return []
-    return [
+    row = [
         f"{e(d['pair'][0])}–{e(d['pair'][1])}",
         str(d["n"]),
         num(d["command_mm"], 7),
@@ -82,6 +82,10 @@ def _distance(fig: Mapping[str, Any]) -> list[str]:
         *(num(d[f"ad_{a}_mm"]) for a in "xyz"),
         num(d["rd_mm"]),
     ]
+    if orient:
+        row += [num(d.get(f"ad_{a}_deg")) for a in "abc"]
+        row += [num(d.get(f"rd_{a}_deg")) for a in "abc"]
+    return row
 
 
 def iso9283_section(block: Mapping[str, Any]) -> str:
@@ -139,7 +143,9 @@ def iso9283_section(block: Mapping[str, Any]) -> str:
             f"<p class=muted>RMS of the position errors of all rows, for comparison: "
             f"{num(fig['rms_mm'])} mm.</p>"
         )
-    dist = [(k, _distance(block[k])) for k in ("nominal", "model") if block.get(k)]
+    dist = [
+        (k, _distance(block[k], orient)) for k in ("nominal", "model") if block.get(k)
+    ]
     dist = [(k, r) for k, r in dist if r]
     if dist:
         out.append("<h3>Distance accuracy and repeatability (P2–P4)</h3>")
@@ -155,6 +161,9 @@ def iso9283_section(block: Mapping[str, Any]) -> str:
             "AD_z [mm]",
             "RD ± [mm]",
         ]
+        if orient:
+            dcols = [*dcols, "AD_a [deg]", "AD_b [deg]", "AD_c [deg]"]
+            dcols = [*dcols, "RD_a ± [deg]", "RD_b ± [deg]", "RD_c ± [deg]"]
         out.append(table(dcols, [[e(_NAMES[k]), *r] for k, r in dist]))
     return "\n".join(out)
 

@@ -244,6 +244,14 @@ class IsoTestResult:
                     f"distance  {d['pair'][0]}-{d['pair'][1]}: AD_P {d['ad_mm']:.4f} "
                     f"mm  RD ±{d['rd_mm']:.4f} mm  ({d['n']} cycles)"
                 )
+                if "ad_a_deg" in d:
+                    out.append(
+                        "          AD_a,b,c "
+                        + " ".join(f"{d[f'ad_{a}_deg']:.4f}" for a in "abc")
+                        + " deg  RD_a,b,c ±"
+                        + " ±".join(f"{d[f'rd_{a}_deg']:.4f}" for a in "abc")
+                        + " deg"
+                    )
         return out + [f"note      {note}" for note in block["notes"]]
 
 
