@@ -15,7 +15,7 @@ candidate's point, transferred by parameter name; the lowest objective wins; the
 start where it has link terms), with its own identifiability and its own evidence
 scaling of the priors; it is not fitted on every row itself. Other prior strengths (only
 without the evidence scaling) refit the best layout from its point (:func:`rescaled`).
-Each fold's training rows are fitted from the candidate's point (:mod:`._autofolds`): a
+Each fold's training rows are fitted from the candidate's point (:mod:`._foldfit`): a
 Newton step with the normal equations of every kept row less the held-out rows' (Eq.
 (T-10)), kept when the training cost falls as its quadratic model says, otherwise up to
 two more (a step that raises the cost damped first) and then the lifted
@@ -49,7 +49,6 @@ from kinecal.identification._solve import lift_kept, run_lm
 from kinecal.identification._stages import Identify
 from kinecal.identification._uncertainty import Uncertainty
 from kinecal.measurement._measurements import Measurements
-from kinecal.measurement._metrics import Metrics
 from kinecal.measurement._residuals import Weights
 from kinecal.models import CalibrationModel, ModelSpec, ParameterLayout
 from kinecal.robot import RobotDescription
@@ -65,9 +64,6 @@ __all__ = [
     "shared_fit",
     "warm_options",
 ]
-
-Run = tuple[str, ModelSpec, float]  # label, layout, prior scale
-Score = tuple[Metrics, Metrics] | ValueError  # training and held-out metrics
 
 # A candidate's fits may take longer than a stage from a good start.
 _MAX_ITER = 200
