@@ -13,7 +13,7 @@ import numpy as np
 
 from kinecal.identification._lm import LMOptions
 
-__all__ = ["MU0_WARM", "PRIOR_GROUPS", "PRIOR_SIGMA", "CalibrationOptions"]
+__all__ = ["PRIOR_GROUPS", "PRIOR_SIGMA", "CalibrationOptions"]
 
 # Prior standard deviations (SI) by parameter group and kind: physical scales of the
 # deviations from nominal (DH), of transmission errors (NTM) and of per-unit-weight

@@ -42,10 +42,14 @@ from kinecal.identification._calibrate import (
 )
 from kinecal.identification._diagnose import Diagnose
 from kinecal.identification._lm import LMOptions, Prior, objective
-from kinecal.identification._options import MU0_WARM
 from kinecal.identification._priors import EvidencePriors, build_prior, evidence_group
 from kinecal.identification._problem import Problem, State, run_stages
-from kinecal.identification._solve import lift_kept, run_lm
+from kinecal.identification._solve import (
+    active_prior,
+    lift_kept,
+    run_lm,
+    warm_options,
+)
 from kinecal.identification._stages import Identify
 from kinecal.identification._uncertainty import Uncertainty
 from kinecal.measurement._measurements import Measurements
@@ -57,16 +61,11 @@ from kinecal.typing import Float
 __all__ = [
     "CandidateFit",
     "Shared",
-    "active_prior",
     "fit_candidate",
     "rescaled",
     "shared_calibration",
     "shared_fit",
-    "warm_options",
 ]
-
-# A candidate's fits may take longer than a stage from a good start.
-_MAX_ITER = 200
 
 
 @dataclass(frozen=True)
@@ -352,16 +351,6 @@ def rescaled(fit: CandidateFit, scale: float) -> CandidateFit:
         lifted=True,
     )
     return replace(fit, x=res.x, prior_sigma=sigma)
-
-
-def warm_options(lm: LMOptions) -> LMOptions:
-    """The solver options from a start next to the optimum: little initial damping."""
-    return replace(lm, max_iter=max(lm.max_iter, _MAX_ITER), mu0=MU0_WARM)
-
-
-def active_prior(prior: Prior, free: np.ndarray) -> Prior | None:
-    """The prior, or None when it holds none of the free parameters."""
-    return prior if np.any(np.isfinite(prior.sigma) & free) else None
 
 
 def _prior_cost(prior: Prior, x: Float, free: np.ndarray) -> float:

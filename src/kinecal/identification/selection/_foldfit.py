@@ -13,12 +13,8 @@ from kinecal.errors import IdentifiabilityError
 from kinecal.identification._evaluate import evaluate
 from kinecal.identification._lm import Prior, spd_solve
 from kinecal.identification._problem import Problem, State
-from kinecal.identification._solve import run_lm
-from kinecal.identification.selection._candidates import (
-    CandidateFit,
-    active_prior,
-    warm_options,
-)
+from kinecal.identification._solve import active_prior, run_lm, warm_options
+from kinecal.identification.selection._candidates import CandidateFit
 from kinecal.identification.selection._crossval import relabel_sets
 from kinecal.measurement._calibrated import CalibratedModel
 from kinecal.measurement._metrics import Metrics, metrics_from_errors
