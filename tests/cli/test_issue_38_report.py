@@ -280,6 +280,12 @@ def test_held_out_percentiles_pool_every_fold(twin, capsys):
         assert d is not None and d.size == meas.n
         assert np.sqrt(np.mean(d**2)) == pytest.approx(fig.model.rms_mm, rel=1e-12)
         assert d.max() == pytest.approx(h["max_mm"], rel=1e-12)
+        # report.json's cross_validation figure: Std, Avg, Max of the same errors
+        cvd = fig.as_dict()["model"]
+        assert cvd["mean_mm"] ** 2 + cvd["std_mm"] ** 2 == pytest.approx(
+            cvd["rms_mm"] ** 2, rel=1e-9
+        )
+        assert cvd["max_mm"] == pytest.approx(d.max(), rel=1e-12)
         p = np.percentile(d, [50, 95, 99])
         assert [h["p50_mm"], h["p95_mm"], h["p99_mm"]] == pytest.approx(p, rel=1e-9)
         # independent: every fold calibrated from nominal on its training poses
@@ -291,3 +297,27 @@ def test_held_out_percentiles_pool_every_fold(twin, capsys):
             norms.append(evaluate(fit.calibrated, meas.subset(mask)).metrics.norms_mm)
         q = np.percentile(np.concatenate(norms), [50, 95, 99])
         assert p == pytest.approx(q, rel=0.05)
+
+
+def test_held_out_pose_data_orientation_in_the_table(tmp_path, capsys):
+    """Pose data (the real FR3 camera set): the held-out rows of the accuracy table have
+    Std, Avg, Max and the orientation RMS and max, not dashes."""
+    from pathlib import Path
+
+    data = Path(__file__).resolve().parents[1] / "data" / "real" / "fr3_session_a.csv"
+    res = run_kinecal(
+        capsys, "calibrate", data, "--robot", "franka-fr3", "--model", "kinematic",
+        "--cv", "3", "--out", tmp_path / "o", "-q",
+    )  # fmt: skip
+    assert res.code == 0, str(res)
+    cv = json.loads((tmp_path / "o" / "report.json").read_text())["cross_validation"]
+    for fig in cv["figures"].values():
+        m = fig["model"]
+        assert 0 < m["mean_mm"] <= m["rms_mm"] <= m["max_mm"]
+        assert 0 < m["rot_rms_deg"] <= m["rot_max_deg"]
+    html = (tmp_path / "o" / "report.html").read_text()
+    row = html[
+        html.index("held-out, 3-fold cross-validation, new region: this model") :
+    ]
+    row = row[: row.index("</tr>")]
+    assert "—" not in row

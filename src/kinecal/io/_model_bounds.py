@@ -30,6 +30,7 @@ __all__ = [
     "check_frames",
     "check_payload",
     "check_value",
+    "document_fingerprint",
     "robot_fingerprint",
 ]
 
@@ -48,7 +49,15 @@ _RATED_FACTOR = 10.0
 def robot_fingerprint(robot: RobotDescription) -> str:
     """A short SHA-256 of the robot's description (its YAML document, canonical JSON):
     two files describe the same robot exactly when their fingerprints agree."""
-    text = json.dumps(dump_robot(robot), sort_keys=True, separators=(",", ":"))
+    return document_fingerprint(dump_robot(robot))
+
+
+def document_fingerprint(doc: Any) -> str:
+    """:func:`robot_fingerprint` of a robot section as read from a file: the same
+    value when the section is exactly what kinecal wrote (a length in mm read into
+    metres and dumped again can change in its last bit, so a file is checked against
+    its own text, not against the robot rebuilt from it)."""
+    text = json.dumps(doc, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
 

@@ -22,6 +22,7 @@ from kinecal.io._model_bounds import (
     check_frames,
     check_payload,
     check_value,
+    document_fingerprint,
     robot_fingerprint,
 )
 from kinecal.io._parameters import parameter_records
@@ -308,7 +309,10 @@ def load_model(path: str | Path) -> CalibratedModel:
     doc = _read_doc(p)
     robot = robot_from_dict(doc["robot"], source=f"{p}: robot")
     stamp = doc.get("robot_sha256")
-    if stamp is not None and stamp != robot_fingerprint(robot):
+    if stamp is not None and stamp not in (
+        document_fingerprint(doc["robot"]),
+        robot_fingerprint(robot),
+    ):
         raise ConfigError(
             f"{p}: robot_sha256: {stamp!r}, but the robot section's fingerprint is "
             f"{robot_fingerprint(robot)!r}: the robot was edited after the calibration "

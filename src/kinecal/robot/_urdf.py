@@ -413,6 +413,8 @@ def robot_from_urdf(
         for link, T_root_link in reversed(fixed_above):
             Ti = np.linalg.inv(T_root_link)
             p_, u_ = Ti[:3, :3] @ p1 + Ti[:3, 3], Ti[:3, :3] @ u1
+            if specs[0][1] == "prismatic":  # a slide's line can pass anywhere
+                p_ = np.zeros(3)
             if _on_z(p_, u_):
                 return robot_from_urdf(path, base=link, tip=tip, name=name)
     if not _on_z(p1, u1):

@@ -117,13 +117,26 @@ def _cv_dict(cv: CrossValidation) -> dict[str, Any]:
         float(np.sqrt(sum(f.n * f.rms_xyz_mm[a] ** 2 for f in cv.folds) / max(n, 1)))
         for a in range(3)
     ]
-    return {
+    out: dict[str, Any] = {
         "rms_mm": cv.rms_mm,
         "se_mm": cv.rms_se_mm,
         "rms_xyz_mm": xyz,
         "fold_rms_mm": [f.rms_mm for f in cv.folds],
         "train_rms_mm": [f.rms_mm for f in cv.train],
     }
+    d = cv.norms_mm  # every held-out pose of every fold: Std, Avg, Max as Table 5's
+    if d is not None and d.size:
+        out |= {"std_mm": float(d.std()), "mean_mm": float(d.mean())}
+        out["max_mm"] = float(d.max())
+    rot = [f.rot_rms_deg for f in cv.folds]
+    if cv.folds and all(r is not None for r in rot):
+        out["rot_rms_deg"] = float(
+            np.sqrt(
+                sum(f.n * (f.rot_rms_deg or 0.0) ** 2 for f in cv.folds) / max(n, 1)
+            )
+        )
+        out["rot_max_deg"] = max(float(f.rot_max_deg or 0.0) for f in cv.folds)
+    return out
 
 
 @one_blas_thread()
