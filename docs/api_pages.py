@@ -14,6 +14,7 @@ from pathlib import Path
 
 PACKAGES = (
     "identification",
+    "identification.selection",
     "measurement",
     "io",
     "planning",

@@ -256,13 +256,9 @@ FUNCTION_LENGTH_NOT_YET_SPLIT = {
     "kinecal/compensation/_compensate.py": ("compensate",),
     "kinecal/io/_urdf_like.py": ("like_urdf",),
     "kinecal/models/_definition.py": ("build",),
-    "kinecal/models/_ik.py": ("solve_ik",),
     "kinecal/models/_numpy_jacobian.py": ("jacobian",),
-    "kinecal/report/_calibration.py": ("render_calibration_report",),
-    "kinecal/report/_html.py": ("write_comparison_report",),
     "kinecal/robot/_schema.py": ("robot_from_dict",),
     "kinecal/robot/_urdf.py": ("robot_from_urdf",),
-    "kinecal/sensor/_joint.py": ("calibrate_sensor",),
 }
 
 
@@ -303,3 +299,89 @@ def test_issue_32_the_not_yet_split_list_holds_only_long_functions():
         if name not in _long_functions((SRC / rel).read_text())
     ]
     assert stale == [], "split: remove from FUNCTION_LENGTH_NOT_YET_SPLIT"
+
+
+# Issue 32 point 3c: model selection and cross-validation are a package on top of the
+# fitter, built on its public helpers.
+SELECTION = "kinecal.identification.selection"
+
+
+def _in_selection(module: str) -> bool:
+    return module == SELECTION or module.startswith(SELECTION + ".")
+
+
+def _names_not_public(source: str, modules: dict[str, Path]) -> list[str]:
+    """``module.name`` of every name ``source`` imports from a kinecal module that does not
+    list it in its ``__all__`` (no ``__all__``: whose name starts with ``_``); an import
+    of a submodule (``from kinecal import _lazy``) is not a name."""
+    bad = []
+    for node in ast.walk(ast.parse(source)):
+        if not (isinstance(node, ast.ImportFrom) and node.module in modules):
+            continue
+        public = _all_of(modules[node.module])
+        for a in node.names:
+            if f"{node.module}.{a.name}" in modules:
+                continue
+            if a.name not in public if public is not None else a.name.startswith("_"):
+                bad.append(f"{node.module}.{a.name}")
+    return bad
+
+
+def _all_of(path: Path) -> list[str] | None:
+    """The literal ``__all__`` of a module's source, or None."""
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, ast.Assign) and any(
+            isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets
+        ):
+            return list(ast.literal_eval(node.value))
+    return None
+
+
+def test_issue_32_the_public_name_check_finds_a_private_import():
+    modules = _modules()
+    probe = (
+        "from kinecal.identification._solve import run_lm\n"
+        "from kinecal.identification.selection._foldfit import FoldStep\n"
+        "from kinecal import _lazy\n"
+    )
+    assert _names_not_public(probe, modules) == []
+    probe += (
+        "from kinecal.identification._robust import _loo_rms\n"
+        "from kinecal.identification.selection._select import _Scorer\n"
+    )
+    assert _names_not_public(probe, modules) == [
+        "kinecal.identification._robust._loo_rms",
+        f"{SELECTION}._select._Scorer",
+    ]
+
+
+def test_issue_32_model_selection_is_a_package_on_public_helpers():
+    """Its modules import only names the other modules export (the fitter's public
+    helpers, one another's public names), and nothing in kinecal or its tests imports a
+    private name of theirs."""
+    modules = _modules()
+    own = {m: p for m, p in modules.items() if _in_selection(m)}
+    assert {f"{SELECTION}._select", f"{SELECTION}._crossval"} <= set(own)
+    found = {m: _names_not_public(p.read_text(), modules) for m, p in own.items()}
+    assert {m: v for m, v in found.items() if v} == {}
+    tests = Path(__file__).resolve().parent
+    users = [*modules.values(), *sorted(tests.rglob("*.py"))]
+    found = {p.name: _names_not_public(p.read_text(), own) for p in users}
+    assert {m: v for m, v in found.items() if v} == {}
+
+
+def test_issue_32_the_fitter_does_not_import_model_selection():
+    """Selection calibrates through the fitter; no module of the fitter imports it (the
+    identification package re-exports its names, importing them on first use)."""
+    graph = _graph()
+    fitter = [
+        m
+        for m in graph
+        if m.startswith("kinecal.identification.") and not _in_selection(m)
+    ]
+    assert "kinecal.identification._calibrate" in fitter and len(fitter) > 15
+    found = {m: sorted(d for d in graph[m] if _in_selection(d)) for m in fitter}
+    assert {m: v for m, v in found.items() if v} == {}
+    assert "kinecal.identification._calibrate" in graph[f"{SELECTION}._select"]
+    # the fitter's leave-one-out errors (PRESS) serve the fit itself: they stay there
+    assert "kinecal.identification._press" in graph["kinecal.identification._noise"]

@@ -22,6 +22,7 @@ ROOT = Path(__file__).resolve().parent.parent
 API = ROOT / "docs" / "api"
 PACKAGES = (
     "identification",
+    "identification.selection",
     "measurement",
     "io",
     "planning",

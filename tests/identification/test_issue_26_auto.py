@@ -15,10 +15,10 @@ from kinecal.identification import (
     make_folds,
     select_model,
 )
-from kinecal.identification._autofit import fit_candidate, shared_fit
-from kinecal.identification._autofolds import _every_row, _FoldStep
 from kinecal.identification._lm import Prior
 from kinecal.identification._solve import run_lm
+from kinecal.identification.selection._candidates import fit_candidate, shared_fit
+from kinecal.identification.selection._foldfit import FoldStep, every_row
 from kinecal.robot import load_robot
 from kinecal.simulation import LaserTracker, experiment2
 
@@ -59,7 +59,7 @@ def test_issue_26_a_folds_newton_step_lands_on_its_optimum(poses_300, label):
     )
     problem, cm = fit.problem()
     prior = Prior(fit.prior_mean, fit.prior_sigma)
-    step = _FoldStep.at(problem, cm, fit, prior, *_every_row(problem, cm, fit))
+    step = FoldStep.at(problem, cm, fit, prior, *every_row(problem, cm, fit))
     assert step is not None
     folds = make_folds(poses_300, 5, 0)
     accepted = 0
@@ -98,7 +98,7 @@ def test_issue_26_an_overshooting_fold_step_is_damped(poses_300, monkeypatch):
     """A Newton step that overshoots (here made 30 times too long) raises the training
     cost: a damped step on the same normal equations takes its place and the Newton
     steps go on from there, to the optimum a Levenberg-Marquardt run reaches."""
-    import kinecal.identification._autofolds as autofit
+    import kinecal.identification.selection._foldfit as foldfit
 
     opts = CalibrationOptions()
     layouts = dict(candidate_specs(ROBOT, poses_300))
@@ -114,21 +114,21 @@ def test_issue_26_an_overshooting_fold_step_is_damped(poses_300, monkeypatch):
     )
     problem, cm = fit.problem()
     prior = Prior(fit.prior_mean, fit.prior_sigma)
-    step = _FoldStep.at(problem, cm, fit, prior, *_every_row(problem, cm, fit))
+    step = FoldStep.at(problem, cm, fit, prior, *every_row(problem, cm, fit))
     held = np.zeros(poses_300.n, bool)
     held[make_folds(poses_300, 5, 0).test[0]] = True
     train = shared.keep & ~held
     state = problem.start(train).but(model=cm, x=fit.x, weights=shared.weights(train))
     view = problem.on(state)
     calls = []
-    plain = autofit.spd_solve
+    plain = foldfit.spd_solve
 
     def overshoot(A, b, rcond=None):
         calls.append(1)
         d = plain(A, b, rcond=rcond)
         return 30.0 * d if len(calls) == 1 else d  # the first (Newton) step only
 
-    monkeypatch.setattr(autofit, "spd_solve", overshoot)
+    monkeypatch.setattr(foldfit, "spd_solve", overshoot)
     x, _, _ = step.fold(lambda: (view, state), held, fit.free)
     monkeypatch.undo()
     assert len(calls) > 2 and x is not None  # damped, then Newton again

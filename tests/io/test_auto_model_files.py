@@ -16,8 +16,7 @@ import numpy as np
 import pytest
 
 from kinecal.errors import ConfigError
-from kinecal.identification import CalibratedModel
-from kinecal.identification._select import candidate_specs
+from kinecal.identification import CalibratedModel, candidate_specs
 from kinecal.io import load_model, save_model
 from kinecal.measurement._measurements import Measurements
 from kinecal.models import CalibrationModel

@@ -1,4 +1,6 @@
-"""Identification: residuals, LM solver, stages (Sec. 4, Fig. 6), identifiability, metrics.
+"""Identification: residuals, LM solver, stages (Sec. 4, Fig. 6), identifiability, metrics;
+model selection and cross-validation (:mod:`kinecal.identification.selection`, whose
+names are re-exported here).
 
 Each name loads its module on first use (:mod:`kinecal._lazy`).
 """
@@ -13,19 +15,6 @@ if TYPE_CHECKING:
         calibrate,
         default_stages,
     )
-    from kinecal.identification._crossval import (
-        ComparisonRow,
-        CrossValidation,
-        Folds,
-        compare_models,
-        cross_validate,
-        cross_validate_many,
-        kfold_indices,
-        make_folds,
-        pose_features,
-        region_labels,
-        train_test_split,
-    )
     from kinecal.identification._diagnose import Diagnose
     from kinecal.identification._evaluate import (
         Evaluation,
@@ -33,11 +22,6 @@ if TYPE_CHECKING:
         refit,
         refit_diagnosed,
         registered_model,
-    )
-    from kinecal.identification._heldout import (
-        HeldOutAccuracy,
-        HeldOutFigure,
-        held_out_accuracy,
     )
     from kinecal.identification._identifiability import (
         DroppedParameter,
@@ -72,13 +56,6 @@ if TYPE_CHECKING:
         register,
     )
     from kinecal.identification._robust import RobustRejection
-    from kinecal.identification._select import (
-        Candidate,
-        Selection,
-        candidate_specs,
-        cross_validate_models,
-        select_model,
-    )
     from kinecal.identification._stages import (
         FullStage,
         Identify,
@@ -87,6 +64,31 @@ if TYPE_CHECKING:
         TransmissionStage,
     )
     from kinecal.identification._uncertainty import Uncertainty
+    from kinecal.identification.selection._crossval import (
+        ComparisonRow,
+        CrossValidation,
+        Folds,
+        compare_models,
+        cross_validate,
+        cross_validate_many,
+        kfold_indices,
+        make_folds,
+        pose_features,
+        region_labels,
+        train_test_split,
+    )
+    from kinecal.identification.selection._heldout import (
+        HeldOutAccuracy,
+        HeldOutFigure,
+        held_out_accuracy,
+    )
+    from kinecal.identification.selection._select import (
+        Candidate,
+        Selection,
+        candidate_specs,
+        cross_validate_models,
+        select_model,
+    )
     from kinecal.measurement._calibrated import STATUSES, CalibratedModel
     from kinecal.measurement._diagnostics import CODES, Diagnostic, Outlier, StageLog
     from kinecal.measurement._measurements import KINDS, Measurements
@@ -183,7 +185,7 @@ __getattr__, __dir__ = _lazy.exports(
             "STATUSES",
             "CalibratedModel",
         ),
-        "_crossval": (
+        "kinecal.identification.selection._crossval": (
             "ComparisonRow",
             "CrossValidation",
             "Folds",
@@ -210,7 +212,11 @@ __getattr__, __dir__ = _lazy.exports(
             "refit_diagnosed",
             "registered_model",
         ),
-        "_heldout": ("HeldOutAccuracy", "HeldOutFigure", "held_out_accuracy"),
+        "kinecal.identification.selection._heldout": (
+            "HeldOutAccuracy",
+            "HeldOutFigure",
+            "held_out_accuracy",
+        ),
         "_identifiability": (
             "DroppedParameter",
             "Identifiability",
@@ -264,7 +270,7 @@ __getattr__, __dir__ = _lazy.exports(
             "residuals",
         ),
         "_robust": ("RobustRejection",),
-        "_select": (
+        "kinecal.identification.selection._select": (
             "Candidate",
             "Selection",
             "candidate_specs",

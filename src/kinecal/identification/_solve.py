@@ -31,7 +31,7 @@ from kinecal.measurement._residuals import Weights
 from kinecal.models import CalibrationModel
 from kinecal.typing import Float
 
-__all__ = ["lift_kept", "run_lm"]
+__all__ = ["active_prior", "lift_kept", "run_lm", "warm_options"]
 
 log = logging.getLogger(__name__)
 
@@ -176,3 +176,18 @@ def _drift(
     if priors != "all":
         text += " (the default priors, --priors all, hold such terms)"
     return text, tuple(names)
+
+
+# Iterations a fit from a warm start may take (more than a stage from a good start).
+_WARM_MAX_ITER = 200
+
+
+def warm_options(lm: LMOptions) -> LMOptions:
+    """The solver options from a start next to the optimum: little initial damping
+    (:data:`MU0_WARM`), and at least 200 iterations."""
+    return replace(lm, max_iter=max(lm.max_iter, _WARM_MAX_ITER), mu0=MU0_WARM)
+
+
+def active_prior(prior: Prior, free: np.ndarray) -> Prior | None:
+    """The prior, or None when it holds none of the free parameters."""
+    return prior if np.any(np.isfinite(prior.sigma) & free) else None

@@ -277,8 +277,30 @@ def render_calibration_report(
     poses : per-pose errors (``residuals.csv``); None: the report has no per-pose figures.
     """
     ident = summary["identifiability"]
-    data = summary.get("data", {})
     n_par = len(summary.get("parameters", [])) or cal.model.size
+    body = _summary_box(summary, n_par)
+    body.append(certificate_html(summary))
+    body += _heldout_section(summary)
+    body += _parameter_sections(summary, cal, n_par)
+    body += _identifiability(ident)
+    body += _row_table(
+        summary.get("rejected_rows", []),
+        "Rejected rows (gross errors, left out of the fit)",
+        "row (file line)",
+    )
+    body += _row_table(
+        summary.get("outliers", []), "Outliers (kept in the data, reported here)", "row"
+    )
+    body.append("<h2>Figures</h2>")
+    body += _figures(summary, poses)
+    return page(f"kinecal calibration report: {summary.get('robot')}", "\n".join(body))
+
+
+def _summary_box(summary: Mapping[str, Any], n_par: int) -> list[str]:
+    """The report's opening box: the fit in one sentence, the accuracy, the acceptance,
+    the terms not identifiable and the warnings."""
+    ident = summary["identifiability"]
+    data = summary.get("data", {})
     unident = ident.get("unidentifiable", [])
     dropped = "".join(
         f"<li>{e(d['name'])}"
@@ -298,7 +320,7 @@ def render_calibration_report(
         if summary.get("success")
         else "<span class=bad>Did not converge.</span>"
     )
-    body = [
+    return [
         "<div class=box>",
         f"<p><b>{e(summary.get('robot'))}</b>, model <b>{e(summary.get('model'))}</b>: "
         f"{ident.get('estimated')} of {n_par} parameters estimated from {e(data.get('n'))} "
@@ -322,9 +344,24 @@ def render_calibration_report(
         _warnings(summary),
         "</div>",
     ]
-    body.append(certificate_html(summary))
-    body += _heldout_section(summary)
-    body += [
+
+
+def _parameter_sections(summary: Mapping[str, Any], cal: Any, n_par: int) -> list[str]:
+    """The frames, joint geometry, compliance, every parameter and the stages."""
+    stages = [
+        [
+            e(s["name"]),
+            e(s["parameters"]),
+            num(s["rms_before_mm"]),
+            num(s["rms_after_mm"]),
+            e(s["iterations"]),
+            e(s["status"]),
+            num(s["seconds"], 3),
+        ]
+        for s in summary.get("stages", [])
+    ]
+    head = ["stage", "parameters", "RMS before [mm]", "RMS after [mm]", "iterations"]
+    return [
         "<h2>User and tool frames <small class=muted>(paper Tables 3, 6)</small></h2>",
         frames_table(cal),
         "<h2>Joint geometry (DH parameters) <small class=muted>(paper Tables 4, 7)</small></h2>",
@@ -342,42 +379,8 @@ def render_calibration_report(
             open_=True,
         ),
         "<h2>Stages</h2>",
-        table(
-            [
-                "stage",
-                "parameters",
-                "RMS before [mm]",
-                "RMS after [mm]",
-                "iterations",
-                "status",
-                "time [s]",
-            ],
-            [
-                [
-                    e(s["name"]),
-                    e(s["parameters"]),
-                    num(s["rms_before_mm"]),
-                    num(s["rms_after_mm"]),
-                    e(s["iterations"]),
-                    e(s["status"]),
-                    num(s["seconds"], 3),
-                ]
-                for s in summary.get("stages", [])
-            ],
-        ),
+        table([*head, "status", "time [s]"], stages),
     ]
-    body += _identifiability(ident)
-    body += _row_table(
-        summary.get("rejected_rows", []),
-        "Rejected rows (gross errors, left out of the fit)",
-        "row (file line)",
-    )
-    body += _row_table(
-        summary.get("outliers", []), "Outliers (kept in the data, reported here)", "row"
-    )
-    body.append("<h2>Figures</h2>")
-    body += _figures(summary, poses)
-    return page(f"kinecal calibration report: {summary.get('robot')}", "\n".join(body))
 
 
 def _figures(summary: Mapping[str, Any], poses: PoseErrors | None) -> list[str]:

@@ -32,13 +32,22 @@ def write_comparison_report(
     ``figure_dir``: also write each figure there as an SVG file (for slides and READMEs).
     """
     from kinecal.io import atomic_write_text
+
+    body = _summary(rows, notes)
+    body.append(extra_html)
+    body.append("<h2>Figures (as Figures 11 and 15)</h2>")
+    svgs = _figures(rows, test)
+    body += [figure(svg, caption) for svg, caption in svgs.values()]
+    if figure_dir is not None:
+        for name, (svg, _) in svgs.items():
+            atomic_write_text(Path(figure_dir) / f"{name}.svg", svg + "\n", force=True)
+    return atomic_write_text(path, page(title, "\n".join(body)), force=True)
+
+
+def _summary(rows: list[ComparisonRow], notes: list[str] | None) -> list[str]:
+    """The opening box (the held-out RMS of the first and the last model, the notes)
+    and the comparison table."""
     from kinecal.report._summary import comparison_table
-
-    svgs: dict[str, str] = {}
-
-    def keep(name: str, svg: str) -> str:
-        svgs[name] = svg
-        return svg
 
     tab = comparison_table(rows)
     body = ["<div class=box>"]
@@ -64,6 +73,14 @@ def write_comparison_report(
             ],
         )
     )
+    return body
+
+
+def _figures(
+    rows: list[ComparisonRow], test: Measurements
+) -> dict[str, tuple[str, str]]:
+    """The figures of the held-out errors: name -> (SVG, caption), in the report's
+    order."""
     errs: dict[str, Float] = {}
     xyz: dict[str, Float] = {}
     for r in rows:
@@ -72,8 +89,7 @@ def write_comparison_report(
         blk = r.calibrated.predict(test)
         errs[r.model] = np.linalg.norm(blk.raw_position, axis=1) * 1e3
         xyz[r.model] = blk.raw_position * 1e3
-    body.append(extra_html)
-    body.append("<h2>Figures (as Figures 11 and 15)</h2>")
+    out: dict[str, tuple[str, str]] = {}
     names = list(errs)
     methods = {k: v for k, v in errs.items() if k != "nominal"}
     if len(names) >= 2:
@@ -83,45 +99,23 @@ def write_comparison_report(
             f"(a) position errors: {names[0]} vs {names[-1]}",
             (names[0], names[-1]),
         )
-        body.append(
-            figure(
-                keep("a_errors_before_after", svg),
-                "Held-out position error per point [mm].",
-            )
-        )
+        out["a_errors_before_after"] = (svg, "Held-out position error per point [mm].")
     if methods:
-        body.append(
-            figure(
-                keep("b_histogram", F.fig_error_histogram(methods)),
-                "Histogram of held-out errors per method.",
-            )
+        out["b_histogram"] = (
+            F.fig_error_histogram(methods),
+            "Histogram of held-out errors per method.",
         )
-        body.append(
-            figure(
-                keep(
-                    "c_axis_counts",
-                    F.fig_axis_counts({k: v for k, v in xyz.items() if k != "nominal"}),
-                ),
-                "Counts of held-out errors along x, y, z per method.",
-            )
+        out["c_axis_counts"] = (
+            F.fig_axis_counts({k: v for k, v in xyz.items() if k != "nominal"}),
+            "Counts of held-out errors along x, y, z per method.",
         )
-        body.append(
-            figure(
-                keep("d_violin", F.fig_violin(methods)),
-                "Distributions of held-out errors per method.",
-            )
+        out["d_violin"] = (
+            F.fig_violin(methods),
+            "Distributions of held-out errors per method.",
         )
     if names:
-        body.append(
-            figure(
-                keep(
-                    "workspace",
-                    F.fig_workspace(test.reference_points() * 1e3, errs[names[-1]]),
-                ),
-                f"Held-out errors of {names[-1]} over the workspace [mm].",
-            )
+        out["workspace"] = (
+            F.fig_workspace(test.reference_points() * 1e3, errs[names[-1]]),
+            f"Held-out errors of {names[-1]} over the workspace [mm].",
         )
-    if figure_dir is not None:
-        for name, svg in svgs.items():
-            atomic_write_text(Path(figure_dir) / f"{name}.svg", svg + "\n", force=True)
-    return atomic_write_text(path, page(title, "\n".join(body)), force=True)
+    return out

@@ -22,6 +22,7 @@ from kinecal.sensor._board import ChessboardTarget
 from kinecal.sensor._bundle import BundleResult, Stripes, bundle_adjust
 from kinecal.sensor._calibrate import (
     CameraCalibration,
+    Detection,
     _camera_result,
     check_options,
     common_size,
@@ -212,6 +213,73 @@ def calibrate_sensor(
             "sets of stripe images"
         )
     idx, M = _plane_images(stripe_images, plane_indices, n_planes)
+    found, found_p, used, poses = _detect(
+        board_images,
+        plane_board_images,
+        target,
+        camera,
+        detector,
+        jobs,
+        min_views,
+        min_poses,
+    )
+    both = [found[k] for k in used] + [found_p[k] for k in poses]
+    size = common_size(both, "calibrate_sensor")
+    corners = np.stack([d.corners for d in both if d.corners is not None])
+    if camera is None:
+        cam0, T0 = zhang_start(corners, target, size)
+    else:
+        cam0, T0 = camera, pnp_poses(corners, camera, target)
+    stripes = _extract(stripe_images, poses, len(used), idx, jobs)
+    n0, b0, adjust = _start_planes(cam0, T0, stripes, M, min_poses, model)
+    on_adjusted = adjust[stripes.plane]
+    bundle = _Bundle(
+        corners,
+        target.object_points(),
+        stripes,
+        (n0, b0),
+        adjust,
+        on_adjusted.copy(),
+        _thin(stripes, stripe_points),
+    )
+    fixed = INTRINSICS if camera is not None else ("k3",)
+    cam = cam0 if camera is not None else cam0.with_(k3=0.0)
+    rejected: list[int] = []
+    res, n_cam = _rounds(bundle, cam, T0, fixed, used, rejected, min_views, on_adjusted)
+    test: dict[str, float] = {}
+    if camera is None:
+        res, test = free_k3_if_determined(bundle.run, res, k3)
+    cc = _camera_result(
+        res, used, rejected, [found[k].detector for k in used], test, n_views=n_cam
+    )
+    stripes, keep = bundle.stripes, bundle.keep
+    pc = _planes_result(
+        res.camera,
+        res.T_cam_board,
+        Stripes(stripes.uv[keep], stripes.view[keep], stripes.plane[keep]),
+        res.n,
+        res.b,
+        adjust,
+        res.plane_std_m,
+        model,
+        source,
+    )
+    outliers = int((on_adjusted & ~keep).sum())
+    return SensorCalibration(cc, pc, poses, res.sigma_stripe_px, outliers, res)
+
+
+def _detect(
+    board_images: Sequence[np.ndarray],
+    plane_board_images: Sequence[np.ndarray | None],
+    target: ChessboardTarget,
+    camera: Camera | None,
+    detector: str,
+    jobs: int,
+    min_views: int,
+    min_poses: int,
+) -> tuple[list[Detection], list[Detection], list[int], list[int]]:
+    """The board found in the camera's views and at the target poses: the detections
+    in either, and the camera views and the target poses where it was found."""
     found = detect_all(board_images, target, detector, jobs)
     used = [k for k, d in enumerate(found) if d.corners is not None]
     if camera is None and len(used) < min_views:
@@ -226,15 +294,14 @@ def calibrate_sensor(
             f"the board was found at {len(poses)} of {len(plane_board_images)} target "
             f"poses; at least {min_poses} are needed for the light planes"
         )
-    both = [found[k] for k in used] + [found_p[k] for k in poses]
-    size = common_size(both, "calibrate_sensor")
-    corners = np.stack([d.corners for d in both if d.corners is not None])
-    if camera is None:
-        cam0, T0 = zhang_start(corners, target, size)
-    else:
-        cam0, T0 = camera, pnp_poses(corners, camera, target)
-    stripes = _extract(stripe_images, poses, len(used), idx, jobs)
-    # Starting planes: fitted to their stripes on the starting target planes.
+    return found, found_p, used, poses
+
+
+def _start_planes(
+    cam0: Camera, T0: Float, stripes: Stripes, M: int, min_poses: int, model: str
+) -> tuple[Float, Float, np.ndarray]:
+    """Starting planes ``(n, b)``, fitted to their stripes on the starting target
+    planes, and which planes the adjustment fits (seen at ``min_poses`` poses)."""
     n0, b0 = np.zeros((M, 3)), np.zeros(M)
     n0[:, 0] = 1.0
     adjust = np.zeros(M, bool)
@@ -265,71 +332,78 @@ def calibrate_sensor(
             f"only {int(adjust.sum())} light planes were seen at {min_poses} or more "
             "target poses; move the target through the working range"
         )
-    obj = target.object_points()
-    n_cam = len(used)
-    fixed = INTRINSICS if camera is not None else ("k3",)
-    rejected: list[int] = []
-    cam = cam0 if camera is not None else cam0.with_(k3=0.0)
-    T, planes0 = T0, (n0, b0)
-    on_adjusted = adjust[stripes.plane]
-    keep = on_adjusted.copy()
-    thin = _thin(stripes, stripe_points)
+    return n0, b0, adjust
 
-    def run(c: Camera, Ts: Float, fx: tuple[str, ...]) -> BundleResult:
-        use = keep & thin
+
+@dataclass
+class _Bundle:
+    """The adjustment's data, as the rejection rounds change them: the board corners
+    (camera views, then target poses), the stripe centres, the planes to start from,
+    which planes are adjusted, the centres kept and those the adjustment uses."""
+
+    corners: Float
+    obj: Float
+    stripes: Stripes
+    planes: tuple[Float, Float]
+    adjust: np.ndarray
+    keep: np.ndarray
+    thin: np.ndarray
+
+    def run(self, c: Camera, Ts: Float, fx: tuple[str, ...]) -> BundleResult:
+        """The bundle adjustment from camera ``c`` and board poses ``Ts``."""
+        use = self.keep & self.thin
+        st = self.stripes
         return bundle_adjust(
             c,
             Ts,
-            corners,
-            obj,
-            stripes=Stripes(stripes.uv[use], stripes.view[use], stripes.plane[use]),
-            planes=planes0,
-            adjust_planes=adjust,
+            self.corners,
+            self.obj,
+            stripes=Stripes(st.uv[use], st.view[use], st.plane[use]),
+            planes=self.planes,
+            adjust_planes=self.adjust,
             fixed=fx,
         )
 
-    # k3 held at 0 while views and stripe centres that do not fit are found.
+
+def _rounds(
+    bundle: _Bundle,
+    cam: Camera,
+    T: Float,
+    fixed: tuple[str, ...],
+    used: list[int],
+    rejected: list[int],
+    min_views: int,
+    on_adjusted: np.ndarray,
+) -> tuple[BundleResult, int]:
+    """Adjustments (k3 held at 0) while camera views and stripe centres that do not fit
+    are found: a rejected view moves from ``used`` to ``rejected``, the stripe centres
+    kept are ``bundle.keep``. The last adjustment and the number of camera views."""
+    n_cam = len(used)
     rounds = 0
     for _ in range(len(used) + 4):
-        res = run(cam, T, fixed)
-        cam, T, planes0 = res.camera, res.T_cam_board, (res.n, res.b)
+        res = bundle.run(cam, T, fixed)
+        cam, T, bundle.planes = res.camera, res.T_cam_board, (res.n, res.b)
         per_view = np.sqrt(np.mean(res.corner_residuals_px[:n_cam] ** 2, axis=(1, 2)))
         drop = reject_views(per_view, min_views) if n_cam else None
         if drop is not None:  # a camera view with mis-detected corners
             rejected.append(used.pop(drop))
             n_cam -= 1
-            sel = np.arange(corners.shape[0]) != drop
-            corners, T = corners[sel], T[sel]
-            stripes = Stripes(stripes.uv, stripes.view - 1, stripes.plane)
+            sel = np.arange(bundle.corners.shape[0]) != drop
+            bundle.corners, T = bundle.corners[sel], T[sel]
+            st = bundle.stripes
+            bundle.stripes = Stripes(st.uv, st.view - 1, st.plane)
             continue
         # Stripe centres far from their plane (the left-out ones judged again too).
-        s = _distances(res.camera, T, res.n, res.b, stripes)
-        w = _row_scale(res.camera, T, res.n, res.b, stripes)
+        st = bundle.stripes
+        s = _distances(res.camera, T, res.n, res.b, st)
+        w = _row_scale(res.camera, T, res.n, res.b, st)
         new = on_adjusted & (np.abs(s / w) <= _STRIPE_OUTLIER_K * res.sigma_stripe_px)
         rounds += 1
-        changed = int(np.sum(new != keep))
-        keep = new
-        if changed <= 1e-3 * keep.size or rounds >= 3:
+        changed = int(np.sum(new != bundle.keep))
+        bundle.keep = new
+        if changed <= 1e-3 * new.size or rounds >= 3:
             break
-    test: dict[str, float] = {}
-    if camera is None:
-        res, test = free_k3_if_determined(run, res, k3)
-    cc = _camera_result(
-        res, used, rejected, [found[k].detector for k in used], test, n_views=n_cam
-    )
-    pc = _planes_result(
-        res.camera,
-        res.T_cam_board,
-        Stripes(stripes.uv[keep], stripes.view[keep], stripes.plane[keep]),
-        res.n,
-        res.b,
-        adjust,
-        res.plane_std_m,
-        model,
-        source,
-    )
-    outliers = int((on_adjusted & ~keep).sum())
-    return SensorCalibration(cc, pc, poses, res.sigma_stripe_px, outliers, res)
+    return res, n_cam
 
 
 def _thin(sp: Stripes, per_stripe: int) -> np.ndarray:

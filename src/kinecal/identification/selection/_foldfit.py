@@ -1,5 +1,5 @@
 """The folds of ``--model auto``: each fold's fit from its candidate's fit on every kept
-row (:mod:`._autofit`), by Newton steps on the downdated normal equations (Eq. (T-10)).
+row (:mod:`._candidates`), by Newton steps on the downdated normal equations (Eq. (T-10)).
 """
 
 from __future__ import annotations
@@ -10,23 +10,21 @@ import numpy as np
 
 from kinecal._stats import present as used
 from kinecal.errors import IdentifiabilityError
-from kinecal.identification._autofit import (
-    CandidateFit,
-    Score,
-    active_prior,
-    warm_options,
-)
 from kinecal.identification._evaluate import evaluate
 from kinecal.identification._lm import Prior, spd_solve
 from kinecal.identification._problem import Problem, State
-from kinecal.identification._solve import run_lm
+from kinecal.identification._solve import active_prior, run_lm, warm_options
+from kinecal.identification.selection._candidates import CandidateFit
+from kinecal.identification.selection._crossval import relabel_sets
 from kinecal.measurement._calibrated import CalibratedModel
-from kinecal.measurement._metrics import metrics_from_errors
+from kinecal.measurement._metrics import Metrics, metrics_from_errors
 from kinecal.measurement._residuals import ResidualBlock, Weights
 from kinecal.models import CalibrationModel
 from kinecal.typing import Float
 
-__all__ = ["run_folds"]
+__all__ = ["FoldStep", "Score", "every_row", "run_folds"]
+
+Score = tuple[Metrics, Metrics] | ValueError  # training and held-out metrics
 
 
 def run_folds(
@@ -34,16 +32,14 @@ def run_folds(
 ) -> list[Score]:
     """The training and held-out metrics of the candidate in every fold (a
     ``ValueError`` for a fold whose training rows cannot determine it)."""
-    from kinecal.identification._crossval import relabel_sets
-
     problem, cm = fit.problem()
     meas, shared = fit.meas, fit.shared
     lm = warm_options(shared.lm)
     prior = Prior(fit.prior_mean, fit.prior_sigma)
     held = np.asarray([s.group in ("base", "cam") for s in cm.layout.specs])
     labels = [s.label for s in cm.layout.specs]
-    whole, w_all = _every_row(problem, cm, fit)
-    step = _FoldStep.at(problem, cm, fit, prior, whole, w_all)
+    whole, w_all = every_row(problem, cm, fit)
+    step = FoldStep.at(problem, cm, fit, prior, whole, w_all)
     scores: list[Score] = []
     for t in test:
         mask = np.zeros(meas.n, bool)
@@ -107,7 +103,7 @@ def run_folds(
     return scores
 
 
-def _every_row(
+def every_row(
     problem: Problem, cm: CalibrationModel, fit: CandidateFit
 ) -> tuple[Problem, Weights]:
     """The candidate's problem on every row, the rejected ones too (a held-out set has
@@ -126,7 +122,7 @@ def _every_row(
     return problem.on(state), w_all
 
 
-class _FoldStep:
+class FoldStep:
     """A fold's fit as a Newton step from the candidate's fit on every kept row, with
     the Jacobian there (Eq. (T-10), docs/theory.md): the training rows' normal
     equations are those of every row less the held-out rows', the gradient is minus the
@@ -184,7 +180,7 @@ class _FoldStep:
         prior: Prior,
         whole: Problem,
         w_all: Weights,
-    ) -> _FoldStep | None:
+    ) -> FoldStep | None:
         """The step's factors at the candidate's fit (None for a robust loss, or large
         data whose Jacobian is not held: the folds take the LM). ``whole``: the problem
         on every row with weights ``w_all``, where a step is checked."""

@@ -15,7 +15,7 @@ candidate's point, transferred by parameter name; the lowest objective wins; the
 start where it has link terms), with its own identifiability and its own evidence
 scaling of the priors; it is not fitted on every row itself. Other prior strengths (only
 without the evidence scaling) refit the best layout from its point (:func:`rescaled`).
-Each fold's training rows are fitted from the candidate's point (:mod:`._autofolds`): a
+Each fold's training rows are fitted from the candidate's point (:mod:`._foldfit`): a
 Newton step with the normal equations of every kept row less the held-out rows' (Eq.
 (T-10)), kept when the training cost falls as its quadratic model says, otherwise up to
 two more (a step that raises the cost damped first) and then the lifted
@@ -42,14 +42,17 @@ from kinecal.identification._calibrate import (
 )
 from kinecal.identification._diagnose import Diagnose
 from kinecal.identification._lm import LMOptions, Prior, objective
-from kinecal.identification._options import MU0_WARM
 from kinecal.identification._priors import EvidencePriors, build_prior, evidence_group
 from kinecal.identification._problem import Problem, State, run_stages
-from kinecal.identification._solve import lift_kept, run_lm
+from kinecal.identification._solve import (
+    active_prior,
+    lift_kept,
+    run_lm,
+    warm_options,
+)
 from kinecal.identification._stages import Identify
 from kinecal.identification._uncertainty import Uncertainty
 from kinecal.measurement._measurements import Measurements
-from kinecal.measurement._metrics import Metrics
 from kinecal.measurement._residuals import Weights
 from kinecal.models import CalibrationModel, ModelSpec, ParameterLayout
 from kinecal.robot import RobotDescription
@@ -58,19 +61,11 @@ from kinecal.typing import Float
 __all__ = [
     "CandidateFit",
     "Shared",
-    "active_prior",
     "fit_candidate",
     "rescaled",
     "shared_calibration",
     "shared_fit",
-    "warm_options",
 ]
-
-Run = tuple[str, ModelSpec, float]  # label, layout, prior scale
-Score = tuple[Metrics, Metrics] | ValueError  # training and held-out metrics
-
-# A candidate's fits may take longer than a stage from a good start.
-_MAX_ITER = 200
 
 
 @dataclass(frozen=True)
@@ -356,16 +351,6 @@ def rescaled(fit: CandidateFit, scale: float) -> CandidateFit:
         lifted=True,
     )
     return replace(fit, x=res.x, prior_sigma=sigma)
-
-
-def warm_options(lm: LMOptions) -> LMOptions:
-    """The solver options from a start next to the optimum: little initial damping."""
-    return replace(lm, max_iter=max(lm.max_iter, _MAX_ITER), mu0=MU0_WARM)
-
-
-def active_prior(prior: Prior, free: np.ndarray) -> Prior | None:
-    """The prior, or None when it holds none of the free parameters."""
-    return prior if np.any(np.isfinite(prior.sigma) & free) else None
 
 
 def _prior_cost(prior: Prior, x: Float, free: np.ndarray) -> float:

@@ -23,23 +23,25 @@ import numpy as np
 from kinecal._blas import one_blas_thread
 from kinecal._parallel import parallel_map
 from kinecal.errors import IdentifiabilityError
-from kinecal.identification._autofit import (
+from kinecal.identification._calibrate import (
+    CalibrationOptions,
+    CalibrationResult,
+    spec_for,
+)
+from kinecal.identification.selection._candidates import (
     CandidateFit,
-    Run,
-    Score,
     Shared,
     fit_candidate,
     rescaled,
     shared_calibration,
     shared_fit,
 )
-from kinecal.identification._autofolds import run_folds
-from kinecal.identification._calibrate import (
-    CalibrationOptions,
-    CalibrationResult,
-    spec_for,
+from kinecal.identification.selection._crossval import (
+    CrossValidation,
+    Folds,
+    make_folds,
 )
-from kinecal.identification._crossval import CrossValidation, Folds, make_folds
+from kinecal.identification.selection._foldfit import Score, run_folds
 from kinecal.measurement._measurements import Measurements
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import RobotDescription
@@ -51,6 +53,8 @@ __all__ = [
     "cross_validate_models",
     "select_model",
 ]
+
+Run = tuple[str, ModelSpec, float]  # label, layout, prior scale
 
 
 @dataclass
@@ -451,7 +455,7 @@ def select_model(
     the best, the smallest wins. ``jobs`` > 1 runs the folds in that many worker
     processes (the same result).
 
-    Work is shared (:mod:`._autofit`): one calibration of the largest candidate on
+    Work is shared (:mod:`._candidates`): one calibration of the largest candidate on
     every row decides the gross errors, the weights and the priors' widths for all;
     each candidate starts on the kept rows from the best point before it, and each of
     its folds is fitted from there (the folds' fits go to the worker processes).

@@ -19,13 +19,16 @@ import numpy as np
 
 from kinecal._blas import one_blas_thread
 from kinecal.identification._calibrate import CalibrationOptions
-from kinecal.identification._crossval import (
+from kinecal.identification.selection._crossval import (
     CrossValidation,
     Folds,
     cross_validate_many,
     make_folds,
 )
-from kinecal.identification._select import Selection, cross_validate_models
+from kinecal.identification.selection._select import (
+    Selection,
+    cross_validate_models,
+)
 from kinecal.measurement._measurements import Measurements
 from kinecal.models import ModelSpec
 from kinecal.robot import RobotDescription
