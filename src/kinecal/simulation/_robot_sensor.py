@@ -36,6 +36,7 @@ __all__ = [
     "SENSOR_MOUNT_MM",
     "robot_sensor_experiment",
     "robot_sensor_truth",
+    "robot_sensor_twin",
     "sensor_robot",
 ]
 
@@ -182,9 +183,7 @@ def _views(
             m = 4 * per_sphere
             p_t, R_t = _view_targets(c, up, m, sin_lo, rng)
             seed = _nearest(p_bank, R_bank, q_bank, p_t, R_t)
-            res = solve_ik(
-                pm, x, p_t, seed, R_target=R_t, limits=lim, max_iter=60
-            )
+            res = solve_ik(pm, x, p_t, seed, R_target=R_t, limits=lim, max_iter=60)
             ok = np.flatnonzero(res.converged)
             got.append(_wrap_turns(res.q_ctrl[ok], lim))
             n_got += ok.size
@@ -223,9 +222,7 @@ def _view_targets(
     return p, R
 
 
-def _nearest(
-    p_bank: Float, R_bank: Float, q_bank: Float, p: Float, R: Float
-) -> Float:
+def _nearest(p_bank: Float, R_bank: Float, q_bank: Float, p: Float, R: Float) -> Float:
     """The bank pose nearest each target frame (0.1 m of position weighs as 1 rad)."""
     dp = np.linalg.norm(p[:, None, :] - p_bank[None, :, :], axis=2) / 0.1
     tr = np.einsum("mij,bij->mb", R, R_bank)
@@ -284,4 +281,27 @@ def robot_sensor_experiment(
             "n_poses": int(q.shape[0]),
             "sensor_um": [sensor.sigma_xy * 1e6, sensor.sigma_z * 1e6],
         },
+    )
+
+
+def robot_sensor_twin(
+    robot: RobotDescription,
+    seed: int = 0,
+    *,
+    n_train: int = 100,
+    n_test: int = 300,
+    extras: tuple[str, ...] = (),
+    noise_um: float | None = None,
+) -> Experiment:
+    """:func:`robot_sensor_truth` measured by :func:`robot_sensor_experiment`;
+    ``noise_um`` the sensor's noise across its optical axis (twice that along it;
+    default the paper's sensor, 4 and 8 um)."""
+    truth, spheres = robot_sensor_truth(robot, seed=seed, extras=extras)
+    sensor = (
+        SphereSensor(noise_um * 1e-6, 2 * noise_um * 1e-6)
+        if noise_um is not None
+        else None
+    )
+    return robot_sensor_experiment(
+        truth, spheres, seed, n_train=n_train, n_test=n_test, sensor=sensor
     )
