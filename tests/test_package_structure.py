@@ -261,7 +261,6 @@ FUNCTION_LENGTH_NOT_YET_SPLIT = {
     "kinecal/report/_calibration.py": ("render_calibration_report",),
     "kinecal/report/_html.py": ("write_comparison_report",),
     "kinecal/robot/_schema.py": ("robot_from_dict",),
-    "kinecal/robot/_urdf.py": ("robot_from_urdf",),
     "kinecal/sensor/_joint.py": ("calibrate_sensor",),
 }
 
