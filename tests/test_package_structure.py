@@ -260,7 +260,6 @@ FUNCTION_LENGTH_NOT_YET_SPLIT = {
     "kinecal/models/_numpy_jacobian.py": ("jacobian",),
     "kinecal/report/_calibration.py": ("render_calibration_report",),
     "kinecal/report/_html.py": ("write_comparison_report",),
-    "kinecal/robot/_schema.py": ("robot_from_dict",),
     "kinecal/sensor/_joint.py": ("calibrate_sensor",),
 }
 
