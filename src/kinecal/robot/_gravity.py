@@ -32,6 +32,9 @@ PRIOR_DEFLECTION = float(np.radians(0.1))
 MAX_COMPLIANCE = 1e-3
 _PRIOR_POSES = 400  # poses over which the largest torque is taken (a fixed seed)
 _G = 9.80665
+# The last robots' priors by id (the robot is kept with them, so an id is not reused
+# while its entry lives); descriptions are immutable.
+_CACHE: dict[int, tuple[RobotDescription, dict[int, float]]] = {}
 
 
 def random_joint_poses(
@@ -100,11 +103,18 @@ def compliance_priors(robot: RobotDescription) -> dict[int, float]:
     """
     if not robot.link_masses or ("load", "compliance") in robot.prior_sigma:
         return {}
+    hit = _CACHE.get(id(robot))
+    if hit is not None and hit[0] is robot:  # a calibration asks about ten times
+        return dict(hit[1])
     q = random_joint_poses(robot, _PRIOR_POSES, np.random.default_rng(0))
     tau = np.abs(gravity_torques(robot, q)).max(axis=0)
     cap = MAX_COMPLIANCE * (robot.payload_kg or 1.0) * _G  # lambda* = c |F| [rad/m]
-    return {
+    out = {
         j + 1: min(PRIOR_DEFLECTION / float(tau[j]), cap)
         for j in range(tau.size)
         if tau[j] > 1e-6 * tau.max() and not robot.prismatic[j]
     }
+    if len(_CACHE) >= 8:
+        _CACHE.pop(next(iter(_CACHE)))
+    _CACHE[id(robot)] = (robot, out)
+    return dict(out)
