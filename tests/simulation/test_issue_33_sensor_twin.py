@@ -121,3 +121,15 @@ def test_simulate_robot_sensor_cli(tmp_path, run_cli_here):
     r = run_cli_here(*args[:4], "--plan", plan, "--out", tmp_path / "t3")
     assert r.returncode != 0 and "--plan" in r.stderr
     assert not (tmp_path / "t3").exists()
+
+
+def test_sensor_twin_of_an_arm_that_cannot_look_down(tmp_path, run_cli_here):
+    robot = tmp_path / "r2.yaml"
+    robot.write_text(
+        "name: r2\nconvention: dh\nunits: {length: mm, angle: deg}\njoints:\n"
+        "  - {theta_offset: 0, d: 300, a: 0, alpha: 0, limits: [-170, 170]}\n"
+        "  - {theta_offset: 0, d: 0, a: 300, alpha: 0, limits: [-170, 170]}\n"
+    )
+    r = run_cli_here("simulate", "--robot", robot, "--sensor", "--out", tmp_path / "o")
+    assert r.returncode != 0 and "point its tool (--tool) down" in r.stderr
+    assert "Traceback" not in r.stderr and not (tmp_path / "o").exists()

@@ -21,6 +21,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from kinecal.errors import ConfigError
 from kinecal.geometry import euler_transform, matrix_to_euler_zyx, rot_z
 from kinecal.measurement import Measurements
 from kinecal.models import ModelInputs, solve_ik
@@ -86,9 +87,10 @@ def _sphere_sites(
     r = np.linalg.norm(radial, axis=1)
     ok = down & (r > 1e-3)
     if ok.sum() < n:
-        raise ValueError(
+        raise ConfigError(
             f"{robot.name}: the sensor looks down from too few poses within the joint "
-            "limits to place the spheres; expected an arm that can point its flange down"
+            "limits to place the spheres; expected an arm that can point its tool "
+            "(--tool) down."
         )
     lo, hi = np.quantile(r[ok], [0.35, 0.75])
     h = c @ up
