@@ -96,7 +96,7 @@ def _expected_reason(d: DroppedParameter) -> str | None:
         return "no gravity torque about the joint"
     gravity = all(n.startswith("link") or n.endswith(".lambda") for n, _ in d.partners)
     if fld[:2] in ("ka", "kb") and d.partners and gravity:
-        return "acts like the link weights"
+        return "a harmonic indistinguishable from the link weights"
     return None
 
 
