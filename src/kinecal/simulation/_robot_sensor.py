@@ -99,7 +99,7 @@ def _sphere_sites(
     front = radial @ _front(up) > np.cos(np.radians(60.0)) * r
     pick = level & front
     if pick.sum() < n:
-        pick = level
+        pick = level if level.sum() >= n else ok
     cand = c[pick]
     # Farthest-point sampling from the candidate nearest their median.
     chosen = [int(np.argmin(np.linalg.norm(cand - np.median(cand, axis=0), axis=1)))]
@@ -118,12 +118,12 @@ def _front(up: Float) -> Float:
     return x / np.linalg.norm(x)
 
 
-def _plate_frame(centres: Float) -> Float:
+def _plate_frame(centres: Float, up: Float) -> Float:
     """The robot base in the plate (user) frame, (6,) [m, rad]: the plate's origin under
     the spheres' centroid, turned 20 deg and tilted slightly against the base."""
     T_user_base = euler_transform([0.0, 0.0, 0.0, np.radians(20.0), 0.004, -0.006])
     mid = centres.mean(axis=0)
-    T_user_base[:3, 3] = -T_user_base[:3, :3] @ (mid - [0.0, 0.0, 0.05])
+    T_user_base[:3, 3] = -T_user_base[:3, :3] @ (mid - 0.05 * up)
     out = np.zeros(6)
     out[:3] = T_user_base[:3, 3]
     out[3:] = matrix_to_euler_zyx(T_user_base[:3, :3])
@@ -138,7 +138,7 @@ def robot_sensor_truth(
     robot = sensor_robot(robot)
     rng = np.random.default_rng(seed + 2)
     centres = _sphere_sites(robot, rng)
-    base = _plate_frame(centres)
+    base = _plate_frame(centres, -robot.gravity / np.linalg.norm(robot.gravity))
     truth = robot_truth(robot, seed=seed, base=base, extras=extras)
     x = truth.params.copy()
     dev = np.concatenate(
