@@ -257,8 +257,6 @@ FUNCTION_LENGTH_NOT_YET_SPLIT = {
     "kinecal/io/_urdf_like.py": ("like_urdf",),
     "kinecal/models/_definition.py": ("build",),
     "kinecal/models/_numpy_jacobian.py": ("jacobian",),
-    "kinecal/robot/_schema.py": ("robot_from_dict",),
-    "kinecal/robot/_urdf.py": ("robot_from_urdf",),
 }
 
 

@@ -90,7 +90,7 @@ def _compare(old: str, new: str, out_path: str | None, force: bool, say: Any) ->
     click.echo(
         f"moved     {len(c['moved'])} of {len(c['parameters'])} parameters beyond "
         f"{c['significance']:g} combined std"
-        + (f": {', '.join(c['moved'])}" if c["moved"] else "")
+        + (f": {', '.join(_shown(c, c['moved']))}" if c["moved"] else "")
     )
     for r in c["cross"]:
         label = f"{r['model']} model on {r['data']} data"
@@ -102,3 +102,9 @@ def _compare(old: str, new: str, out_path: str | None, force: bool, say: Any) ->
                 + ("  (user frame refitted)" if r["refit_user"] else "")
             )
     click.echo(f"wrote     {target}")
+
+
+def _shown(c: dict[str, Any], names: list[str]) -> list[str]:
+    """Parameter names with the robot's joint name beside them where it has one."""
+    jn = {p["name"]: p.get("joint_name") for p in c["parameters"]}
+    return [f"{n} ({jn[n]})" if jn.get(n) else n for n in names]

@@ -109,6 +109,12 @@ def _run_experiment(
     "with --refit user).",
 )
 @click.option(
+    "--sensor",
+    is_flag=True,
+    help="With --robot: a 3D sensor on the flange (the cam frame: --tool, or 35 mm "
+    "beside and 75 mm out) sees four spheres (targets.csv), as experiment 1 does.",
+)
+@click.option(
     "--payload-kg",
     type=FiniteFloat(0.0),
     help="With --robot: payload at the tool [kg] (default the robot's, or a 1 kg tool); "
@@ -156,6 +162,7 @@ def simulate(
     n_test: int,
     tool: str | None,
     new_session: bool,
+    sensor: bool,
     payload_kg: float | None,
     out_dir: str,
     seed: int,
@@ -179,8 +186,9 @@ def simulate(
     if robot_name is not None:
         if experiment is not None or outliers > 0:
             raise click.BadParameter(
-                "--robot simulates a laser-tracker calibration of that robot; expected "
-                "no --experiment or --outliers with it",
+                "--robot simulates a laser-tracker (or with --sensor a 3D-sensor) "
+                "calibration of that robot; expected no --experiment or --outliers "
+                "with it",
                 param_hint="--robot",
             )
         _simulate_robot(
@@ -193,13 +201,14 @@ def simulate(
             payload_kg,
             tool,
             new_session,
+            sensor,
             _parse_extras(extras),
             noise_um,
             force,
             quiet,
         )
         return
-    _robot_only(plan_file, payload_kg, new_session, tool)
+    _robot_only(plan_file, payload_kg, new_session, tool, sensor)
     experiment = experiment or "2"
 
     if experiment == "1" and outliers > 0:
@@ -229,13 +238,18 @@ def simulate(
 
 
 def _robot_only(
-    plan_file: str | None, payload_kg: float | None, new_session: bool, tool: str | None
+    plan_file: str | None,
+    payload_kg: float | None,
+    new_session: bool,
+    tool: str | None,
+    sensor: bool = False,
 ) -> None:
     """Refuse the options of a twin of a robot without --robot."""
     for name, value in (
         ("--plan", plan_file),
         ("--payload-kg", payload_kg),
         ("--new-session", new_session or None),
+        ("--sensor", sensor or None),
         ("--tool", tool),
     ):
         if value is not None:
@@ -283,12 +297,14 @@ def _simulate_robot(
     payload_kg: float | None,
     tool: str | None,
     new_session: bool,
+    sensor: bool,
     extras: tuple[str, ...],
     noise_um: float | None,
     force: bool,
     quiet: bool,
 ) -> None:
-    """``simulate --robot``: a twin of that robot measured by a laser tracker."""
+    """``simulate --robot``: a twin of that robot measured by a laser tracker (or a
+    3D sensor, ``--sensor``)."""
     from dataclasses import replace
 
     import numpy as np
@@ -314,15 +330,22 @@ def _simulate_robot(
     q_train = read_pose_file(plan_file, robot, None)[2] if plan_file else None
     if q_train is None and n_train < 1:  # pragma: no cover - click checks it
         raise click.BadParameter("expected at least 1", param_hint="--n-train")
+    if sensor and (plan_file or new_session):
+        raise click.BadParameter(
+            "--sensor plans its own views of the spheres in one session; expected no "
+            "--plan or --new-session with it",
+            param_hint="--sensor",
+        )
     files = ["train.csv", "test.csv", "truth.yaml", "robot.yaml", "manifest.json"]
+    files += ["targets.csv"] if sensor else []
     out = prepare_output_dir(out_dir, files, force=force)
     say("simulate", f"{robot.name}, seed {seed}")
     sim = simulate_robot_twin(
         robot, seed=seed, n_train=n_train, n_test=n_test, q_train=q_train,
-        extras=extras, noise_um=noise_um, new_session=new_session,
+        extras=extras, noise_um=noise_um, new_session=new_session, sensor=sensor,
     )  # fmt: skip
     exp = sim.experiment
-    written = write_simulation(sim, out, Path(out_dir), robot_file=robot)
+    written = write_simulation(sim, out, Path(out_dir), robot_file=sim.robot)
     config: dict[str, Any] = {
         "seed": seed,
         "n_train": exp.train.n,
@@ -330,10 +353,12 @@ def _simulate_robot(
     }
     config |= {"extras": list(extras), "noise_um": noise_um}
     config |= {"payload_kg": robot.payload_kg, "truth": sim.description}
+    config |= {"instrument": "sensor" if sensor else "tracker"}
+    tgt = f" --targets {written['targets']}" if "targets" in written else ""
     _finish(
         out, out_dir, sim, written, {"robot": robot_name, "plan": plan_file}, config,
-        f"next: kinecal calibrate {written['train']} --robot {written['robot']} "
-        f"--out CAL; kinecal evaluate {written['test']} --model CAL/model.yaml",
+        f"next: kinecal calibrate {written['train']} --robot {written['robot']}{tgt} "
+        f"--out CAL; kinecal evaluate {written['test']} --model CAL/model.yaml{tgt}",
     )  # fmt: skip
 
 

@@ -29,6 +29,7 @@ __all__ = [
     "Identifiability",
     "analyse_identifiability",
     "correlation_from_covariance",
+    "grouped_dropped",
     "identifiability_from_normal",
     "priority_order",
 ]
@@ -68,6 +69,69 @@ class DroppedParameter:
         return f"{self.name} ≈ {terms} (in characteristic units)"
 
 
+def _expected_reason(d: DroppedParameter) -> str | None:
+    """Why ``d`` is unidentifiable by the model's construction, or None (a finding
+    about these poses).
+
+    * a constant transmission term ``k0``: a zero offset of the joint;
+    * ``joint<K>.d`` equal to +-1 x another joint's d: parallel axes (the common
+      normal's position along them is arbitrary);
+    * a joint compliance that does not act at all: no gravity torque about that joint
+      (a vertical first axis);
+    * a transmission harmonic that is a combination of compliance or link terms only:
+      it acts like gravity on a level base.
+    """
+    fld = d.name.partition(".")[2]
+    kinds = {n.partition(".")[2] for n, _ in d.partners}
+    if fld == "k0":
+        return "a constant transmission error is a zero offset"
+    if (
+        fld == "d"
+        and len(d.partners) == 1
+        and kinds == {"d"}
+        and abs(abs(d.partners[0][1]) - 1.0) < 1e-3
+    ):
+        return "parallel axes: d slides along them"
+    if fld == "lambda" and not d.partners:
+        return "no gravity torque about the joint"
+    gravity = all(n.startswith("link") or n.endswith(".lambda") for n, _ in d.partners)
+    if fld[:2] in ("ka", "kb") and d.partners and gravity:
+        return "a harmonic indistinguishable from the link weights"
+    return None
+
+
+def grouped_dropped(dropped: list[DroppedParameter]) -> list[str]:
+    """The unidentifiable parameters in words: those expected by construction (see
+    :func:`_expected_reason`) on one line by reason, the general link model's body terms
+    (only combinations of the masses and first moments act on the joints) on another,
+    and every other one (a finding about these poses) on a line of its own."""
+    expected: dict[str, list[str]] = {}
+    links: list[str] = []
+    lines: list[str] = []
+    for d in dropped:
+        if d.name.startswith("link"):
+            links.append(d.name)
+            continue
+        why = _expected_reason(d)
+        if why is None:
+            lines.append(f"unidentifiable: {d.describe()}")
+        else:
+            expected.setdefault(why, []).append(d.name)
+    head: list[str] = []
+    if expected:
+        parts = "; ".join(f"{', '.join(n)} ({why})" for why, n in expected.items())
+        head.append(
+            "not identifiable by construction (held at their start values): " + parts
+        )
+    if links:
+        head.append(
+            f"link model: {len(links)} body terms act only together with others (as "
+            "expected: the joints feel combinations of the link masses and first "
+            "moments; held at the robot file's values): " + ", ".join(links)
+        )
+    return head + lines
+
+
 @dataclass
 class Identifiability:
     """Result of :func:`analyse_identifiability`.
@@ -104,7 +168,7 @@ class Identifiability:
             f"{self.rank} of {int(self.candidate.sum())} parameters identifiable; "
             f"condition number {self.condition_number:.3g} (scaled, normalised columns)."
         ]
-        lines += [f"unidentifiable: {d.describe()}" for d in self.dropped]
+        lines += grouped_dropped(self.dropped)
         lines += [
             f"poorly determined: {n} (independent fraction {f:.1e})"
             for n, f in self.weak

@@ -42,15 +42,22 @@ _GEOMETRY_FACTORS = (0.1, 0.3, 1.0, 3.0)
 def build_prior(
     model: CalibrationModel, start: Float, options: CalibrationOptions
 ) -> Prior:
-    """Priors of :data:`PRIOR_SIGMA` (or the robot file's ``priors``) for the groups
-    chosen in ``options.priors``, centred on ``start``; ``options.prior_sigma``
-    overrides single parameters (Eq. (T-6))."""
+    """Priors of :data:`PRIOR_SIGMA` (or the robot file's ``priors``; the joint
+    compliances of a robot with link masses: :func:`kinecal.robot.compliance_priors`)
+    for the groups chosen in ``options.priors``, centred on ``start``;
+    ``options.prior_sigma`` overrides single parameters (Eq. (T-6))."""
+    from kinecal.robot import compliance_priors
+
     sigma = np.full(model.size, np.inf)
     groups = PRIOR_GROUPS[options.priors]
     table = {**PRIOR_SIGMA, **model.robot.prior_sigma}  # the robot file may override
+    lam = compliance_priors(model.robot)  # per joint, from the link masses
     for i, s in enumerate(model.layout.specs):
         if s.group in groups:
-            sigma[i] = table.get((s.group, s.kind), np.inf) * options.prior_scale
+            sd = table.get((s.group, s.kind), np.inf)
+            if (s.group, s.kind) == ("load", "compliance"):
+                sd = lam.get(s.joint or 0, sd)
+            sigma[i] = sd * options.prior_scale
     for name, value in (options.prior_sigma or {}).items():
         sigma[model.layout.index(name)] = float(value)
     return Prior(start.copy(), sigma)

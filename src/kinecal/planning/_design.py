@@ -90,12 +90,18 @@ def prior_sigma(
         raise ValueError(
             f"priors must be 'none', 'compliance' or 'all'; got {priors!r}."
         )
+    from kinecal.robot import compliance_priors
+
     groups = _PRIOR_GROUPS[priors]
     table = {**PRIOR_SIGMA, **model.robot.prior_sigma}
+    lam = compliance_priors(model.robot)  # per joint, from the link masses
     sigma = np.full(model.size, np.inf)
     for i, s in enumerate(model.layout.specs):
         if s.group in groups:
-            sigma[i] = table.get((s.group, s.kind), np.inf) * scale
+            sd = table.get((s.group, s.kind), np.inf)
+            if (s.group, s.kind) == ("load", "compliance"):
+                sd = lam.get(s.joint or 0, sd)
+            sigma[i] = sd * scale
     return sigma
 
 

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from kinecal.report._format import e, num, page, pm, ratio, table
-from kinecal.report._tables import SIGNIFICANT
+from kinecal.report._tables import SIGNIFICANT, name_cell
 
 __all__ = ["compare_calibrations", "render_comparison"]
 
@@ -98,6 +98,7 @@ def compare_calibrations(old_dir: str | Path, new_dir: str | Path) -> dict[str, 
         params.append(
             {
                 "name": r["name"],
+                **({"joint_name": r["joint_name"]} if "joint_name" in r else {}),
                 "unit": r["unit"],
                 "old": o["value"],
                 "old_std": o["std"],
@@ -148,7 +149,7 @@ def render_comparison(c: dict[str, Any]) -> str:
     moved = [p for p in c["parameters"] if p["moved"]]
     rows = [
         [
-            e(p["name"]),
+            name_cell(p),
             e(p["unit"]),
             pm(p["old"], p["old_std"]),
             pm(p["new"], p["new_std"]),

@@ -16,6 +16,7 @@ __all__ = [
     "compliance_table",
     "dh_table",
     "frames_table",
+    "name_cell",
     "parameter_table",
 ]
 
@@ -29,6 +30,13 @@ def _records(cal: Any) -> dict[str, dict[str, Any]]:
     from kinecal.io import parameter_records
 
     return {r["name"]: r for r in parameter_records(cal)}
+
+
+def name_cell(rec: Mapping[str, Any]) -> str:
+    """A parameter's name (as model.yaml keys it) and, where the robot names the
+    parameter's joint (``joint_name``), that name beside it (display only)."""
+    jn = rec.get("joint_name")
+    return e(rec["name"]) + (f" <small class=muted>{e(jn)}</small>" if jn else "")
 
 
 def _pm(rec: Mapping[str, Any]) -> str:
@@ -71,9 +79,11 @@ def dh_table(cal: Any) -> str:
     if not any(r["field"] == "beta" for r in recs):
         fields = fields[:4]
     by_key = {(r["joint"], r["field"]): r for r in recs}
+    names = cal.model.robot.joint_names
     rows = []
     for j in range(1, n + 1):
-        cells = [f"J{j}"]
+        own = names[j - 1] != f"J{j}"  # the robot's name of the joint, where it has one
+        cells = [f"J{j}" + (f" <small class=muted>{e(names[j - 1])}</small>" * own)]
         for key, _ in fields:
             rec = by_key.get((j, key))
             if rec is None:
@@ -126,7 +136,7 @@ def compliance_table(cal: Any) -> str:
             stiff = pm(1.0 / v, sd / v**2) if v > 0 else "—"
             any_phys = True
         unit = rec["unit"] + (" (per unit weight)" if rec["group"] == "load" else "")
-        rows.append([e(rec["name"]), _pm(rec), e(unit), comp, stiff, e(rec["status"])])
+        rows.append([name_cell(rec), _pm(rec), e(unit), comp, stiff, e(rec["status"])])
     if not rows:
         return "<p class=muted>This model has no compliance terms.</p>"
     head = ["parameter", "value ± std", "unit"]
@@ -155,7 +165,7 @@ def parameter_table(params: list[Mapping[str, Any]]) -> str:
         share = sd / prior if sd and prior else None
         rows.append(
             [
-                e(p["name"]),
+                name_cell(p),
                 pm(v, sd),
                 e(p.get("unit", "")),
                 num(d),

@@ -17,20 +17,32 @@ if TYPE_CHECKING:
         SelfWeightSpec,
         dh_transforms,
     )
+    from kinecal.robot._gravity import (
+        MAX_COMPLIANCE,
+        PRIOR_DEFLECTION,
+        compliance_priors,
+        gravity_torques,
+        random_joint_poses,
+    )
     from kinecal.robot._schema import dump_robot, load_robot_file, robot_from_dict
     from kinecal.robot._urdf import robot_from_urdf
 
 __all__ = [
+    "MAX_COMPLIANCE",
+    "PRIOR_DEFLECTION",
     "DHChain",
     "JointSpec",
     "LinkMass",
     "RobotDescription",
     "SelfWeightSpec",
     "builtin_robot_names",
+    "compliance_priors",
     "dh_transforms",
     "dump_robot",
+    "gravity_torques",
     "load_robot",
     "load_robot_file",
+    "random_joint_poses",
     "robot_from_dict",
     "robot_from_urdf",
 ]
@@ -49,6 +61,13 @@ __getattr__, __dir__ = _lazy.exports(
             "RobotDescription",
             "SelfWeightSpec",
             "dh_transforms",
+        ),
+        "_gravity": (
+            "MAX_COMPLIANCE",
+            "PRIOR_DEFLECTION",
+            "compliance_priors",
+            "gravity_torques",
+            "random_joint_poses",
         ),
         "_schema": (
             "dump_robot",

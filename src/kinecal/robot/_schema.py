@@ -197,21 +197,8 @@ def _frame(d: Any, where: str, lu: float, au: float) -> np.ndarray:
     return euler_transform(v)
 
 
-def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
-    """Validate a parsed robot YAML document and convert it to a :class:`RobotDescription`.
-
-    Raises
-    ------
-    ConfigError
-        With a one-line message naming ``source`` and the offending key.
-    """
-    _check_keys(data, _TOP_KEYS, source, _REQUIRED_TOP)
-    name = data["name"]
-    if not isinstance(name, str) or not name:
-        raise _err(f"{source}: name", f"expected a non-empty string; got {name!r}.")
-    conv = data["convention"]
-    if conv not in ("dh", "mdh"):
-        raise _err(f"{source}: convention", f"expected 'dh' or 'mdh'; got {conv!r}.")
+def _units(data: Mapping[str, Any], source: str) -> tuple[str, str, float, float]:
+    """The file's length and angle units, and their SI factors."""
     units = data["units"]
     _check_keys(units, {"length", "angle"}, f"{source}: units", ("length", "angle"))
     if not isinstance(units["length"], str) or units["length"] not in LENGTH_UNITS:
@@ -224,86 +211,93 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
             f"{source}: units.angle",
             f"expected one of {', '.join(ANGLE_UNITS)}; got {units['angle']!r}.",
         )
-    lu = LENGTH_UNITS[units["length"]]
-    au = ANGLE_UNITS[units["angle"]]
+    lu, au = LENGTH_UNITS[units["length"]], ANGLE_UNITS[units["angle"]]
+    return units["length"], units["angle"], lu, au
 
-    joints_raw = data["joints"]
-    if not isinstance(joints_raw, list) or len(joints_raw) < 2:
-        raise _err(f"{source}: joints", "expected a list of at least 2 joints.")
-    joints = []
-    for i, jr in enumerate(joints_raw):
-        where = f"{source}: joints[{i}]"
-        _check_keys(jr, _JOINT_KEYS, where, _JOINT_REQUIRED)
-        kind = jr.get("type", "revolute")
-        if kind not in ("revolute", "prismatic"):
+
+def _dh_values(
+    jr: Mapping[str, Any], where: str, length: str, angle: str, lu: float
+) -> dict[str, float]:
+    """A joint's four DH numbers (file units), checked against the file's units."""
+    vals = {k: _number(jr[k], f"{where}.{k}") for k in _JOINT_REQUIRED}
+    if angle == "rad":
+        for k in ("theta_offset", "alpha"):
+            if abs(vals[k]) > 2 * np.pi + 1e-9:
+                raise _err(
+                    f"{where}.{k}",
+                    f"{vals[k]} is not an angle in rad (units.angle is 'rad'); "
+                    "did you mean 'deg'?",
+                )
+    for k in ("d", "a"):
+        if length == "m" and abs(vals[k]) > 20.0:
             raise _err(
-                f"{where}.type", f"expected 'revolute' or 'prismatic'; got {kind!r}."
+                f"{where}.{k}",
+                f"{vals[k]} m is not a plausible link length (units.length is "
+                "'m'); did you mean 'mm'?",
             )
-        vals = {k: _number(jr[k], f"{where}.{k}") for k in _JOINT_REQUIRED}
-        if units["angle"] == "rad":
-            for k in ("theta_offset", "alpha"):
-                if abs(vals[k]) > 2 * np.pi + 1e-9:
-                    raise _err(
-                        f"{where}.{k}",
-                        f"{vals[k]} is not an angle in rad (units.angle is 'rad'); "
-                        "did you mean 'deg'?",
-                    )
-        for k in ("d", "a"):
-            if units["length"] == "m" and abs(vals[k]) > 20.0:
-                raise _err(
-                    f"{where}.{k}",
-                    f"{vals[k]} m is not a plausible link length (units.length is "
-                    "'m'); did you mean 'mm'?",
-                )
-            if abs(vals[k] * lu) > _MAX_LENGTH_M:
-                raise _err(
-                    f"{where}.{k}",
-                    f"{vals[k]:g} {units['length']} is not a plausible length (over "
-                    f"{_MAX_LENGTH_M:g} m); expected a robot's dimension.",
-                )
-        lim_scale = lu if kind == "prismatic" else au
-        limits: tuple[float, float] = (-np.inf, np.inf)
-        if "limits" in jr:
-            lim = jr["limits"]
-            if not isinstance(lim, list) or len(lim) != 2:
-                raise _err(f"{where}.limits", f"expected [lo, hi]; got {lim!r}.")
-            lo = _number(lim[0], f"{where}.limits[0]") * lim_scale
-            hi = _number(lim[1], f"{where}.limits[1]") * lim_scale
-            if not lo < hi:
-                raise _err(
-                    f"{where}.limits", f"lower limit must be below upper; got {lim!r}."
-                )
-            limits = (lo, hi)
-        rates: dict[str, float | None] = {"velocity": None, "effort": None}
-        for key, scale in (("velocity", lim_scale), ("effort", 1.0)):
-            if jr.get(key) is not None:
-                v = _number(jr[key], f"{where}.{key}")
-                if not (np.isfinite(v) and v > 0):
-                    raise _err(
-                        f"{where}.{key}", f"expected a positive number; got {v!r}."
-                    )
-                rates[key] = v * scale
-        jname = jr.get("name", f"J{i + 1}")
-        if not isinstance(jname, str) or not jname:
-            raise _err(f"{where}.name", f"expected a non-empty string; got {jname!r}.")
-        joints.append(
-            JointSpec(
-                name=jname,
-                theta_offset=vals["theta_offset"] * au,
-                d=vals["d"] * lu,
-                a=vals["a"] * lu,
-                alpha=vals["alpha"] * au,
-                kind=kind,
-                limits=limits,
-                velocity=rates["velocity"],
-                effort=rates["effort"],
+        if abs(vals[k] * lu) > _MAX_LENGTH_M:
+            raise _err(
+                f"{where}.{k}",
+                f"{vals[k]:g} {length} is not a plausible length (over "
+                f"{_MAX_LENGTH_M:g} m); expected a robot's dimension.",
             )
-        )
-    n = len(joints)
-    names = [j.name for j in joints]
-    if len(set(names)) != n:
-        raise _err(f"{source}: joints", f"joint names must be unique; got {names}.")
+    return vals
 
+
+def _joint_limits(
+    jr: Mapping[str, Any], where: str, scale: float
+) -> tuple[float, float]:
+    """A joint's ``limits`` [SI] (unlimited when absent)."""
+    if "limits" not in jr:
+        return (-np.inf, np.inf)
+    lim = jr["limits"]
+    if not isinstance(lim, list) or len(lim) != 2:
+        raise _err(f"{where}.limits", f"expected [lo, hi]; got {lim!r}.")
+    lo = _number(lim[0], f"{where}.limits[0]") * scale
+    hi = _number(lim[1], f"{where}.limits[1]") * scale
+    if not lo < hi:
+        raise _err(f"{where}.limits", f"lower limit must be below upper; got {lim!r}.")
+    return (lo, hi)
+
+
+def _joint(
+    jr: Any, i: int, source: str, length: str, angle: str, lu: float, au: float
+) -> JointSpec:
+    """Joint ``i`` (0-based) of the ``joints`` list."""
+    where = f"{source}: joints[{i}]"
+    _check_keys(jr, _JOINT_KEYS, where, _JOINT_REQUIRED)
+    kind = jr.get("type", "revolute")
+    if kind not in ("revolute", "prismatic"):
+        raise _err(
+            f"{where}.type", f"expected 'revolute' or 'prismatic'; got {kind!r}."
+        )
+    vals = _dh_values(jr, where, length, angle, lu)
+    lim_scale = lu if kind == "prismatic" else au
+    rates: dict[str, float | None] = {"velocity": None, "effort": None}
+    for key, scale in (("velocity", lim_scale), ("effort", 1.0)):
+        if jr.get(key) is not None:
+            v = _number(jr[key], f"{where}.{key}")
+            if not (np.isfinite(v) and v > 0):
+                raise _err(f"{where}.{key}", f"expected a positive number; got {v!r}.")
+            rates[key] = v * scale
+    jname = jr.get("name", f"J{i + 1}")
+    if not isinstance(jname, str) or not jname:
+        raise _err(f"{where}.name", f"expected a non-empty string; got {jname!r}.")
+    return JointSpec(
+        name=jname,
+        theta_offset=vals["theta_offset"] * au,
+        d=vals["d"] * lu,
+        a=vals["a"] * lu,
+        alpha=vals["alpha"] * au,
+        kind=kind,
+        limits=_joint_limits(jr, where, lim_scale),
+        velocity=rates["velocity"],
+        effort=rates["effort"],
+    )
+
+
+def _coupling(data: Mapping[str, Any], source: str, n: int) -> np.ndarray:
+    """The coupling matrix ``C`` (theta = C q_ctrl) of the ``coupling`` list."""
     C = np.eye(n)
     coupling = data.get("coupling") or []
     if not isinstance(coupling, list):
@@ -331,7 +325,69 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
             "controller angles cannot be recovered (singular theta = C q); expected "
             "each joint's angle from its own motor plus others.",
         )
+    return C
 
+
+def _gravity(data: Mapping[str, Any], source: str) -> np.ndarray:
+    """The ``gravity`` vector [m/s^2] (its direction; 9.80665 m/s^2 long)."""
+    if "gravity" not in data:
+        return np.array([0.0, 0.0, -9.80665])
+    g = data["gravity"]
+    if not isinstance(g, list) or len(g) != 3:
+        raise _err(f"{source}: gravity", f"expected [gx, gy, gz]; got {g!r}.")
+    gravity = np.array([_number(x, f"{source}: gravity[{i}]") for i, x in enumerate(g)])
+    if np.linalg.norm(gravity) == 0:
+        raise _err(f"{source}: gravity", "must not be the zero vector.")
+    return gravity / np.linalg.norm(gravity) * 9.80665
+
+
+def _self_weight(data: Mapping[str, Any], source: str, n: int) -> SelfWeightSpec | None:
+    """The lumped self-weight layout: the file's, the default for an arm of 5 or more
+    joints without ``self_weight`` or ``link_masses``, or None."""
+    if "self_weight" not in data and n >= 5 and not data.get("link_masses"):
+        return SelfWeightSpec()
+    if data.get("self_weight") is None:
+        return None
+    swr = data["self_weight"]
+    _check_keys(swr, _SELF_WEIGHT_KEYS, f"{source}: self_weight")
+    vals_sw = {}
+    for key, default in (("shoulder", 2), ("elbow", 3), ("wrist_frame", 4)):
+        v = swr.get(key, default)
+        if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= n:
+            raise _err(f"{source}: self_weight.{key}", f"expected 1..{n}; got {v!r}.")
+        vals_sw[key] = v
+    if not vals_sw["shoulder"] < vals_sw["elbow"] <= vals_sw["wrist_frame"]:
+        raise _err(f"{source}: self_weight", "need shoulder < elbow <= wrist_frame.")
+    return SelfWeightSpec(**vals_sw)
+
+
+def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
+    """Validate a parsed robot YAML document and convert it to a :class:`RobotDescription`.
+
+    Raises
+    ------
+    ConfigError
+        With a one-line message naming ``source`` and the offending key.
+    """
+    _check_keys(data, _TOP_KEYS, source, _REQUIRED_TOP)
+    name = data["name"]
+    if not isinstance(name, str) or not name:
+        raise _err(f"{source}: name", f"expected a non-empty string; got {name!r}.")
+    conv = data["convention"]
+    if conv not in ("dh", "mdh"):
+        raise _err(f"{source}: convention", f"expected 'dh' or 'mdh'; got {conv!r}.")
+    length, angle, lu, au = _units(data, source)
+    joints_raw = data["joints"]
+    if not isinstance(joints_raw, list) or len(joints_raw) < 2:
+        raise _err(f"{source}: joints", "expected a list of at least 2 joints.")
+    joints = [
+        _joint(jr, i, source, length, angle, lu, au) for i, jr in enumerate(joints_raw)
+    ]
+    n = len(joints)
+    names = [j.name for j in joints]
+    if len(set(names)) != n:
+        raise _err(f"{source}: joints", f"joint names must be unique; got {names}.")
+    C = _coupling(data, source, n)
     T_n_flange = (
         _frame(data["flange"], f"{source}: flange", lu, au)
         if "flange" in data
@@ -342,43 +398,11 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
         if data.get("tool")
         else np.eye(4)
     )
-
-    gravity = np.array([0.0, 0.0, -9.80665])
-    if "gravity" in data:
-        g = data["gravity"]
-        if not isinstance(g, list) or len(g) != 3:
-            raise _err(f"{source}: gravity", f"expected [gx, gy, gz]; got {g!r}.")
-        gravity = np.array(
-            [_number(x, f"{source}: gravity[{i}]") for i, x in enumerate(g)]
-        )
-        if np.linalg.norm(gravity) == 0:
-            raise _err(f"{source}: gravity", "must not be the zero vector.")
-        gravity = gravity / np.linalg.norm(gravity) * 9.80665
-
+    gravity = _gravity(data, source)
     payload, rated = (
         _mass(data, key, source) for key in ("payload_kg", "rated_payload_kg")
     )
-
-    sw: SelfWeightSpec | None = None
-    if "self_weight" not in data and n >= 5 and not data.get("link_masses"):
-        sw = SelfWeightSpec()
-    elif data.get("self_weight") is not None:
-        swr = data["self_weight"]
-        _check_keys(swr, _SELF_WEIGHT_KEYS, f"{source}: self_weight")
-        vals_sw = {}
-        for key, default in (("shoulder", 2), ("elbow", 3), ("wrist_frame", 4)):
-            v = swr.get(key, default)
-            if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= n:
-                raise _err(
-                    f"{source}: self_weight.{key}", f"expected 1..{n}; got {v!r}."
-                )
-            vals_sw[key] = v
-        if not vals_sw["shoulder"] < vals_sw["elbow"] <= vals_sw["wrist_frame"]:
-            raise _err(
-                f"{source}: self_weight", "need shoulder < elbow <= wrist_frame."
-            )
-        sw = SelfWeightSpec(**vals_sw)
-
+    sw = _self_weight(data, source, n)
     link_masses = (
         _link_masses(data["link_masses"], f"{source}: link_masses", n, lu)
         if data.get("link_masses")

@@ -20,6 +20,7 @@ from __future__ import annotations
 import re
 import warnings
 import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -303,6 +304,188 @@ def _angle(a: np.ndarray, b: np.ndarray, axis: np.ndarray) -> float:
     return float(np.arctan2(np.cross(a, b) @ axis, a @ b))
 
 
+@dataclass
+class _Walk:
+    """The chain walked at the zero configuration, in the base link's frame: each movable
+    joint's axis line (point, direction), its (name, kind, limits), mimic joints by
+    index, rates by name, the fixed links above the first joint and every link placed
+    (name, pose, body number), and the tip link's pose."""
+
+    lines: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+    specs: list[tuple[str, str, tuple[float, float]]] = field(default_factory=list)
+    mimics: dict[int, tuple[str, float, float]] = field(default_factory=dict)
+    rates: dict[str, tuple[float | None, float | None]] = field(default_factory=dict)
+    fixed_above: list[tuple[str, np.ndarray]] = field(default_factory=list)
+    placed: list[tuple[str, np.ndarray, int]] = field(default_factory=list)
+    T_tip: np.ndarray = field(default_factory=lambda: np.eye(4))
+
+
+def _walk(chain: list[ET.Element], base: str, src: str) -> _Walk:
+    """Axis lines and joint specifications of ``chain`` (see :class:`_Walk`)."""
+    w = _Walk(placed=[(base, np.eye(4), 0)])
+    T = np.eye(4)
+    for j in chain:
+        jn = j.get("name", "?")
+        T = T @ _origin(j, f"{src}: joint {jn!r} origin")
+        kind = j.get("type", "")
+        child = j.find("child").get("link", "")  # type: ignore[union-attr]
+        if kind not in _MOVABLE:
+            if kind != "fixed":
+                raise ConfigError(f"{src}: joint {jn!r} has unsupported type {kind!r}.")
+            if not w.lines:
+                w.fixed_above.append((child, T.copy()))
+            w.placed.append((child, T.copy(), len(w.lines)))
+            continue
+        mim = j.find("mimic")
+        if mim is not None:
+            w.mimics[len(w.lines)] = mimic_of(mim, f"{src}: joint {jn!r} mimic")
+        w.placed.append((child, T.copy(), len(w.lines) + 1))
+        ax_el = j.find("axis")
+        axis = _floats(
+            ax_el.get("xyz") if ax_el is not None else "1 0 0",
+            3,
+            f"{src}: joint {jn!r} axis",
+        )
+        if not np.linalg.norm(axis) > 1e-9:
+            raise ConfigError(
+                f"{src}: joint {jn!r} axis: expected a non-zero direction; got "
+                f"{axis.tolist()}."
+            )
+        axis = axis / np.linalg.norm(axis)
+        lim = j.find("limit")
+        lo, hi = -np.inf, np.inf
+        if kind != "continuous" and lim is not None:
+            lo, hi = _limits(lim, f"{src}: joint {jn!r} limit")
+        w.rates[jn] = rates_of(lim)
+        w.lines.append((T[:3, 3].copy(), T[:3, :3] @ axis))
+        kind_ = "prismatic" if kind == "prismatic" else "revolute"
+        w.specs.append((jn, kind_, (lo, hi)))
+    w.T_tip = T
+    return w
+
+
+def _next_frame(
+    z_prev: np.ndarray,
+    x_prev: np.ndarray,
+    o_prev: np.ndarray,
+    line: tuple[np.ndarray, np.ndarray] | None,
+    T_tip: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The next DH frame's z, x and origin: on the next axis ``line`` (x along the
+    common normal), or for the last frame (``line`` None) on the last axis, level with
+    the tip link's origin."""
+    if line is None:
+        return z_prev, x_prev, o_prev + ((T_tip[:3, 3] - o_prev) @ z_prev) * z_prev
+    q, z = line
+    c = np.cross(z_prev, z)
+    s = np.linalg.norm(c)
+    if s > _PARALLEL:
+        # x along the common normal; o where it meets the next axis.
+        x = c / s
+        A = np.column_stack([z_prev, -z])
+        ts, *_ = np.linalg.lstsq(A, q - o_prev, rcond=None)
+        o = q + ts[1] * z
+        if (o - o_prev) @ x < -_ON_AXIS:
+            x = -x  # either normal direction is DH; this one gives a > 0
+        return z, x, o
+    # Parallel axes: the common normal through the previous origin.
+    w = q - o_prev
+    w_perp = w - (w @ z_prev) * z_prev
+    if np.linalg.norm(w_perp) > _ON_AXIS:
+        x = w_perp / np.linalg.norm(w_perp)
+    else:  # the same line: keep x
+        x = x_prev
+    return z, x, q + ((o_prev - q) @ z) * z
+
+
+def _dh_joints(
+    w: _Walk, offsets: np.ndarray, src: str
+) -> tuple[list[JointSpec], list[np.ndarray], np.ndarray]:
+    """Standard DH frames on the axis lines: the joints, the DH frames 1..n at the zero
+    configuration and the flange in the last DH frame."""
+    # Frame 0 = base frame. Frames 1..n-1 on the axes 2..n; frame n on the last axis.
+    z_prev, x_prev, o_prev = np.array([0.0, 0, 1]), np.array([1.0, 0, 0]), np.zeros(3)
+    joints: list[JointSpec] = []
+    frames: list[np.ndarray] = []
+    n = len(w.lines)
+    for i in range(n):
+        nxt = w.lines[i + 1] if i + 1 < n else None
+        z, x, o = _next_frame(z_prev, x_prev, o_prev, nxt, w.T_tip)
+        d_vec = o - o_prev
+        theta = _angle(x_prev, x, z_prev)
+        d = float(d_vec @ z_prev)
+        a = float(d_vec @ x)
+        alpha = _angle(z_prev, z, x)
+        resid = d_vec - d * z_prev - a * x
+        if np.linalg.norm(resid) > 1e-7:
+            raise ConfigError(
+                f"{src}: could not place DH frame {i + 1} (residual "
+                f"{np.linalg.norm(resid):.2e} m); the chain may need MDH."
+            )
+        jname, jkind, jlim = w.specs[i]
+        if jkind == "revolute":
+            theta += offsets[i]
+        joints.append(
+            JointSpec(jname, theta, d, a, alpha, jkind, jlim, *w.rates[jname])
+        )
+        F = np.eye(4)
+        F[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+        F[:3, 3] = o
+        frames.append(F)
+        z_prev, x_prev, o_prev = z, x, o
+    return joints, frames, np.linalg.inv(frames[-1]) @ w.T_tip
+
+
+def _read(path: str | Path, tip: str | None) -> tuple[ET.Element, str, str | None]:
+    """The URDF's root element, its text and the tip link (kinecal's own export names
+    its tip: the tool links hang below it)."""
+    p = Path(path)
+    try:
+        root = ET.parse(p).getroot()
+    except (OSError, ET.ParseError) as exc:
+        raise ConfigError(f"{p}: cannot read URDF ({exc}).") from exc
+    text = p.read_text(errors="replace")
+    if tip is None:
+        m = re.search(r"kinecal tip link: (\S+)", text)
+        if m is not None and any(
+            el.get("name") == m.group(1) for el in root.iter("link")
+        ):
+            tip = m.group(1)
+    return root, text, tip
+
+
+def _check_first_axis(w: _Walk, base: str, tip: str, src: str) -> None:
+    """A chain of at least 2 joints whose first axis is the base link's z axis."""
+    p1, u1 = w.lines[0]
+    if not _on_z(p1, u1):
+        raise ConfigError(
+            f"{src}: the first joint axis must be the base link's z axis (DH frame 0 "
+            f"sits on it); it is {np.round(u1, 6).tolist()} through "
+            f"{np.round(p1, 6).tolist()}. Choose another base link ({_HOW})."
+        )
+    if len(w.lines) < 2:
+        raise ConfigError(
+            f"{src}: one movable joint ({w.specs[0][0]!r}) between {base!r} and "
+            f"{tip!r}; expected a chain of at least 2 (another --base or --tip?)."
+        )
+
+
+def _base_on_first_axis(w: _Walk) -> str | None:
+    """When the root is not on the first axis (kinecal's own export: the root is the
+    measurement frame 'user'), the deepest fixed link above the first joint that is."""
+    p1, u1 = w.lines[0]
+    if _on_z(p1, u1):
+        return None
+    for link, T_root_link in reversed(w.fixed_above):
+        Ti = np.linalg.inv(T_root_link)
+        p_ = Ti[:3, :3] @ p1 + Ti[:3, 3]
+        if w.specs[0][1] == "prismatic":  # a slide's line can pass anywhere
+            p_ = np.zeros(3)
+        if _on_z(p_, Ti[:3, :3] @ u1):
+            return link
+    return None
+
+
 def robot_from_urdf(
     path: str | Path,
     *,
@@ -331,169 +514,38 @@ def robot_from_urdf(
         The chain leaves some of the file's movable joints out (a gripper's fingers, or
         half of a chain broken in two).
     """
-    p = Path(path)
-    try:
-        root = ET.parse(p).getroot()
-    except (OSError, ET.ParseError) as exc:
-        raise ConfigError(f"{p}: cannot read URDF ({exc}).") from exc
-    src = str(p)
-    base_given = base
-    text = p.read_text(errors="replace")
+    src = str(Path(path))
+    root, text, tip = _read(path, tip)
     declared = re.search(
         r"kinecal coupling \(theta = C q_ctrl\): (.*?)\s*(?:-->|$)", text, re.M
     )
-    if tip is None:  # kinecal's own export names its tip (the tool links hang below it)
-        m = re.search(r"kinecal tip link: (\S+)", text)
-        if m is not None and any(
-            el.get("name") == m.group(1) for el in root.iter("link")
-        ):
-            tip = m.group(1)
+    auto_base = base is None
     base, tip, chain = _chain(root, base, tip, src)
-    # Axis lines at the zero configuration, in the base link's frame.
-    auto_base = base_given is None
-    T = np.eye(4)
-    lines: list[tuple[np.ndarray, np.ndarray]] = []
-    specs: list[tuple[str, str, tuple[float, float]]] = []
-    mimics: dict[int, tuple[str, float, float]] = {}
-    rates: dict[str, tuple[float | None, float | None]] = {}
-    fixed_above: list[tuple[str, np.ndarray]] = []
-    placed: list[tuple[str, np.ndarray, int]] = [(base, np.eye(4), 0)]
-    for j in chain:
-        jn = j.get("name", "?")
-        T = T @ _origin(j, f"{src}: joint {jn!r} origin")
-        kind = j.get("type", "")
-        child = j.find("child").get("link", "")  # type: ignore[union-attr]
-        if kind not in _MOVABLE:
-            if kind != "fixed":
-                raise ConfigError(f"{src}: joint {jn!r} has unsupported type {kind!r}.")
-            if not lines:
-                fixed_above.append((child, T.copy()))
-            placed.append((child, T.copy(), len(lines)))
-            continue
-        mim = j.find("mimic")
-        if mim is not None:
-            mimics[len(lines)] = mimic_of(mim, f"{src}: joint {jn!r} mimic")
-        placed.append((child, T.copy(), len(lines) + 1))
-        ax_el = j.find("axis")
-        axis = _floats(
-            ax_el.get("xyz") if ax_el is not None else "1 0 0",
-            3,
-            f"{src}: joint {jn!r} axis",
-        )
-        if not np.linalg.norm(axis) > 1e-9:
-            raise ConfigError(
-                f"{src}: joint {jn!r} axis: expected a non-zero direction; got "
-                f"{axis.tolist()}."
-            )
-        axis = axis / np.linalg.norm(axis)
-        lim = j.find("limit")
-        lo, hi = -np.inf, np.inf
-        if kind != "continuous" and lim is not None:
-            lo, hi = _limits(lim, f"{src}: joint {jn!r} limit")
-        rates[jn] = rates_of(lim)
-        lines.append((T[:3, 3].copy(), T[:3, :3] @ axis))
-        specs.append((jn, "prismatic" if kind == "prismatic" else "revolute", (lo, hi)))
-    if not lines:
+    w = _walk(chain, base, src)
+    if not w.lines:
         raise ConfigError(f"{src}: no movable joint between {base!r} and {tip!r}.")
-    T_tip = T
-    if mimics:  # bodies numbered by the independent joints (a mimic joint's link
+    if w.mimics:  # bodies numbered by the independent joints (a mimic joint's link
         # belongs to the body of the joint it is merged with, or the one before)
-        kept = np.cumsum([i not in mimics for i in range(len(lines))])
-        placed = [(nm, Tp, int(kept[b - 1]) if b else 0) for nm, Tp, b in placed]
-    lines, specs, C, offsets = merge_mimics(lines, specs, mimics, src)
-    if declared is not None and not mimics:
-        C = declared_coupling(declared.group(1), len(lines), src)
-    p1, u1 = lines[0]
-    if specs[0][1] == "prismatic":  # a slide has no axis position: put it through 0
-        p1 = np.zeros(3)
-        lines[0] = (p1, u1)
-    if not _on_z(p1, u1) and auto_base and fixed_above:
-        # The root is not on the first axis (kinecal's own export: the root is the
-        # measurement frame 'user'): the deepest link above the first joint that is.
-        for link, T_root_link in reversed(fixed_above):
-            Ti = np.linalg.inv(T_root_link)
-            p_, u_ = Ti[:3, :3] @ p1 + Ti[:3, 3], Ti[:3, :3] @ u1
-            if specs[0][1] == "prismatic":  # a slide's line can pass anywhere
-                p_ = np.zeros(3)
-            if _on_z(p_, u_):
-                return robot_from_urdf(path, base=link, tip=tip, name=name)
-    if not _on_z(p1, u1):
-        raise ConfigError(
-            f"{src}: the first joint axis must be the base link's z axis (DH frame 0 "
-            f"sits on it); it is {np.round(u1, 6).tolist()} through "
-            f"{np.round(p1, 6).tolist()}. Choose another base link ({_HOW})."
-        )
-    if len(lines) < 2:
-        raise ConfigError(
-            f"{src}: one movable joint ({specs[0][0]!r}) between {base!r} and {tip!r}; "
-            "expected a chain of at least 2 (another --base or --tip?)."
-        )
-    # Frame 0 = base frame. Frames 1..n-1 on the axes 2..n; frame n on the last axis.
-    z_prev, x_prev, o_prev = (
-        np.array([0.0, 0.0, 1.0]),
-        np.array([1.0, 0.0, 0.0]),
-        np.zeros(3),
-    )
-    joints: list[JointSpec] = []
-    frames: list[np.ndarray] = []  # DH frames 1..n at the zero configuration
-    n = len(lines)
-    for i in range(n):
-        if i + 1 < n:
-            q, z = lines[i + 1]
-            c = np.cross(z_prev, z)
-            s = np.linalg.norm(c)
-            if s > _PARALLEL:
-                # x along the common normal; o where it meets the next axis.
-                x = c / s
-                A = np.column_stack([z_prev, -z])
-                ts, *_ = np.linalg.lstsq(A, q - o_prev, rcond=None)
-                o = q + ts[1] * z
-                if (o - o_prev) @ x < -_ON_AXIS:
-                    x = -x  # either normal direction is DH; this one gives a > 0
-            else:
-                # Parallel axes: the common normal through the previous origin.
-                w = q - o_prev
-                w_perp = w - (w @ z_prev) * z_prev
-                if np.linalg.norm(w_perp) > _ON_AXIS:
-                    x = w_perp / np.linalg.norm(w_perp)
-                else:  # the same line: keep x
-                    x = x_prev
-                o = q + ((o_prev - q) @ z) * z
-        else:
-            z = z_prev
-            x = x_prev
-            o = o_prev + ((T_tip[:3, 3] - o_prev) @ z) * z
-        d_vec = o - o_prev
-        theta = _angle(x_prev, x, z_prev)
-        d = float(d_vec @ z_prev)
-        a = float(d_vec @ x)
-        alpha = _angle(z_prev, z, x)
-        resid = d_vec - d * z_prev - a * x
-        if np.linalg.norm(resid) > 1e-7:
-            raise ConfigError(
-                f"{src}: could not place DH frame {i + 1} (residual "
-                f"{np.linalg.norm(resid):.2e} m); the chain may need MDH."
-            )
-        jname, jkind, jlim = specs[i]
-        if jkind == "revolute":
-            theta += offsets[i]
-        joints.append(JointSpec(jname, theta, d, a, alpha, jkind, jlim, *rates[jname]))
-        F = np.eye(4)
-        F[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-        F[:3, 3] = o
-        frames.append(F)
-        z_prev, x_prev, o_prev = z, x, o
-    F_n = np.eye(4)
-    F_n[:3, :3] = np.column_stack([x_prev, np.cross(z_prev, x_prev), z_prev])
-    F_n[:3, 3] = o_prev
-    T_n_flange = np.linalg.inv(F_n) @ T_tip
+        kept = np.cumsum([i not in w.mimics for i in range(len(w.lines))])
+        w.placed = [(nm, Tp, int(kept[b - 1]) if b else 0) for nm, Tp, b in w.placed]
+    w.lines, w.specs, C, offsets = merge_mimics(w.lines, w.specs, w.mimics, src)
+    if declared is not None and not w.mimics:
+        C = declared_coupling(declared.group(1), len(w.lines), src)
+    if w.specs[0][1] == "prismatic":  # a slide has no axis position: put it through 0
+        w.lines[0] = (np.zeros(3), w.lines[0][1])
+    if auto_base and w.fixed_above:
+        link = _base_on_first_axis(w)
+        if link is not None:
+            return robot_from_urdf(path, base=link, tip=tip, name=name)
+    _check_first_axis(w, base, tip, src)
+    joints, frames, T_n_flange = _dh_joints(w, offsets, src)
     return RobotDescription(
-        name=name or root.get("name") or p.stem,
+        name=name or root.get("name") or Path(path).stem,
         convention="dh",
         joints=tuple(joints),
         coupling=C,
         T_n_flange=T_n_flange,
         self_weight=None,
         source=f"{src} (URDF {base} -> {tip})",
-        link_masses=_link_masses(root, src, placed, frames),
+        link_masses=_link_masses(root, src, w.placed, frames),
     )

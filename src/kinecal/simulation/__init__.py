@@ -20,6 +20,13 @@ from kinecal.simulation._planning import (
     sphere_poses,
 )
 from kinecal.simulation._recovery import Recovery, noise_free, parameter_recovery
+from kinecal.simulation._robot_sensor import (
+    SENSOR_MOUNT_MM,
+    robot_sensor_experiment,
+    robot_sensor_truth,
+    robot_sensor_twin,
+    sensor_robot,
+)
 from kinecal.simulation._robot_twin import (
     gravity_torques,
     random_joint_poses,
@@ -38,6 +45,7 @@ __all__ = [
     "CERAMIC_SPHERES_MM",
     "EXTRAS",
     "PAPER_TABLES",
+    "SENSOR_MOUNT_MM",
     "Experiment",
     "LaserTracker",
     "PlannedPoses",
@@ -58,6 +66,10 @@ __all__ = [
     "random_joint_poses",
     "random_truth",
     "robot_experiment",
+    "robot_sensor_experiment",
+    "robot_sensor_truth",
+    "robot_sensor_twin",
     "robot_truth",
+    "sensor_robot",
     "sphere_poses",
 ]

@@ -24,6 +24,7 @@ import numpy as np
 from kinecal.measurement import Measurements
 from kinecal.models import CalibrationModel
 from kinecal.robot import RobotDescription
+from kinecal.robot._gravity import gravity_torques, random_joint_poses
 from kinecal.simulation._experiments import Experiment, _split
 from kinecal.simulation._instruments import LaserTracker
 from kinecal.simulation._planning import PlannedPoses
@@ -33,60 +34,6 @@ from kinecal.typing import Float
 __all__ = ["gravity_torques", "random_joint_poses", "robot_experiment", "robot_truth"]
 
 _TORQUE_POSES = 400
-
-
-def random_joint_poses(
-    robot: RobotDescription, n: int, rng: np.random.Generator
-) -> Float:
-    """``n`` controller poses (n, joints) drawn uniformly within the joint limits (5 %
-    margins; +-170 deg or +-0.5 m where a joint has no limit)."""
-    lim = robot.limits.copy()
-    wide = np.where(robot.prismatic, 0.5, np.radians(170.0))
-    lim[:, 0] = np.where(np.isfinite(lim[:, 0]), lim[:, 0], -wide)
-    lim[:, 1] = np.where(np.isfinite(lim[:, 1]), lim[:, 1], wide)
-    span = lim[:, 1] - lim[:, 0]
-    return rng.uniform(lim[:, 0] + 0.05 * span, lim[:, 1] - 0.05 * span, (n, len(span)))
-
-
-def gravity_torques(robot: RobotDescription, q_ctrl: Float) -> Float:
-    """Gravity torque about each joint (force along a slide) per unit payload weight of
-    the robot's link masses and a unit weight at the tool, (N, n) [m or 1].
-
-    From the robot's nominal DH chain: joint j carries every body k >= j and the tool,
-    ``tau_j = z_{j-1} · ((p - o_{j-1}) × ĝ) w`` with ``w`` the weight relative to the
-    payload's (``robot.payload_kg``, or 1 kg).
-    """
-    from kinecal.robot import dh_transforms
-
-    ch = robot.dh_chain()
-    th = robot.theta_from_ctrl(q_ctrl)
-    N, n = th.shape
-    rot = np.where(ch.prismatic, ch.theta_offset, ch.theta_offset + th)
-    dd = np.where(ch.prismatic, ch.d + th, ch.d)
-    A = dh_transforms(rot, dd, ch.a, ch.alpha)  # (N, n, 4, 4)
-    frames = [np.broadcast_to(ch.T_base_0, (N, 4, 4))]
-    for i in range(n):  # a loop over joints, not samples
-        frames.append(frames[-1] @ A[:, i])
-    tool = frames[-1] @ ch.T_n_flange @ robot.T_flange_tool
-    g = robot.gravity / np.linalg.norm(robot.gravity)
-    m_ref = robot.payload_kg or 1.0
-    loads = [(tool[:, :3, 3], 1.0, n)]
-    for b in robot.link_masses:
-        F = frames[b.frame]
-        loads.append(
-            (F[:, :3, :3] @ np.asarray(b.com) + F[:, :3, 3], b.mass / m_ref, b.frame)
-        )
-    tau = np.zeros((N, n))
-    for j in range(n):
-        z, o = frames[j][:, :3, 2], frames[j][:, :3, 3]
-        for p, w, k in loads:
-            if k <= j:
-                continue  # body k does not move with joint j + 1
-            if ch.prismatic[j]:
-                tau[:, j] += w * (z @ g)
-            else:
-                tau[:, j] += w * np.einsum("ni,ni->n", z, np.cross(p - o, g))
-    return tau
 
 
 def robot_truth(

@@ -101,19 +101,35 @@ def simulate_robot_twin(
     extras: tuple[str, ...] = (),
     noise_um: float | None = None,
     new_session: bool = False,
+    sensor: bool = False,
 ) -> SimulatedData:
     """A laser-tracker calibration of a twin of ``robot`` (random tolerances, gravity
     compliance from its self-weight layout or link masses), as ``kinecal simulate
     --robot`` makes it: ``n_train`` random poses (or ``q_train`` (N, n) [rad]) to
     calibrate, ``n_test`` to test, from a second tracker station with ``new_session``.
+    ``sensor``: a 3D sensor on the flange and four spheres instead (``--sensor``,
+    :func:`kinecal.simulation.robot_sensor_experiment`; ``noise_um`` across the optical
+    axis, twice that along it).
 
     Returns
     -------
     SimulatedData
-        The truth, the measurements to calibrate and to test.
+        The truth, the measurements to calibrate and to test (and the targets).
     """
     from kinecal.simulation import LaserTracker, robot_experiment, robot_truth
 
+    if sensor:
+        from kinecal.simulation import robot_sensor_twin
+
+        exp = robot_sensor_twin(
+            robot,
+            seed,
+            n_train=n_train,
+            n_test=n_test,
+            extras=extras,
+            noise_um=noise_um,
+        )
+        return SimulatedData(exp, exp.truth.description)
     tracker = (
         LaserTracker(noise_um * 1e-6, 0.0) if noise_um is not None else LaserTracker()
     )
