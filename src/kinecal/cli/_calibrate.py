@@ -19,7 +19,6 @@ from kinecal.cli._common import (
     check_folds,
     common_options,
     jobs_option,
-    manifest,
     model_file_option,
     parse_int_list,
     read_data_checked,
@@ -33,6 +32,14 @@ from kinecal.cli._iso9283 import (
 
 # Folds of the held-out figure `kinecal calibrate` reports by default (issue 38).
 DEFAULT_CV_FOLDS = 5
+# What `kinecal calibrate` writes into --out (residuals.csv: report.RESIDUALS_CSV).
+_RESULT_FILES = (
+    "model.yaml",
+    "report.json",
+    "report.html",
+    "residuals.csv",
+    "manifest.json",
+)
 
 
 def _options_from(loss: str, priors: str, stage2: str):
@@ -204,70 +211,104 @@ def calibrate(
     """
     from kinecal._parallel import available_cpus
     from kinecal.cli import EXIT_NOT_CONVERGED
-    from kinecal.io import (
-        atomic_write_bytes,
-        prepare_output_dir,
-        save_model,
-        write_json,
-    )
-    from kinecal.models import kernel_name
-    from kinecal.report import RESIDUALS_CSV, calibration_summary, pose_errors
-
-    result_files = (
-        "model.yaml",
-        "report.json",
-        "report.html",
-        RESIDUALS_CSV,
-        "manifest.json",
+    from kinecal.io import prepare_output_dir
+    from kinecal.report._certificate import certificate_block, temperature_range
+    from kinecal.workflows import calibrate_measurements
+    from kinecal.workflows._calibrate import (
+        calibration_files,
+        group_labels,
+        write_calibration,
     )
 
-    from kinecal.errors import DataError
-    from kinecal.report._acceptance import acceptance, parse_accept, verdict_line
-    from kinecal.report._certificate import (
-        certificate_block,
-        parse_meta,
-        temperature_range,
-    )
-
-    try:
-        meta_fields = parse_meta(meta)
-    except ValueError as exc:
-        raise click.BadParameter(str(exc), param_hint="--meta") from None
-    cv_folds = _cv_folds(cv_text)
-    cv_default = cv_text == str(DEFAULT_CV_FOLDS)
-
-    limits = None
-    if accept is not None:
-        try:
-            limits = parse_accept(accept)
-        except ValueError as exc:
-            raise click.BadParameter(str(exc), param_hint="--accept") from None
+    meta_fields, cv_folds, limits = _checked_options(meta, cv_text, accept)
     say = Progress(quiet)
     jobs = jobs or available_cpus()
     robot = _load_robot(robot_name)
     # The result folder first: a clash or an unwritable --out stops the run at once.
-    out = prepare_output_dir(out_dir, list(result_files), force=force)
+    out = prepare_output_dir(out_dir, list(_RESULT_FILES), force=force)
     say.begin("data", f"reading {data}")
     meas, data_checks = read_data_checked(data, robot, targets, allow_out_of_limits)
     say("data", f"{meas.n} {meas.kind} rows from {data}")
     opts = replace(
         _options_from(loss, priors, stage2), reject=reject, reject_z=reject_z
     )
-    groups = _group_labels(data, cv_groups, meas.rows) if cv_groups else None
+    groups = group_labels(data, cv_groups, meas.rows) if cv_groups else None
     if cv_folds is not None:  # the folds' own check, before the calibration runs
-        try:
-            check_folds(meas, cv_folds, groups, cv_groups)
-        except DataError as exc:
-            if not cv_default:
-                raise
-            # the default folds do not fit these data: no held-out figure, said so
-            click.echo(f"note      no cross-validation: {exc}", err=True)
-            cv_folds = None
-    extra: dict[str, object] = {"data_checks": [d.as_dict() for d in data_checks]}
-    extra["certificate"] = certificate_block(
-        meta_fields, temperature_range(data, meas.rows)
+        cv_folds = _usable_folds(meas, cv_folds, groups, cv_groups, cv_text)
+    certificate = certificate_block(meta_fields, temperature_range(data, meas.rows))
+    nj = _transmission_joints(ntm_joints, robot)
+    run = calibrate_measurements(
+        robot, meas, model=model_name, options=opts, hayati=hayati, ntm_joints=nj,
+        ntm_order=ntm_order, cv_folds=cv_folds, groups=groups,
+        group_name=cv_groups or "group", jobs=jobs, progress=say,
+    )  # fmt: skip
+    if run.held_out is not None:
+        for note in dict.fromkeys(
+            n for fig in run.held_out.figures for n in fig.folds.notes
+        ):
+            click.echo(f"warning   {note}", err=True)
+    files = calibration_files(
+        run, meas, data_checks=data_checks, certificate=certificate, limits=limits
     )
-    nj = parse_int_list(ntm_joints, "--ntm-joints", robot.n_joints) or robot.ntm_joints
+    settings = {
+        "model": model_name, "loss": loss, "priors": priors, "stage2": stage2,
+        "hayati": list(run.hayati), "ntm_joints": list(nj), "ntm_order": ntm_order,
+        "cv": cv_folds, "cv_groups": cv_groups, "reject": reject,
+        "reject_z": reject_z, "accept": accept,
+    }  # fmt: skip
+    inputs = {"data": data, "targets": targets, "robot": robot_name}
+    written = write_calibration(
+        out, run, files, inputs, settings, meta_fields, report, say
+    )
+    if report:
+        say("report", f"wrote {Path(out_dir) / 'report.html'}")
+    _print_summary(run, files, limits is not None)
+    click.echo(f"wrote     {Path(out_dir)}{os.sep}: {', '.join(written)}")
+    if not run.result.success:
+        sys.exit(EXIT_NOT_CONVERGED)
+
+
+def _checked_options(
+    meta: tuple[str, ...], cv_text: str, accept: str | None
+) -> tuple[dict[str, str], int | None, tuple[float, float | None] | None]:
+    """``--meta``, ``--cv`` and ``--accept`` parsed: (fields, folds, limits)."""
+    from kinecal.report._acceptance import parse_accept
+    from kinecal.report._certificate import parse_meta
+
+    try:
+        meta_fields = parse_meta(meta)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="--meta") from None
+    cv_folds = _cv_folds(cv_text)
+    limits = None
+    if accept is not None:
+        try:
+            limits = parse_accept(accept)
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint="--accept") from None
+    return meta_fields, cv_folds, limits
+
+
+def _usable_folds(
+    meas: Any, k: int, groups: Any, cv_groups: str | None, cv_text: str
+) -> int | None:
+    """``--cv K`` checked on the data; the default K that does not fit them: None,
+    with a note (no held-out figure, said so)."""
+    from kinecal.errors import DataError
+
+    try:
+        check_folds(meas, k, groups, cv_groups)
+    except DataError as exc:
+        if cv_text != str(DEFAULT_CV_FOLDS):
+            raise
+        click.echo(f"note      no cross-validation: {exc}", err=True)
+        return None
+    return k
+
+
+def _transmission_joints(text: str | None, robot: Any) -> tuple[int, ...]:
+    """``--ntm-joints`` (default: the robot's), each a revolute joint."""
+    nj = parse_int_list(text, "--ntm-joints", robot.n_joints) or robot.ntm_joints
     revolute = [i + 1 for i, j in enumerate(robot.joints) if j.kind != "prismatic"]
     bad = [j for j in nj if j not in revolute]
     if bad:
@@ -276,95 +317,36 @@ def calibrate(
             f"series needs one); its revolute joints: {', '.join(map(str, revolute))}.",
             param_hint="--ntm-joints",
         )
-    from kinecal.workflows import calibrate_measurements
+    return tuple(nj)
 
-    run = calibrate_measurements(
-        robot,
-        meas,
-        model=model_name,
-        options=opts,
-        hayati=hayati,
-        ntm_joints=nj,
-        ntm_order=ntm_order,
-        cv_folds=cv_folds,
-        groups=groups,
-        group_name=cv_groups or "group",
-        jobs=jobs,
-        progress=say,
-    )
-    result, spec, held, hay = run.result, run.spec, run.held_out, run.hayati
-    extra.update(run.report_extra())
-    if held is not None:
-        for note in dict.fromkeys(n for fig in held.figures for n in fig.folds.notes):
-            click.echo(f"warning   {note}", err=True)
-    if limits is not None:
-        extra["acceptance"] = acceptance(*limits, held, result.metrics_after)
-    from kinecal.report._headline import accuracy_block, accuracy_lines
 
-    errors = pose_errors(result, meas)
-    extra["accuracy"] = accuracy_block(errors, held)
-    say("write", "model.yaml, report.json, residuals.csv, manifest.json")
-    summary = calibration_summary(result, extra=extra)
-    save_model(out / "model.yaml", result.calibrated, force=True)
-    write_json(out / "report.json", summary, force=True)
-    # In blocks of rows: a large file's text is never held whole.
-    blocks = errors.csv_blocks()
-    atomic_write_bytes(
-        out / RESIDUALS_CSV, (b.encode("utf-8") for b in blocks), force=True
-    )
-    written = ["model.yaml", "report.json", RESIDUALS_CSV, "manifest.json"]
-    written += ["report.html"] if report else []
-    run_manifest = manifest(
-        {"data": data, "targets": targets, "robot": robot_name},
-        {
-            "model": model_name,
-            "loss": loss,
-            "priors": priors,
-            "stage2": stage2,
-            "hayati": list(hay),
-            "ntm_joints": list(nj),
-            "ntm_order": ntm_order,
-            "cv": cv_folds,
-            "cv_groups": cv_groups,
-            "reject": reject,
-            "reject_z": reject_z,
-            "accept": accept,
-            "model_code": kernel_name(result.calibrated.model),
-        },
-        files=written,
-        folder=out,
-    )
-    run_manifest["meta"] = meta_fields
-    write_json(out / "manifest.json", run_manifest, force=True)
-    if report:  # drawn from the files just written, as `kinecal report DIR` does
-        from kinecal.report import write_report
+def _print_summary(run: Any, files: Any, accept: bool) -> None:
+    """The console summary: model, accuracy (held-out first), before, notes, verdict,
+    identifiability notes; the result's warnings on stderr."""
+    from kinecal.report._acceptance import verdict_line
+    from kinecal.report._headline import accuracy_lines
 
-        say("report", "drawing report.html")
-        write_report(out, force=True)
-        say("report", f"wrote {Path(out_dir) / 'report.html'}")
+    result, summary = run.result, files.summary
     b = result.metrics_before
     click.echo(
-        f"model     {spec.name}: {result.identifiability.rank} of "
+        f"model     {run.spec.name}: {result.identifiability.rank} of "
         f"{result.calibrated.model.size} parameters estimated"
     )
     # the figure the user will get first: held-out (when it ran), then the fit's own
-    for line in accuracy_lines(extra["accuracy"]):  # type: ignore[arg-type]
+    for line in accuracy_lines(summary["accuracy"]):
         click.echo(line)
     click.echo(
         f"before    RMS {b.rms_mm:.4f} mm  max {b.max_mm:.4f} mm  (nominal, frames fitted)"
     )
-    if held is not None:
-        for note in held.notes:
+    if run.held_out is not None:
+        for note in run.held_out.notes:
             click.echo(f"note      {note}")
-    if limits is not None:
-        click.echo(f"accept    {verdict_line(extra['acceptance'])}")  # type: ignore[arg-type]
+    if accept:
+        click.echo(f"accept    {verdict_line(summary['acceptance'])}")
     for line in result.identifiability.summary()[1:]:
         click.echo(f"note      {line}")
     for w in result.warnings:
         click.echo(f"warning   {w}", err=True)
-    click.echo(f"wrote     {Path(out_dir)}{os.sep}: {', '.join(written)}")
-    if not result.success:
-        sys.exit(EXIT_NOT_CONVERGED)
 
 
 def _cv_folds(text: str) -> int | None:
@@ -381,24 +363,6 @@ def _cv_folds(text: str) -> int | None:
             param_hint="--cv",
         )
     return k
-
-
-def _group_labels(data: str, column: str, rows: Any) -> Any:
-    """The values of ``column`` of the measurement file, one per row of the data."""
-    import numpy as np
-
-    from kinecal.errors import DataError
-    from kinecal.io import read_table
-
-    table = read_table(data)
-    if column not in table.header:
-        raise DataError(
-            f"{data}: --cv-groups names column {column!r}, which the file does not "
-            f"have (columns: {', '.join(table.header)})."
-        )
-    k = table.header.index(column)
-    by_line = {line: row[k].strip() for line, row in zip(table.lines, table.rows)}
-    return np.array([by_line[int(r)] for r in rows])
 
 
 def _refit_groups(text: str | None) -> tuple[str, ...]:
