@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import os
 import sys
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +19,7 @@ from kinecal.cli._common import (
     common_options,
     jobs_option,
     model_file_option,
+    option_table,
     parse_int_list,
     read_data_checked,
     targets_option,
@@ -42,141 +42,71 @@ _RESULT_FILES = (
 )
 
 
-def _options_from(loss: str, priors: str, stage2: str):
-    from kinecal.identification import CalibrationOptions
-
-    return CalibrationOptions(loss=loss, priors=priors, stage2=stage2)
+_CHOICE = click.Choice
+# (option declarations, settings) of `kinecal calibrate`, in the order --help lists them.
+# fmt: off
+_OPTIONS: list[Any] = [
+    (("--robot", "robot_name"), {"required": True, "metavar": "NAME|FILE", "help":
+        "Built-in robot (see `kinecal robots`) or robot YAML file."}),
+    (("--model", "model_name"), {"type": _CHOICE(MODEL_CHOICES), "default": "auto",
+        "show_default": True, "help": "kinematic (paper MDH), ntm, rfcm, full (paper "
+        "'Ours'), or auto: the terms the data support, chosen by cross-validation over "
+        "whole regions of the workspace (whole sessions when DATA has several sets)."}),
+    (("--out", "out_dir"), {"required": True, "type": click.Path(file_okay=False),
+        "help": "Output folder for model.yaml, report.json, residuals.csv (per-pose "
+        "errors), manifest.json and report.html."}),
+    targets_option,
+    (("--loss",), {"type": _CHOICE(("linear", "huber", "soft_l1")), "default": "linear",
+        "show_default": True, "help": "Robust loss on whole rows (outliers are always "
+        "reported)."}),
+    (("--priors",), {"type": _CHOICE(("all", "compliance", "none")), "default": "all",
+        "show_default": True, "help": "Physical priors (MAP): 'none' is the paper's "
+        "plain least squares."}),
+    (("--stage2",), {"type": _CHOICE(("direct", "project", "none")), "default": "direct",
+        "show_default": True, "help": "Stage-2 Fourier fit: on position residuals, or "
+        "projected to joints (Eq. 29)."}),
+    (("--hayati",), {"is_flag": True, "help": "Hayati rows (no d) for joints whose axis "
+        "is parallel to the next one."}),
+    (("--ntm-joints",), {"metavar": "J,J,..", "help": "Joints with transmission terms "
+        "[default: the three revolute joints with the longest lever to the tool: 1,2,3 "
+        "on 6-axis arms]."}),
+    (("--ntm-order",), {"type": click.IntRange(1, 8), "default": 2, "show_default": True,
+        "help": "Order of the Fourier series (Eq. 16)."}),
+    (("--report/--no-report",), {"default": True, "show_default": True, "help":
+        "Write report.html with figures."}),
+    (("--cv", "cv_text"), {"default": str(DEFAULT_CV_FOLDS), "show_default": True,
+        "metavar": "K|off", "help": "Report K-fold cross-validated held-out errors of "
+        "the chosen model (random poses, and whole sessions or regions) and of the "
+        "nominal one; the summary leads with them. 'off' skips them (the summary then "
+        "has the errors on the calibration data only)."}),
+    (("--cv-groups", "cv_groups"), {"metavar": "COLUMN", "help": "A column of DATA whose "
+        "equal values must stay in one fold of --cv and --model auto (default: rows "
+        "measured at the same joints stay together; several sets are folded whole)."}),
+    (("--reject",), {"type": _CHOICE(("auto", "off")), "default": "auto",
+        "show_default": True, "help": "Leave out gross errors (rows far beyond the noise "
+        "of the others, standing apart, not explained by the pose) and fit again "
+        "without them; 'off' only reports improbable rows."}),
+    (("--reject-z",), {"type": FiniteFloat(0.0, low_open=True), "default": None,
+        "metavar": "Z", "help": "Reject every row beyond Z robust sigmas (whitened error "
+        "over the robust noise) instead of the automatic test."}),
+    (("--accept", "accept"), {"metavar": "RMS_MM[,MAX_MM]", "help": "Acceptance limits: "
+        "a PASS/FAIL verdict on the held-out errors (on the calibration data when "
+        "cross-validation is off) in the console, report.json ('acceptance') and "
+        "report.html; the exit code does not change."}),
+    (("--meta", "meta"), {"multiple": True, "metavar": "KEY=VALUE", "help": "A "
+        "certificate field (repeatable): robot serial, instrument and its certificate, "
+        "operator, site, standard, ...; stored in manifest.json and report.json and "
+        "shown in report.html."}),
+    jobs_option("Worker processes for the cross-validation of --model auto and --cv"),
+    allow_out_of_limits_option,
+    (("--force",), {"is_flag": True, "help": "Overwrite results already in --out."}),
+]
+# fmt: on
 
 
 @click.command()
 @click.argument("data", type=click.Path(dir_okay=False))
-@click.option(
-    "--robot",
-    "robot_name",
-    required=True,
-    metavar="NAME|FILE",
-    help="Built-in robot (see `kinecal robots`) or robot YAML file.",
-)
-@click.option(
-    "--model",
-    "model_name",
-    type=click.Choice(MODEL_CHOICES),
-    default="auto",
-    show_default=True,
-    help="kinematic (paper MDH), ntm, rfcm, full (paper 'Ours'), or auto: the terms "
-    "the data support, chosen by cross-validation over whole regions of the workspace "
-    "(whole sessions when DATA has several sets).",
-)
-@click.option(
-    "--out",
-    "out_dir",
-    required=True,
-    type=click.Path(file_okay=False),
-    help="Output folder for model.yaml, report.json, residuals.csv (per-pose errors), "
-    "manifest.json and report.html.",
-)
-@targets_option
-@click.option(
-    "--loss",
-    type=click.Choice(("linear", "huber", "soft_l1")),
-    default="linear",
-    show_default=True,
-    help="Robust loss on whole rows (outliers are always reported).",
-)
-@click.option(
-    "--priors",
-    type=click.Choice(("all", "compliance", "none")),
-    default="all",
-    show_default=True,
-    help="Physical priors (MAP): 'none' is the paper's plain least squares.",
-)
-@click.option(
-    "--stage2",
-    type=click.Choice(("direct", "project", "none")),
-    default="direct",
-    show_default=True,
-    help="Stage-2 Fourier fit: on position residuals, or projected to joints (Eq. 29).",
-)
-@click.option(
-    "--hayati",
-    is_flag=True,
-    help="Hayati rows (no d) for joints whose axis is parallel to the next one.",
-)
-@click.option(
-    "--ntm-joints",
-    metavar="J,J,..",
-    help="Joints with transmission terms [default: the three revolute joints with the "
-    "longest lever to the tool: 1,2,3 on 6-axis arms].",
-)
-@click.option(
-    "--ntm-order",
-    type=click.IntRange(1, 8),
-    default=2,
-    show_default=True,
-    help="Order of the Fourier series (Eq. 16).",
-)
-@click.option(
-    "--report/--no-report",
-    default=True,
-    show_default=True,
-    help="Write report.html with figures.",
-)
-@click.option(
-    "--cv",
-    "cv_text",
-    default=str(DEFAULT_CV_FOLDS),
-    show_default=True,
-    metavar="K|off",
-    help="Report K-fold cross-validated held-out errors of the chosen model "
-    "(random poses, and whole sessions or regions) and of the nominal one; the summary "
-    "leads with them. 'off' skips them (the summary then has the errors on the "
-    "calibration data only).",
-)
-@click.option(
-    "--cv-groups",
-    "cv_groups",
-    metavar="COLUMN",
-    help="A column of DATA whose equal values must stay in one fold of --cv and "
-    "--model auto (default: rows measured at the same joints stay together; several "
-    "sets are folded whole).",
-)
-@click.option(
-    "--reject",
-    type=click.Choice(("auto", "off")),
-    default="auto",
-    show_default=True,
-    help="Leave out gross errors (rows far beyond the noise of the others, standing "
-    "apart, not explained by the pose) and fit again without them; 'off' only reports "
-    "improbable rows.",
-)
-@click.option(
-    "--reject-z",
-    type=FiniteFloat(0.0, low_open=True),
-    default=None,
-    metavar="Z",
-    help="Reject every row beyond Z robust sigmas (whitened error over the robust noise) "
-    "instead of the automatic test.",
-)
-@click.option(
-    "--accept",
-    "accept",
-    metavar="RMS_MM[,MAX_MM]",
-    help="Acceptance limits: a PASS/FAIL verdict on the held-out errors (on the "
-    "calibration data when cross-validation is off) in the console, report.json "
-    "('acceptance') and report.html; the exit code does not change.",
-)
-@click.option(
-    "--meta",
-    "meta",
-    multiple=True,
-    metavar="KEY=VALUE",
-    help="A certificate field (repeatable): robot serial, instrument and its "
-    "certificate, operator, site, standard, ...; stored in manifest.json and "
-    "report.json and shown in report.html.",
-)
-@jobs_option("Worker processes for the cross-validation of --model auto and --cv")
-@allow_out_of_limits_option
-@click.option("--force", is_flag=True, help="Overwrite results already in --out.")
+@option_table(_OPTIONS)
 @common_options
 def calibrate(
     data: str,
@@ -211,8 +141,10 @@ def calibrate(
     """
     from kinecal._parallel import available_cpus
     from kinecal.cli import EXIT_NOT_CONVERGED
+    from kinecal.identification import CalibrationOptions
     from kinecal.io import prepare_output_dir
     from kinecal.report._certificate import certificate_block, temperature_range
+    from kinecal.robot import load_robot
     from kinecal.workflows import calibrate_measurements
     from kinecal.workflows._calibrate import (
         calibration_files,
@@ -223,14 +155,14 @@ def calibrate(
     meta_fields, cv_folds, limits = _checked_options(meta, cv_text, accept)
     say = Progress(quiet)
     jobs = jobs or available_cpus()
-    robot = _load_robot(robot_name)
+    robot = load_robot(robot_name)
     # The result folder first: a clash or an unwritable --out stops the run at once.
     out = prepare_output_dir(out_dir, list(_RESULT_FILES), force=force)
     say.begin("data", f"reading {data}")
     meas, data_checks = read_data_checked(data, robot, targets, allow_out_of_limits)
     say("data", f"{meas.n} {meas.kind} rows from {data}")
-    opts = replace(
-        _options_from(loss, priors, stage2), reject=reject, reject_z=reject_z
+    opts = CalibrationOptions(
+        loss=loss, priors=priors, stage2=stage2, reject=reject, reject_z=reject_z
     )
     groups = group_labels(data, cv_groups, meas.rows) if cv_groups else None
     if cv_folds is not None:  # the folds' own check, before the calibration runs
@@ -383,38 +315,28 @@ def _stderr(line: str) -> None:
     click.echo(line, err=True)
 
 
-def _load_robot(name: str):
-    from kinecal.robot import load_robot
-
-    return load_robot(name)
+# fmt: off
+_EVALUATE_OPTIONS: list[Any] = [
+    model_file_option,
+    targets_option,
+    (("--refit",), {"metavar": "WHAT[,WHAT]", "help": "Re-estimate on DATA first: "
+        "'user' (the user frames: a new instrument set-up), 'tool' (the tool frame: a "
+        "re-mounted probe or reflector nest), 'marker' (each marker's offset); e.g. "
+        "--refit user,tool."}),
+    (("--json", "as_json"), {"is_flag": True, "help": 'Print {"n", "rms_mm", "std_mm", '
+        '"mean_mm", "max_mm"} (with --iso9283: {"iso9283": ...}).'}),
+    (("--errors-out",), {"type": click.Path(dir_okay=False), "help": "Write per-row "
+        "errors (row, ex_mm, ey_mm, ez_mm, err_mm) to this CSV."}),
+    iso_evaluate_options,
+    allow_out_of_limits_option,
+    (("--force",), {"is_flag": True, "help": "Overwrite --errors-out (and --out)."}),
+]
+# fmt: on
 
 
 @click.command()
 @click.argument("data", type=click.Path(dir_okay=False))
-@model_file_option
-@targets_option
-@click.option(
-    "--refit",
-    metavar="WHAT[,WHAT]",
-    help="Re-estimate on DATA first: 'user' (the user frames: a new instrument "
-    "set-up), 'tool' (the tool frame: a re-mounted probe or reflector nest), 'marker' "
-    "(each marker's offset); e.g. --refit user,tool.",
-)
-@click.option(
-    "--json",
-    "as_json",
-    is_flag=True,
-    help='Print {"n", "rms_mm", "std_mm", "mean_mm", "max_mm"} (with --iso9283: '
-    '{"iso9283": ...}).',
-)
-@click.option(
-    "--errors-out",
-    type=click.Path(dir_okay=False),
-    help="Write per-row errors (row, ex_mm, ey_mm, ez_mm, err_mm) to this CSV.",
-)
-@iso_evaluate_options
-@allow_out_of_limits_option
-@click.option("--force", is_flag=True, help="Overwrite --errors-out (and --out).")
+@option_table(_EVALUATE_OPTIONS)
 @common_options
 def evaluate(
     data: str,
@@ -458,15 +380,7 @@ def evaluate(
         return run_iso_evaluate(
             cal, meas, data, what, iso_out, force, as_json, model_path
         )
-    m = ev.metrics
     if as_json:
-        click.echo(json.dumps(m.contract()))
+        click.echo(json.dumps(ev.metrics.contract()))
         return
-    click.echo(f"poses  {m.n}" + (f"  (refitted: {', '.join(what)})" if what else ""))
-    click.echo(
-        f"RMS    {m.rms_mm:.4f} mm   Std {m.std_mm:.4f}   Avg {m.mean_mm:.4f}   "
-        f"Max {m.max_mm:.4f} mm"
-    )
-    click.echo("axes   RMS x {:.4f}  y {:.4f}  z {:.4f} mm".format(*m.rms_xyz_mm))
-    if m.rot_rms_deg is not None:
-        click.echo(f"orient RMS {m.rot_rms_deg:.4f} deg   Max {m.rot_max_deg:.4f} deg")
+    click.echo("\n".join(run.summary_lines()))

@@ -230,6 +230,20 @@ def parse_int_list(
     return out
 
 
+def option_table(
+    table: list[Any],
+) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """The options of a command from a table, in the order ``--help`` lists them: each
+    entry ``(declarations, settings)`` of :func:`click.option`, or an option decorator."""
+
+    def apply(f: Callable[..., Any]) -> Callable[..., Any]:
+        for entry in reversed(table):
+            f = entry(f) if callable(entry) else click.option(*entry[0], **entry[1])(f)
+        return f
+
+    return apply
+
+
 def common_options(f: Callable[..., Any]) -> Callable[..., Any]:
     f = click.option("--quiet", "-q", is_flag=True, help="No progress display.")(f)
     return f

@@ -15,6 +15,7 @@ from kinecal.cli._common import (
     allow_out_of_limits_option,
     common_options,
     manifest,
+    option_table,
     parse_floats,
 )
 from kinecal.cli._iso9283 import iso_plan_options, run_iso_plan
@@ -126,14 +127,8 @@ _OPTIONS: list[tuple[tuple[str, ...], dict[str, Any]]] = [
 # fmt: on
 
 
-def _options(f: Any) -> Any:
-    for decls, settings in reversed(_OPTIONS):
-        f = click.option(*decls, **settings)(f)
-    return f
-
-
 @click.command()
-@_options
+@option_table(_OPTIONS)
 @iso_plan_options
 @allow_out_of_limits_option
 @common_options

@@ -6,45 +6,9 @@ they are written, on a pool of threads, a few at a time: memory stays at a few i
 
 from __future__ import annotations
 
-from typing import Any
-
 import click
 
 from kinecal.cli._common import SEED, Progress, common_options, jobs_option
-
-
-def _check_scene(sen: Any, c: Any, r: float, idx: Any) -> None:
-    """Refuse a sphere the scan cannot see (an empty set of images with exit 0): behind
-    the camera or around it, outside the image, or missed by every rendered light
-    plane. ``c`` (3,) [m] camera frame, ``r`` [m], ``idx`` the rendered planes."""
-    import numpy as np
-
-    c_mm, r_mm = ", ".join(f"{v:g}" for v in c * 1e3), r * 1e3
-    if c[2] - r <= 0:
-        raise click.BadParameter(
-            f"the sphere ({c_mm}) mm, radius {r_mm:g} mm, is not wholly in front of the "
-            f"camera; expected Z > {r_mm:g} mm (the working distance is 115-135 mm)",
-            param_hint="--center-mm",
-        )
-    cam = sen.camera
-    xy = c[:2] / c[2]
-    uv = cam.project(c)
-    if (
-        np.abs(xy).max() > 1.0  # beyond 45 deg off axis (where the distortion folds)
-        or not (-0.5 <= uv[0] <= cam.width - 0.5 and -0.5 <= uv[1] <= cam.height - 0.5)
-    ):
-        raise click.BadParameter(
-            f"the sphere centre ({c_mm}) mm is outside the camera's "
-            f"{cam.width}x{cam.height} image; expected a centre in view, e.g. 0,0,125",
-            param_hint="--center-mm",
-        )
-    if not np.any(np.abs(sen.planes.distance(c, idx)) < r):
-        raise click.BadParameter(
-            f"no rendered light plane meets the sphere ({c_mm}) mm, radius {r_mm:g} mm: "
-            "the images would be empty; expected a sphere at the working distance "
-            "(115-135 mm), e.g. 0,0,125",
-            param_hint="--center-mm",
-        )
 
 
 @click.command("simulate-scan")
@@ -87,7 +51,7 @@ def simulate_scan(
     from kinecal.io import prepare_output_dir
     from kinecal.sensor import paper_sensor
     from kinecal.workflows import render_scan
-    from kinecal.workflows._sensor_sim import scan_files
+    from kinecal.workflows._sensor_sim import scan_files, scene_problem
 
     prog = Progress(quiet)
     if not radius_mm > 0:
@@ -98,7 +62,9 @@ def simulate_scan(
     center = _triple(center_mm, "--center-mm")
     c = np.array(center) * 1e-3
     idx = np.arange(0, len(sen.planes), every)
-    _check_scene(sen, c, radius_mm * 1e-3, idx)
+    problem = scene_problem(sen, c, radius_mm * 1e-3, idx)
+    if problem:  # an empty set of images with exit 0 otherwise
+        raise click.BadParameter(problem, param_hint="--center-mm")
     d = prepare_output_dir(out, scan_files(every), force=force)
     ses = render_scan(
         d, center, radius_mm, every=every, seed=seed, jobs=jobs, progress=prog
