@@ -199,6 +199,24 @@ def parse_floats(text: str, n: int, name: str) -> list[float]:
     return vals
 
 
+def parse_pose(text: str | None, name: str, sizes: tuple[int, ...] = (6,)) -> Any:
+    """``X,Y,Z,R,W,P`` (or, with ``sizes`` (3, 6), also ``X,Y,Z``) [mm, deg; Trans
+    Rz(R) Ry(W) Rx(P)] as a (4, 4) transform [m]; None stays None. Else a usage error
+    naming the option ``name``."""
+    if text is None:
+        return None
+    import numpy as np
+
+    from kinecal.geometry import euler_transform
+
+    n = len(text.split(",")) if len(sizes) > 1 else sizes[0]
+    vals = parse_floats(text, n, name)
+    if n not in sizes:
+        raise click.BadParameter("expected X,Y,Z or X,Y,Z,R,W,P", param_hint=name)
+    vals += [0.0] * (6 - n)
+    return euler_transform([*np.array(vals[:3]) * 1e-3, *np.radians(vals[3:])])
+
+
 def parse_int_list(
     text: str | None, name: str, n_max: int | None = None
 ) -> tuple[int, ...] | None:

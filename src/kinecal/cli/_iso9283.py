@@ -14,7 +14,7 @@ from typing import Any
 
 import click
 
-from kinecal.cli._common import FiniteFloat, Progress, parse_floats
+from kinecal.cli._common import FiniteFloat, Progress, parse_floats, parse_pose
 
 _PLAN_FLAGS = ("candidates", "poses", "add_n")
 
@@ -73,7 +73,7 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
     """``kinecal plan --iso9283``: PLAN.csv and PLAN.report.json."""
     import numpy as np
 
-    from kinecal.geometry import euler_transform, euler_zyx_to_matrix
+    from kinecal.geometry import euler_zyx_to_matrix
     from kinecal.io import atomic_write_files, json_text
     from kinecal.robot import load_robot
     from kinecal.workflows import iso_test_program
@@ -124,13 +124,7 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
     if kw["cube_centre"]:
         c = parse_floats(kw["cube_centre"], 3, "--cube-centre")
         centre = (c[0], c[1], c[2])
-    T_tool = None
-    if kw["tool"]:  # the tool point the cube's points are for
-        n = len(kw["tool"].split(","))
-        tool = parse_floats(kw["tool"], n if n in (3, 6) else 6, "--tool") + [0.0] * (
-            6 - n
-        )
-        T_tool = euler_transform([*np.array(tool[:3]) * 1e-3, *np.radians(tool[3:])])
+    T_tool = parse_pose(kw["tool"] or None, "--tool", (3, 6))  # the cube's tool point
     prog = iso_test_program(
         robot, cal=cal, edge_mm=kw["cube_mm"], centre_mm=centre, R_base_tool=R,
         cycles=kw["cycles"], plane=kw["iso_plane"], seed=kw["seed"],

@@ -17,6 +17,7 @@ from kinecal.cli._common import (
     manifest,
     option_table,
     parse_floats,
+    parse_pose,
 )
 from kinecal.cli._iso9283 import iso_plan_options, run_iso_plan
 
@@ -150,13 +151,14 @@ def plan(**kw: Any) -> None:
 
 def _setup(kw: dict[str, Any], say: Progress) -> PlanSetup:
     """Robot, model, design point and instrument from the options."""
-    import numpy as np
-
-    from kinecal.errors import ConfigError
-    from kinecal.geometry import euler_transform
     from kinecal.io import load_model, read_targets
     from kinecal.robot import load_robot
     from kinecal.workflows import plan_setup
+    from kinecal.workflows._plan import (
+        calibration_noise_mm,
+        default_instrument,
+        model_robot,
+    )
 
     name = kw["model_name"]
     sequential = name not in _PRESETS
@@ -173,27 +175,17 @@ def _setup(kw: dict[str, Any], say: Progress) -> PlanSetup:
         )
     cal = load_model(name) if sequential else None
     if cal is not None:
-        robot = cal.model.robot
-        if kw["robot_name"] and load_robot(kw["robot_name"]).name != robot.name:
-            raise ConfigError(
-                f"--robot {kw['robot_name']}, but {name} was calibrated for "
-                f"{robot.name}: a model and a robot of different kinds."
-            )
+        robot = model_robot(cal, kw["robot_name"], name)
     elif kw["robot_name"]:
         robot = load_robot(kw["robot_name"])
     else:
         raise click.UsageError("--robot is required (or --model DIR/model.yaml).")
-    kind_of = {"point": "tracker", "pose": "pose", "sensor": "sensor"}
-    inst_name = kw["instrument"] or (
-        kind_of.get(str(cal.info.get("kind")), "tracker") if cal else "tracker"
-    )
+    inst_name = kw["instrument"] or default_instrument(cal)
     noise_mm = kw["noise_mm"]
     if noise_mm is None and cal is not None:
-        rep = Path(name).with_name("report.json")
-        if rep.is_file():
-            noise_mm = json.loads(rep.read_text()).get("noise_sigma_mm")
-            if noise_mm:
-                say("noise", f"{noise_mm:.4g} mm per axis from {rep}")
+        noise_mm, rep = calibration_noise_mm(name)
+        if noise_mm:
+            say("noise", f"{noise_mm:.4g} mm per axis from {rep}")
     tg = read_targets(kw["targets"]) if kw["targets"] else None
     if inst_name == "sensor" and tg is None:
         raise click.UsageError("--instrument sensor needs --targets T.csv.")
@@ -202,20 +194,10 @@ def _setup(kw: dict[str, Any], say: Progress) -> PlanSetup:
             f"--targets is for --instrument sensor; --instrument {inst_name} measures "
             "the tool directly (remove --targets, or --instrument sensor)."
         )
-    uf = _floats(kw["user_frame"], 6, "--user-frame")
-    T = T_tool = None
-    if cal is not None and (uf is not None or kw["tool"]):
+    T = parse_pose(kw["user_frame"], "--user-frame")
+    if cal is not None and (T is not None or kw["tool"]):
         raise click.UsageError("--user-frame, --tool: a calibrated model has its own.")
-    if uf is not None:
-        T = euler_transform([*np.array(uf[:3]) * 1e-3, *np.radians(uf[3:])])
-    if kw["tool"]:
-        tool = _floats(kw["tool"], len(kw["tool"].split(",")), "--tool")
-        if tool is None or len(tool) not in (3, 6):
-            raise click.BadParameter(
-                "expected X,Y,Z or X,Y,Z,R,W,P", param_hint="--tool"
-            )
-        tool = tool + [0.0] * (6 - len(tool))
-        T_tool = euler_transform([*np.array(tool[:3]) * 1e-3, *np.radians(tool[3:])])
+    T_tool = parse_pose(kw["tool"] or None, "--tool", (3, 6))
     return plan_setup(
         robot, cal if cal is not None else name, instrument=inst_name,
         noise_mm=noise_mm, noise_deg=kw["noise_deg"], targets=tg, T_user_base=T,

@@ -15,6 +15,7 @@ from kinecal.cli._common import (
     Progress,
     common_options,
     manifest,
+    parse_pose,
     targets_option,
 )
 
@@ -291,8 +292,6 @@ def _simulate_robot(
     """``simulate --robot``: a twin of that robot measured by a laser tracker."""
     from dataclasses import replace
 
-    import numpy as np
-
     from kinecal.io import prepare_output_dir
     from kinecal.robot import load_robot
     from kinecal.workflows import read_pose_file, simulate_robot_twin
@@ -303,14 +302,7 @@ def _simulate_robot(
     if payload_kg is not None:
         robot = replace(robot, payload_kg=payload_kg or None)
     if tool is not None:
-        from kinecal.cli._plan import _floats
-        from kinecal.geometry import euler_transform
-
-        n_tool = len(tool.split(","))
-        vals = _floats(tool, 6 if n_tool == 6 else 3, "--tool") or []
-        vals += [0.0] * (6 - len(vals))
-        T = euler_transform([*np.array(vals[:3]) * 1e-3, *np.radians(vals[3:])])
-        robot = replace(robot, T_flange_tool=T)
+        robot = replace(robot, T_flange_tool=parse_pose(tool, "--tool", (3, 6)))
     q_train = read_pose_file(plan_file, robot, None)[2] if plan_file else None
     if q_train is None and n_train < 1:  # pragma: no cover - click checks it
         raise click.BadParameter("expected at least 1", param_hint="--n-train")

@@ -100,10 +100,7 @@ def plan_setup(
     from kinecal.planning import planning_model
 
     cal = model if isinstance(model, CalibratedModel) else None
-    kind_of = {"point": "tracker", "pose": "pose", "sensor": "sensor"}
-    inst_name = instrument or (
-        kind_of.get(str(cal.info.get("kind")), "tracker") if cal else "tracker"
-    )
+    inst_name = instrument or default_instrument(cal)
     inst = Instrument(
         inst_name,
         float(noise_mm or 0.01) * 1e-3,
@@ -125,6 +122,39 @@ def plan_setup(
         name = model_name or model
         cm, x = planning_model(robot, model, inst, T_user_base, T_flange_tool)
     return PlanSetup(robot, cm, x, inst, cal, targets, name)
+
+
+def default_instrument(cal: CalibratedModel | None) -> str:
+    """The instrument of a plan without ``--instrument``: the one a calibrated model's
+    data came from (tracker, pose or sensor), else a laser tracker."""
+    kind_of = {"point": "tracker", "pose": "pose", "sensor": "sensor"}
+    return kind_of.get(str(cal.info.get("kind")), "tracker") if cal else "tracker"
+
+
+def model_robot(
+    cal: CalibratedModel, robot_name: str | None, model_name: str
+) -> RobotDescription:
+    """The robot of a calibrated model, which ``--robot`` (when given) must name."""
+    from kinecal.robot import load_robot
+
+    robot = cal.model.robot
+    if robot_name and load_robot(robot_name).name != robot.name:
+        raise ConfigError(
+            f"--robot {robot_name}, but {model_name} was calibrated for "
+            f"{robot.name}: a model and a robot of different kinds."
+        )
+    return robot
+
+
+def calibration_noise_mm(model_file: str) -> tuple[float | None, Path]:
+    """The noise per axis [mm] that the calibration of ``model_file`` found (its
+    report.json beside it), and that file; None when there is none."""
+    import json
+
+    rep = Path(model_file).with_name("report.json")
+    if not rep.is_file():
+        return None, rep
+    return json.loads(rep.read_text()).get("noise_sigma_mm"), rep
 
 
 @dataclass(frozen=True)
