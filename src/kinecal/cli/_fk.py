@@ -84,24 +84,7 @@ def fk(
     if as_json:
         click.echo(json.dumps(pose.as_dict()))
         return
-    if model_path is not None:
-        click.echo(f"model   {model_path} ({pose.robot})")
-        for title, d in (("with all terms", pose), ("kinematic part", pose.kinematic)):
-            assert (
-                d is not None and d.tool_mm is not None and d.tool_wpr_deg is not None
-            )
-            click.echo(f"{title}:")
-            _echo_pose("flange", "(base)", d.flange_mm, d.wpr_deg)
-            _echo_pose("tool", "(user)", d.tool_mm, d.tool_wpr_deg)
-        return
-    click.echo(f"robot   {pose.robot}")
-    click.echo("flange  x {:.4f}  y {:.4f}  z {:.4f}  mm".format(*pose.flange_mm))
-    click.echo("        w {:.4f}  p {:.4f}  r {:.4f}  deg".format(*pose.wpr_deg))
-
-
-def _echo_pose(what: str, frame: str, xyz: list[float], wpr: list[float]) -> None:
-    click.echo(f"  {what:7s}{frame} x {xyz[0]:.4f}  y {xyz[1]:.4f}  z {xyz[2]:.4f}  mm")
-    click.echo(f"                 w {wpr[0]:.4f}  p {wpr[1]:.4f}  r {wpr[2]:.4f}  deg")
+    click.echo("\n".join(pose.lines(model_path)))
 
 
 @click.command()

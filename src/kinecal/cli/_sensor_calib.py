@@ -6,14 +6,11 @@ Registered on the ``sensor`` group by :mod:`kinecal.cli._sensor`.
 from __future__ import annotations
 
 import json
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import click
 
 from kinecal.cli._common import FiniteFloat, Progress, common_options, jobs_option
-
-if TYPE_CHECKING:
-    pass
 
 _BOARD_HELP = "Chessboard inner corners COLSxROWS (one even, one odd count)."
 _K3_HELP = (
@@ -98,12 +95,6 @@ def fit_sphere_cmd(
     click.echo("\n".join(sphere_lines(f, fixed=bool(radius_mm))))
 
 
-def _print_camera(cc: Any) -> None:
-    from kinecal.workflows._sensor import camera_lines
-
-    click.echo("\n".join(camera_lines(cc)))
-
-
 @click.command("calibrate-camera")
 @click.argument("folder", type=click.Path(file_okay=False))
 @click.option("--board", default="10x7", show_default=True, help=_BOARD_HELP)
@@ -139,21 +130,10 @@ def calibrate_camera_cmd(
         folder, tgt, k3=k3, detector=detector, jobs=jobs, board=board,
         square_mm=square_mm, progress=prog,
     )  # fmt: skip
-    for f in run.skipped:
-        click.echo(f"warning: {f}: chessboard not found; image skipped", err=True)
-    for f in run.rejected:
-        click.echo(
-            f"warning: {f}: corners inconsistent with the other views "
-            "(re-projection error far above theirs); image left out",
-            err=True,
-        )
-    res = run.result
-    save_sensor(out, res.camera, run.info, force=force)
-    click.echo(
-        f"re-projection RMS {res.rms_px:.4f} px over {len(res.used)} images "
-        f"(corner std {res.sigma_px:.4f} px)"
-    )
-    _print_camera(res)
+    for line in run.warning_lines():
+        click.echo(line, err=True)
+    save_sensor(out, run.result.camera, run.info, force=force)
+    click.echo("\n".join(run.summary_lines()))
     click.echo(f"-> {out}", err=True)
 
 
@@ -217,7 +197,6 @@ def calibrate_planes_cmd(
     the planes from the corners and the stripes together; with --camera alone the
     intrinsics are held and the target poses and planes adjusted.
     """
-    import numpy as np
 
     from kinecal.cli._sensor_args import _board
     from kinecal.io import load_sensor, save_sensor
@@ -239,22 +218,8 @@ def calibrate_planes_cmd(
     )  # fmt: skip
     for f in run.skipped:
         click.echo(f"warning: {f}: chessboard not found; pose skipped", err=True)
-    res = run.result
-    pc = res.planes
-    save_sensor(out, res.sensor, run.info, force=force)
-    if cam is None:
-        cc = res.camera
-        click.echo(
-            f"re-projection RMS {cc.rms_px:.4f} px over {len(cc.used)} views and "
-            f"{len(res.plane_poses)} target poses (corner std {cc.sigma_px:.4f} px)"
-        )
-        _print_camera(cc)
-    click.echo(
-        f"{len(pc.planes)} light planes from {len(res.plane_poses)} target poses: fit "
-        f"RMS {pc.mean_rms_mm:.4f} mm (mean), {np.nanmax(pc.rms_mm):.4f} mm (max); "
-        f"stripe std {res.sigma_stripe_px:.3f} px; "
-        + ", ".join(f"{v} {k}" for k, v in run.status.items())
-    )
+    save_sensor(out, run.result.sensor, run.info, force=force)
+    click.echo("\n".join(run.summary_lines(camera_estimated=cam is None)))
     click.echo(f"-> {out}", err=True)
 
 

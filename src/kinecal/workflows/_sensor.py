@@ -184,6 +184,26 @@ class CameraRun:
     rejected: tuple[Path, ...]
     info: dict[str, Any] = field(repr=False)
 
+    def warning_lines(self) -> list[str]:
+        """The images left out, and why."""
+        return [
+            f"warning: {f}: chessboard not found; image skipped" for f in self.skipped
+        ] + [
+            f"warning: {f}: corners inconsistent with the other views (re-projection "
+            "error far above theirs); image left out"
+            for f in self.rejected
+        ]
+
+    def summary_lines(self) -> list[str]:
+        """The re-projection error and the intrinsics, as ``calibrate-camera`` prints
+        them."""
+        res = self.result
+        return [
+            f"re-projection RMS {res.rms_px:.4f} px over {len(res.used)} images "
+            f"(corner std {res.sigma_px:.4f} px)",
+            *camera_lines(res),
+        ]
+
 
 def calibrate_camera_images(
     folder: str | Path,
@@ -271,6 +291,27 @@ class SensorRun:
     skipped: tuple[Path, ...]
     status: dict[str, int]
     info: dict[str, Any] = field(repr=False)
+
+    def summary_lines(self, camera_estimated: bool) -> list[str]:
+        """What ``calibrate-planes`` prints: the camera (when ``camera_estimated``) and
+        the light planes' fit."""
+        res = self.result
+        pc, n = res.planes, len(res.plane_poses)
+        out = []
+        if camera_estimated:
+            cc = res.camera
+            out.append(
+                f"re-projection RMS {cc.rms_px:.4f} px over {len(cc.used)} views and "
+                f"{n} target poses (corner std {cc.sigma_px:.4f} px)"
+            )
+            out += camera_lines(cc)
+        out.append(
+            f"{len(pc.planes)} light planes from {n} target poses: fit "
+            f"RMS {pc.mean_rms_mm:.4f} mm (mean), {np.nanmax(pc.rms_mm):.4f} mm (max); "
+            f"stripe std {res.sigma_stripe_px:.3f} px; "
+            + ", ".join(f"{v} {k}" for k, v in self.status.items())
+        )
+        return out
 
 
 def calibrate_sensor_images(
