@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import fnmatch
 import os
+import re
 import signal
 import threading
 from collections.abc import Iterator
@@ -45,11 +46,31 @@ __all__ = [
     "output_transaction",
     "refuse_input",
     "signals_held",
+    "user_path",
 ]
 
 _TAG = ".kinecal-tmp-"
 _UMASK: int | None = None
 _UMASK_LOCK = threading.Lock()
+
+
+def user_path(name: str) -> str:
+    """The path a user knows for a temporary one of kinecal's: a staged result folder
+    (``DIR/.kinecal-tmp-*/f`` or ``.DIR.kinecal-tmp-*/f`` -> ``DIR/f``) or the temporary
+    file of an atomic write (``.f.abcd1234.tmp`` -> ``f``)."""
+    parts = name.split("/")
+    out = []
+    for i, part in enumerate(parts):
+        if part.startswith(_TAG):
+            continue
+        m = re.fullmatch(r"\.(.+)\.kinecal-tmp-.*", part)
+        if m:
+            part = m.group(1)
+        elif i == len(parts) - 1:
+            m = re.fullmatch(r"\.(.+)\.[A-Za-z0-9_]{8}\.tmp", part)
+            part = m.group(1) if m else part
+        out.append(part)
+    return "/".join(out)
 
 
 def _umask() -> int:

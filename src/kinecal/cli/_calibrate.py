@@ -15,7 +15,6 @@ from kinecal.cli._common import (
     FiniteFloat,
     Progress,
     allow_out_of_limits_option,
-    check_folds,
     common_options,
     jobs_option,
     model_file_option,
@@ -227,9 +226,10 @@ def _usable_folds(
     """``--cv K`` checked on the data; the default K that does not fit them: None,
     with a note (no held-out figure, said so)."""
     from kinecal.errors import DataError
+    from kinecal.workflows._calibrate import check_cv_folds
 
     try:
-        check_folds(meas, k, groups, cv_groups)
+        check_cv_folds(meas, k, groups, cv_groups)
     except DataError as exc:
         if cv_text != str(DEFAULT_CV_FOLDS):
             raise

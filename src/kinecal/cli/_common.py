@@ -265,19 +265,3 @@ def option_table(
 def common_options(f: Callable[..., Any]) -> Callable[..., Any]:
     f = click.option("--quiet", "-q", is_flag=True, help="No progress display.")(f)
     return f
-
-
-def check_folds(meas: Any, k: int, groups: Any, group_name: str | None) -> None:
-    """``--cv K``: the folds' own check (too few poses, sets or groups to hold out),
-    run before the calibration rather than after it."""
-    from kinecal.errors import DataError
-    from kinecal.identification import make_folds
-
-    if (
-        k > meas.n
-    ):  # said plainly (the folds' rule would count what is left to hold out)
-        raise DataError(
-            f"{meas.source}: --cv {k}: {k} folds asked, but the data have {meas.n} rows; "
-            f"expected at most {meas.n} (5 or 10 is usual)."
-        )
-    make_folds(meas, k, groups=groups, group_name=group_name or "group")

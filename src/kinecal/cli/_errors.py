@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import errno
 import os
-import re
 import signal
 import sys
 import traceback
@@ -96,25 +95,6 @@ class Terminated(BaseException):
     """SIGTERM, turned into an exception so that staged results are removed."""
 
 
-def user_path(name: str) -> str:
-    """The path a user knows for a temporary one of kinecal's: a staged result folder
-    (``DIR/.kinecal-tmp-*/f`` or ``.DIR.kinecal-tmp-*/f`` -> ``DIR/f``) or the temporary
-    file of an atomic write (``.f.abcd1234.tmp`` -> ``f``)."""
-    parts = name.split("/")
-    out = []
-    for i, part in enumerate(parts):
-        if part.startswith(".kinecal-tmp-"):
-            continue
-        m = re.fullmatch(r"\.(.+)\.kinecal-tmp-.*", part)
-        if m:
-            part = m.group(1)
-        elif i == len(parts) - 1:
-            m = re.fullmatch(r"\.(.+)\.[A-Za-z0-9_]{8}\.tmp", part)
-            part = m.group(1) if m else part
-        out.append(part)
-    return "/".join(out)
-
-
 def one_line(text: str) -> str:
     """``text`` on one line (line breaks and runs of blanks become one blank)."""
     return " ".join(str(text).split())
@@ -128,6 +108,8 @@ def _os_error(exc: OSError) -> tuple[ExitCode, str]:
     what = _OS_TEXT.get(exc.errno) or f"{exc.strerror or 'system error'}"
     if exc.filename is None:
         return code, what
+    from kinecal._outputs import user_path
+
     return code, f"{user_path(os.fsdecode(exc.filename))}: {what}"
 
 

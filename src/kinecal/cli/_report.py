@@ -79,26 +79,13 @@ def _compare(old: str, new: str, out_path: str | None, force: bool, say: Any) ->
     from pathlib import Path
 
     from kinecal.io import atomic_write_text
-    from kinecal.report._compare import compare_calibrations, render_comparison
+    from kinecal.workflows._compare import compare_calibration_folders
 
     target = Path(out_path) if out_path else Path(new) / "compare.html"
     if target.exists() and not force:
         raise FileExistsError(f"{target} exists; use --force to overwrite it.")
     say("compare", f"{old} against {new}")
-    c = compare_calibrations(old, new)
-    atomic_write_text(target, render_comparison(c), force=True)
-    click.echo(
-        f"moved     {len(c['moved'])} of {len(c['parameters'])} parameters beyond "
-        f"{c['significance']:g} combined std"
-        + (f": {', '.join(c['moved'])}" if c["moved"] else "")
-    )
-    for r in c["cross"]:
-        label = f"{r['model']} model on {r['data']} data"
-        if "skipped" in r:
-            click.echo(f"accuracy  {label}: not computed ({r['skipped']})")
-        else:
-            click.echo(
-                f"accuracy  {label}: RMS {r['rms_mm']:.4f} mm  max {r['max_mm']:.4f} mm"
-                + ("  (user frame refitted)" if r["refit_user"] else "")
-            )
+    c = compare_calibration_folders(old, new)
+    atomic_write_text(target, c.html(), force=True)
+    click.echo("\n".join(c.lines()))
     click.echo(f"wrote     {target}")

@@ -10,7 +10,13 @@ from typing import Any
 
 import click
 
-from kinecal.cli._common import FiniteFloat, Progress, common_options, jobs_option
+from kinecal.cli._common import (
+    FiniteFloat,
+    Progress,
+    common_options,
+    jobs_option,
+    option_table,
+)
 
 _BOARD_HELP = "Chessboard inner corners COLSxROWS (one even, one odd count)."
 _K3_HELP = (
@@ -24,47 +30,52 @@ _DETECTOR_HELP = (
 )
 
 
-def _k3_option(f: Any) -> Any:
-    return click.option(
-        "--k3",
-        type=click.Choice(["auto", "free", "fixed"]),
-        default="auto",
-        show_default=True,
-        help=_K3_HELP,
-    )(f)
-
-
-def _detector_option(f: Any) -> Any:
-    return click.option(
-        "--detector",
-        type=click.Choice(["auto", "classic", "sb"]),
-        default="auto",
-        show_default=True,
-        help=_DETECTOR_HELP,
-    )(f)
+# fmt: off
+_K3 = (("--k3",), {"type": click.Choice(["auto", "free", "fixed"]), "default": "auto",
+    "show_default": True, "help": _K3_HELP})
+_DETECTOR = (("--detector",), {"type": click.Choice(["auto", "classic", "sb"]),
+    "default": "auto", "show_default": True, "help": _DETECTOR_HELP})
+_BOARD = (("--board",), {"default": "10x7", "show_default": True, "help": _BOARD_HELP})
+_SQUARE = (("--square-mm",), {"type": float, "default": 2.5, "show_default": True})
+_FORCE = (("--force",), {"is_flag": True})
+_FIT_SPHERE: list[Any] = [
+    (("--radius-mm",), {"type": float, "default": None, "help": "Known radius [mm]: a "
+        "prior for the segmentation, and only the centre is fitted."}),
+    (("--outlier-k",), {"type": FiniteFloat(0.0), "default": 4.0, "show_default": True,
+        "help": "Reject points further than K robust std from the sphere (0: keep all)."}),
+    (("--no-segment",), {"is_flag": True, "help": "Skip the RANSAC segmentation (the "
+        "cloud holds the sphere only)."}),
+    (("--json", "as_json"), {"is_flag": True, "help": "Print one JSON object."}),
+]
+_CAMERA: list[Any] = [
+    _BOARD, _SQUARE,
+    (("--out", "out"), {"required": True, "type": click.Path(dir_okay=False),
+        "help": "CAMERA.yaml"}),
+    _K3, _DETECTOR, jobs_option("Threads searching the chessboards"), _FORCE,
+]
+_PLANES: list[Any] = [
+    (("--camera", "camera_file"), {"type": click.Path(dir_okay=False), "help": "Camera "
+        "(or sensor) YAML: the intrinsics, held fixed (without --chessboard)."}),
+    (("--chessboard", "chessboard"), {"type": click.Path(file_okay=False), "help": "The "
+        "camera's chessboard images: camera and planes adjusted together."}),
+    _BOARD, _SQUARE,
+    (("--n-planes",), {"type": click.IntRange(min=1), "default": None, "help": "Number "
+        "of light planes [default: the highest plane number + 1]."}),
+    (("--model",), {"type": click.Choice(["auto", "free", "rotary"]), "default": "auto",
+        "show_default": True, "help": "Planes fitted on their own, about the mirror "
+        "axis, or both."}),
+    _K3, _DETECTOR,
+    (("--out", "out"), {"required": True, "type": click.Path(dir_okay=False),
+        "help": "SENSOR.yaml"}),
+    jobs_option("Threads reading the images, searching the boards, extracting stripes"),
+    _FORCE,
+]
+# fmt: on
 
 
 @click.command("fit-sphere")
 @click.argument("cloud", type=click.Path(dir_okay=False))
-@click.option(
-    "--radius-mm",
-    type=float,
-    default=None,
-    help="Known radius [mm]: a prior for the segmentation, and only the centre is fitted.",
-)
-@click.option(
-    "--outlier-k",
-    type=FiniteFloat(0.0),
-    default=4.0,
-    show_default=True,
-    help="Reject points further than K robust std from the sphere (0: keep all).",
-)
-@click.option(
-    "--no-segment",
-    is_flag=True,
-    help="Skip the RANSAC segmentation (the cloud holds the sphere only).",
-)
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+@option_table(_FIT_SPHERE)
 def fit_sphere_cmd(
     cloud: str,
     radius_mm: float | None,
@@ -97,15 +108,7 @@ def fit_sphere_cmd(
 
 @click.command("calibrate-camera")
 @click.argument("folder", type=click.Path(file_okay=False))
-@click.option("--board", default="10x7", show_default=True, help=_BOARD_HELP)
-@click.option("--square-mm", type=float, default=2.5, show_default=True)
-@click.option(
-    "--out", "out", required=True, type=click.Path(dir_okay=False), help="CAMERA.yaml"
-)
-@_k3_option
-@_detector_option
-@jobs_option("Threads searching the chessboards")
-@click.option("--force", is_flag=True)
+@option_table(_CAMERA)
 @common_options
 def calibrate_camera_cmd(
     folder: str,
@@ -139,40 +142,7 @@ def calibrate_camera_cmd(
 
 @click.command("calibrate-planes")
 @click.argument("folder", type=click.Path(file_okay=False))
-@click.option(
-    "--camera",
-    "camera_file",
-    type=click.Path(dir_okay=False),
-    help="Camera (or sensor) YAML: the intrinsics, held fixed (without --chessboard).",
-)
-@click.option(
-    "--chessboard",
-    "chessboard",
-    type=click.Path(file_okay=False),
-    help="The camera's chessboard images: camera and planes adjusted together.",
-)
-@click.option("--board", default="10x7", show_default=True, help=_BOARD_HELP)
-@click.option("--square-mm", type=float, default=2.5, show_default=True)
-@click.option(
-    "--n-planes",
-    type=click.IntRange(min=1),
-    default=None,
-    help="Number of light planes [default: the highest plane number + 1].",
-)
-@click.option(
-    "--model",
-    type=click.Choice(["auto", "free", "rotary"]),
-    default="auto",
-    show_default=True,
-    help="Planes fitted on their own, about the mirror axis, or both.",
-)
-@_k3_option
-@_detector_option
-@click.option(
-    "--out", "out", required=True, type=click.Path(dir_okay=False), help="SENSOR.yaml"
-)
-@jobs_option("Threads reading the images, searching the boards, extracting stripes")
-@click.option("--force", is_flag=True)
+@option_table(_PLANES)
 @common_options
 def calibrate_planes_cmd(
     folder: str,

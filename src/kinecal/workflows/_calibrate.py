@@ -40,6 +40,7 @@ __all__ = [
     "calibrate_measurements",
     "calibration_files",
     "check_auto_folds",
+    "check_cv_folds",
     "check_distinct_poses",
     "group_labels",
     "write_calibration",
@@ -317,6 +318,24 @@ def check_distinct_poses(
             f"'{spec.name}' model has {size} parameters: expected at least "
             f"{size // c + 1} different poses (several times more for a reliable result)"
         )
+
+
+def check_cv_folds(
+    meas: Measurements, k: int, groups: np.ndarray | None, group_name: str | None
+) -> None:
+    """``--cv K``: the folds' own check (too few poses, sets or groups to hold out),
+    run before the calibration rather than after it."""
+    from kinecal.errors import DataError
+    from kinecal.identification import make_folds
+
+    if (
+        k > meas.n
+    ):  # said plainly (the folds' rule would count what is left to hold out)
+        raise DataError(
+            f"{meas.source}: --cv {k}: {k} folds asked, but the data have {meas.n} rows; "
+            f"expected at most {meas.n} (5 or 10 is usual)."
+        )
+    make_folds(meas, k, groups=groups, group_name=group_name or "group")
 
 
 def check_auto_folds(
