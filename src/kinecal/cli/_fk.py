@@ -7,36 +7,27 @@ from typing import Any
 
 import click
 
+from kinecal.cli._common import option_table
+
+# fmt: off
+_FK_OPTIONS: list[Any] = [
+    (("--robot", "robot_name"), {"metavar": "NAME|FILE", "help": "Built-in robot name "
+        "(see `kinecal robots`) or robot YAML file."}),
+    (("--model", "model_path"), {"type": click.Path(dir_okay=False), "help": "A "
+        "calibrated model.yaml instead of --robot: the calibrated poses."}),
+    (("--payload-kg",), {"type": float, "help": "With --model: payload at the tool [kg] "
+        "(default: the calibration's)."}),
+    (("--set", "set_label"), {"help": "With --model: the user frame (default: first)."}),
+    (("--marker",), {"help": "With --model: the tool marker (default: first)."}),
+    (("--json", "as_json"), {"is_flag": True, "help": "Print one JSON object."}),
+    (("--ignore-limits",), {"is_flag": True, "help": "Compute poses beyond the joint "
+        "limits too (refused otherwise: the robot cannot take them)."}),
+]
+# fmt: on
+
 
 @click.command()
-@click.option(
-    "--robot",
-    "robot_name",
-    metavar="NAME|FILE",
-    help="Built-in robot name (see `kinecal robots`) or robot YAML file.",
-)
-@click.option(
-    "--model",
-    "model_path",
-    type=click.Path(dir_okay=False),
-    help="A calibrated model.yaml instead of --robot: the calibrated poses.",
-)
-@click.option(
-    "--payload-kg",
-    type=float,
-    help="With --model: payload at the tool [kg] (default: the calibration's).",
-)
-@click.option(
-    "--set", "set_label", help="With --model: the user frame (default: first)."
-)
-@click.option("--marker", help="With --model: the tool marker (default: first).")
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
-@click.option(
-    "--ignore-limits",
-    is_flag=True,
-    help="Compute poses beyond the joint limits too (refused otherwise: the robot "
-    "cannot take them).",
-)
+@option_table(_FK_OPTIONS)
 @click.argument("joints", nargs=-1, type=float, required=True)
 def fk(
     robot_name: str | None,
@@ -99,15 +90,14 @@ def robots() -> None:
 
 @click.command("import-urdf")
 @click.argument("urdf", type=click.Path(exists=True, dir_okay=False))
-@click.option("--base", help="Base link (default: the root link).")
-@click.option(
-    "--tip", help="Tip link, the physical flange (default: end of the chain)."
-)
-@click.option("--name", help="Robot name (default: the URDF's).")
-@click.option(
-    "--out", required=True, type=click.Path(dir_okay=False), help="Robot YAML."
-)
-@click.option("--force", is_flag=True, help="Overwrite --out.")
+@option_table([
+    (("--base",), {"help": "Base link (default: the root link)."}),
+    (("--tip",), {"help": "Tip link, the physical flange (default: end of the chain)."}),
+    (("--name",), {"help": "Robot name (default: the URDF's)."}),
+    (("--out",), {"required": True, "type": click.Path(dir_okay=False),
+        "help": "Robot YAML."}),
+    (("--force",), {"is_flag": True, "help": "Overwrite --out."}),
+])  # fmt: skip
 def import_urdf(
     urdf: str,
     base: str | None,

@@ -14,59 +14,38 @@ from typing import Any
 
 import click
 
-from kinecal.cli._common import FiniteFloat, Progress, parse_floats, parse_pose
+from kinecal.cli._common import (
+    FiniteFloat,
+    Progress,
+    option_table,
+    parse_floats,
+    parse_pose,
+)
 
 _PLAN_FLAGS = ("candidates", "poses", "add_n")
 
 
-def iso_plan_options(f: Callable[..., Any]) -> Callable[..., Any]:
-    """The ``--iso9283`` options of ``kinecal plan``."""
-    opts = [
-        click.option(
-            "--iso9283",
-            is_flag=True,
-            help="Write the ISO 9283 pose test instead: the cube's test points P1-P5 "
-            "in cycles (P1, P5, P4, P3, P2), joints by the nominal IK (compensated "
-            "with --model MODEL.yaml when given), columns iso_point, iso_cycle and the "
-            "command pose cmd_*.",
-        ),
-        click.option(
-            "--cube-mm",
-            type=FiniteFloat(0.0, low_open=True),
-            help="ISO 9283: cube edge [mm; default the largest reachable].",
-        ),
-        click.option(
-            "--cube-centre",
-            metavar="X,Y,Z",
-            help="ISO 9283: cube centre in the robot base frame [mm; default searched "
-            "in front of the robot].",
-        ),
-        click.option(
-            "--cycles",
-            type=click.IntRange(min=2),
-            default=30,
-            show_default=True,
-            help="ISO 9283: cycles of the test.",
-        ),
-        click.option(
-            "--orientation",
-            metavar="R,W,P",
-            help="ISO 9283: tool orientation in the robot base frame [deg; Rz(R) Ry(W) "
-            "Rx(P); default the tool z axis down: 0,0,180].",
-        ),
-        click.option(
-            "--iso-plane",
-            type=click.Choice(
-                ("C1-C2-C7-C8", "C2-C3-C8-C5", "C3-C4-C5-C6", "C4-C1-C6-C7")
-            ),
-            default="C1-C2-C7-C8",
-            show_default=True,
-            help="ISO 9283: the cube's diagonal test plane.",
-        ),
-    ]
-    for o in reversed(opts):
-        f = o(f)
-    return f
+# fmt: off
+# The ``--iso9283`` options of ``kinecal plan``.
+iso_plan_options = option_table([
+    (("--iso9283",), {"is_flag": True, "help": "Write the ISO 9283 pose test instead: "
+        "the cube's test points P1-P5 in cycles (P1, P5, P4, P3, P2), joints by the "
+        "nominal IK (compensated with --model MODEL.yaml when given), columns iso_point, "
+        "iso_cycle and the command pose cmd_*."}),
+    (("--cube-mm",), {"type": FiniteFloat(0.0, low_open=True), "help": "ISO 9283: cube "
+        "edge [mm; default the largest reachable]."}),
+    (("--cube-centre",), {"metavar": "X,Y,Z", "help": "ISO 9283: cube centre in the "
+        "robot base frame [mm; default searched in front of the robot]."}),
+    (("--cycles",), {"type": click.IntRange(min=2), "default": 30, "show_default": True,
+        "help": "ISO 9283: cycles of the test."}),
+    (("--orientation",), {"metavar": "R,W,P", "help": "ISO 9283: tool orientation in "
+        "the robot base frame [deg; Rz(R) Ry(W) Rx(P); default the tool z axis down: "
+        "0,0,180]."}),
+    (("--iso-plane",), {"type": click.Choice(("C1-C2-C7-C8", "C2-C3-C8-C5",
+        "C3-C4-C5-C6", "C4-C1-C6-C7")), "default": "C1-C2-C7-C8", "show_default": True,
+        "help": "ISO 9283: the cube's diagonal test plane."}),
+])
+# fmt: on
 
 
 def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
@@ -77,6 +56,7 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
     from kinecal.io import atomic_write_files, json_text
     from kinecal.robot import load_robot
     from kinecal.workflows import iso_test_program
+    from kinecal.workflows._plan import model_robot, report_path
 
     given = [f"--{k.replace('_n', '')}" for k in _PLAN_FLAGS if kw.get(k)]
     if given:
@@ -96,11 +76,7 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
             "--iso9283 needs --robot NAME|FILE (or --model MODEL.yaml)."
         )
     out = Path(kw["out_path"])
-    rep = (
-        Path(kw["report_path"])
-        if kw["report_path"]
-        else out.with_name(out.stem + ".report.json")
-    )
+    rep = report_path(kw["out_path"], kw["report_path"])
     for p in (out, rep):
         if p.exists() and not kw["force"]:
             raise FileExistsError(f"{p} exists; use --force to overwrite it.")
@@ -109,13 +85,8 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
     else:
         assert cal is not None  # checked above
         robot = cal.model.robot
-    if cal is not None and robot.name != cal.model.robot.name:
-        from kinecal.errors import ConfigError
-
-        raise ConfigError(
-            f"--robot {kw['robot_name']}, but {kw['model_name']} was calibrated for "
-            f"{cal.model.robot.name}: a model and a robot of different kinds."
-        )
+    if cal is not None:  # --robot, when given, names the model's robot
+        model_robot(cal, kw["robot_name"], kw["model_name"])
     R = None
     if kw["orientation"]:
         rwp = parse_floats(kw["orientation"], 3, "--orientation")

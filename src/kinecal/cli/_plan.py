@@ -237,8 +237,8 @@ def _candidates(kw: dict[str, Any], setup: PlanSetup, say: Progress) -> Any:
 
 def _run(kw: dict[str, Any], say: Progress) -> None:
     from kinecal.io import atomic_write_files, json_text
-    from kinecal.workflows import plan_measurements, read_pose_file
-    from kinecal.workflows._plan import report_path
+    from kinecal.workflows import plan_measurements
+    from kinecal.workflows._plan import read_measured_poses, report_path
     from kinecal.workflows._poses import pose_lines
 
     out = Path(kw["out_path"])
@@ -253,18 +253,10 @@ def _run(kw: dict[str, Any], say: Progress) -> None:
         lines = pose_lines(setup.robot, cand.q, cand.target_index, setup.labels)
         files[kw["save_candidates"]] = "\n".join(lines) + "\n"
     measured = measured_ti = None
-    allow = bool(kw["allow_out_of_limits"])
     if setup.cal is not None and kw["data_path"]:
-        table, _, measured, measured_ti = read_pose_file(
-            kw["data_path"], setup.robot, setup.labels, allow, _stderr
+        measured, measured_ti = read_measured_poses(
+            setup, kw["data_path"], bool(kw["allow_out_of_limits"]), _stderr
         )
-        if {"x_mm", "xc_mm"} & set(table.header):  # measurements: checked as such
-            from kinecal.io import read_measurements
-
-            read_measurements(
-                kw["data_path"], setup.robot, setup.targets,
-                allow_out_of_limits=allow, check=False,
-            )  # fmt: skip
     n = kw["poses"] or kw["add_n"]
     option = "--add" if kw["add_n"] else "--poses"
     if n > cand.q.shape[0]:

@@ -6,28 +6,21 @@ from typing import Any
 
 import click
 
-from kinecal.cli._common import Progress, common_options
+from kinecal.cli._common import Progress, common_options, option_table
 
 
 @click.command()
 @click.argument("folder", type=click.Path(file_okay=False), required=False)
-@click.option(
-    "--compare",
-    "compare",
-    nargs=2,
-    type=click.Path(file_okay=False),
-    metavar="OLD_DIR NEW_DIR",
-    help="Compare two calibrations of one robot instead: parameters that moved beyond "
-    "their combined uncertainty, each model's accuracy on the other's data (when the "
-    "manifests' data files are still there); writes NEW_DIR/compare.html (or --out).",
-)
-@click.option(
-    "--out",
-    "out_path",
-    type=click.Path(dir_okay=False),
-    help="Write the report here instead of DIR/report.html.",
-)
-@click.option("--force", is_flag=True, help="Overwrite an existing report.")
+@option_table([
+    (("--compare", "compare"), {"nargs": 2, "type": click.Path(file_okay=False),
+        "metavar": "OLD_DIR NEW_DIR", "help": "Compare two calibrations of one robot "
+        "instead: parameters that moved beyond their combined uncertainty, each model's "
+        "accuracy on the other's data (when the manifests' data files are still there); "
+        "writes NEW_DIR/compare.html (or --out)."}),
+    (("--out", "out_path"), {"type": click.Path(dir_okay=False), "help": "Write the "
+        "report here instead of DIR/report.html."}),
+    (("--force",), {"is_flag": True, "help": "Overwrite an existing report."}),
+])  # fmt: skip
 @common_options
 def report(
     folder: str | None,

@@ -6,30 +6,48 @@ they are written, on a pool of threads, a few at a time: memory stays at a few i
 
 from __future__ import annotations
 
+from typing import Any
+
 import click
 
-from kinecal.cli._common import SEED, Progress, common_options, jobs_option
+from kinecal.cli._common import (
+    SEED,
+    Progress,
+    common_options,
+    jobs_option,
+    option_table,
+)
+
+# fmt: off
+_INT = click.IntRange(min=1)
+_EVERY = (("--every",), {"type": _INT, "default": 1, "show_default": True,
+    "help": "Render every K-th plane."})
+_COMMON: list[Any] = [
+    (("--seed",), {"type": SEED, "default": 0, "show_default": True}),
+    jobs_option("Threads rendering and writing the images"),
+    (("--force",), {"is_flag": True}),
+]
+_OUT = (("--out", "out"), {"required": True, "type": click.Path(file_okay=False)})
+_SCAN: list[Any] = [
+    _OUT,
+    (("--center-mm",), {"default": "0,0,140", "show_default": True, "help": "Sphere "
+        "centre X,Y,Z in the camera frame."}),
+    (("--radius-mm",), {"type": float, "default": 15.001, "show_default": True}),
+    _EVERY, *_COMMON,
+]
+_SESSION: list[Any] = [
+    _OUT,
+    (("--views",), {"type": _INT, "default": 25, "show_default": True,
+        "help": "Chessboard views."}),
+    (("--poses",), {"type": _INT, "default": 5, "show_default": True,
+        "help": "Target poses for the planes."}),
+    _EVERY, *_COMMON,
+]
+# fmt: on
 
 
 @click.command("simulate-scan")
-@click.option("--out", "out", required=True, type=click.Path(file_okay=False))
-@click.option(
-    "--center-mm",
-    default="0,0,140",
-    show_default=True,
-    help="Sphere centre X,Y,Z in the camera frame.",
-)
-@click.option("--radius-mm", type=float, default=15.001, show_default=True)
-@click.option(
-    "--every",
-    type=click.IntRange(min=1),
-    default=1,
-    show_default=True,
-    help="Render every K-th plane.",
-)
-@click.option("--seed", type=SEED, default=0, show_default=True)
-@jobs_option("Threads rendering and writing the images")
-@click.option("--force", is_flag=True)
+@option_table(_SCAN)
 @common_options
 def simulate_scan(
     out: str,
@@ -73,31 +91,7 @@ def simulate_scan(
 
 
 @click.command("simulate-calibration")
-@click.option("--out", "out", required=True, type=click.Path(file_okay=False))
-@click.option(
-    "--views",
-    type=click.IntRange(min=1),
-    default=25,
-    show_default=True,
-    help="Chessboard views.",
-)
-@click.option(
-    "--poses",
-    type=click.IntRange(min=1),
-    default=5,
-    show_default=True,
-    help="Target poses for the planes.",
-)
-@click.option(
-    "--every",
-    type=click.IntRange(min=1),
-    default=1,
-    show_default=True,
-    help="Render every K-th plane.",
-)
-@click.option("--seed", type=SEED, default=0, show_default=True)
-@jobs_option("Threads rendering and writing the images")
-@click.option("--force", is_flag=True)
+@option_table(_SESSION)
 @common_options
 def simulate_calibration_cmd(
     out: str,

@@ -15,6 +15,7 @@ from kinecal.cli._common import (
     Progress,
     common_options,
     manifest,
+    option_table,
     parse_pose,
     targets_option,
 )
@@ -329,41 +330,30 @@ def _simulate_robot(
     )  # fmt: skip
 
 
+# fmt: off
+_COMPARE_OPTIONS: list[Any] = [
+    (("--robot", "robot_name"), {"required": True, "metavar": "NAME|FILE",
+        "help": "Robot name or file."}),
+    targets_option,
+    (("--models",), {"default": "kinematic,ntm,rfcm,full", "show_default": True,
+        "help": "Comma-separated models to fit."}),
+    (("--refit",), {"type": click.Choice(("user",)), "help": "Refit the user frame(s) on "
+        "TEST."}),
+    (("--priors",), {"type": click.Choice(("all", "compliance", "none")),
+        "default": "all", "show_default": True, "help": "Physical priors ('none': the "
+        "paper's least squares)."}),
+    (("--out", "out_dir"), {"type": click.Path(file_okay=False), "help": "Write "
+        "comparison.json, report.html and one model file per method here."}),
+    (("--json", "as_json"), {"is_flag": True, "help": "Print the table as JSON."}),
+    (("--force",), {"is_flag": True, "help": "Overwrite files in --out."}),
+]
+# fmt: on
+
+
 @click.command()
 @click.argument("train", type=click.Path(dir_okay=False))
 @click.argument("test", type=click.Path(dir_okay=False))
-@click.option(
-    "--robot",
-    "robot_name",
-    required=True,
-    metavar="NAME|FILE",
-    help="Robot name or file.",
-)
-@targets_option
-@click.option(
-    "--models",
-    default="kinematic,ntm,rfcm,full",
-    show_default=True,
-    help="Comma-separated models to fit.",
-)
-@click.option(
-    "--refit", type=click.Choice(("user",)), help="Refit the user frame(s) on TEST."
-)
-@click.option(
-    "--priors",
-    type=click.Choice(("all", "compliance", "none")),
-    default="all",
-    show_default=True,
-    help="Physical priors ('none': the paper's least squares).",
-)
-@click.option(
-    "--out",
-    "out_dir",
-    type=click.Path(file_okay=False),
-    help="Write comparison.json, report.html and one model file per method here.",
-)
-@click.option("--json", "as_json", is_flag=True, help="Print the table as JSON.")
-@click.option("--force", is_flag=True, help="Overwrite files in --out.")
+@option_table(_COMPARE_OPTIONS)
 @common_options
 def compare(
     train: str,

@@ -157,6 +157,22 @@ def calibration_noise_mm(model_file: str) -> tuple[float | None, Path]:
     return json.loads(rep.read_text()).get("noise_sigma_mm"), rep
 
 
+def read_measured_poses(
+    setup: PlanSetup, path: str, allow: bool = False, warn: Say | None = None
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """The poses of a sequential plan's calibration data ``path`` (``--data``): joints
+    (N, n) [rad] and target indices. A file with measurement columns is checked as
+    measurements (``allow``: joints beyond the limits, with a ``warn`` line)."""
+    table, _, q, ti = read_pose_file(path, setup.robot, setup.labels, allow, warn)
+    if {"x_mm", "xc_mm"} & set(table.header):
+        from kinecal.io import read_measurements
+
+        read_measurements(
+            path, setup.robot, setup.targets, allow_out_of_limits=allow, check=False
+        )
+    return q, ti
+
+
 @dataclass(frozen=True)
 class PoseCandidates:
     """Candidate poses of a plan.
