@@ -47,6 +47,7 @@ __all__ = [
     "refuse_input",
     "signals_held",
     "user_path",
+    "user_paths_in",
 ]
 
 _TAG = ".kinecal-tmp-"
@@ -71,6 +72,13 @@ def user_path(name: str) -> str:
             part = m.group(1) if m else part
         out.append(part)
     return "/".join(out)
+
+
+def user_paths_in(text: str) -> str:
+    """``text`` with every staged result folder in it named as the user knows it
+    (``DIR/.kinecal-tmp-*/f`` and ``.DIR.kinecal-tmp-*/f`` -> ``DIR/f``)."""
+    text = re.sub(r"/\.kinecal-tmp-[\w-]+(?=/)", "", text)
+    return re.sub(r"(^|[/\s'\"(])\.([^/\s]+?)\.kinecal-tmp-[\w-]+(?=/)", r"\1\2", text)
 
 
 def _umask() -> int:
@@ -242,6 +250,8 @@ class OutputTransaction:
         if what is not None:
             from kinecal.errors import DataError
 
+            if what.endswith(f" {path}"):  # the file is named once, at the start
+                what = what[: -len(str(path)) - 1]
             raise DataError(
                 f"{path}: is an input of this command ({what}); writing the output there "
                 "would replace it, so it is refused (--force or not): choose another "

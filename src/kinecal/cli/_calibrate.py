@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -139,7 +138,7 @@ def calibrate(
     Exit code 3 when the fit does not converge (results are still written).
     """
     from kinecal._parallel import available_cpus
-    from kinecal.cli import EXIT_NOT_CONVERGED
+    from kinecal.cli._errors import ExitCode, ResultsWithError
     from kinecal.identification import CalibrationOptions
     from kinecal.io import prepare_output_dir
     from kinecal.report._certificate import certificate_block, temperature_range
@@ -195,8 +194,13 @@ def calibrate(
         say("report", f"wrote {Path(out_dir) / 'report.html'}")
     _print_summary(run, files, limits is not None)
     click.echo(f"wrote     {Path(out_dir)}{os.sep}: {', '.join(written)}")
-    if not run.result.success:
-        sys.exit(EXIT_NOT_CONVERGED)
+    if not run.result.success:  # the summary, then one Error line last (issue 35)
+        raise ResultsWithError(
+            ExitCode.NOT_CONVERGED,
+            f"the calibration did not converge; its results are in {Path(out_dir)}"
+            f"{os.sep}, flagged (report.json 'success': false): see the warnings above "
+            "and the report's stages; more or better-spread poses, or a smaller --model",
+        )
 
 
 def _checked_options(
@@ -354,10 +358,13 @@ def evaluate(
     """Accuracy of a calibrated model on measurements DATA.csv (held-out poses).
 
     With --iso9283: the ISO 9283 figures of a pose test (docs/iso9283.md)."""
-    from kinecal.io import atomic_write_text, load_model
+    from kinecal.io import atomic_write_files, load_model
     from kinecal.workflows import evaluate_measurements
 
-    if errors_out and Path(errors_out).exists() and not force:  # before the work
+    if iso_out and not iso9283:  # the arguments' checks before the work
+        raise click.UsageError("--out is for --iso9283.")
+    what = _refit_groups(refit)
+    if errors_out and Path(errors_out).exists() and not force:
         raise FileExistsError(f"{errors_out}: exists; use --force to overwrite it.")
     say = Progress(quiet)  # lines only for stages that last (a large file)
     cal = load_model(model_path)
@@ -366,21 +373,17 @@ def evaluate(
         meas = read_iso_data(data, cal.model.robot, targets, allow_out_of_limits)
     else:
         meas, _ = read_data_checked(data, cal.model.robot, targets, allow_out_of_limits)
-    what = _refit_groups(refit)
     say.begin("evaluate", f"{meas.n} rows")
     run = evaluate_measurements(
         cal, meas, refit=what, data_name=data, model_name=model_path, say=_stderr
     )
-    ev, meas = run.evaluation, run.meas
-    if errors_out:
-        atomic_write_text(errors_out, run.errors_csv(), force=force)
-    if iso9283 or iso_out:
-        if not iso9283:
-            raise click.UsageError("--out is for --iso9283.")
+    errors = {errors_out: run.errors_csv()} if errors_out else {}
+    if iso9283:  # --errors-out written with the ISO figures, once they are in
         return run_iso_evaluate(
-            cal, meas, data, what, iso_out, force, as_json, model_path
+            cal, run.meas, data, what, iso_out, force, as_json, model_path, errors
         )
+    atomic_write_files(errors, force=force)
     if as_json:
-        click.echo(json.dumps(ev.metrics.contract()))
+        click.echo(json.dumps(run.evaluation.metrics.contract()))
         return
     click.echo("\n".join(run.summary_lines()))

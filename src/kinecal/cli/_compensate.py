@@ -213,6 +213,7 @@ def _check_outputs(
     from pathlib import Path
 
     from kinecal.io import detect_program_format
+    from kinecal.io._files import check_distinct_outputs
 
     # The output is of the input's kind: an --out named for another kind would hold
     # what its name does not say (a FANUC program in c.csv).
@@ -225,6 +226,7 @@ def _check_outputs(
             f"(as {Path(targets).suffix or '.csv'}), not {suffix}.",
             param_hint="--out",
         )
+    check_distinct_outputs([out_path, report_path])
     for p in (out_path, report_path):
         if p and Path(p).exists() and not force:
             raise FileExistsError(f"{p}: exists; use --force to overwrite it.")

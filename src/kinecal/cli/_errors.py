@@ -91,13 +91,26 @@ class CommandFailed(Exception):
         self.code = code
 
 
+class ResultsWithError(SystemExit):
+    """Exit with ``code`` (a result code: the results are committed) and ``message`` as
+    the final ``Error:`` line, printed after them (a calibration that did not
+    converge: exit 3)."""
+
+    def __init__(self, code: ExitCode, message: str) -> None:
+        super().__init__(int(code))
+        self.message = message
+
+
 class Terminated(BaseException):
     """SIGTERM, turned into an exception so that staged results are removed."""
 
 
 def one_line(text: str) -> str:
-    """``text`` on one line (line breaks and runs of blanks become one blank)."""
-    return " ".join(str(text).split())
+    """``text`` on one line (line breaks and runs of blanks become one blank), a staged
+    result folder in it named as the user knows it."""
+    from kinecal._outputs import user_paths_in
+
+    return user_paths_in(" ".join(str(text).split()))
 
 
 def _os_error(exc: OSError) -> tuple[ExitCode, str]:

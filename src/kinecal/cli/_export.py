@@ -119,7 +119,7 @@ def export_urdf(
         if label is not None and label not in own:
             raise click.BadParameter(
                 f"{option[2:]} {label!r} is not in the model {model_path}; expected "
-                f"one of {labels_text(own)}",
+                f"{labels_text(own, option[2:])}",
                 param_hint=option,
             )
     ex = export_model(

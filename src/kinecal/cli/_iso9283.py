@@ -54,6 +54,7 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
 
     from kinecal.geometry import euler_zyx_to_matrix
     from kinecal.io import atomic_write_files, json_text
+    from kinecal.io._files import check_distinct_outputs
     from kinecal.robot import load_robot
     from kinecal.workflows import iso_test_program
     from kinecal.workflows._plan import model_robot, report_path
@@ -77,6 +78,7 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
         )
     out = Path(kw["out_path"])
     rep = report_path(kw["out_path"], kw["report_path"])
+    check_distinct_outputs([out, rep])
     for p in (out, rep):
         if p.exists() and not kw["force"]:
             raise FileExistsError(f"{p} exists; use --force to overwrite it.")
@@ -101,15 +103,14 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
         cycles=kw["cycles"], plane=kw["iso_plane"], seed=kw["seed"],
         T_flange_tool=T_tool, model_name=kw["model_name"], progress=say,
     )  # fmt: skip
-    atomic_write_files(
-        {str(out): prog.csv_text(), str(rep): json_text(prog.report)},
-        force=kw["force"],
+    files = {str(out): prog.csv_text(), str(rep): json_text(prog.report)}
+    lines = (  # before the files: a failure leaves them as they were
+        [json.dumps(prog.report)]
+        if kw["as_json"]
+        else [*prog.summary_lines(), f"wrote     {out}, {rep}"]
     )
-    if kw["as_json"]:
-        click.echo(json.dumps(prog.report))
-        return
-    click.echo("\n".join(prog.summary_lines()))
-    click.echo(f"wrote     {out}, {rep}")
+    atomic_write_files(files, force=kw["force"])
+    click.echo("\n".join(lines))
 
 
 def iso_evaluate_options(f: Callable[..., Any]) -> Callable[..., Any]:
@@ -154,8 +155,11 @@ def run_iso_evaluate(
     force: bool,
     as_json: bool,
     model_path: str,
+    files: dict[str, str] | None = None,
 ) -> None:
-    """``kinecal evaluate --iso9283``: console table, optional report.json/.html."""
+    """``kinecal evaluate --iso9283``: console table, optional report.json/.html;
+    ``files`` (--errors-out) written with them, once the figures are in."""
+    from kinecal.io import atomic_write_files, json_text
     from kinecal.workflows import evaluate_iso_test
 
     folder = None
@@ -167,8 +171,8 @@ def run_iso_evaluate(
         )
     res = evaluate_iso_test(cal, meas, data, refit=refit)
     block = res.block
+    lines = [json.dumps({"iso9283": block})] if as_json else res.table_lines()
     if folder is not None:
-        from kinecal.io import atomic_write_files, json_text
         from kinecal.report._iso9283 import render_iso9283_report
 
         doc = {"data": data, "model": model_path, "iso9283": block}
@@ -180,9 +184,7 @@ def run_iso_evaluate(
             },
             force=True,
         )
-    if as_json:
-        click.echo(json.dumps({"iso9283": block}))
-        return
-    click.echo("\n".join(res.table_lines()))
-    if out_dir:
+    atomic_write_files(files or {}, force=force)
+    click.echo("\n".join(lines))
+    if out_dir and not as_json:
         click.echo(f"wrote     {out_dir}: report.json, report.html")

@@ -237,12 +237,14 @@ def _candidates(kw: dict[str, Any], setup: PlanSetup, say: Progress) -> Any:
 
 def _run(kw: dict[str, Any], say: Progress) -> None:
     from kinecal.io import atomic_write_files, json_text
+    from kinecal.io._files import check_distinct_outputs
     from kinecal.workflows import plan_measurements
     from kinecal.workflows._plan import read_measured_poses, report_path
     from kinecal.workflows._poses import pose_lines
 
     out = Path(kw["out_path"])
     rep = report_path(kw["out_path"], kw["report_path"])
+    check_distinct_outputs([out, rep, kw["save_candidates"]])
     for p in (out, rep, kw["save_candidates"]):
         if p and Path(p).exists() and not kw["force"]:
             raise FileExistsError(f"{p} exists; use --force to overwrite it.")
@@ -283,12 +285,14 @@ def _run(kw: dict[str, Any], say: Progress) -> None:
     }
     files[str(out)] = run.csv_text()
     files[str(rep)] = json_text(doc)
-    atomic_write_files(files, force=kw["force"])  # all of them or none
     saved = [kw["save_candidates"]] if kw["save_candidates"] else []
-    if kw["as_json"]:
-        click.echo(json.dumps(run.summary(out, rep)))
-        return
-    for line, err in run.summary_lines(out, rep, saved):
+    printed = (
+        [(json.dumps(run.summary(out, rep)), False)]
+        if kw["as_json"]
+        else run.summary_lines(out, rep, saved)
+    )  # before the files: a failure leaves an earlier plan as it was (issue 35)
+    atomic_write_files(files, force=kw["force"])  # all of them or none
+    for line, err in printed:
         click.echo(line, err=err)
 
 

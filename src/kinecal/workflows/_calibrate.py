@@ -289,7 +289,9 @@ def _checks(
     a wrong nominal table or units), and gravity-like residuals on a robot without a
     self-weight layout; their findings join the result's diagnostics."""
     from kinecal.identification._gravity_check import gravity_check
+    from kinecal.io._checks import lone_labels
 
+    result.diagnostics.extend(lone_labels(meas))  # issue 35: fitted to one row
     if opts.priors != "none" and meas.n <= NOMINAL_CHECK_ROWS:
         say("check", "the nominal robot and the priors against the data")
         result.diagnostics.extend(nominal_check(result, robot, meas, options=opts))

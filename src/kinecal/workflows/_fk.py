@@ -184,8 +184,8 @@ def _model_fk(
     ):
         if label is not None and label not in own:
             raise DataError(
-                f"--{what}: {what} {label!r} is not in the model; expected one of "
-                f"{labels_text(own)}."
+                f"--{what}: {what} {label!r} is not in the model; expected "
+                f"{labels_text(own, what)}."
             )
         idx.append(0 if label is None else own.index(label))
     scale = 1.0

@@ -1,0 +1,242 @@
+"""Issue 35, "Edges": a failing ``--force`` run leaves the earlier result as it was
+(everything a command prints or writes is computed before its files are replaced, and
+two outputs never share a file); a run that ends non-zero ends on its ``Error:`` line
+(exit 3 too, after its summary); a marker or set seen in one row is warned about;
+messages never name ``set ''`` / ``marker ''``, a staged temporary folder, or a file
+twice."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+from tests.cli_contract import check_contract, failed_with, run_kinecal, snapshot
+
+ROBOT = "fanuc-lrmate200id"
+PLAN = ("--poses", "12", "--model", "kinematic", "--n-candidates", "200")
+PLAN += ("--random-draws", "2", "-q")
+
+
+@pytest.fixture
+def work(data, tmp_path):
+    for k in ("train", "test", "model"):
+        shutil.copy(data[k], tmp_path / data[k].name)
+    return tmp_path
+
+
+@pytest.fixture
+def planned(capsys, work):
+    """A plan (PLAN.csv and its report) made earlier in ``work``."""
+    res = run_kinecal(capsys, "plan", "--robot", ROBOT, "--out", work / "p.csv", *PLAN)
+    assert res.code == 0, str(res)
+    assert (work / "p.report.json").is_file()
+    return work
+
+
+def test_issue_35_a_failing_plan_force_leaves_the_earlier_plan(
+    capsys, planned, monkeypatch
+):
+    from kinecal.workflows._plan import PlanRun
+
+    before = snapshot(planned)
+    args = ("plan", "--robot", ROBOT, "--out", planned / "p.csv", "--force")
+    # fails at its arguments, at its candidates, and late (after the plan is chosen)
+    res = run_kinecal(capsys, *args, *PLAN, "--poses", "5000")
+    failed_with(res, "5000 poses asked")
+    assert snapshot(planned) == before
+
+    def late(*a, **k):
+        raise RuntimeError("a failure after the plan was chosen")
+
+    monkeypatch.setattr(PlanRun, "summary_lines", late)
+    res = run_kinecal(capsys, *args, *PLAN, "--criterion", "D")
+    assert res.code == 1 and "a failure after the plan" in res.err, str(res)
+    assert snapshot(planned) == before  # nothing replaced: the files come last
+
+
+@pytest.mark.parametrize(
+    "extra",
+    [
+        ("--report", "p.csv"),  # the report onto the plan
+        ("--save-candidates", "p.report.json"),  # the candidates onto the report
+        ("--report", "./sub/../p.csv"),  # another spelling of the plan
+    ],
+)
+def test_issue_35_two_outputs_of_plan_onto_one_file(capsys, planned, extra):
+    (planned / "sub").mkdir()
+    before = snapshot(planned)
+    option, name = extra
+    res = run_kinecal(
+        capsys, "plan", "--robot", ROBOT, "--out", planned / "p.csv", "--force",
+        option, planned / name, *PLAN,
+    )  # fmt: skip
+    line = failed_with(res, "two outputs of this command")
+    assert line.count("p.csv") + line.count("p.report.json") <= 2
+    assert snapshot(planned) == before
+
+
+def test_issue_35_two_outputs_of_plan_iso9283_onto_one_file(capsys, work):
+    out = work / "iso.csv"
+    res = run_kinecal(
+        capsys, "plan", "--robot", ROBOT, "--iso9283", "--out", out, "--report", out
+    )
+    failed_with(res, "two outputs of this command")
+    assert not out.exists()
+
+
+def test_issue_35_outputs_one_file_under_two_names(tmp_path):
+    from kinecal.errors import ConfigError
+    from kinecal.io._files import atomic_write_files, check_distinct_outputs
+
+    a = tmp_path / "a.csv"
+    a.write_text("old\n")
+    os.symlink(a, tmp_path / "link.csv")
+    check_distinct_outputs([a, tmp_path / "b.csv", None])  # distinct: fine
+    for other in (tmp_path / "link.csv", f"{tmp_path}/./a.csv"):
+        with pytest.raises(ConfigError, match="two outputs"):
+            atomic_write_files({str(a): "x", str(other): "y"}, force=True)
+    assert a.read_text() == "old\n"
+
+
+def test_issue_35_evaluate_force_that_fails_keeps_errors_out(capsys, work):
+    errors = work / "errors.csv"
+    errors.write_text("earlier errors\n")
+    before = snapshot(work)
+    common = ("evaluate", work / "test.csv", "--model", work / "model.yaml")
+    common += ("--errors-out", errors, "--force", "-q")
+    # --out without --iso9283: a usage error, found before any work
+    failed_with(run_kinecal(capsys, *common, "--out", work / "iso"), "--out is for")
+    # --iso9283 on data that are not an ISO test: refused after the evaluation
+    failed_with(run_kinecal(capsys, *common, "--iso9283"), "iso_point")
+    assert snapshot(work) == before
+
+
+def test_issue_35_not_converged_ends_on_its_error_line(capsys, work, monkeypatch):
+    """Exit 3: the results are written, the summary printed, then one ``Error:`` line
+    last on stderr (not a warning line)."""
+    import kinecal.workflows._calibrate as wf
+    from kinecal.measurement import Diagnostic
+
+    real = wf.calibrate
+
+    def not_converged(*a, **k):
+        res = real(*a, **k)
+        res.diagnostics.append(
+            Diagnostic("not_converged", "stage 1 did not converge: (test)")
+        )
+        return dataclasses.replace(res, success=False)
+
+    monkeypatch.setattr(wf, "calibrate", not_converged)
+    out = work / "cal"
+    res = run_kinecal(
+        capsys, "calibrate", work / "train.csv", "--robot", ROBOT, "--out", out,
+        "--model", "kinematic", "--cv", "off", "-q",
+    )  # fmt: skip
+    check_contract(res)
+    assert res.code == 3, str(res)
+    last = res.err.strip().splitlines()[-1]
+    assert "did not converge" in last and str(out) in last, str(res)
+    assert "warning   stage 1 did not converge" in res.err  # the warning comes before
+    assert res.out.strip().splitlines()[-1].startswith("wrote")  # the summary: complete
+    assert (out / "model.yaml").is_file() and (out / "manifest.json").is_file()
+
+
+def _with_column(src: Path, dst: Path, name: str, last: str, others: str) -> Path:
+    lines = src.read_text().splitlines()
+    rows = [f"{r},{others}" for r in lines[1:-1]] + [f"{lines[-1]},{last}"]
+    dst.write_text("\n".join([f"{lines[0]},{name}", *rows]) + "\n")
+    return dst
+
+
+def test_issue_35_a_marker_seen_in_one_row_is_warned_about(capsys, work):
+    data = _with_column(work / "train.csv", work / "m.csv", "marker", "m2", "m1")
+    n_lines = len(data.read_text().splitlines())
+    res = run_kinecal(
+        capsys, "calibrate", data, "--robot", ROBOT, "--out", work / "cal",
+        "--model", "kinematic", "--cv", "off", "-q",
+    )  # fmt: skip
+    assert res.code == 0, str(res)
+    warned = [ln for ln in res.err.splitlines() if "marker 'm2'" in ln]
+    assert warned and f"one row only (line {n_lines})" in warned[0], str(res)
+    assert "marker 'm1'" not in res.err
+
+
+def test_issue_35_the_lone_label_check():
+    """One row of a set or marker among several: a finding per label, naming its line;
+    a single label (however many rows) or two rows each: none."""
+    import numpy as np
+
+    from kinecal.io._checks import lone_labels
+    from kinecal.measurement import Measurements
+
+    n = 6
+    meas = Measurements(
+        "point", np.zeros((n, 6)), np.zeros((n, 3)), source="d.csv",
+        set_index=np.array([0, 0, 0, 0, 0, 1]), set_labels=("A", "B"),
+        marker_index=np.array([0, 1, 1, 0, 0, 0]), marker_labels=("m1", "m2"),
+        rows=np.arange(2, n + 2),
+    )  # fmt: skip
+    found = lone_labels(meas)
+    assert [d.code for d in found] == ["lone_label"]
+    assert "set 'B'" in found[0].message and "(line 7)" in found[0].message
+    one = dataclasses.replace(meas, set_index=np.zeros(n, np.intp), set_labels=("A",))
+    assert lone_labels(one) == []
+
+
+def test_issue_35_messages_never_name_the_empty_label(capsys, work):
+    """The model of data without a set or marker column has the default ones (``''``):
+    messages say so in words."""
+    sets = _with_column(work / "test.csv", work / "s.csv", "set", "B", "A")
+    model = work / "model.yaml"
+    runs = [
+        run_kinecal(capsys, "evaluate", sets, "--model", model, "-q"),
+        run_kinecal(
+            capsys,
+            "fk",
+            "--model",
+            model,
+            "--marker",
+            "x",
+            "--",
+            *"0 0 0 0 -30 0".split(),
+        ),
+        run_kinecal(
+            capsys, "export-urdf", model, "--out", work / "c.urdf", "--set", "x"
+        ),
+    ]
+    for res in runs:
+        line = failed_with(res)
+        assert "''" not in line, line
+    assert "the model has one set:" in runs[0].err
+    assert "only the default marker" in runs[1].err
+
+
+def test_issue_35_an_input_refused_as_output_is_named_once(capsys, work):
+    data = work / "test.csv"
+    res = run_kinecal(
+        capsys, "evaluate", data, "--model", work / "model.yaml", "--errors-out", data,
+        "--force",
+    )  # fmt: skip
+    line = failed_with(res, "is an input of this command (DATA)")
+    assert line.count(str(data)) == 1, line
+    res = run_kinecal(
+        capsys, "export-urdf", work / "model.yaml", "--out", work / "model.yaml",
+        "--force",
+    )  # fmt: skip
+    line = failed_with(res, "(MODEL.yaml)")
+    assert line.count("model.yaml") == 1, line
+
+
+def test_issue_35_messages_name_the_result_folder_not_its_staging():
+    from kinecal.cli._errors import one_line
+
+    assert one_line("/r/.out.kinecal-tmp-12-ab12cd34/model.yaml: bad") == (
+        "/r/out/model.yaml: bad"
+    )
+    assert one_line("x /r/out/.kinecal-tmp-12-ab12cd34/report.json y") == (
+        "x /r/out/report.json y"
+    )
