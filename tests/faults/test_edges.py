@@ -240,3 +240,38 @@ def test_issue_35_messages_name_the_result_folder_not_its_staging():
     assert one_line("x /r/out/.kinecal-tmp-12-ab12cd34/report.json y") == (
         "x /r/out/report.json y"
     )
+
+
+@pytest.mark.parametrize(
+    "extra, needle",
+    [
+        (("--data", "train.csv"), "--data is for --model MODEL.yaml --add N"),
+        (("--candidates", "p.csv", "--station", "1,2,3"), "--station is for generated"),
+        (
+            ("--candidates", "p.csv", "--n-candidates", "99"),
+            "--n-candidates is for gen",
+        ),
+        (("--cube-mm", "100"), "--cube-mm is for --iso9283"),
+        (("--standoff-mm", "100:120"), "--standoff-mm is for --instrument sensor"),
+    ],
+)
+def test_issue_35_plan_options_it_would_ignore_are_refused(
+    capsys, planned, extra, needle
+):
+    before = snapshot(planned)
+    args = [planned / a if a.endswith(".csv") else a for a in extra]
+    res = run_kinecal(
+        capsys, "plan", "--robot", ROBOT, "--out", planned / "q.csv", *args, *PLAN
+    )
+    failed_with(res, needle)
+    assert snapshot(planned) == before
+
+
+@pytest.mark.parametrize("text", ['{"noise_sigma_mm": "abc"}', "{bad", "{}"])
+def test_issue_35_plan_add_with_a_damaged_report_beside_the_model(capsys, work, text):
+    (work / "report.json").write_text(text)
+    res = run_kinecal(
+        capsys, "plan", "--model", work / "model.yaml", "--add", "3", "--out",
+        work / "p.csv", "--n-candidates", "60", "--random-draws", "2", "-q",
+    )  # fmt: skip
+    failed_with(res, "report.json", "noise_sigma_mm", "--noise-mm")

@@ -31,33 +31,6 @@ def _floats(text: str | None, n: int, name: str) -> list[float] | None:
     return None if text is None else parse_floats(text, n, name)
 
 
-def _joint_ranges(text: str | None, robot: Any) -> Any:
-    """``J1:-60:60,J3:0:90`` -> (n, 2) [rad], the limits where not given."""
-    import numpy as np
-
-    if text is None:
-        return None
-    r = robot.limits.copy()
-    for item in text.split(","):
-        parts = item.strip().split(":")
-        try:
-            if len(parts) != 3 or parts[0][:1].upper() != "J":
-                raise ValueError
-            j = int(parts[0][1:])
-            lo, hi = float(parts[1]), float(parts[2])
-            if not 1 <= j <= robot.n_joints or not lo <= hi:
-                raise ValueError
-        except ValueError:
-            raise click.BadParameter(
-                f"expected Jk:low:high with 1 <= k <= {robot.n_joints} and low <= high "
-                f"(degrees, or mm for a prismatic joint); got {item!r}",
-                param_hint="--joint-range",
-            ) from None
-        f = 1e-3 if robot.joints[j - 1].kind == "prismatic" else np.pi / 180
-        r[j - 1] = (lo * f, hi * f)
-    return r
-
-
 _FILE = click.Path(dir_okay=False)
 _POS = FiniteFloat(0.0, low_open=True)
 _INT = click.IntRange(min=1)
@@ -208,11 +181,16 @@ def _setup(kw: dict[str, Any], say: Progress) -> PlanSetup:
 def _candidates(kw: dict[str, Any], setup: PlanSetup, say: Progress) -> Any:
     """Candidate poses: read from --candidates, or generated."""
     from kinecal.workflows import plan_candidates
+    from kinecal.workflows._plan import joint_ranges
 
+    _refuse_unused(kw, setup.instrument.name == "sensor")
     so: list[float] | None = [115.0, 135.0]
     st = None
     if not kw["candidates"]:
-        ranges = _joint_ranges(kw["joint_range"], setup.robot)
+        try:
+            ranges = joint_ranges(kw["joint_range"], setup.robot)
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint="--joint-range") from None
         if setup.instrument.name == "sensor":
             try:
                 so = _floats(kw["standoff_mm"].replace(":", ","), 2, "--standoff-mm")
@@ -233,6 +211,34 @@ def _candidates(kw: dict[str, Any], setup: PlanSetup, say: Progress) -> Any:
         floor_mm=kw["floor_mm"], station_mm=None if st is None else tuple(st),
         cone_deg=kw["cone_deg"], standoff_mm=(so[0], so[1]), progress=say,
     )  # fmt: skip
+
+
+def _refuse_unused(kw: dict[str, Any], sensor: bool) -> None:
+    """Options given that this plan would not use (issue 35: they were ignored)."""
+    from click.core import ParameterSource
+
+    ctx = click.get_current_context()
+    opt = {p.name: p.opts[0] for p in ctx.command.params}
+    why = {n: "is for --iso9283" for n in _ISO}
+    if sensor:
+        why |= {"station": "is for a tracker", "cone_deg": "is for a tracker"}
+    else:
+        why["standoff_mm"] = "is for --instrument sensor"
+    why |= {n: "is for generated candidates" for n in _GENERATED if kw["candidates"]}
+    why |= {} if kw["add_n"] else {"data_path": "is for --model MODEL.yaml --add N"}
+    for n in kw:
+        if n in why and ctx.get_parameter_source(n) == ParameterSource.COMMANDLINE:
+            raise click.UsageError(f"{opt[n]} {why[n]}; remove it.")
+
+
+_ISO = ("cube_mm", "cube_centre", "cycles", "orientation", "iso_plane")
+_GENERATED: tuple[str, ...] = (
+    "joint_range",
+    "n_candidates",
+    "min_j5_deg",
+    "min_conditioning",
+)
+_GENERATED += ("floor_mm", "station", "cone_deg", "standoff_mm")
 
 
 def _run(kw: dict[str, Any], say: Progress) -> None:

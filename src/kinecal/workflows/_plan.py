@@ -146,6 +146,31 @@ def model_robot(
     return robot
 
 
+def joint_ranges(text: str | None, robot: RobotDescription) -> np.ndarray | None:
+    """``J1:-60:60,J3:0:90`` (deg, mm for a prismatic joint) -> (n, 2) [rad, m], the
+    limits where not given; None stays None. ValueError with what is expected."""
+    if text is None:
+        return None
+    r = robot.limits.copy()
+    for item in text.split(","):
+        parts = item.strip().split(":")
+        try:
+            if len(parts) != 3 or parts[0][:1].upper() != "J":
+                raise ValueError
+            j = int(parts[0][1:])
+            lo, hi = float(parts[1]), float(parts[2])
+            if not 1 <= j <= robot.n_joints or not lo <= hi:
+                raise ValueError
+        except ValueError:
+            raise ValueError(
+                f"expected Jk:low:high with 1 <= k <= {robot.n_joints} and low <= high "
+                f"(degrees, or mm for a prismatic joint); got {item!r}"
+            ) from None
+        f = 1e-3 if robot.joints[j - 1].kind == "prismatic" else np.pi / 180
+        r[j - 1] = (lo * f, hi * f)
+    return r
+
+
 def calibration_noise_mm(model_file: str) -> tuple[float | None, Path]:
     """The noise per axis [mm] that the calibration of ``model_file`` found (its
     report.json beside it), and that file; None when there is none."""
@@ -154,7 +179,17 @@ def calibration_noise_mm(model_file: str) -> tuple[float | None, Path]:
     rep = Path(model_file).with_name("report.json")
     if not rep.is_file():
         return None, rep
-    return json.loads(rep.read_text()).get("noise_sigma_mm"), rep
+    try:
+        noise = json.loads(rep.read_text())["noise_sigma_mm"]
+        if noise is not None and not 0 < float(noise) < 1e3:  # nan too
+            raise ValueError(noise)
+    except (ValueError, TypeError, KeyError) as exc:  # an edited or damaged file
+        raise DataError(
+            f"{rep}: no noise_sigma_mm a calibration writes ({type(exc).__name__}: "
+            f"{exc}); expected the report.json of {model_file}'s calibration (or give "
+            "--noise-mm)."
+        ) from None
+    return (None if noise is None else float(noise)), rep
 
 
 def read_measured_poses(
