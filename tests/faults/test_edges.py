@@ -246,10 +246,10 @@ def test_issue_35_messages_name_the_result_folder_not_its_staging():
     "extra, needle",
     [
         (("--data", "train.csv"), "--data is for --model MODEL.yaml --add N"),
-        (("--candidates", "p.csv", "--station", "1,2,3"), "--station is for generated"),
+        (("--candidates", "p.csv", "--station", "1,2,3"), "is for generated candidates"),
         (
             ("--candidates", "p.csv", "--n-candidates", "99"),
-            "--n-candidates is for gen",
+            "is for generated candidates",
         ),
         (("--cube-mm", "100"), "--cube-mm is for --iso9283"),
         (("--standoff-mm", "100:120"), "--standoff-mm is for --instrument sensor"),
@@ -275,3 +275,37 @@ def test_issue_35_plan_add_with_a_damaged_report_beside_the_model(capsys, work, 
         work / "p.csv", "--n-candidates", "60", "--random-draws", "2", "-q",
     )  # fmt: skip
     failed_with(res, "report.json", "noise_sigma_mm", "--noise-mm")
+
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (("calibrate", "train.csv", "--robot", ROBOT, "--out", "o", "--model",
+          "kinematic", "--ntm-order", "3"), "--ntm-order is for --model ntm"),
+        (("calibrate", "train.csv", "--robot", ROBOT, "--out", "o", "--model", "rfcm",
+          "--stage2", "project"), "--stage2 is for --model ntm"),
+        (("calibrate", "train.csv", "--robot", ROBOT, "--out", "o", "--model", "full",
+          "--cv", "off", "--cv-groups", "j1_deg"), "--cv-groups is for --cv K"),
+        (("calibrate", "train.csv", "--robot", ROBOT, "--out", "o", "--reject", "off",
+          "--reject-z", "3"), "--reject-z is for --reject auto"),
+        (("export-urdf", "model.yaml", "--out", "c.urdf", "--tool-link", "t"),
+         "--tool-link is for --like"),
+        (("export-urdf", "model.yaml", "--out", "c.urdf", "--targets", "train.csv"),
+         "--targets is for --data"),
+        (("export-urdf", "model.yaml", "--out", "r.yaml", "--format", "yaml-dh",
+          "--coupling", "mimic"), "--coupling is for urdf"),
+        (("compensate", "test.csv", "--model", "model.yaml", "--out", "c.csv",
+          "--decimals", "3"), "--decimals is for program files"),
+        (("compensate", "test.csv", "--model", "model.yaml", "--out", "c.csv",
+          "--report", "r.csv"), "--report is for program files"),
+        (("plan", "--robot", ROBOT, "--iso9283", "--out", "i.csv", "--criterion", "D"),
+         "--criterion chooses calibration poses, not --iso9283"),
+    ],
+)  # fmt: skip
+def test_issue_35_options_a_run_would_ignore_are_refused(capsys, work, args, needle):
+    """Given on the command line but not used by this run: refused (they were ignored,
+    exit 0), before any work."""
+    before = snapshot(work)
+    named = [work / a if "." in a and not a.startswith("-") else a for a in args]
+    failed_with(run_kinecal(capsys, *named), needle)
+    assert snapshot(work) == before

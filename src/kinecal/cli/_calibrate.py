@@ -15,16 +15,17 @@ from kinecal.cli._common import (
     Progress,
     allow_out_of_limits_option,
     common_options,
+    echo_err,
     jobs_option,
     model_file_option,
     option_table,
     parse_int_list,
     read_data_checked,
+    refuse_unused,
     targets_option,
 )
 from kinecal.cli._iso9283 import (
     iso_evaluate_options,
-    read_iso_data,
     run_iso_evaluate,
 )
 
@@ -151,6 +152,7 @@ def calibrate(
     )
 
     meta_fields, cv_folds, limits = _checked_options(meta, cv_text, accept)
+    refuse_unused(_unused(model_name, cv_folds, reject))
     say = Progress(quiet)
     jobs = jobs or available_cpus()
     robot = load_robot(robot_name)
@@ -222,6 +224,19 @@ def _checked_options(
         except ValueError as exc:
             raise click.BadParameter(str(exc), param_hint="--accept") from None
     return meta_fields, cv_folds, limits
+
+
+_NTM = ("ntm_joints", "ntm_order", "stage2")
+
+
+def _unused(model: str, cv: int | None, reject: str) -> dict[str, str]:
+    """The options a calibration with these settings would not use, and why."""
+    why = {} if reject == "auto" else {"reject_z": "is for --reject auto"}
+    if model in ("kinematic", "rfcm"):  # no transmission terms
+        why |= dict.fromkeys(_NTM, "is for --model ntm, full or auto")
+    if cv is None and model != "auto":
+        why["cv_groups"] = "is for --cv K or --model auto"
+    return why
 
 
 def _usable_folds(
@@ -315,10 +330,6 @@ def _refit_groups(text: str | None) -> tuple[str, ...]:
     return tuple(dict.fromkeys(words))
 
 
-def _stderr(line: str) -> None:
-    click.echo(line, err=True)
-
-
 # fmt: off
 _EVALUATE_OPTIONS: list[Any] = [
     model_file_option,
@@ -369,13 +380,13 @@ def evaluate(
     say = Progress(quiet)  # lines only for stages that last (a large file)
     cal = load_model(model_path)
     say.begin("data", f"reading {data}")
-    if iso9283:  # one tool orientation over a small cube by design: not a finding
-        meas = read_iso_data(data, cal.model.robot, targets, allow_out_of_limits)
-    else:
-        meas, _ = read_data_checked(data, cal.model.robot, targets, allow_out_of_limits)
+    # ISO 9283: one tool orientation over a small cube by design, not a finding
+    skip = ("poor_excitation",) if iso9283 else ()
+    robot = cal.model.robot
+    meas, _ = read_data_checked(data, robot, targets, allow_out_of_limits, skip)
     say.begin("evaluate", f"{meas.n} rows")
     run = evaluate_measurements(
-        cal, meas, refit=what, data_name=data, model_name=model_path, say=_stderr
+        cal, meas, refit=what, data_name=data, model_name=model_path, say=echo_err
     )
     errors = {errors_out: run.errors_csv()} if errors_out else {}
     if iso9283:  # --errors-out written with the ISO figures, once they are in

@@ -36,23 +36,28 @@ allow_out_of_limits_option = click.option(
 )
 
 
-def echo_diagnostics(found: Any) -> None:
-    """Print the warnings among ``Diagnostic`` records on stderr."""
-    for d in found:
-        if d.severity == "warning":
-            click.echo(f"warning   {d.message}", err=True)
+def echo_err(line: str) -> None:
+    """One line on stderr."""
+    click.echo(line, err=True)
 
 
 def read_data_checked(
-    data: str, robot: Any, targets: str | None, allow_out_of_limits: bool
+    data: str,
+    robot: Any,
+    targets: str | None,
+    allow_out_of_limits: bool,
+    skip: tuple[str, ...] = (),
 ) -> Any:
-    """Read a measurement file and print the findings of its checks: (meas, findings)."""
+    """Read a measurement file and print the warnings among the findings of its checks
+    (but those of the codes ``skip``): (meas, findings)."""
     from kinecal.io import read_data
 
     meas, found = read_data(
         data, robot, targets, allow_out_of_limits=allow_out_of_limits
     )
-    echo_diagnostics(found)
+    for d in found:
+        if d.severity == "warning" and d.code not in skip:
+            click.echo(f"warning   {d.message}", err=True)
     return meas, found
 
 
@@ -194,7 +199,8 @@ def parse_floats(text: str, n: int, name: str) -> list[float]:
         vals = []
     if len(vals) != n or not all(math.isfinite(v) for v in vals):
         raise click.BadParameter(
-            f"expected {n} comma-separated numbers; got {text!r}", param_hint=name
+            f"expected {n} comma-separated numbers (finite); got {text!r}",
+            param_hint=name,
         )
     return vals
 
@@ -260,6 +266,20 @@ def option_table(
         return f
 
     return apply
+
+
+def refuse_unused(why: dict[str, str]) -> None:
+    """Refuse an option given on the command line that this run would not use (issue
+    35: it was ignored): ``why`` maps a parameter's name to why ("is for --like")."""
+    from click.core import ParameterSource
+
+    ctx = click.get_current_context()
+    for p in ctx.command.params:
+        if (
+            p.name in why
+            and ctx.get_parameter_source(p.name) == ParameterSource.COMMANDLINE
+        ):
+            raise click.UsageError(f"{p.opts[0]} {why[p.name]}; remove it.")
 
 
 def common_options(f: Callable[..., Any]) -> Callable[..., Any]:

@@ -13,9 +13,11 @@ from kinecal.cli._common import (
     allow_out_of_limits_option,
     common_options,
     model_file_option,
+    refuse_unused,
 )
 
 _FORMATS = ("csv", "fanuc-ls", "urscript", "rapid", "krl")
+_PROGRAM_ONLY = ("decimals", "report_path", "uframes", "utools", "frames_path")
 
 
 @click.command()
@@ -215,6 +217,8 @@ def _check_outputs(
     from kinecal.io import detect_program_format
     from kinecal.io._files import check_distinct_outputs
 
+    if fmt == "csv":  # issue 35: they were ignored on a CSV of targets
+        refuse_unused(dict.fromkeys(_PROGRAM_ONLY, "is for program files"))
     # The output is of the input's kind: an --out named for another kind would hold
     # what its name does not say (a FANUC program in c.csv).
     suffix = Path(out_path).suffix.lower()

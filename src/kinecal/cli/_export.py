@@ -6,7 +6,7 @@ from typing import Any
 
 import click
 
-from kinecal.cli._common import option_table, targets_option
+from kinecal.cli._common import option_table, refuse_unused, targets_option
 
 _FILE = click.Path(dir_okay=False)
 _DEFAULT = {"show_default": True}
@@ -111,6 +111,9 @@ def export_urdf(
             "--like writes a URDF whose joints take the kinematic angles; it does "
             "not go with --format yaml-dh or --coupling mimic"
         )
+    why = {} if data else {"targets": "is for --data (sensor data)"}
+    why |= {} if like else dict.fromkeys(("tool_link", "user_link"), "is for --like")
+    refuse_unused(why | ({"coupling": "is for urdf"} if fmt == "yaml-dh" else {}))
     cal = load_model(model_path)
     for option, label, own in (
         ("--set", set_label, cal.model.spec.sets),

@@ -20,9 +20,14 @@ from kinecal.cli._common import (
     option_table,
     parse_floats,
     parse_pose,
+    refuse_unused,
 )
 
 _PLAN_FLAGS = ("candidates", "poses", "add_n")
+_NOT_ISO = ("criterion", "exchange", "instrument", "targets", "noise_mm", "noise_deg",
+    "priors", "user_frame", "save_candidates", "data_path", "random_draws", "joint_range",
+    "n_candidates", "min_j5_deg", "min_conditioning", "floor_mm", "station", "cone_deg",
+    "standoff_mm")  # fmt: skip
 
 
 # fmt: off
@@ -65,6 +70,7 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
             f"--iso9283 writes the standard's test poses; {', '.join(given)} choose "
             "calibration poses (give one or the other)."
         )
+    refuse_unused(dict.fromkeys(_NOT_ISO, "chooses calibration poses, not --iso9283"))
     cal = None
     if kw["model_name"] not in ("kinematic", "ntm", "rfcm", "full"):
         from kinecal.io import load_model
@@ -129,21 +135,6 @@ def iso_evaluate_options(f: Callable[..., Any]) -> Callable[..., Any]:
         "and iso_point, iso_cycle columns): AP, RP per point, AD, RD; with the model "
         "and with the nominal robot.",
     )(f)
-
-
-def read_iso_data(
-    data: str, robot: Any, targets: str | None, allow_out_of_limits: bool
-) -> Any:
-    """The measurements of an ISO test, its findings printed except ``poor_excitation``
-    (one tool orientation over a small cube is the test, not a flaw of the data)."""
-    from kinecal.cli._common import echo_diagnostics
-    from kinecal.io import read_data
-
-    meas, found = read_data(
-        data, robot, targets, allow_out_of_limits=allow_out_of_limits
-    )
-    echo_diagnostics([d for d in found if d.code != "poor_excitation"])
-    return meas
 
 
 def run_iso_evaluate(

@@ -14,10 +14,12 @@ from kinecal.cli._common import (
     Progress,
     allow_out_of_limits_option,
     common_options,
+    echo_err,
     manifest,
     option_table,
     parse_floats,
     parse_pose,
+    refuse_unused,
 )
 from kinecal.cli._iso9283 import iso_plan_options, run_iso_plan
 
@@ -214,11 +216,7 @@ def _candidates(kw: dict[str, Any], setup: PlanSetup, say: Progress) -> Any:
 
 
 def _refuse_unused(kw: dict[str, Any], sensor: bool) -> None:
-    """Options given that this plan would not use (issue 35: they were ignored)."""
-    from click.core import ParameterSource
-
-    ctx = click.get_current_context()
-    opt = {p.name: p.opts[0] for p in ctx.command.params}
+    """Options given that this plan would not use."""
     why = {n: "is for --iso9283" for n in _ISO}
     if sensor:
         why |= {"station": "is for a tracker", "cone_deg": "is for a tracker"}
@@ -226,9 +224,7 @@ def _refuse_unused(kw: dict[str, Any], sensor: bool) -> None:
         why["standoff_mm"] = "is for --instrument sensor"
     why |= {n: "is for generated candidates" for n in _GENERATED if kw["candidates"]}
     why |= {} if kw["add_n"] else {"data_path": "is for --model MODEL.yaml --add N"}
-    for n in kw:
-        if n in why and ctx.get_parameter_source(n) == ParameterSource.COMMANDLINE:
-            raise click.UsageError(f"{opt[n]} {why[n]}; remove it.")
+    refuse_unused(why)
 
 
 _ISO = ("cube_mm", "cube_centre", "cycles", "orientation", "iso_plane")
@@ -263,7 +259,7 @@ def _run(kw: dict[str, Any], say: Progress) -> None:
     measured = measured_ti = None
     if setup.cal is not None and kw["data_path"]:
         measured, measured_ti = read_measured_poses(
-            setup, kw["data_path"], bool(kw["allow_out_of_limits"]), _stderr
+            setup, kw["data_path"], bool(kw["allow_out_of_limits"]), echo_err
         )
     n = kw["poses"] or kw["add_n"]
     option = "--add" if kw["add_n"] else "--poses"
@@ -300,7 +296,3 @@ def _run(kw: dict[str, Any], say: Progress) -> None:
     atomic_write_files(files, force=kw["force"])  # all of them or none
     for line, err in printed:
         click.echo(line, err=err)
-
-
-def _stderr(line: str) -> None:
-    click.echo(line, err=True)

@@ -34,10 +34,7 @@ def report(
     Reads DIR/model.yaml, DIR/report.json and DIR/residuals.csv (per-pose errors; without
     it the report has no per-pose figures); needs nothing else (no matplotlib).
     """
-    from pathlib import Path
-
-    from kinecal.errors import CalibError, DataError
-    from kinecal.report import write_report
+    from kinecal.workflows._report import draw_report
 
     say = Progress(quiet)
     if compare:
@@ -47,25 +44,8 @@ def report(
         return
     if folder is None:
         raise click.UsageError("missing DIR (a folder written by kinecal calibrate).")
-    d = Path(folder)
-    if not d.is_dir():
-        raise DataError(
-            f"{d}: no such folder; expected a folder written by kinecal calibrate."
-        )
     say("report", f"drawing from {folder}")
-    try:
-        path = write_report(folder, out=out_path, force=force)
-    except CalibError:
-        raise
-    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
-        # report.json was edited or damaged: its values are not what calibrate writes
-        # (model.yaml and residuals.csv are validated by their readers).
-        raise DataError(
-            f"{d / 'report.json'}: unexpected content ({type(exc).__name__}: {exc}); "
-            "expected the report.json kinecal calibrate wrote (restore it, or run "
-            "calibrate again)."
-        ) from exc
-    click.echo(f"wrote     {path}")
+    click.echo(f"wrote     {draw_report(folder, out_path, force=force)}")
 
 
 def _compare(old: str, new: str, out_path: str | None, force: bool, say: Any) -> None:

@@ -35,15 +35,3 @@ def _board(text: str, square_mm: float) -> Any:
             param_hint="--square-mm",
         )
     return ChessboardTarget(cols, rows, square_mm * 1e-3)
-
-
-def _triple(text: str, name: str) -> tuple[float, float, float]:
-    try:
-        vals = tuple(float(t) for t in text.split(","))
-    except ValueError:
-        vals = ()
-    if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
-        raise click.BadParameter(
-            f"expected X,Y,Z (3 finite numbers); got {text!r}", param_hint=name
-        )
-    return vals

@@ -19,22 +19,14 @@ from kinecal.cli._common import (
 )
 
 _BOARD_HELP = "Chessboard inner corners COLSxROWS (one even, one odd count)."
-_K3_HELP = (
-    "k3: estimated only where the data determine it (auto), always (free) or never "
-    "(fixed, k3 = 0)."
-)
-_DETECTOR_HELP = (
-    "Board corners: OpenCV's classic detector, and its sector-based one where the "
-    "classic one finds no board (auto); or only one of them. Corners refined by "
-    "cornerSubPix."
-)
-
-
 # fmt: off
 _K3 = (("--k3",), {"type": click.Choice(["auto", "free", "fixed"]), "default": "auto",
-    "show_default": True, "help": _K3_HELP})
+    "show_default": True, "help": "k3: estimated only where the data determine it "
+    "(auto), always (free) or never (fixed, k3 = 0)."})
 _DETECTOR = (("--detector",), {"type": click.Choice(["auto", "classic", "sb"]),
-    "default": "auto", "show_default": True, "help": _DETECTOR_HELP})
+    "default": "auto", "show_default": True, "help": "Board corners: OpenCV's classic "
+    "detector, and its sector-based one where the classic one finds no board (auto); or "
+    "only one of them. Corners refined by cornerSubPix."})
 _BOARD = (("--board",), {"default": "10x7", "show_default": True, "help": _BOARD_HELP})
 _SQUARE = (("--square-mm",), {"type": float, "default": 2.5, "show_default": True})
 _FORCE = (("--force",), {"is_flag": True})

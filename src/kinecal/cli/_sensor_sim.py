@@ -65,7 +65,7 @@ def simulate_scan(
     """
     import numpy as np
 
-    from kinecal.cli._sensor_args import _triple
+    from kinecal.cli._common import parse_floats
     from kinecal.io import prepare_output_dir
     from kinecal.sensor import paper_sensor
     from kinecal.workflows import render_scan
@@ -77,7 +77,8 @@ def simulate_scan(
             f"must be positive, got {radius_mm}", param_hint="--radius-mm"
         )
     sen = paper_sensor()
-    center = _triple(center_mm, "--center-mm")
+    x, y, z = parse_floats(center_mm, 3, "--center-mm")
+    center = (x, y, z)
     c = np.array(center) * 1e-3
     idx = np.arange(0, len(sen.planes), every)
     problem = scene_problem(sen, c, radius_mm * 1e-3, idx)
