@@ -246,7 +246,10 @@ def test_issue_35_messages_name_the_result_folder_not_its_staging():
     "extra, needle",
     [
         (("--data", "train.csv"), "--data is for --model MODEL.yaml --add N"),
-        (("--candidates", "p.csv", "--station", "1,2,3"), "is for generated candidates"),
+        (
+            ("--candidates", "p.csv", "--station", "1,2,3"),
+            "is for generated candidates",
+        ),
         (
             ("--candidates", "p.csv", "--n-candidates", "99"),
             "is for generated candidates",
