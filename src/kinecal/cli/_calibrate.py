@@ -393,8 +393,7 @@ def evaluate(
         return run_iso_evaluate(
             cal, run.meas, data, what, iso_out, force, as_json, model_path, errors
         )
+    m = run.evaluation.metrics  # what it prints, before the file (issue 35)
+    lines = [json.dumps(m.contract())] if as_json else run.summary_lines()
     atomic_write_files(errors, force=force)
-    if as_json:
-        click.echo(json.dumps(run.evaluation.metrics.contract()))
-        return
-    click.echo("\n".join(run.summary_lines()))
+    click.echo("\n".join(lines))

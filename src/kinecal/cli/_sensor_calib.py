@@ -127,8 +127,9 @@ def calibrate_camera_cmd(
     )  # fmt: skip
     for line in run.warning_lines():
         click.echo(line, err=True)
+    lines = run.summary_lines()  # before the file (issue 35)
     save_sensor(out, run.result.camera, run.info, force=force)
-    click.echo("\n".join(run.summary_lines()))
+    click.echo("\n".join(lines))
     click.echo(f"-> {out}", err=True)
 
 
@@ -180,8 +181,9 @@ def calibrate_planes_cmd(
     )  # fmt: skip
     for f in run.skipped:
         click.echo(f"warning: {f}: chessboard not found; pose skipped", err=True)
+    lines = run.summary_lines(camera_estimated=cam is None)  # before the file
     save_sensor(out, run.result.sensor, run.info, force=force)
-    click.echo("\n".join(run.summary_lines(camera_estimated=cam is None)))
+    click.echo("\n".join(lines))
     click.echo(f"-> {out}", err=True)
 
 
