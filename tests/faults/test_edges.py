@@ -312,3 +312,20 @@ def test_issue_35_options_a_run_would_ignore_are_refused(capsys, work, args, nee
     named = [work / a if "." in a and not a.startswith("-") else a for a in args]
     failed_with(run_kinecal(capsys, *named), needle)
     assert snapshot(work) == before
+
+
+def test_issue_35_evaluate_refit_marker_warns_of_a_marker_in_one_row(capsys, work):
+    cal = work / "cal"
+    data = _with_column(work / "train.csv", work / "m.csv", "marker", "m2", "m1")
+    res = run_kinecal(
+        capsys, "calibrate", data, "--robot", ROBOT, "--out", cal, "--model",
+        "kinematic", "--cv", "off", "-q",
+    )  # fmt: skip
+    assert res.code == 0, str(res)
+    test = _with_column(work / "test.csv", work / "t.csv", "marker", "m2", "m1")
+    res = run_kinecal(capsys, "evaluate", test, "--model", cal / "model.yaml")
+    assert res.code == 0 and "one row only" not in res.err, str(res)  # no refit: fine
+    res = run_kinecal(
+        capsys, "evaluate", test, "--model", cal / "model.yaml", "--refit", "marker"
+    )
+    assert res.code == 0 and "marker 'm2' is seen in one row only" in res.err, str(res)

@@ -108,15 +108,19 @@ def duplicate_rows(meas: Measurements) -> Diagnostic | None:
     )
 
 
-def lone_labels(meas: Measurements) -> list[Diagnostic]:
-    """Markers and sets (of data with several) seen in one row only: a calibration
-    fits that marker's offset (that set's frame) to the one row, which it then matches
-    exactly, so nothing checks it."""
+def lone_labels(
+    meas: Measurements, kinds: tuple[str, ...] = ("marker", "set")
+) -> list[Diagnostic]:
+    """Markers and sets (``kinds``; of data with several) seen in one row only: a
+    calibration fits that marker's offset (that set's frame) to the one row, which it
+    then matches exactly, so nothing checks it."""
     out = []
     for what, idx, labels, fitted in (
         ("marker", meas.marker_index, meas.marker_labels, "its offset on the tool"),
         ("set", meas.set_index, meas.set_labels, "its user frame"),
     ):
+        if what not in kinds:
+            continue
         counts = np.bincount(idx, minlength=len(labels))
         if (counts > 0).sum() < 2:
             continue
