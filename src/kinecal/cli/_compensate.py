@@ -195,16 +195,27 @@ def compensate(
         atomic_write_text(out_path, run.csv_text(), force=force)
     else:
         atomic_write_files(files, force=force)  # the program and its report, or neither
-    if fmt != "csv" and run.written_note is not None:
-        click.echo(run.written_note, err=True)
+    program = fmt != "csv"
+    _print_result(
+        summary, as_json, program and run.written_note, program and report_path
+    )
+
+
+def _print_result(
+    summary: dict[str, Any], as_json: bool, note: Any, report: Any
+) -> None:
+    """A program's written ``note`` (stderr), then the summary: JSON or one line
+    (``report``: the program's report file, if written)."""
+    if note:
+        click.echo(note, err=True)
     if as_json:
         click.echo(json.dumps(summary))
-    else:
-        click.echo(
-            f"{summary['ok']} of {summary['n']} targets compensated; largest predicted "
-            f"error {summary['max_err_mm'] or 0:.6f} mm; wrote {out_path}"
-            + (f" and {report_path}" if report_path and fmt != "csv" else "")
-        )
+        return
+    click.echo(
+        f"{summary['ok']} of {summary['n']} targets compensated; largest predicted "
+        f"error {summary['max_err_mm'] or 0:.6f} mm; wrote {summary['out']}"
+        + (f" and {report}" if report else "")
+    )
 
 
 def _check_outputs(

@@ -4,6 +4,7 @@ planes (with or without the camera) from stripes on a planar target."""
 
 from __future__ import annotations
 
+import math
 import re
 import threading
 from collections import Counter
@@ -142,6 +143,39 @@ def sphere_lines(f: SphereFit, fixed: bool = False) -> list[str]:
         f"rms     {d['rms_mm']:.5f} mm over {f.n} of {f.inliers.size} points; cap "
         f"half-angle {d['cap_half_angle_deg']:.1f} deg",
     ]
+
+
+def chessboard_target(board: str, square_mm: float) -> ChessboardTarget:
+    """A chessboard of ``board`` (``COLSxROWS`` inner corners) and ``square_mm``.
+
+    Raises
+    ------
+    ValueError
+        (what is expected, the option: ``--board`` or ``--square-mm``): not COLSxROWS,
+        fewer than 3 corners a way, two even or two odd counts (the board would look
+        the same turned by 180 deg), a square that is not a finite number > 0.
+    """
+    from kinecal.sensor import ChessboardTarget
+
+    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", board)
+    if not m:
+        raise ValueError(f"expected COLSxROWS, e.g. 10x7; got {board!r}", "--board")
+    cols, rows = int(m.group(1)), int(m.group(2))
+    if min(cols, rows) < 3:
+        raise ValueError(
+            f"expected at least 3 inner corners each way; got {board!r}", "--board"
+        )
+    if cols % 2 == rows % 2:
+        raise ValueError(
+            f"expected one even and one odd count of inner corners (a board with two "
+            f"even or two odd counts looks the same turned by 180 deg); got {board!r}",
+            "--board",
+        )
+    if not (square_mm > 0 and math.isfinite(square_mm)):
+        raise ValueError(
+            f"expected a finite number > 0 [mm]; got {square_mm}", "--square-mm"
+        )
+    return ChessboardTarget(cols, rows, square_mm * 1e-3)
 
 
 def camera_lines(cc: CameraCalibration) -> list[str]:
