@@ -228,13 +228,8 @@ def _refuse_unused(kw: dict[str, Any], sensor: bool) -> None:
 
 
 _ISO = ("cube_mm", "cube_centre", "cycles", "orientation", "iso_plane")
-_GENERATED: tuple[str, ...] = (
-    "joint_range",
-    "n_candidates",
-    "min_j5_deg",
-    "min_conditioning",
-)
-_GENERATED += ("floor_mm", "station", "cone_deg", "standoff_mm")
+_GENERATED = ("joint_range", "n_candidates", "min_j5_deg", "min_conditioning",
+    "floor_mm", "station", "cone_deg", "standoff_mm")  # fmt: skip
 
 
 def _run(kw: dict[str, Any], say: Progress) -> None:
