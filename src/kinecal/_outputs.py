@@ -252,8 +252,9 @@ class OutputTransaction:
 
             if what.endswith(f" {path}"):  # the file is named once, at the start
                 what = what[: -len(str(path)) - 1]
+            what = "" if what in (str(path), os.fspath(path)) else f" ({what})"
             raise DataError(
-                f"{path}: is an input of this command ({what}); writing the output there "
+                f"{path}: is an input of this command{what}; writing the output there "
                 "would replace it, so it is refused (--force or not): choose another "
                 "output name."
             )

@@ -329,3 +329,43 @@ def test_issue_35_evaluate_refit_marker_warns_of_a_marker_in_one_row(capsys, wor
         capsys, "evaluate", test, "--model", cal / "model.yaml", "--refit", "marker"
     )
     assert res.code == 0 and "marker 'm2' is seen in one row only" in res.err, str(res)
+
+
+def test_issue_35_report_never_writes_over_the_folder_it_reads(capsys, work):
+    cal = work / "cal"
+    res = run_kinecal(
+        capsys, "calibrate", work / "train.csv", "--robot", ROBOT, "--out", cal,
+        "--model", "kinematic", "--cv", "off", "--no-report", "-q",
+    )  # fmt: skip
+    assert res.code == 0, str(res)
+    shutil.copytree(cal, work / "cal2")
+    res = run_kinecal(capsys, "report", "--compare", cal, work / "cal" / ".." / "cal")
+    failed_with(res, "OLD_DIR and NEW_DIR are one folder")
+    before = snapshot(cal)
+    for name in ("report.json", "residuals.csv", "manifest.json"):
+        res = run_kinecal(capsys, "report", cal, "--out", cal / name, "--force")
+        failed_with(res, "is an input of this command", f"the {name} of")
+        res = run_kinecal(
+            capsys,
+            "report",
+            "--compare",
+            work / "cal2",
+            cal,
+            "--out",
+            cal / name,
+            "--force",
+        )
+        failed_with(res, "is an input of this command")
+    assert snapshot(cal) == before
+
+
+def test_issue_35_an_input_noted_by_its_reader_is_named_once(tmp_path):
+    from kinecal._outputs import note_input, output_transaction, refuse_input
+    from kinecal.errors import DataError
+
+    f = tmp_path / "m.yaml"
+    f.write_text("x\n")
+    with output_transaction(), pytest.raises(DataError) as err:
+        note_input(f)
+        refuse_input(f)
+    assert str(err.value).count(str(f)) == 1, err.value

@@ -54,6 +54,8 @@ def _compare(old: str, new: str, out_path: str | None, force: bool, say: Any) ->
     from kinecal.io import atomic_write_text
     from kinecal.workflows._compare import compare_calibration_folders
 
+    if Path(old).resolve() == Path(new).resolve():  # issue 35: a comparison of nothing
+        raise click.UsageError("--compare: OLD_DIR and NEW_DIR are one folder.")
     target = Path(out_path) if out_path else Path(new) / "compare.html"
     if target.exists() and not force:
         raise FileExistsError(f"{target} exists; use --force to overwrite it.")

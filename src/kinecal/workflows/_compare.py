@@ -168,5 +168,8 @@ def compare_calibration_folders(
     compared: parameters that moved beyond their combined uncertainty, each model's
     accuracy on the other's data (when the manifests' data files are still there)."""
     from kinecal.report._compare import compare_calibrations
+    from kinecal.workflows._report import note_folder_inputs
 
+    for folder in (old_dir, new_dir):
+        note_folder_inputs(Path(folder))
     return CalibrationComparison(compare_calibrations(old_dir, new_dir))

@@ -7,7 +7,10 @@ from pathlib import Path
 
 from kinecal.errors import CalibError, DataError
 
-__all__ = ["draw_report"]
+__all__ = ["draw_report", "note_folder_inputs"]
+
+# The files of a calibration's folder that ``kinecal report`` reads.
+FOLDER_INPUTS = ("model.yaml", "report.json", "residuals.csv", "manifest.json")
 
 
 def draw_report(
@@ -29,6 +32,7 @@ def draw_report(
         raise DataError(
             f"{d}: no such folder; expected a folder written by kinecal calibrate."
         )
+    note_folder_inputs(d)
     try:
         return write_report(folder, out=out, force=force)
     except CalibError:
@@ -39,3 +43,12 @@ def draw_report(
             "expected the report.json kinecal calibrate wrote (restore it, or run "
             "calibrate again)."
         ) from exc
+
+
+def note_folder_inputs(folder: Path) -> None:
+    """The files of a calibration ``folder`` a report reads are inputs of the command:
+    no output of it may replace them (``report DIR --out DIR/report.json``)."""
+    from kinecal._outputs import note_input
+
+    for name in FOLDER_INPUTS:
+        note_input(folder / name, f"the {name} of {folder}")
