@@ -174,11 +174,7 @@ def calibrate(
         ntm_order=ntm_order, cv_folds=cv_folds, groups=groups,
         group_name=cv_groups or "group", jobs=jobs, progress=say,
     )  # fmt: skip
-    if run.held_out is not None:
-        for note in dict.fromkeys(
-            n for fig in run.held_out.figures for n in fig.folds.notes
-        ):
-            click.echo(f"warning   {note}", err=True)
+    _fold_warnings(run.held_out)
     files = calibration_files(
         run, meas, data_checks=data_checks, certificate=certificate, limits=limits
     )
@@ -200,9 +196,21 @@ def calibrate(
         raise ResultsWithError(
             ExitCode.NOT_CONVERGED,
             f"the calibration did not converge; its results are in {Path(out_dir)}"
-            f"{os.sep}, flagged (report.json 'success': false): see the warnings above "
-            "and the report's stages; more or better-spread poses, or a smaller --model",
+            f"{os.sep}, flagged (report.json 'success': false): {_NOT_CONVERGED}",
         )
+
+
+_NOT_CONVERGED = (
+    "see the warnings above and the report's stages; more or better-spread poses, or "
+    "a smaller --model"
+)
+
+
+def _fold_warnings(held: Any) -> None:
+    """The cross-validation's notes on its folds, once each, as warnings."""
+    if held is not None:
+        for note in dict.fromkeys(n for fig in held.figures for n in fig.folds.notes):
+            click.echo(f"warning   {note}", err=True)
 
 
 def _checked_options(
