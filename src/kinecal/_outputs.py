@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import fnmatch
 import os
+import re
 import signal
 import threading
 from collections.abc import Iterator
@@ -45,11 +46,39 @@ __all__ = [
     "output_transaction",
     "refuse_input",
     "signals_held",
+    "user_path",
+    "user_paths_in",
 ]
 
 _TAG = ".kinecal-tmp-"
 _UMASK: int | None = None
 _UMASK_LOCK = threading.Lock()
+
+
+def user_path(name: str) -> str:
+    """The path a user knows for a temporary one of kinecal's: a staged result folder
+    (``DIR/.kinecal-tmp-*/f`` or ``.DIR.kinecal-tmp-*/f`` -> ``DIR/f``) or the temporary
+    file of an atomic write (``.f.abcd1234.tmp`` -> ``f``)."""
+    parts = name.split("/")
+    out = []
+    for i, part in enumerate(parts):
+        if part.startswith(_TAG):
+            continue
+        m = re.fullmatch(r"\.(.+)\.kinecal-tmp-.*", part)
+        if m:
+            part = m.group(1)
+        elif i == len(parts) - 1:
+            m = re.fullmatch(r"\.(.+)\.[A-Za-z0-9_]{8}\.tmp", part)
+            part = m.group(1) if m else part
+        out.append(part)
+    return "/".join(out)
+
+
+def user_paths_in(text: str) -> str:
+    """``text`` with every staged result folder in it named as the user knows it
+    (``DIR/.kinecal-tmp-*/f`` and ``.DIR.kinecal-tmp-*/f`` -> ``DIR/f``)."""
+    text = re.sub(r"/\.kinecal-tmp-[\w-]+(?=/)", "", text)
+    return re.sub(r"(^|[/\s'\"(])\.([^/\s]+?)\.kinecal-tmp-[\w-]+(?=/)", r"\1\2", text)
 
 
 def _umask() -> int:
@@ -221,8 +250,11 @@ class OutputTransaction:
         if what is not None:
             from kinecal.errors import DataError
 
+            if what.endswith(f" {path}"):  # the file is named once, at the start
+                what = what[: -len(str(path)) - 1]
+            what = "" if what in (str(path), os.fspath(path)) else f" ({what})"
             raise DataError(
-                f"{path}: is an input of this command ({what}); writing the output there "
+                f"{path}: is an input of this command{what}; writing the output there "
                 "would replace it, so it is refused (--force or not): choose another "
                 "output name."
             )

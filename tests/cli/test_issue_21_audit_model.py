@@ -67,7 +67,12 @@ def test_issue_21_audit_fk_unknown_set_names_the_option(cal, capsys):
         capsys, "fk", "--model", cal / "model.yaml", "--set", "zz", "--",
         "0", "0", "0", "0", "-30", "0",
     )  # fmt: skip
-    _bad(res, "--set", "set 'zz' is not in the model", "(the default)")
+    _bad(
+        res,
+        "--set",
+        "set 'zz' is not in the model",
+        "only the default set (leave --set out)",
+    )
 
 
 def test_issue_21_audit_export_marker_and_set(cal, capsys, tmp_path):

@@ -4,7 +4,7 @@ keys); a robot with the default names J1..Jn shows none."""
 
 from __future__ import annotations
 
-from kinecal.cli._report import _shown
+from kinecal.workflows._compare import _shown
 from kinecal.report._tables import name_cell
 from tests.independent_arm import UR6, urdf_text
 

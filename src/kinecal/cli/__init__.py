@@ -32,69 +32,35 @@ EXIT_INTERRUPTED = int(ExitCode.INTERRUPTED)
 # Every command: (module, function, the first paragraph of its help). A command's module
 # is imported when the command runs (or its --help is asked for); `kinecal --help` lists
 # them from this table (tests/cli check it against the commands' own help).
+# fmt: off
 COMMANDS: dict[str, tuple[str, str, str]] = {
-    "calibrate": (
-        "_calibrate",
-        "calibrate",
-        "Identify a robot (and sensor) model from measurements DATA.csv.",
-    ),
-    "compare": (
-        "_simulate",
-        "compare",
-        "Fit several models on TRAIN and score each on TEST (Tables 5 and 8).",
-    ),
-    "compensate": (
-        "_compensate",
-        "compensate",
-        "Corrected controller angles so the robot reaches TARGETS.",
-    ),
-    "demo": (
-        "_simulate",
-        "demo",
-        "Run both of the paper's experiments on the built-in digital twin.",
-    ),
-    "evaluate": (
-        "_calibrate",
-        "evaluate",
-        "Accuracy of a calibrated model on measurements DATA.csv (held-out poses).",
-    ),
-    "export-urdf": (
-        "_export",
-        "export_urdf",
-        "Write the calibrated kinematic part of MODEL.yaml as a URDF (or a DH table).",
-    ),
-    "fk": (
-        "_fk",
-        "fk",
-        "Flange pose from controller joint angles J1 ... JN [deg; mm if prismatic].",
-    ),
-    "import-urdf": (
-        "_fk",
-        "import_urdf",
-        "Write a robot YAML (standard DH, mm, deg) for the serial chain of a URDF.",
-    ),
-    "plan": (
-        "_plan",
-        "plan",
-        "Choose the poses that determine a calibration model best.",
-    ),
-    "report": (
-        "_report",
-        "report",
-        "Draw report.html from a folder written by `kinecal calibrate`.",
-    ),
+    "calibrate": ("_calibrate", "calibrate",
+        "Identify a robot (and sensor) model from measurements DATA.csv."),
+    "compare": ("_simulate", "compare",
+        "Fit several models on TRAIN and score each on TEST (Tables 5 and 8)."),
+    "compensate": ("_compensate", "compensate",
+        "Corrected controller angles so the robot reaches TARGETS."),
+    "demo": ("_simulate", "demo",
+        "Run both of the paper's experiments on the built-in digital twin."),
+    "evaluate": ("_calibrate", "evaluate",
+        "Accuracy of a calibrated model on measurements DATA.csv (held-out poses)."),
+    "export-urdf": ("_export", "export_urdf",
+        "Write the calibrated kinematic part of MODEL.yaml as a URDF (or a DH table)."),
+    "fk": ("_fk", "fk",
+        "Flange pose from controller joint angles J1 ... JN [deg; mm if prismatic]."),
+    "import-urdf": ("_fk", "import_urdf",
+        "Write a robot YAML (standard DH, mm, deg) for the serial chain of a URDF."),
+    "plan": ("_plan", "plan",
+        "Choose the poses that determine a calibration model best."),
+    "report": ("_report", "report",
+        "Draw report.html from a folder written by `kinecal calibrate`."),
     "robots": ("_fk", "robots", "List the built-in robots."),
-    "sensor": (
-        "_sensor",
-        "sensor",
-        "The 3D rotary laser sensor: stripes, calibration, reconstruction, sphere fits.",
-    ),
-    "simulate": (
-        "_simulate",
-        "simulate",
-        "Simulate a paper's experiment on the LR Mate 200iD twin, or any robot (--robot).",
-    ),
+    "sensor": ("_sensor", "sensor",
+        "The 3D rotary laser sensor: stripes, calibration, reconstruction, sphere fits."),
+    "simulate": ("_simulate", "simulate",
+        "Simulate a paper's experiment on the LR Mate 200iD twin, or any robot (--robot)."),
 }
+# fmt: on
 
 
 # Options that name what a command writes; every other option or argument that names an
@@ -113,10 +79,15 @@ def _note_inputs(params: dict[str, object]) -> None:
         items = value if isinstance(value, (tuple, list)) else (value,)
         return [v for v in items if isinstance(v, str) and v]
 
+    ctx = click.get_current_context(silent=True)  # the names a user typed or read
+    shown = {
+        p.name: p.opts[0] if isinstance(p, click.Option) else p.human_readable_name
+        for p in (ctx.command.params if ctx is not None else [])
+    }
     for name, value in params.items():
         if name not in OUTPUT_PARAMS:
             for v in values(value):
-                note_input(v, f"--{name.replace('_', '-')} {v}")
+                note_input(v, f"{shown.get(name) or '--' + name.replace('_', '-')} {v}")
     for name in OUTPUT_PARAMS & set(params):
         for v in values(params[name]):
             refuse_input(v)
@@ -240,20 +211,22 @@ def main(argv: list[str] | None = None) -> int:
         else:
             blas = contextlib.nullcontext()
         with one_line_warnings(), handled_signals(), blas:
+            final = None  # the Error line of results with an error (exit 3), if any
             try:
                 rv = cli.main(args=argv, prog_name="kinecal", standalone_mode=False)
                 code = rv if isinstance(rv, int) else 0
             except SystemExit as exc:  # sys.exit(EXIT_...) in a command
                 code = _exit_code(exc)
+                final = getattr(exc, "message", None)
             if code in RESULT_CODES:
                 tx.commit()
                 if tx.late_signals:  # Ctrl-C while the results were moved into place
-                    click.echo(
-                        "Error: interrupted after the results were written (they are "
-                        "complete)",
-                        err=True,
+                    final = (
+                        "interrupted after the results were written (they are complete)"
                     )
                     code = 128 + tx.late_signals[0]
+            if final:  # last, after the results are in place
+                click.echo(f"Error: {final}", err=True)
     except BaseException as exc:
         failure = exc
     finally:

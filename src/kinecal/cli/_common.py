@@ -36,23 +36,28 @@ allow_out_of_limits_option = click.option(
 )
 
 
-def echo_diagnostics(found: Any) -> None:
-    """Print the warnings among ``Diagnostic`` records on stderr."""
-    for d in found:
-        if d.severity == "warning":
-            click.echo(f"warning   {d.message}", err=True)
+def echo_err(line: str) -> None:
+    """One line on stderr."""
+    click.echo(line, err=True)
 
 
 def read_data_checked(
-    data: str, robot: Any, targets: str | None, allow_out_of_limits: bool
+    data: str,
+    robot: Any,
+    targets: str | None,
+    allow_out_of_limits: bool,
+    skip: tuple[str, ...] = (),
 ) -> Any:
-    """Read a measurement file and print the findings of its checks: (meas, findings)."""
+    """Read a measurement file and print the warnings among the findings of its checks
+    (but those of the codes ``skip``): (meas, findings)."""
     from kinecal.io import read_data
 
     meas, found = read_data(
         data, robot, targets, allow_out_of_limits=allow_out_of_limits
     )
-    echo_diagnostics(found)
+    for d in found:
+        if d.severity == "warning" and d.code not in skip:
+            click.echo(f"warning   {d.message}", err=True)
     return meas, found
 
 
@@ -194,9 +199,28 @@ def parse_floats(text: str, n: int, name: str) -> list[float]:
         vals = []
     if len(vals) != n or not all(math.isfinite(v) for v in vals):
         raise click.BadParameter(
-            f"expected {n} comma-separated numbers; got {text!r}", param_hint=name
+            f"expected {n} comma-separated numbers (finite); got {text!r}",
+            param_hint=name,
         )
     return vals
+
+
+def parse_pose(text: str | None, name: str, sizes: tuple[int, ...] = (6,)) -> Any:
+    """``X,Y,Z,R,W,P`` (or, with ``sizes`` (3, 6), also ``X,Y,Z``) [mm, deg; Trans
+    Rz(R) Ry(W) Rx(P)] as a (4, 4) transform [m]; None stays None. Else a usage error
+    naming the option ``name``."""
+    if text is None:
+        return None
+    import numpy as np
+
+    from kinecal.geometry import euler_transform
+
+    n = len(text.split(",")) if len(sizes) > 1 else sizes[0]
+    vals = parse_floats(text, n, name)
+    if n not in sizes:
+        raise click.BadParameter("expected X,Y,Z or X,Y,Z,R,W,P", param_hint=name)
+    vals += [0.0] * (6 - n)
+    return euler_transform([*np.array(vals[:3]) * 1e-3, *np.radians(vals[3:])])
 
 
 def parse_int_list(
@@ -230,22 +254,34 @@ def parse_int_list(
     return out
 
 
+def option_table(
+    table: list[Any],
+) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """The options of a command from a table, in the order ``--help`` lists them: each
+    entry ``(declarations, settings)`` of :func:`click.option`, or an option decorator."""
+
+    def apply(f: Callable[..., Any]) -> Callable[..., Any]:
+        for entry in reversed(table):
+            f = entry(f) if callable(entry) else click.option(*entry[0], **entry[1])(f)
+        return f
+
+    return apply
+
+
+def refuse_unused(why: dict[str, str]) -> None:
+    """Refuse an option given on the command line that this run would not use (issue
+    35: it was ignored): ``why`` maps a parameter's name to why ("is for --like")."""
+    from click.core import ParameterSource
+
+    ctx = click.get_current_context()
+    for p in ctx.command.params:
+        if (
+            p.name in why
+            and ctx.get_parameter_source(p.name) == ParameterSource.COMMANDLINE
+        ):
+            raise click.UsageError(f"{p.opts[0]} {why[p.name]}; remove it.")
+
+
 def common_options(f: Callable[..., Any]) -> Callable[..., Any]:
     f = click.option("--quiet", "-q", is_flag=True, help="No progress display.")(f)
     return f
-
-
-def check_folds(meas: Any, k: int, groups: Any, group_name: str | None) -> None:
-    """``--cv K``: the folds' own check (too few poses, sets or groups to hold out),
-    run before the calibration rather than after it."""
-    from kinecal.errors import DataError
-    from kinecal.identification import make_folds
-
-    if (
-        k > meas.n
-    ):  # said plainly (the folds' rule would count what is left to hold out)
-        raise DataError(
-            f"{meas.source}: --cv {k}: {k} folds asked, but the data have {meas.n} rows; "
-            f"expected at most {meas.n} (5 or 10 is usual)."
-        )
-    make_folds(meas, k, groups=groups, group_name=group_name or "group")

@@ -13,9 +13,11 @@ from kinecal.cli._common import (
     allow_out_of_limits_option,
     common_options,
     model_file_option,
+    refuse_unused,
 )
 
 _FORMATS = ("csv", "fanuc-ls", "urscript", "rapid", "krl")
+_PROGRAM_ONLY = ("decimals", "report_path", "uframes", "utools", "frames_path")
 
 
 @click.command()
@@ -193,16 +195,27 @@ def compensate(
         atomic_write_text(out_path, run.csv_text(), force=force)
     else:
         atomic_write_files(files, force=force)  # the program and its report, or neither
-    if fmt != "csv" and run.written_note is not None:
-        click.echo(run.written_note, err=True)
+    program = fmt != "csv"
+    _print_result(
+        summary, as_json, program and run.written_note, program and report_path
+    )
+
+
+def _print_result(
+    summary: dict[str, Any], as_json: bool, note: Any, report: Any
+) -> None:
+    """A program's written ``note`` (stderr), then the summary: JSON or one line
+    (``report``: the program's report file, if written)."""
+    if note:
+        click.echo(note, err=True)
     if as_json:
         click.echo(json.dumps(summary))
-    else:
-        click.echo(
-            f"{summary['ok']} of {summary['n']} targets compensated; largest predicted "
-            f"error {summary['max_err_mm'] or 0:.6f} mm; wrote {out_path}"
-            + (f" and {report_path}" if report_path and fmt != "csv" else "")
-        )
+        return
+    click.echo(
+        f"{summary['ok']} of {summary['n']} targets compensated; largest predicted "
+        f"error {summary['max_err_mm'] or 0:.6f} mm; wrote {summary['out']}"
+        + (f" and {report}" if report else "")
+    )
 
 
 def _check_outputs(
@@ -213,7 +226,10 @@ def _check_outputs(
     from pathlib import Path
 
     from kinecal.io import detect_program_format
+    from kinecal.io._files import check_distinct_outputs
 
+    if fmt == "csv":  # issue 35: they were ignored on a CSV of targets
+        refuse_unused(dict.fromkeys(_PROGRAM_ONLY, "is for program files"))
     # The output is of the input's kind: an --out named for another kind would hold
     # what its name does not say (a FANUC program in c.csv).
     suffix = Path(out_path).suffix.lower()
@@ -225,6 +241,7 @@ def _check_outputs(
             f"(as {Path(targets).suffix or '.csv'}), not {suffix}.",
             param_hint="--out",
         )
+    check_distinct_outputs([out_path, report_path])
     for p in (out_path, report_path):
         if p and Path(p).exists() and not force:
             raise FileExistsError(f"{p}: exists; use --force to overwrite it.")

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import errno
 import os
-import re
 import signal
 import sys
 import traceback
@@ -92,32 +91,26 @@ class CommandFailed(Exception):
         self.code = code
 
 
+class ResultsWithError(SystemExit):
+    """Exit with ``code`` (a result code: the results are committed) and ``message`` as
+    the final ``Error:`` line, printed after them (a calibration that did not
+    converge: exit 3)."""
+
+    def __init__(self, code: ExitCode, message: str) -> None:
+        super().__init__(int(code))
+        self.message = message
+
+
 class Terminated(BaseException):
     """SIGTERM, turned into an exception so that staged results are removed."""
 
 
-def user_path(name: str) -> str:
-    """The path a user knows for a temporary one of kinecal's: a staged result folder
-    (``DIR/.kinecal-tmp-*/f`` or ``.DIR.kinecal-tmp-*/f`` -> ``DIR/f``) or the temporary
-    file of an atomic write (``.f.abcd1234.tmp`` -> ``f``)."""
-    parts = name.split("/")
-    out = []
-    for i, part in enumerate(parts):
-        if part.startswith(".kinecal-tmp-"):
-            continue
-        m = re.fullmatch(r"\.(.+)\.kinecal-tmp-.*", part)
-        if m:
-            part = m.group(1)
-        elif i == len(parts) - 1:
-            m = re.fullmatch(r"\.(.+)\.[A-Za-z0-9_]{8}\.tmp", part)
-            part = m.group(1) if m else part
-        out.append(part)
-    return "/".join(out)
-
-
 def one_line(text: str) -> str:
-    """``text`` on one line (line breaks and runs of blanks become one blank)."""
-    return " ".join(str(text).split())
+    """``text`` on one line (line breaks and runs of blanks become one blank), a staged
+    result folder in it named as the user knows it."""
+    from kinecal._outputs import user_paths_in
+
+    return user_paths_in(" ".join(str(text).split()))
 
 
 def _os_error(exc: OSError) -> tuple[ExitCode, str]:
@@ -128,6 +121,8 @@ def _os_error(exc: OSError) -> tuple[ExitCode, str]:
     what = _OS_TEXT.get(exc.errno) or f"{exc.strerror or 'system error'}"
     if exc.filename is None:
         return code, what
+    from kinecal._outputs import user_path
+
     return code, f"{user_path(os.fsdecode(exc.filename))}: {what}"
 
 

@@ -2,85 +2,60 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import click
 
-from kinecal.cli._common import targets_option
+from kinecal.cli._common import option_table, refuse_unused, targets_option
+
+_FILE = click.Path(dir_okay=False)
+_DEFAULT = {"show_default": True}
+# (option declarations, settings) of `kinecal export-urdf`, in the order --help lists
+# them.
+# fmt: off
+_OPTIONS: list[Any] = [
+    (("--out", "out_path"), {"required": True, "type": _FILE, "help": "calibrated.urdf "
+        "(or the robot YAML with --format yaml-dh)."}),
+    (("--format", "fmt"), {"type": click.Choice(("urdf", "yaml-dh", "ur-calibration")),
+        "default": "urdf", **_DEFAULT, "help": "urdf: root link 'user', joints j1..jN, "
+        "tool links. yaml-dh: the calibrated DH table as a robot YAML, loadable as "
+        "--robot. ur-calibration: the kinematics.yaml the Universal Robots ROS driver "
+        "reads (ur_description joint origins)."}),
+    (("--set", "set_label"), {"help": "The set whose user frame is the root (default: "
+        "first)."}),
+    (("--marker",), {"help": "yaml-dh: the marker that becomes the tool (default: "
+        "first)."}),
+    (("--coupling",), {"type": click.Choice(("kinematic", "mimic")),
+        "default": "kinematic", **_DEFAULT, "help": "URDF joints of a coupled robot: the "
+        "kinematic angles (FANUC j3 = J3 + J2), or the controller angles with the "
+        "coupling added by mimic joints."}),
+    (("--data",), {"type": _FILE, "help": "Poses (measurement CSV) on which to state the "
+        "accuracy the compliance terms add (default: the calibration data if the model "
+        "names an existing file, else 1000 random poses inside the joint limits)."}),
+    (("--names",), {"type": click.Choice(("kinecal", "robot")), "default": "kinecal",
+        **_DEFAULT, "help": "urdf without --like: kinecal: root 'user', joints j1..jN, "
+        "links link1..N, flange, tool. robot: the robot's own joint names (those of an "
+        "imported URDF), links base_link (the root), link_1..link_N, flange, tool0, the "
+        "measurement frame 'user' a fixed child of base_link."}),
+    (("--like", "like"), {"type": _FILE, "help": "The vendor's URDF of the robot: write "
+        "a copy of it with every link, joint, name, mesh, inertial and limit kept and "
+        "only the movable joints' origins calibrated (link frames stay the vendor's; "
+        "joints take the kinematic angles)."}),
+    (("--tool-link",), {"default": "calibrated_tool", **_DEFAULT, "help": "--like: name "
+        "of the calibrated tool link (fixed child of the vendor's tip link, the end of "
+        "the chain; <name>_<marker> per marker when the model has several)."}),
+    (("--user-link",), {"default": None, "help": "--like: add the set's measurement "
+        "frame as a new root link of this name (FK from it to the tool link = the "
+        "model's tool pose). Default: the vendor's root stays the root."}),
+    targets_option,
+    (("--force",), {"is_flag": True, "help": "Overwrite --out."}),
+]
+# fmt: on
 
 
 @click.command("export-urdf")
-@click.argument("model_path", metavar="MODEL.yaml", type=click.Path(dir_okay=False))
-@click.option(
-    "--out",
-    "out_path",
-    required=True,
-    type=click.Path(dir_okay=False),
-    help="calibrated.urdf (or the robot YAML with --format yaml-dh).",
-)
-@click.option(
-    "--format",
-    "fmt",
-    type=click.Choice(("urdf", "yaml-dh", "ur-calibration")),
-    default="urdf",
-    show_default=True,
-    help="urdf: root link 'user', joints j1..jN, tool links. yaml-dh: the calibrated DH "
-    "table as a robot YAML, loadable as --robot. ur-calibration: the kinematics.yaml "
-    "the Universal Robots ROS driver reads (ur_description joint origins).",
-)
-@click.option(
-    "--set", "set_label", help="The set whose user frame is the root (default: first)."
-)
-@click.option(
-    "--marker", help="yaml-dh: the marker that becomes the tool (default: first)."
-)
-@click.option(
-    "--coupling",
-    type=click.Choice(("kinematic", "mimic")),
-    default="kinematic",
-    show_default=True,
-    help="URDF joints of a coupled robot: the kinematic angles (FANUC j3 = J3 + J2), or "
-    "the controller angles with the coupling added by mimic joints.",
-)
-@click.option(
-    "--data",
-    type=click.Path(dir_okay=False),
-    help="Poses (measurement CSV) on which to state the accuracy the compliance terms "
-    "add (default: the calibration data if the model names an existing file, else "
-    "1000 random poses inside the joint limits).",
-)
-@click.option(
-    "--names",
-    type=click.Choice(("kinecal", "robot")),
-    default="kinecal",
-    show_default=True,
-    help="urdf without --like: kinecal: root 'user', joints j1..jN, links link1..N, "
-    "flange, tool. robot: the robot's own joint names (those of an imported URDF), links "
-    "base_link (the root), link_1..link_N, flange, tool0, the measurement frame 'user' "
-    "a fixed child of base_link.",
-)
-@click.option(
-    "--like",
-    "like",
-    type=click.Path(dir_okay=False),
-    help="The vendor's URDF of the robot: write a copy of it with every link, joint, "
-    "name, mesh, inertial and limit kept and only the movable joints' origins "
-    "calibrated (link frames stay the vendor's; joints take the kinematic angles).",
-)
-@click.option(
-    "--tool-link",
-    default="calibrated_tool",
-    show_default=True,
-    help="--like: name of the calibrated tool link (fixed child of the vendor's tip "
-    "link, the end of the chain; <name>_<marker> per marker when the model has several).",
-)
-@click.option(
-    "--user-link",
-    default=None,
-    help="--like: add the set's measurement frame as a new root link of this name (FK "
-    "from it to the tool link = the model's tool pose). Default: the vendor's root stays "
-    "the root.",
-)
-@targets_option
-@click.option("--force", is_flag=True, help="Overwrite --out.")
+@click.argument("model_path", metavar="MODEL.yaml", type=_FILE)
+@option_table(_OPTIONS)
 def export_urdf(
     model_path: str,
     out_path: str,
@@ -136,6 +111,9 @@ def export_urdf(
             "--like writes a URDF whose joints take the kinematic angles; it does "
             "not go with --format yaml-dh or --coupling mimic"
         )
+    why = {} if data else {"targets": "is for --data (sensor data)"}
+    why |= {} if like else dict.fromkeys(("tool_link", "user_link"), "is for --like")
+    refuse_unused(why | ({"coupling": "is for urdf"} if fmt == "yaml-dh" else {}))
     cal = load_model(model_path)
     for option, label, own in (
         ("--set", set_label, cal.model.spec.sets),
@@ -144,7 +122,7 @@ def export_urdf(
         if label is not None and label not in own:
             raise click.BadParameter(
                 f"{option[2:]} {label!r} is not in the model {model_path}; expected "
-                f"one of {labels_text(own)}",
+                f"{labels_text(own, option[2:])}",
                 param_hint=option,
             )
     ex = export_model(

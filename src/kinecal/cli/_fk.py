@@ -7,36 +7,27 @@ from typing import Any
 
 import click
 
+from kinecal.cli._common import option_table
+
+# fmt: off
+_FK_OPTIONS: list[Any] = [
+    (("--robot", "robot_name"), {"metavar": "NAME|FILE", "help": "Built-in robot name "
+        "(see `kinecal robots`) or robot YAML file."}),
+    (("--model", "model_path"), {"type": click.Path(dir_okay=False), "help": "A "
+        "calibrated model.yaml instead of --robot: the calibrated poses."}),
+    (("--payload-kg",), {"type": float, "help": "With --model: payload at the tool [kg] "
+        "(default: the calibration's)."}),
+    (("--set", "set_label"), {"help": "With --model: the user frame (default: first)."}),
+    (("--marker",), {"help": "With --model: the tool marker (default: first)."}),
+    (("--json", "as_json"), {"is_flag": True, "help": "Print one JSON object."}),
+    (("--ignore-limits",), {"is_flag": True, "help": "Compute poses beyond the joint "
+        "limits too (refused otherwise: the robot cannot take them)."}),
+]
+# fmt: on
+
 
 @click.command()
-@click.option(
-    "--robot",
-    "robot_name",
-    metavar="NAME|FILE",
-    help="Built-in robot name (see `kinecal robots`) or robot YAML file.",
-)
-@click.option(
-    "--model",
-    "model_path",
-    type=click.Path(dir_okay=False),
-    help="A calibrated model.yaml instead of --robot: the calibrated poses.",
-)
-@click.option(
-    "--payload-kg",
-    type=float,
-    help="With --model: payload at the tool [kg] (default: the calibration's).",
-)
-@click.option(
-    "--set", "set_label", help="With --model: the user frame (default: first)."
-)
-@click.option("--marker", help="With --model: the tool marker (default: first).")
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
-@click.option(
-    "--ignore-limits",
-    is_flag=True,
-    help="Compute poses beyond the joint limits too (refused otherwise: the robot "
-    "cannot take them).",
-)
+@option_table(_FK_OPTIONS)
 @click.argument("joints", nargs=-1, type=float, required=True)
 def fk(
     robot_name: str | None,
@@ -84,24 +75,7 @@ def fk(
     if as_json:
         click.echo(json.dumps(pose.as_dict()))
         return
-    if model_path is not None:
-        click.echo(f"model   {model_path} ({pose.robot})")
-        for title, d in (("with all terms", pose), ("kinematic part", pose.kinematic)):
-            assert (
-                d is not None and d.tool_mm is not None and d.tool_wpr_deg is not None
-            )
-            click.echo(f"{title}:")
-            _echo_pose("flange", "(base)", d.flange_mm, d.wpr_deg)
-            _echo_pose("tool", "(user)", d.tool_mm, d.tool_wpr_deg)
-        return
-    click.echo(f"robot   {pose.robot}")
-    click.echo("flange  x {:.4f}  y {:.4f}  z {:.4f}  mm".format(*pose.flange_mm))
-    click.echo("        w {:.4f}  p {:.4f}  r {:.4f}  deg".format(*pose.wpr_deg))
-
-
-def _echo_pose(what: str, frame: str, xyz: list[float], wpr: list[float]) -> None:
-    click.echo(f"  {what:7s}{frame} x {xyz[0]:.4f}  y {xyz[1]:.4f}  z {xyz[2]:.4f}  mm")
-    click.echo(f"                 w {wpr[0]:.4f}  p {wpr[1]:.4f}  r {wpr[2]:.4f}  deg")
+    click.echo("\n".join(pose.lines(model_path)))
 
 
 @click.command()
@@ -116,15 +90,14 @@ def robots() -> None:
 
 @click.command("import-urdf")
 @click.argument("urdf", type=click.Path(exists=True, dir_okay=False))
-@click.option("--base", help="Base link (default: the root link).")
-@click.option(
-    "--tip", help="Tip link, the physical flange (default: end of the chain)."
-)
-@click.option("--name", help="Robot name (default: the URDF's).")
-@click.option(
-    "--out", required=True, type=click.Path(dir_okay=False), help="Robot YAML."
-)
-@click.option("--force", is_flag=True, help="Overwrite --out.")
+@option_table([
+    (("--base",), {"help": "Base link (default: the root link)."}),
+    (("--tip",), {"help": "Tip link, the physical flange (default: end of the chain)."}),
+    (("--name",), {"help": "Robot name (default: the URDF's)."}),
+    (("--out",), {"required": True, "type": click.Path(dir_okay=False),
+        "help": "Robot YAML."}),
+    (("--force",), {"is_flag": True, "help": "Overwrite --out."}),
+])  # fmt: skip
 def import_urdf(
     urdf: str,
     base: str | None,

@@ -14,69 +14,55 @@ from typing import Any
 
 import click
 
-from kinecal.cli._common import FiniteFloat, Progress, parse_floats
+from kinecal.cli._common import (
+    FiniteFloat,
+    Progress,
+    option_table,
+    parse_floats,
+    parse_pose,
+    refuse_unused,
+)
 
 _PLAN_FLAGS = ("candidates", "poses", "add_n")
+_NOT_ISO = ("criterion", "exchange", "instrument", "targets", "noise_mm", "noise_deg",
+    "priors", "user_frame", "save_candidates", "data_path", "random_draws", "joint_range",
+    "n_candidates", "min_j5_deg", "min_conditioning", "floor_mm", "station", "cone_deg",
+    "standoff_mm")  # fmt: skip
 
 
-def iso_plan_options(f: Callable[..., Any]) -> Callable[..., Any]:
-    """The ``--iso9283`` options of ``kinecal plan``."""
-    opts = [
-        click.option(
-            "--iso9283",
-            is_flag=True,
-            help="Write the ISO 9283 pose test instead: the cube's test points P1-P5 "
-            "in cycles (P1, P5, P4, P3, P2), joints by the nominal IK (compensated "
-            "with --model MODEL.yaml when given), columns iso_point, iso_cycle and the "
-            "command pose cmd_*.",
-        ),
-        click.option(
-            "--cube-mm",
-            type=FiniteFloat(0.0, low_open=True),
-            help="ISO 9283: cube edge [mm; default the largest reachable].",
-        ),
-        click.option(
-            "--cube-centre",
-            metavar="X,Y,Z",
-            help="ISO 9283: cube centre in the robot base frame [mm; default searched "
-            "in front of the robot].",
-        ),
-        click.option(
-            "--cycles",
-            type=click.IntRange(min=2),
-            default=30,
-            show_default=True,
-            help="ISO 9283: cycles of the test.",
-        ),
-        click.option(
-            "--orientation",
-            metavar="R,W,P",
-            help="ISO 9283: tool orientation in the robot base frame [deg; Rz(R) Ry(W) "
-            "Rx(P); default the tool z axis down: 0,0,180].",
-        ),
-        click.option(
-            "--iso-plane",
-            type=click.Choice(
-                ("C1-C2-C7-C8", "C2-C3-C8-C5", "C3-C4-C5-C6", "C4-C1-C6-C7")
-            ),
-            default="C1-C2-C7-C8",
-            show_default=True,
-            help="ISO 9283: the cube's diagonal test plane.",
-        ),
-    ]
-    for o in reversed(opts):
-        f = o(f)
-    return f
+# fmt: off
+# The ``--iso9283`` options of ``kinecal plan``.
+iso_plan_options = option_table([
+    (("--iso9283",), {"is_flag": True, "help": "Write the ISO 9283 pose test instead: "
+        "the cube's test points P1-P5 in cycles (P1, P5, P4, P3, P2), joints by the "
+        "nominal IK (compensated with --model MODEL.yaml when given), columns iso_point, "
+        "iso_cycle and the command pose cmd_*."}),
+    (("--cube-mm",), {"type": FiniteFloat(0.0, low_open=True), "help": "ISO 9283: cube "
+        "edge [mm; default the largest reachable]."}),
+    (("--cube-centre",), {"metavar": "X,Y,Z", "help": "ISO 9283: cube centre in the "
+        "robot base frame [mm; default searched in front of the robot]."}),
+    (("--cycles",), {"type": click.IntRange(min=2), "default": 30, "show_default": True,
+        "help": "ISO 9283: cycles of the test."}),
+    (("--orientation",), {"metavar": "R,W,P", "help": "ISO 9283: tool orientation in "
+        "the robot base frame [deg; Rz(R) Ry(W) Rx(P); default the tool z axis down: "
+        "0,0,180]."}),
+    (("--iso-plane",), {"type": click.Choice(("C1-C2-C7-C8", "C2-C3-C8-C5",
+        "C3-C4-C5-C6", "C4-C1-C6-C7")), "default": "C1-C2-C7-C8", "show_default": True,
+        "help": "ISO 9283: the cube's diagonal test plane."}),
+])
+# fmt: on
 
 
 def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
     """``kinecal plan --iso9283``: PLAN.csv and PLAN.report.json."""
     import numpy as np
 
-    from kinecal.geometry import euler_transform, euler_zyx_to_matrix
+    from kinecal.geometry import euler_zyx_to_matrix
     from kinecal.io import atomic_write_files, json_text
+    from kinecal.io._files import check_distinct_outputs
     from kinecal.robot import load_robot
     from kinecal.workflows import iso_test_program
+    from kinecal.workflows._plan import model_robot, report_path
 
     given = [f"--{k.replace('_n', '')}" for k in _PLAN_FLAGS if kw.get(k)]
     if given:
@@ -84,6 +70,7 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
             f"--iso9283 writes the standard's test poses; {', '.join(given)} choose "
             "calibration poses (give one or the other)."
         )
+    refuse_unused(dict.fromkeys(_NOT_ISO, "chooses calibration poses, not --iso9283"))
     cal = None
     if kw["model_name"] not in ("kinematic", "ntm", "rfcm", "full"):
         from kinecal.io import load_model
@@ -96,11 +83,8 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
             "--iso9283 needs --robot NAME|FILE (or --model MODEL.yaml)."
         )
     out = Path(kw["out_path"])
-    rep = (
-        Path(kw["report_path"])
-        if kw["report_path"]
-        else out.with_name(out.stem + ".report.json")
-    )
+    rep = report_path(kw["out_path"], kw["report_path"])
+    check_distinct_outputs([out, rep])
     for p in (out, rep):
         if p.exists() and not kw["force"]:
             raise FileExistsError(f"{p} exists; use --force to overwrite it.")
@@ -109,13 +93,8 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
     else:
         assert cal is not None  # checked above
         robot = cal.model.robot
-    if cal is not None and robot.name != cal.model.robot.name:
-        from kinecal.errors import ConfigError
-
-        raise ConfigError(
-            f"--robot {kw['robot_name']}, but {kw['model_name']} was calibrated for "
-            f"{cal.model.robot.name}: a model and a robot of different kinds."
-        )
+    if cal is not None:  # --robot, when given, names the model's robot
+        model_robot(cal, kw["robot_name"], kw["model_name"])
     R = None
     if kw["orientation"]:
         rwp = parse_floats(kw["orientation"], 3, "--orientation")
@@ -124,27 +103,20 @@ def run_iso_plan(kw: dict[str, Any], say: Progress) -> None:
     if kw["cube_centre"]:
         c = parse_floats(kw["cube_centre"], 3, "--cube-centre")
         centre = (c[0], c[1], c[2])
-    T_tool = None
-    if kw["tool"]:  # the tool point the cube's points are for
-        n = len(kw["tool"].split(","))
-        tool = parse_floats(kw["tool"], n if n in (3, 6) else 6, "--tool") + [0.0] * (
-            6 - n
-        )
-        T_tool = euler_transform([*np.array(tool[:3]) * 1e-3, *np.radians(tool[3:])])
+    T_tool = parse_pose(kw["tool"] or None, "--tool", (3, 6))  # the cube's tool point
     prog = iso_test_program(
         robot, cal=cal, edge_mm=kw["cube_mm"], centre_mm=centre, R_base_tool=R,
         cycles=kw["cycles"], plane=kw["iso_plane"], seed=kw["seed"],
         T_flange_tool=T_tool, model_name=kw["model_name"], progress=say,
     )  # fmt: skip
-    atomic_write_files(
-        {str(out): prog.csv_text(), str(rep): json_text(prog.report)},
-        force=kw["force"],
+    files = {str(out): prog.csv_text(), str(rep): json_text(prog.report)}
+    lines = (  # before the files: a failure leaves them as they were
+        [json.dumps(prog.report)]
+        if kw["as_json"]
+        else [*prog.summary_lines(), f"wrote     {out}, {rep}"]
     )
-    if kw["as_json"]:
-        click.echo(json.dumps(prog.report))
-        return
-    click.echo("\n".join(prog.summary_lines()))
-    click.echo(f"wrote     {out}, {rep}")
+    atomic_write_files(files, force=kw["force"])
+    click.echo("\n".join(lines))
 
 
 def iso_evaluate_options(f: Callable[..., Any]) -> Callable[..., Any]:
@@ -165,21 +137,6 @@ def iso_evaluate_options(f: Callable[..., Any]) -> Callable[..., Any]:
     )(f)
 
 
-def read_iso_data(
-    data: str, robot: Any, targets: str | None, allow_out_of_limits: bool
-) -> Any:
-    """The measurements of an ISO test, its findings printed except ``poor_excitation``
-    (one tool orientation over a small cube is the test, not a flaw of the data)."""
-    from kinecal.cli._common import echo_diagnostics
-    from kinecal.io import read_data
-
-    meas, found = read_data(
-        data, robot, targets, allow_out_of_limits=allow_out_of_limits
-    )
-    echo_diagnostics([d for d in found if d.code != "poor_excitation"])
-    return meas
-
-
 def run_iso_evaluate(
     cal: Any,
     meas: Any,
@@ -189,8 +146,11 @@ def run_iso_evaluate(
     force: bool,
     as_json: bool,
     model_path: str,
+    files: dict[str, str] | None = None,
 ) -> None:
-    """``kinecal evaluate --iso9283``: console table, optional report.json/.html."""
+    """``kinecal evaluate --iso9283``: console table, optional report.json/.html;
+    ``files`` (--errors-out) written with them, once the figures are in."""
+    from kinecal.io import atomic_write_files, json_text
     from kinecal.workflows import evaluate_iso_test
 
     folder = None
@@ -202,8 +162,8 @@ def run_iso_evaluate(
         )
     res = evaluate_iso_test(cal, meas, data, refit=refit)
     block = res.block
+    lines = [json.dumps({"iso9283": block})] if as_json else res.table_lines()
     if folder is not None:
-        from kinecal.io import atomic_write_files, json_text
         from kinecal.report._iso9283 import render_iso9283_report
 
         doc = {"data": data, "model": model_path, "iso9283": block}
@@ -215,9 +175,7 @@ def run_iso_evaluate(
             },
             force=True,
         )
-    if as_json:
-        click.echo(json.dumps({"iso9283": block}))
-        return
-    click.echo("\n".join(res.table_lines()))
-    if out_dir:
+    atomic_write_files(files or {}, force=force)
+    click.echo("\n".join(lines))
+    if out_dir and not as_json:
         click.echo(f"wrote     {out_dir}: report.json, report.html")

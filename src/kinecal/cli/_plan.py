@@ -14,8 +14,12 @@ from kinecal.cli._common import (
     Progress,
     allow_out_of_limits_option,
     common_options,
+    echo_err,
     manifest,
+    option_table,
     parse_floats,
+    parse_pose,
+    refuse_unused,
 )
 from kinecal.cli._iso9283 import iso_plan_options, run_iso_plan
 
@@ -27,33 +31,6 @@ _PRESETS = ("kinematic", "ntm", "rfcm", "full")
 
 def _floats(text: str | None, n: int, name: str) -> list[float] | None:
     return None if text is None else parse_floats(text, n, name)
-
-
-def _joint_ranges(text: str | None, robot: Any) -> Any:
-    """``J1:-60:60,J3:0:90`` -> (n, 2) [rad], the limits where not given."""
-    import numpy as np
-
-    if text is None:
-        return None
-    r = robot.limits.copy()
-    for item in text.split(","):
-        parts = item.strip().split(":")
-        try:
-            if len(parts) != 3 or parts[0][:1].upper() != "J":
-                raise ValueError
-            j = int(parts[0][1:])
-            lo, hi = float(parts[1]), float(parts[2])
-            if not 1 <= j <= robot.n_joints or not lo <= hi:
-                raise ValueError
-        except ValueError:
-            raise click.BadParameter(
-                f"expected Jk:low:high with 1 <= k <= {robot.n_joints} and low <= high "
-                f"(degrees, or mm for a prismatic joint); got {item!r}",
-                param_hint="--joint-range",
-            ) from None
-        f = 1e-3 if robot.joints[j - 1].kind == "prismatic" else np.pi / 180
-        r[j - 1] = (lo * f, hi * f)
-    return r
 
 
 _FILE = click.Path(dir_okay=False)
@@ -126,14 +103,8 @@ _OPTIONS: list[tuple[tuple[str, ...], dict[str, Any]]] = [
 # fmt: on
 
 
-def _options(f: Any) -> Any:
-    for decls, settings in reversed(_OPTIONS):
-        f = click.option(*decls, **settings)(f)
-    return f
-
-
 @click.command()
-@_options
+@option_table(_OPTIONS)
 @iso_plan_options
 @allow_out_of_limits_option
 @common_options
@@ -155,13 +126,14 @@ def plan(**kw: Any) -> None:
 
 def _setup(kw: dict[str, Any], say: Progress) -> PlanSetup:
     """Robot, model, design point and instrument from the options."""
-    import numpy as np
-
-    from kinecal.errors import ConfigError
-    from kinecal.geometry import euler_transform
     from kinecal.io import load_model, read_targets
     from kinecal.robot import load_robot
     from kinecal.workflows import plan_setup
+    from kinecal.workflows._plan import (
+        calibration_noise_mm,
+        default_instrument,
+        model_robot,
+    )
 
     name = kw["model_name"]
     sequential = name not in _PRESETS
@@ -178,27 +150,17 @@ def _setup(kw: dict[str, Any], say: Progress) -> PlanSetup:
         )
     cal = load_model(name) if sequential else None
     if cal is not None:
-        robot = cal.model.robot
-        if kw["robot_name"] and load_robot(kw["robot_name"]).name != robot.name:
-            raise ConfigError(
-                f"--robot {kw['robot_name']}, but {name} was calibrated for "
-                f"{robot.name}: a model and a robot of different kinds."
-            )
+        robot = model_robot(cal, kw["robot_name"], name)
     elif kw["robot_name"]:
         robot = load_robot(kw["robot_name"])
     else:
         raise click.UsageError("--robot is required (or --model DIR/model.yaml).")
-    kind_of = {"point": "tracker", "pose": "pose", "sensor": "sensor"}
-    inst_name = kw["instrument"] or (
-        kind_of.get(str(cal.info.get("kind")), "tracker") if cal else "tracker"
-    )
+    inst_name = kw["instrument"] or default_instrument(cal)
     noise_mm = kw["noise_mm"]
     if noise_mm is None and cal is not None:
-        rep = Path(name).with_name("report.json")
-        if rep.is_file():
-            noise_mm = json.loads(rep.read_text()).get("noise_sigma_mm")
-            if noise_mm:
-                say("noise", f"{noise_mm:.4g} mm per axis from {rep}")
+        noise_mm, rep = calibration_noise_mm(name)
+        if noise_mm:
+            say("noise", f"{noise_mm:.4g} mm per axis from {rep}")
     tg = read_targets(kw["targets"]) if kw["targets"] else None
     if inst_name == "sensor" and tg is None:
         raise click.UsageError("--instrument sensor needs --targets T.csv.")
@@ -207,20 +169,10 @@ def _setup(kw: dict[str, Any], say: Progress) -> PlanSetup:
             f"--targets is for --instrument sensor; --instrument {inst_name} measures "
             "the tool directly (remove --targets, or --instrument sensor)."
         )
-    uf = _floats(kw["user_frame"], 6, "--user-frame")
-    T = T_tool = None
-    if cal is not None and (uf is not None or kw["tool"]):
+    T = parse_pose(kw["user_frame"], "--user-frame")
+    if cal is not None and (T is not None or kw["tool"]):
         raise click.UsageError("--user-frame, --tool: a calibrated model has its own.")
-    if uf is not None:
-        T = euler_transform([*np.array(uf[:3]) * 1e-3, *np.radians(uf[3:])])
-    if kw["tool"]:
-        tool = _floats(kw["tool"], len(kw["tool"].split(",")), "--tool")
-        if tool is None or len(tool) not in (3, 6):
-            raise click.BadParameter(
-                "expected X,Y,Z or X,Y,Z,R,W,P", param_hint="--tool"
-            )
-        tool = tool + [0.0] * (6 - len(tool))
-        T_tool = euler_transform([*np.array(tool[:3]) * 1e-3, *np.radians(tool[3:])])
+    T_tool = parse_pose(kw["tool"] or None, "--tool", (3, 6))
     return plan_setup(
         robot, cal if cal is not None else name, instrument=inst_name,
         noise_mm=noise_mm, noise_deg=kw["noise_deg"], targets=tg, T_user_base=T,
@@ -231,11 +183,16 @@ def _setup(kw: dict[str, Any], say: Progress) -> PlanSetup:
 def _candidates(kw: dict[str, Any], setup: PlanSetup, say: Progress) -> Any:
     """Candidate poses: read from --candidates, or generated."""
     from kinecal.workflows import plan_candidates
+    from kinecal.workflows._plan import joint_ranges
 
+    _refuse_unused(kw, setup.instrument.name == "sensor")
     so: list[float] | None = [115.0, 135.0]
     st = None
     if not kw["candidates"]:
-        ranges = _joint_ranges(kw["joint_range"], setup.robot)
+        try:
+            ranges = joint_ranges(kw["joint_range"], setup.robot)
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint="--joint-range") from None
         if setup.instrument.name == "sensor":
             try:
                 so = _floats(kw["standoff_mm"].replace(":", ","), 2, "--standoff-mm")
@@ -258,14 +215,33 @@ def _candidates(kw: dict[str, Any], setup: PlanSetup, say: Progress) -> Any:
     )  # fmt: skip
 
 
+def _refuse_unused(kw: dict[str, Any], sensor: bool) -> None:
+    """Options given that this plan would not use."""
+    why = {n: "is for --iso9283" for n in _ISO}
+    if sensor:
+        why |= {"station": "is for a tracker", "cone_deg": "is for a tracker"}
+    else:
+        why["standoff_mm"] = "is for --instrument sensor"
+    why |= {n: "is for generated candidates" for n in _GENERATED if kw["candidates"]}
+    why |= {} if kw["add_n"] else {"data_path": "is for --model MODEL.yaml --add N"}
+    refuse_unused(why)
+
+
+_ISO = ("cube_mm", "cube_centre", "cycles", "orientation", "iso_plane")
+_GENERATED = ("joint_range", "n_candidates", "min_j5_deg", "min_conditioning",
+    "floor_mm", "station", "cone_deg", "standoff_mm")  # fmt: skip
+
+
 def _run(kw: dict[str, Any], say: Progress) -> None:
     from kinecal.io import atomic_write_files, json_text
-    from kinecal.workflows import plan_measurements, read_pose_file
-    from kinecal.workflows._plan import report_path
+    from kinecal.io._files import check_distinct_outputs
+    from kinecal.workflows import plan_measurements
+    from kinecal.workflows._plan import read_measured_poses, report_path
     from kinecal.workflows._poses import pose_lines
 
     out = Path(kw["out_path"])
     rep = report_path(kw["out_path"], kw["report_path"])
+    check_distinct_outputs([out, rep, kw["save_candidates"]])
     for p in (out, rep, kw["save_candidates"]):
         if p and Path(p).exists() and not kw["force"]:
             raise FileExistsError(f"{p} exists; use --force to overwrite it.")
@@ -276,18 +252,10 @@ def _run(kw: dict[str, Any], say: Progress) -> None:
         lines = pose_lines(setup.robot, cand.q, cand.target_index, setup.labels)
         files[kw["save_candidates"]] = "\n".join(lines) + "\n"
     measured = measured_ti = None
-    allow = bool(kw["allow_out_of_limits"])
     if setup.cal is not None and kw["data_path"]:
-        table, _, measured, measured_ti = read_pose_file(
-            kw["data_path"], setup.robot, setup.labels, allow, _stderr
+        measured, measured_ti = read_measured_poses(
+            setup, kw["data_path"], bool(kw["allow_out_of_limits"]), echo_err
         )
-        if {"x_mm", "xc_mm"} & set(table.header):  # measurements: checked as such
-            from kinecal.io import read_measurements
-
-            read_measurements(
-                kw["data_path"], setup.robot, setup.targets,
-                allow_out_of_limits=allow, check=False,
-            )  # fmt: skip
     n = kw["poses"] or kw["add_n"]
     option = "--add" if kw["add_n"] else "--poses"
     if n > cand.q.shape[0]:
@@ -314,14 +282,12 @@ def _run(kw: dict[str, Any], say: Progress) -> None:
     }
     files[str(out)] = run.csv_text()
     files[str(rep)] = json_text(doc)
-    atomic_write_files(files, force=kw["force"])  # all of them or none
     saved = [kw["save_candidates"]] if kw["save_candidates"] else []
-    if kw["as_json"]:
-        click.echo(json.dumps(run.summary(out, rep)))
-        return
-    for line, err in run.summary_lines(out, rep, saved):
+    printed = (
+        [(json.dumps(run.summary(out, rep)), False)]
+        if kw["as_json"]
+        else run.summary_lines(out, rep, saved)
+    )  # before the files: a failure leaves an earlier plan as it was (issue 35)
+    atomic_write_files(files, force=kw["force"])  # all of them or none
+    for line, err in printed:
         click.echo(line, err=err)
-
-
-def _stderr(line: str) -> None:
-    click.echo(line, err=True)

@@ -6,28 +6,21 @@ from typing import Any
 
 import click
 
-from kinecal.cli._common import Progress, common_options
+from kinecal.cli._common import Progress, common_options, option_table
 
 
 @click.command()
 @click.argument("folder", type=click.Path(file_okay=False), required=False)
-@click.option(
-    "--compare",
-    "compare",
-    nargs=2,
-    type=click.Path(file_okay=False),
-    metavar="OLD_DIR NEW_DIR",
-    help="Compare two calibrations of one robot instead: parameters that moved beyond "
-    "their combined uncertainty, each model's accuracy on the other's data (when the "
-    "manifests' data files are still there); writes NEW_DIR/compare.html (or --out).",
-)
-@click.option(
-    "--out",
-    "out_path",
-    type=click.Path(dir_okay=False),
-    help="Write the report here instead of DIR/report.html.",
-)
-@click.option("--force", is_flag=True, help="Overwrite an existing report.")
+@option_table([
+    (("--compare", "compare"), {"nargs": 2, "type": click.Path(file_okay=False),
+        "metavar": "OLD_DIR NEW_DIR", "help": "Compare two calibrations of one robot "
+        "instead: parameters that moved beyond their combined uncertainty, each model's "
+        "accuracy on the other's data (when the manifests' data files are still there); "
+        "writes NEW_DIR/compare.html (or --out)."}),
+    (("--out", "out_path"), {"type": click.Path(dir_okay=False), "help": "Write the "
+        "report here instead of DIR/report.html."}),
+    (("--force",), {"is_flag": True, "help": "Overwrite an existing report."}),
+])  # fmt: skip
 @common_options
 def report(
     folder: str | None,
@@ -41,10 +34,7 @@ def report(
     Reads DIR/model.yaml, DIR/report.json and DIR/residuals.csv (per-pose errors; without
     it the report has no per-pose figures); needs nothing else (no matplotlib).
     """
-    from pathlib import Path
-
-    from kinecal.errors import CalibError, DataError
-    from kinecal.report import write_report
+    from kinecal.workflows._report import draw_report
 
     say = Progress(quiet)
     if compare:
@@ -54,57 +44,23 @@ def report(
         return
     if folder is None:
         raise click.UsageError("missing DIR (a folder written by kinecal calibrate).")
-    d = Path(folder)
-    if not d.is_dir():
-        raise DataError(
-            f"{d}: no such folder; expected a folder written by kinecal calibrate."
-        )
     say("report", f"drawing from {folder}")
-    try:
-        path = write_report(folder, out=out_path, force=force)
-    except CalibError:
-        raise
-    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
-        # report.json was edited or damaged: its values are not what calibrate writes
-        # (model.yaml and residuals.csv are validated by their readers).
-        raise DataError(
-            f"{d / 'report.json'}: unexpected content ({type(exc).__name__}: {exc}); "
-            "expected the report.json kinecal calibrate wrote (restore it, or run "
-            "calibrate again)."
-        ) from exc
-    click.echo(f"wrote     {path}")
+    click.echo(f"wrote     {draw_report(folder, out_path, force=force)}")
 
 
 def _compare(old: str, new: str, out_path: str | None, force: bool, say: Any) -> None:
     from pathlib import Path
 
     from kinecal.io import atomic_write_text
-    from kinecal.report._compare import compare_calibrations, render_comparison
+    from kinecal.workflows._compare import compare_calibration_folders
 
+    if Path(old).resolve() == Path(new).resolve():  # issue 35: a comparison of nothing
+        raise click.UsageError("--compare: OLD_DIR and NEW_DIR are one folder.")
     target = Path(out_path) if out_path else Path(new) / "compare.html"
     if target.exists() and not force:
         raise FileExistsError(f"{target} exists; use --force to overwrite it.")
     say("compare", f"{old} against {new}")
-    c = compare_calibrations(old, new)
-    atomic_write_text(target, render_comparison(c), force=True)
-    click.echo(
-        f"moved     {len(c['moved'])} of {len(c['parameters'])} parameters beyond "
-        f"{c['significance']:g} combined std"
-        + (f": {', '.join(_shown(c, c['moved']))}" if c["moved"] else "")
-    )
-    for r in c["cross"]:
-        label = f"{r['model']} model on {r['data']} data"
-        if "skipped" in r:
-            click.echo(f"accuracy  {label}: not computed ({r['skipped']})")
-        else:
-            click.echo(
-                f"accuracy  {label}: RMS {r['rms_mm']:.4f} mm  max {r['max_mm']:.4f} mm"
-                + ("  (user frame refitted)" if r["refit_user"] else "")
-            )
-    click.echo(f"wrote     {target}")
-
-
-def _shown(c: dict[str, Any], names: list[str]) -> list[str]:
-    """Parameter names with the robot's joint name beside them where it has one."""
-    jn = {p["name"]: p.get("joint_name") for p in c["parameters"]}
-    return [f"{n} ({jn[n]})" if jn.get(n) else n for n in names]
+    c = compare_calibration_folders(old, new)
+    html, lines = c.html(), c.lines()  # before the file (issue 35)
+    atomic_write_text(target, html, force=True)
+    click.echo("\n".join([*lines, f"wrote     {target}"]))

@@ -6,7 +6,7 @@ from typing import Any
 
 import click
 
-from kinecal.cli._common import Progress, common_options, jobs_option
+from kinecal.cli._common import Progress, common_options, jobs_option, option_table
 
 _METHOD_HELP = (
     "Stripe extractor: 'ridge' (Hessian ridge detector, any direction) or 'rows' "
@@ -28,18 +28,15 @@ def sensor() -> None:
 
 @sensor.command()
 @click.argument("image", type=click.Path(dir_okay=False))
-@click.option(
-    "--out", "out", required=True, type=click.Path(dir_okay=False), help="CENTERS.csv"
-)
-@_method_option
-@click.option(
-    "--sigma-px",
-    type=float,
-    default=None,
-    help="Smoothing scale of the ridge detector [px] (default: 1.5, or the stripe's own "
-    "Gaussian width when it is wider than 2.4 px).",
-)
-@click.option("--force", is_flag=True, help="Overwrite OUT.")
+@option_table([
+    (("--out", "out"), {"required": True, "type": click.Path(dir_okay=False),
+        "help": "CENTERS.csv"}),
+    _method_option,
+    (("--sigma-px",), {"type": float, "default": None, "help": "Smoothing scale of the "
+        "ridge detector [px] (default: 1.5, or the stripe's own Gaussian width when it "
+        "is wider than 2.4 px)."}),
+    (("--force",), {"is_flag": True, "help": "Overwrite OUT."}),
+])  # fmt: skip
 def stripes(
     image: str, out: str, method: str, sigma_px: float | None, force: bool
 ) -> None:
@@ -75,13 +72,14 @@ def stripes(
 
 @sensor.command()
 @click.argument("folder", type=click.Path(file_okay=False))
-@click.option("--sensor", "sensor_file", required=True, type=click.Path(dir_okay=False))
-@click.option(
-    "--out", "out", required=True, type=click.Path(dir_okay=False), help="CLOUD.csv"
-)
-@_method_option
-@jobs_option("Threads reading the images and extracting the stripes")
-@click.option("--force", is_flag=True)
+@option_table([
+    (("--sensor", "sensor_file"), {"required": True, "type": click.Path(dir_okay=False)}),
+    (("--out", "out"), {"required": True, "type": click.Path(dir_okay=False),
+        "help": "CLOUD.csv"}),
+    _method_option,
+    jobs_option("Threads reading the images and extracting the stripes"),
+    (("--force",), {"is_flag": True}),
+])  # fmt: skip
 @common_options
 def reconstruct(
     folder: str,

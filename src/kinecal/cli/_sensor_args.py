@@ -2,48 +2,16 @@
 
 from __future__ import annotations
 
-import math
-import re
 from typing import Any
 
 import click
 
 
 def _board(text: str, square_mm: float) -> Any:
-    from kinecal.sensor import ChessboardTarget
+    """``--board COLSxROWS`` and ``--square-mm`` as a chessboard target."""
+    from kinecal.workflows._sensor import chessboard_target
 
-    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
-    if not m:
-        raise click.BadParameter(
-            f"expected COLSxROWS, e.g. 10x7; got {text!r}", param_hint="--board"
-        )
-    cols, rows = int(m.group(1)), int(m.group(2))
-    if min(cols, rows) < 3:
-        raise click.BadParameter(
-            f"expected at least 3 inner corners each way; got {text!r}",
-            param_hint="--board",
-        )
-    if cols % 2 == rows % 2:
-        raise click.BadParameter(
-            f"expected one even and one odd count of inner corners (a board with two "
-            f"even or two odd counts looks the same turned by 180 deg); got {text!r}",
-            param_hint="--board",
-        )
-    if not (square_mm > 0 and math.isfinite(square_mm)):
-        raise click.BadParameter(
-            f"expected a finite number > 0 [mm]; got {square_mm}",
-            param_hint="--square-mm",
-        )
-    return ChessboardTarget(cols, rows, square_mm * 1e-3)
-
-
-def _triple(text: str, name: str) -> tuple[float, float, float]:
     try:
-        vals = tuple(float(t) for t in text.split(","))
-    except ValueError:
-        vals = ()
-    if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
-        raise click.BadParameter(
-            f"expected X,Y,Z (3 finite numbers); got {text!r}", param_hint=name
-        )
-    return vals
+        return chessboard_target(text, square_mm)
+    except ValueError as exc:  # (what is expected, the option)
+        raise click.BadParameter(exc.args[0], param_hint=exc.args[1]) from None

@@ -6,68 +6,68 @@ Registered on the ``sensor`` group by :mod:`kinecal.cli._sensor`.
 from __future__ import annotations
 
 import json
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import click
 
-from kinecal.cli._common import FiniteFloat, Progress, common_options, jobs_option
-
-if TYPE_CHECKING:
-    pass
+from kinecal.cli._common import (
+    FiniteFloat,
+    Progress,
+    common_options,
+    jobs_option,
+    option_table,
+)
 
 _BOARD_HELP = "Chessboard inner corners COLSxROWS (one even, one odd count)."
-_K3_HELP = (
-    "k3: estimated only where the data determine it (auto), always (free) or never "
-    "(fixed, k3 = 0)."
-)
-_DETECTOR_HELP = (
-    "Board corners: OpenCV's classic detector, and its sector-based one where the "
-    "classic one finds no board (auto); or only one of them. Corners refined by "
-    "cornerSubPix."
-)
-
-
-def _k3_option(f: Any) -> Any:
-    return click.option(
-        "--k3",
-        type=click.Choice(["auto", "free", "fixed"]),
-        default="auto",
-        show_default=True,
-        help=_K3_HELP,
-    )(f)
-
-
-def _detector_option(f: Any) -> Any:
-    return click.option(
-        "--detector",
-        type=click.Choice(["auto", "classic", "sb"]),
-        default="auto",
-        show_default=True,
-        help=_DETECTOR_HELP,
-    )(f)
+# fmt: off
+_K3 = (("--k3",), {"type": click.Choice(["auto", "free", "fixed"]), "default": "auto",
+    "show_default": True, "help": "k3: estimated only where the data determine it "
+    "(auto), always (free) or never (fixed, k3 = 0)."})
+_DETECTOR = (("--detector",), {"type": click.Choice(["auto", "classic", "sb"]),
+    "default": "auto", "show_default": True, "help": "Board corners: OpenCV's classic "
+    "detector, and its sector-based one where the classic one finds no board (auto); or "
+    "only one of them. Corners refined by cornerSubPix."})
+_BOARD = (("--board",), {"default": "10x7", "show_default": True, "help": _BOARD_HELP})
+_SQUARE = (("--square-mm",), {"type": float, "default": 2.5, "show_default": True})
+_FORCE = (("--force",), {"is_flag": True})
+_FIT_SPHERE: list[Any] = [
+    (("--radius-mm",), {"type": float, "default": None, "help": "Known radius [mm]: a "
+        "prior for the segmentation, and only the centre is fitted."}),
+    (("--outlier-k",), {"type": FiniteFloat(0.0), "default": 4.0, "show_default": True,
+        "help": "Reject points further than K robust std from the sphere (0: keep all)."}),
+    (("--no-segment",), {"is_flag": True, "help": "Skip the RANSAC segmentation (the "
+        "cloud holds the sphere only)."}),
+    (("--json", "as_json"), {"is_flag": True, "help": "Print one JSON object."}),
+]
+_CAMERA: list[Any] = [
+    _BOARD, _SQUARE,
+    (("--out", "out"), {"required": True, "type": click.Path(dir_okay=False),
+        "help": "CAMERA.yaml"}),
+    _K3, _DETECTOR, jobs_option("Threads searching the chessboards"), _FORCE,
+]
+_PLANES: list[Any] = [
+    (("--camera", "camera_file"), {"type": click.Path(dir_okay=False), "help": "Camera "
+        "(or sensor) YAML: the intrinsics, held fixed (without --chessboard)."}),
+    (("--chessboard", "chessboard"), {"type": click.Path(file_okay=False), "help": "The "
+        "camera's chessboard images: camera and planes adjusted together."}),
+    _BOARD, _SQUARE,
+    (("--n-planes",), {"type": click.IntRange(min=1), "default": None, "help": "Number "
+        "of light planes [default: the highest plane number + 1]."}),
+    (("--model",), {"type": click.Choice(["auto", "free", "rotary"]), "default": "auto",
+        "show_default": True, "help": "Planes fitted on their own, about the mirror "
+        "axis, or both."}),
+    _K3, _DETECTOR,
+    (("--out", "out"), {"required": True, "type": click.Path(dir_okay=False),
+        "help": "SENSOR.yaml"}),
+    jobs_option("Threads reading the images, searching the boards, extracting stripes"),
+    _FORCE,
+]
+# fmt: on
 
 
 @click.command("fit-sphere")
 @click.argument("cloud", type=click.Path(dir_okay=False))
-@click.option(
-    "--radius-mm",
-    type=float,
-    default=None,
-    help="Known radius [mm]: a prior for the segmentation, and only the centre is fitted.",
-)
-@click.option(
-    "--outlier-k",
-    type=FiniteFloat(0.0),
-    default=4.0,
-    show_default=True,
-    help="Reject points further than K robust std from the sphere (0: keep all).",
-)
-@click.option(
-    "--no-segment",
-    is_flag=True,
-    help="Skip the RANSAC segmentation (the cloud holds the sphere only).",
-)
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+@option_table(_FIT_SPHERE)
 def fit_sphere_cmd(
     cloud: str,
     radius_mm: float | None,
@@ -98,23 +98,9 @@ def fit_sphere_cmd(
     click.echo("\n".join(sphere_lines(f, fixed=bool(radius_mm))))
 
 
-def _print_camera(cc: Any) -> None:
-    from kinecal.workflows._sensor import camera_lines
-
-    click.echo("\n".join(camera_lines(cc)))
-
-
 @click.command("calibrate-camera")
 @click.argument("folder", type=click.Path(file_okay=False))
-@click.option("--board", default="10x7", show_default=True, help=_BOARD_HELP)
-@click.option("--square-mm", type=float, default=2.5, show_default=True)
-@click.option(
-    "--out", "out", required=True, type=click.Path(dir_okay=False), help="CAMERA.yaml"
-)
-@_k3_option
-@_detector_option
-@jobs_option("Threads searching the chessboards")
-@click.option("--force", is_flag=True)
+@option_table(_CAMERA)
 @common_options
 def calibrate_camera_cmd(
     folder: str,
@@ -139,60 +125,17 @@ def calibrate_camera_cmd(
         folder, tgt, k3=k3, detector=detector, jobs=jobs, board=board,
         square_mm=square_mm, progress=prog,
     )  # fmt: skip
-    for f in run.skipped:
-        click.echo(f"warning: {f}: chessboard not found; image skipped", err=True)
-    for f in run.rejected:
-        click.echo(
-            f"warning: {f}: corners inconsistent with the other views "
-            "(re-projection error far above theirs); image left out",
-            err=True,
-        )
-    res = run.result
-    save_sensor(out, res.camera, run.info, force=force)
-    click.echo(
-        f"re-projection RMS {res.rms_px:.4f} px over {len(res.used)} images "
-        f"(corner std {res.sigma_px:.4f} px)"
-    )
-    _print_camera(res)
+    for line in run.warning_lines():
+        click.echo(line, err=True)
+    lines = run.summary_lines()  # before the file (issue 35)
+    save_sensor(out, run.result.camera, run.info, force=force)
+    click.echo("\n".join(lines))
     click.echo(f"-> {out}", err=True)
 
 
 @click.command("calibrate-planes")
 @click.argument("folder", type=click.Path(file_okay=False))
-@click.option(
-    "--camera",
-    "camera_file",
-    type=click.Path(dir_okay=False),
-    help="Camera (or sensor) YAML: the intrinsics, held fixed (without --chessboard).",
-)
-@click.option(
-    "--chessboard",
-    "chessboard",
-    type=click.Path(file_okay=False),
-    help="The camera's chessboard images: camera and planes adjusted together.",
-)
-@click.option("--board", default="10x7", show_default=True, help=_BOARD_HELP)
-@click.option("--square-mm", type=float, default=2.5, show_default=True)
-@click.option(
-    "--n-planes",
-    type=click.IntRange(min=1),
-    default=None,
-    help="Number of light planes [default: the highest plane number + 1].",
-)
-@click.option(
-    "--model",
-    type=click.Choice(["auto", "free", "rotary"]),
-    default="auto",
-    show_default=True,
-    help="Planes fitted on their own, about the mirror axis, or both.",
-)
-@_k3_option
-@_detector_option
-@click.option(
-    "--out", "out", required=True, type=click.Path(dir_okay=False), help="SENSOR.yaml"
-)
-@jobs_option("Threads reading the images, searching the boards, extracting stripes")
-@click.option("--force", is_flag=True)
+@option_table(_PLANES)
 @common_options
 def calibrate_planes_cmd(
     folder: str,
@@ -217,7 +160,6 @@ def calibrate_planes_cmd(
     the planes from the corners and the stripes together; with --camera alone the
     intrinsics are held and the target poses and planes adjusted.
     """
-    import numpy as np
 
     from kinecal.cli._sensor_args import _board
     from kinecal.io import load_sensor, save_sensor
@@ -239,22 +181,9 @@ def calibrate_planes_cmd(
     )  # fmt: skip
     for f in run.skipped:
         click.echo(f"warning: {f}: chessboard not found; pose skipped", err=True)
-    res = run.result
-    pc = res.planes
-    save_sensor(out, res.sensor, run.info, force=force)
-    if cam is None:
-        cc = res.camera
-        click.echo(
-            f"re-projection RMS {cc.rms_px:.4f} px over {len(cc.used)} views and "
-            f"{len(res.plane_poses)} target poses (corner std {cc.sigma_px:.4f} px)"
-        )
-        _print_camera(cc)
-    click.echo(
-        f"{len(pc.planes)} light planes from {len(res.plane_poses)} target poses: fit "
-        f"RMS {pc.mean_rms_mm:.4f} mm (mean), {np.nanmax(pc.rms_mm):.4f} mm (max); "
-        f"stripe std {res.sigma_stripe_px:.3f} px; "
-        + ", ".join(f"{v} {k}" for k, v in run.status.items())
-    )
+    lines = run.summary_lines(camera_estimated=cam is None)  # before the file
+    save_sensor(out, run.result.sensor, run.info, force=force)
+    click.echo("\n".join(lines))
     click.echo(f"-> {out}", err=True)
 
 

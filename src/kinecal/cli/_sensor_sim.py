@@ -10,62 +10,44 @@ from typing import Any
 
 import click
 
-from kinecal.cli._common import SEED, Progress, common_options, jobs_option
+from kinecal.cli._common import (
+    SEED,
+    Progress,
+    common_options,
+    jobs_option,
+    option_table,
+)
 
-
-def _check_scene(sen: Any, c: Any, r: float, idx: Any) -> None:
-    """Refuse a sphere the scan cannot see (an empty set of images with exit 0): behind
-    the camera or around it, outside the image, or missed by every rendered light
-    plane. ``c`` (3,) [m] camera frame, ``r`` [m], ``idx`` the rendered planes."""
-    import numpy as np
-
-    c_mm, r_mm = ", ".join(f"{v:g}" for v in c * 1e3), r * 1e3
-    if c[2] - r <= 0:
-        raise click.BadParameter(
-            f"the sphere ({c_mm}) mm, radius {r_mm:g} mm, is not wholly in front of the "
-            f"camera; expected Z > {r_mm:g} mm (the working distance is 115-135 mm)",
-            param_hint="--center-mm",
-        )
-    cam = sen.camera
-    xy = c[:2] / c[2]
-    uv = cam.project(c)
-    if (
-        np.abs(xy).max() > 1.0  # beyond 45 deg off axis (where the distortion folds)
-        or not (-0.5 <= uv[0] <= cam.width - 0.5 and -0.5 <= uv[1] <= cam.height - 0.5)
-    ):
-        raise click.BadParameter(
-            f"the sphere centre ({c_mm}) mm is outside the camera's "
-            f"{cam.width}x{cam.height} image; expected a centre in view, e.g. 0,0,125",
-            param_hint="--center-mm",
-        )
-    if not np.any(np.abs(sen.planes.distance(c, idx)) < r):
-        raise click.BadParameter(
-            f"no rendered light plane meets the sphere ({c_mm}) mm, radius {r_mm:g} mm: "
-            "the images would be empty; expected a sphere at the working distance "
-            "(115-135 mm), e.g. 0,0,125",
-            param_hint="--center-mm",
-        )
+# fmt: off
+_INT = click.IntRange(min=1)
+_EVERY = (("--every",), {"type": _INT, "default": 1, "show_default": True,
+    "help": "Render every K-th plane."})
+_COMMON: list[Any] = [
+    (("--seed",), {"type": SEED, "default": 0, "show_default": True}),
+    jobs_option("Threads rendering and writing the images"),
+    (("--force",), {"is_flag": True}),
+]
+_OUT = (("--out", "out"), {"required": True, "type": click.Path(file_okay=False)})
+_SCAN: list[Any] = [
+    _OUT,
+    (("--center-mm",), {"default": "0,0,140", "show_default": True, "help": "Sphere "
+        "centre X,Y,Z in the camera frame."}),
+    (("--radius-mm",), {"type": float, "default": 15.001, "show_default": True}),
+    _EVERY, *_COMMON,
+]
+_SESSION: list[Any] = [
+    _OUT,
+    (("--views",), {"type": _INT, "default": 25, "show_default": True,
+        "help": "Chessboard views."}),
+    (("--poses",), {"type": _INT, "default": 5, "show_default": True,
+        "help": "Target poses for the planes."}),
+    _EVERY, *_COMMON,
+]
+# fmt: on
 
 
 @click.command("simulate-scan")
-@click.option("--out", "out", required=True, type=click.Path(file_okay=False))
-@click.option(
-    "--center-mm",
-    default="0,0,140",
-    show_default=True,
-    help="Sphere centre X,Y,Z in the camera frame.",
-)
-@click.option("--radius-mm", type=float, default=15.001, show_default=True)
-@click.option(
-    "--every",
-    type=click.IntRange(min=1),
-    default=1,
-    show_default=True,
-    help="Render every K-th plane.",
-)
-@click.option("--seed", type=SEED, default=0, show_default=True)
-@jobs_option("Threads rendering and writing the images")
-@click.option("--force", is_flag=True)
+@option_table(_SCAN)
 @common_options
 def simulate_scan(
     out: str,
@@ -83,11 +65,11 @@ def simulate_scan(
     """
     import numpy as np
 
-    from kinecal.cli._sensor_args import _triple
+    from kinecal.cli._common import parse_floats
     from kinecal.io import prepare_output_dir
     from kinecal.sensor import paper_sensor
     from kinecal.workflows import render_scan
-    from kinecal.workflows._sensor_sim import scan_files
+    from kinecal.workflows._sensor_sim import scan_files, scene_problem
 
     prog = Progress(quiet)
     if not radius_mm > 0:
@@ -95,10 +77,13 @@ def simulate_scan(
             f"must be positive, got {radius_mm}", param_hint="--radius-mm"
         )
     sen = paper_sensor()
-    center = _triple(center_mm, "--center-mm")
+    x, y, z = parse_floats(center_mm, 3, "--center-mm")
+    center = (x, y, z)
     c = np.array(center) * 1e-3
     idx = np.arange(0, len(sen.planes), every)
-    _check_scene(sen, c, radius_mm * 1e-3, idx)
+    problem = scene_problem(sen, c, radius_mm * 1e-3, idx)
+    if problem:  # an empty set of images with exit 0 otherwise
+        raise click.BadParameter(problem, param_hint="--center-mm")
     d = prepare_output_dir(out, scan_files(every), force=force)
     ses = render_scan(
         d, center, radius_mm, every=every, seed=seed, jobs=jobs, progress=prog
@@ -107,31 +92,7 @@ def simulate_scan(
 
 
 @click.command("simulate-calibration")
-@click.option("--out", "out", required=True, type=click.Path(file_okay=False))
-@click.option(
-    "--views",
-    type=click.IntRange(min=1),
-    default=25,
-    show_default=True,
-    help="Chessboard views.",
-)
-@click.option(
-    "--poses",
-    type=click.IntRange(min=1),
-    default=5,
-    show_default=True,
-    help="Target poses for the planes.",
-)
-@click.option(
-    "--every",
-    type=click.IntRange(min=1),
-    default=1,
-    show_default=True,
-    help="Render every K-th plane.",
-)
-@click.option("--seed", type=SEED, default=0, show_default=True)
-@jobs_option("Threads rendering and writing the images")
-@click.option("--force", is_flag=True)
+@option_table(_SESSION)
 @common_options
 def simulate_calibration_cmd(
     out: str,

@@ -15,6 +15,8 @@ from kinecal.cli._common import (
     Progress,
     common_options,
     manifest,
+    option_table,
+    parse_pose,
     targets_option,
 )
 
@@ -307,8 +309,6 @@ def _simulate_robot(
     3D sensor, ``--sensor``)."""
     from dataclasses import replace
 
-    import numpy as np
-
     from kinecal.io import prepare_output_dir
     from kinecal.robot import load_robot
     from kinecal.workflows import read_pose_file, simulate_robot_twin
@@ -319,14 +319,7 @@ def _simulate_robot(
     if payload_kg is not None:
         robot = replace(robot, payload_kg=payload_kg or None)
     if tool is not None:
-        from kinecal.cli._plan import _floats
-        from kinecal.geometry import euler_transform
-
-        n_tool = len(tool.split(","))
-        vals = _floats(tool, 6 if n_tool == 6 else 3, "--tool") or []
-        vals += [0.0] * (6 - len(vals))
-        T = euler_transform([*np.array(vals[:3]) * 1e-3, *np.radians(vals[3:])])
-        robot = replace(robot, T_flange_tool=T)
+        robot = replace(robot, T_flange_tool=parse_pose(tool, "--tool", (3, 6)))
     q_train = read_pose_file(plan_file, robot, None)[2] if plan_file else None
     if q_train is None and n_train < 1:  # pragma: no cover - click checks it
         raise click.BadParameter("expected at least 1", param_hint="--n-train")
@@ -362,41 +355,30 @@ def _simulate_robot(
     )  # fmt: skip
 
 
+# fmt: off
+_COMPARE_OPTIONS: list[Any] = [
+    (("--robot", "robot_name"), {"required": True, "metavar": "NAME|FILE",
+        "help": "Robot name or file."}),
+    targets_option,
+    (("--models",), {"default": "kinematic,ntm,rfcm,full", "show_default": True,
+        "help": "Comma-separated models to fit."}),
+    (("--refit",), {"type": click.Choice(("user",)), "help": "Refit the user frame(s) on "
+        "TEST."}),
+    (("--priors",), {"type": click.Choice(("all", "compliance", "none")),
+        "default": "all", "show_default": True, "help": "Physical priors ('none': the "
+        "paper's least squares)."}),
+    (("--out", "out_dir"), {"type": click.Path(file_okay=False), "help": "Write "
+        "comparison.json, report.html and one model file per method here."}),
+    (("--json", "as_json"), {"is_flag": True, "help": "Print the table as JSON."}),
+    (("--force",), {"is_flag": True, "help": "Overwrite files in --out."}),
+]
+# fmt: on
+
+
 @click.command()
 @click.argument("train", type=click.Path(dir_okay=False))
 @click.argument("test", type=click.Path(dir_okay=False))
-@click.option(
-    "--robot",
-    "robot_name",
-    required=True,
-    metavar="NAME|FILE",
-    help="Robot name or file.",
-)
-@targets_option
-@click.option(
-    "--models",
-    default="kinematic,ntm,rfcm,full",
-    show_default=True,
-    help="Comma-separated models to fit.",
-)
-@click.option(
-    "--refit", type=click.Choice(("user",)), help="Refit the user frame(s) on TEST."
-)
-@click.option(
-    "--priors",
-    type=click.Choice(("all", "compliance", "none")),
-    default="all",
-    show_default=True,
-    help="Physical priors ('none': the paper's least squares).",
-)
-@click.option(
-    "--out",
-    "out_dir",
-    type=click.Path(file_okay=False),
-    help="Write comparison.json, report.html and one model file per method here.",
-)
-@click.option("--json", "as_json", is_flag=True, help="Print the table as JSON.")
-@click.option("--force", is_flag=True, help="Overwrite files in --out.")
+@option_table(_COMPARE_OPTIONS)
 @common_options
 def compare(
     train: str,

@@ -35,6 +35,7 @@ import numpy as np
 from kinecal.errors import ConfigError, DataError
 from kinecal.geometry import make_transform, rot_x, rot_y, rot_z
 from kinecal.measurement import CalibratedModel
+from kinecal.measurement._calibrated import label_list
 from kinecal.models import ModelInputs
 from kinecal.robot import JointSpec, RobotDescription
 from kinecal.typing import Float, Pose
@@ -234,7 +235,7 @@ def _set_index(cal: CalibratedModel, label: str | None) -> int:
         return 0
     if label not in sets:
         raise DataError(
-            f"set {label!r} is not in the model (it has {', '.join(map(repr, sets))})."
+            f"set {label!r} is not in the model (it has {label_list(sets, 'set')})."
         )
     return sets.index(label)
 
@@ -436,7 +437,8 @@ def dh_description(
     markers = model.spec.markers
     if marker is not None and marker not in markers:
         raise DataError(
-            f"marker {marker!r} is not in the model (it has {', '.join(map(repr, markers))})."
+            f"marker {marker!r} is not in the model (it has "
+            f"{label_list(markers, 'marker')})."
         )
     m = 0 if marker is None else markers.index(marker)
     s = _set_index(cal, set_label)

@@ -93,8 +93,8 @@ def _init_point(
             rows = si == s
             if rows.sum() < 3:
                 raise IdentifiabilityError(
-                    f"{meas.source}: set {model.spec.sets[s]!r} has {rows.sum()} rows; "
-                    "a user frame needs at least 3."
+                    f"{meas.source}: {_set_name(model.spec.sets[s])} has "
+                    f"{_rows(int(rows.sum()))}; a user frame needs at least 3."
                 )
             R_b[s], t_b[s], determined = rigid_fit_nearest(
                 p_base[rows], p[rows], R_b[s]
@@ -148,8 +148,8 @@ def _init_point_large(
     for s, rows in enumerate(sets):
         if np.sum(si[rows] == s) < 3:
             raise IdentifiabilityError(
-                f"{meas.source}: set {model.spec.sets[s]!r} has "
-                f"{np.sum(si[rows] == s)} rows; a user frame needs at least 3."
+                f"{meas.source}: {_set_name(model.spec.sets[s])} has "
+                f"{_rows(int(np.sum(si[rows] == s)))}; a user frame needs at least 3."
             )
     # Normal matrix of the unknowns (tool points, then t'_s): constant.
     n_x = 3 * M + 3 * S
@@ -363,3 +363,12 @@ def closed_form_frames(
             x[cam_idx[m, 3:]] = rwp
     out = model.with_references(R_ref_b, R_ref_c if model.spec.cam_rotation else None)
     return out, x, loose
+
+
+def _set_name(label: str) -> str:
+    """``set 'A'``, or the default set (data without a set column) in words."""
+    return f"set {label!r}" if label else "the data (one set)"
+
+
+def _rows(n: int) -> str:
+    return f"{n} row{'s' if n != 1 else ''}"

@@ -59,8 +59,8 @@ def _user_frames(
         rows = meas.set_index == s
         if rows.sum() < 3:
             raise IdentifiabilityError(
-                f"{meas.source}: set {label!r} has {rows.sum()} rows; registering its "
-                "user frame needs at least 3."
+                f"{meas.source}: {_set_name(label)} has {_rows(int(rows.sum()))}; "
+                "registering its user frame needs at least 3."
             )
         R, t, determined = rigid_fit_nearest(p_base[rows], ref[rows], R_now[s])
         R_ref[s], rwp = euler_with_reference(R)
@@ -299,3 +299,12 @@ def _orientation_offset(
             stage="registration",
         )
     ]
+
+
+def _set_name(label: str) -> str:
+    """``set 'A'``, or the default set (data without a set column) in words."""
+    return f"set {label!r}" if label else "the data (one set)"
+
+
+def _rows(n: int) -> str:
+    return f"{n} row{'s' if n != 1 else ''}"

@@ -14,6 +14,8 @@ calibration report keeps it:
   orientation of the nominal kinematics;
 * ``poor_excitation``: a joint that hardly moves, or a tool orientation that hardly
   changes, so some parameters cannot be separated from others;
+* ``lone_label``: a marker or set seen in one row only (a calibration fits its offset or
+  frame to that row alone: nothing checks it);
 * ``positions_only`` and refusals when data and model are of different kinds
   (:func:`check_data_for_model`).
 
@@ -38,6 +40,7 @@ __all__ = [
     "check_data_for_model",
     "data_diagnostics",
     "extrapolation",
+    "lone_labels",
     "near_miss",
 ]
 
@@ -103,6 +106,37 @@ def duplicate_rows(meas: Measurements) -> Diagnostic | None:
         rows=tuple(int(meas.rows[i]) for i in dup),
         stage=_STAGE,
     )
+
+
+def lone_labels(
+    meas: Measurements, kinds: tuple[str, ...] = ("marker", "set")
+) -> list[Diagnostic]:
+    """Markers and sets (``kinds``; of data with several) seen in one row only: a
+    calibration fits that marker's offset (that set's frame) to the one row, which it
+    then matches exactly, so nothing checks it."""
+    out = []
+    for what, idx, labels, fitted in (
+        ("marker", meas.marker_index, meas.marker_labels, "its offset on the tool"),
+        ("set", meas.set_index, meas.set_labels, "its user frame"),
+    ):
+        if what not in kinds:
+            continue
+        counts = np.bincount(idx, minlength=len(labels))
+        if (counts > 0).sum() < 2:
+            continue
+        for k in np.flatnonzero(counts == 1):
+            row = int(meas.rows[int(np.flatnonzero(idx == k)[0])])
+            out.append(
+                Diagnostic(
+                    "lone_label",
+                    f"{meas.source}: {what} {labels[k]!r} is seen in one row only "
+                    f"(line {row}): a calibration fits {fitted} to that row alone, so "
+                    f"nothing checks it; measure it at several poses or remove the row.",
+                    rows=(row,),
+                    stage=_STAGE,
+                )
+            )
+    return out
 
 
 def payload_over_rating(

@@ -125,6 +125,7 @@ def atomic_write_files(
     from kinecal._outputs import signals_held
 
     paths = [Path(p) for p in files]
+    check_distinct_outputs(paths)
     for p in paths:
         if p.is_dir():
             raise IsADirectoryError(
@@ -162,6 +163,27 @@ def atomic_write_files(
             if os.path.exists(tmp):
                 os.unlink(tmp)
     return paths
+
+
+def check_distinct_outputs(paths: Iterable[str | Path | None]) -> None:
+    """Two outputs of one command that are one file (any spelling, a symbolic or hard
+    link): the second would replace the first. Refused before anything is written."""
+    from kinecal.errors import ConfigError
+
+    seen: list[Path] = []
+    for p in (Path(x) for x in paths if x):
+        for q in seen:
+            same = os.path.realpath(p) == os.path.realpath(q)
+            if not same and p.exists() and q.exists():
+                same = os.path.samefile(p, q)
+            if same:
+                both = f"{p}" if str(p) == str(q) else f"{q} and {p} (the same file)"
+                raise ConfigError(
+                    f"{both}: two outputs of this command would be written to it, the "
+                    "second replacing the first; expected a file of its own for each "
+                    "(--out, --report, --save-candidates, ...)."
+                )
+        seen.append(p)
 
 
 def json_text(data: Any) -> str:

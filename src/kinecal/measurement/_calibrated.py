@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -84,11 +85,12 @@ class CalibratedModel:
                         if what == "marker"
                         else "each set is its own user frame"
                     )
+                    named_own = f" ({own[0]!r})" if own[0] else ""
                     raise DataError(
-                        f"{meas.source}: {what}s {', '.join(map(repr, used))} in the "
-                        f"data, but the model has one {what} ({own[0]!r}): {why}"
-                        f"; expected data of that one {what} (or a model calibrated "
-                        f"with these {what}s)."
+                        f"{meas.source}: {what}s {label_list(used, what)} in the data, "
+                        f"but the model has one {what}{named_own}: {why}; expected "
+                        f"data of that one {what} (or a model calibrated with these "
+                        f"{what}s)."
                     )
                 out[attr_i] = np.zeros(meas.n, np.intp)
                 out[attr_l] = own
@@ -96,9 +98,15 @@ class CalibratedModel:
             missing = [lab for lab in labels if lab not in own]
             if missing:
                 hint = " Use --refit user for a new set-up." if what == "set" else ""
+                if not missing[0]:  # data without the column: the default label
+                    raise DataError(
+                        f"{meas.source}: no {what} column, but the model has "
+                        f"{what}s {label_list(own, what)}; expected a {what} column "
+                        f"naming them.{hint}"
+                    )
                 raise DataError(
                     f"{meas.source}: {what} {missing[0]!r} is not in the model "
-                    f"(it has {', '.join(repr(o) for o in own)}).{hint}"
+                    f"(it has {label_list(own, what)}).{hint}"
                 )
             remap = np.array([own.index(lab) for lab in labels], dtype=np.intp)
             out[attr_i] = remap[idx]
@@ -132,3 +140,9 @@ class CalibratedModel:
         """Accuracy metrics of ``meas`` under this calibration."""
         blk = self.predict(meas)
         return metrics_from_errors(blk.raw_position, blk.raw_rotation)
+
+
+def label_list(labels: Iterable[str], what: str = "set") -> str:
+    """Set or marker labels for a message, the default one (``''``: data without the
+    column) said in words, never as ``''``."""
+    return ", ".join(repr(x) if x else f"the default {what}" for x in labels)

@@ -43,6 +43,8 @@ CODES: dict[str, str] = {
     "order",
     "poor_excitation": "a joint that hardly moves, or a tool orientation that hardly "
     "changes: some parameters cannot be separated",
+    "lone_label": "a marker or set seen in one row only: a calibration fits it to that "
+    "row alone (rows: the file line)",
     "positions_only": "the data carry more than the model uses: only positions are "
     "compared",
     "extrapolation": "poses outside the joint ranges the model was calibrated on "

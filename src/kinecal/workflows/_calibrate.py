@@ -6,9 +6,10 @@ of the nominal robot and of gravity-like residuals, and the held-out figures of 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -25,15 +26,24 @@ from kinecal.identification import (
     select_model,
     spec_for,
 )
-from kinecal.measurement import Measurements
+from kinecal.io._manifest import manifest
+from kinecal.measurement import Diagnostic, Measurements
 from kinecal.models import CalibrationModel, ModelSpec, parallel_pairs
 from kinecal.robot import RobotDescription
 
+if TYPE_CHECKING:
+    from kinecal.report import PoseErrors
+
 __all__ = [
+    "CalibrationFiles",
     "CalibrationRun",
     "calibrate_measurements",
+    "calibration_files",
     "check_auto_folds",
+    "check_cv_folds",
     "check_distinct_poses",
+    "group_labels",
+    "write_calibration",
 ]
 
 # The nominal check's extra fit runs up to this many rows (on large data the priors
@@ -169,6 +179,105 @@ def calibrate_measurements(
     return CalibrationRun(result, spec, opts, sel, held, hay, nj)
 
 
+@dataclass(frozen=True)
+class CalibrationFiles:
+    """What ``kinecal calibrate`` writes of a :class:`CalibrationRun`.
+
+    Attributes
+    ----------
+    summary : report.json's content: the calibration with its data checks, certificate,
+        model selection, cross-validation, acceptance and accuracy blocks.
+    errors : the per-pose errors on the calibration data (residuals.csv's rows).
+    """
+
+    summary: dict[str, Any] = field(repr=False)
+    errors: PoseErrors = field(repr=False)
+
+    def residuals_csv(self) -> Iterator[bytes]:
+        """residuals.csv in blocks of rows (a large file's text is never held whole)."""
+        return (b.encode("utf-8") for b in self.errors.csv_blocks())
+
+
+def calibration_files(
+    run: CalibrationRun,
+    meas: Measurements,
+    *,
+    data_checks: Sequence[Diagnostic] = (),
+    certificate: dict[str, Any] | None = None,
+    limits: tuple[float, float | None] | None = None,
+) -> CalibrationFiles:
+    """report.json and residuals.csv of ``run`` on its data ``meas``, with the findings
+    of the data's checks, the ``certificate`` block and the ``--accept`` verdict on the
+    ``limits`` (RMS, max [mm]) when given."""
+    from kinecal.report import calibration_summary, pose_errors
+    from kinecal.report._acceptance import acceptance
+    from kinecal.report._headline import accuracy_block
+
+    result, held = run.result, run.held_out
+    extra: dict[str, Any] = {"data_checks": [d.as_dict() for d in data_checks]}
+    extra["certificate"] = certificate
+    extra.update(run.report_extra())
+    if limits is not None:
+        extra["acceptance"] = acceptance(*limits, held, result.metrics_after)
+    errors = pose_errors(result, meas)
+    extra["accuracy"] = accuracy_block(errors, held)
+    return CalibrationFiles(calibration_summary(result, extra=extra), errors)
+
+
+def write_calibration(
+    out: Path,
+    run: CalibrationRun,
+    files: CalibrationFiles,
+    inputs: dict[str, str | None],
+    settings: dict[str, Any],
+    meta: dict[str, str],
+    report: bool = True,
+    progress: Progress | None = None,
+) -> list[str]:
+    """``kinecal calibrate``'s files into the folder ``out``: model.yaml, report.json,
+    residuals.csv, manifest.json (the ``inputs`` files' hashes, the ``settings`` with
+    the model code, the outputs' hashes and the certificate fields ``meta``) and
+    report.html when ``report``; the names written."""
+    from kinecal.io import atomic_write_bytes, save_model, write_json
+    from kinecal.models import kernel_name
+    from kinecal.report import RESIDUALS_CSV
+
+    say: Progress = progress or (lambda stage, detail: None)
+    say("write", "model.yaml, report.json, residuals.csv, manifest.json")
+    save_model(out / "model.yaml", run.result.calibrated, force=True)
+    write_json(out / "report.json", files.summary, force=True)
+    atomic_write_bytes(out / RESIDUALS_CSV, files.residuals_csv(), force=True)
+    written = ["model.yaml", "report.json", RESIDUALS_CSV, "manifest.json"]
+    written += ["report.html"] if report else []
+    settings = {**settings, "model_code": kernel_name(run.result.calibrated.model)}
+    run_manifest = manifest(inputs, settings, files=written, folder=out)
+    run_manifest["meta"] = meta
+    write_json(out / "manifest.json", run_manifest, force=True)
+    if report:  # drawn from the files just written, as `kinecal report DIR` does
+        from kinecal.report import write_report
+
+        say("report", "drawing report.html")
+        write_report(out, force=True)
+    return written
+
+
+def group_labels(data: str, column: str, rows: np.ndarray) -> np.ndarray:
+    """The values of ``column`` of the measurement file ``data``, one per row of the
+    data (``rows``: their lines), for ``--cv-groups``."""
+    from kinecal.errors import DataError
+    from kinecal.io import read_table
+
+    table = read_table(data)
+    if column not in table.header:
+        raise DataError(
+            f"{data}: --cv-groups names column {column!r}, which the file does not "
+            f"have (columns: {', '.join(table.header)})."
+        )
+    k = table.header.index(column)
+    by_line = {line: row[k].strip() for line, row in zip(table.lines, table.rows)}
+    return np.array([by_line[int(r)] for r in rows])
+
+
 def _checks(
     result: CalibrationResult,
     robot: RobotDescription,
@@ -180,7 +289,9 @@ def _checks(
     a wrong nominal table or units), and gravity-like residuals on a robot without a
     self-weight layout; their findings join the result's diagnostics."""
     from kinecal.identification._gravity_check import gravity_check
+    from kinecal.io._checks import lone_labels
 
+    result.diagnostics.extend(lone_labels(meas))  # issue 35: fitted to one row
     if opts.priors != "none" and meas.n <= NOMINAL_CHECK_ROWS:
         say("check", "the nominal robot and the priors against the data")
         result.diagnostics.extend(nominal_check(result, robot, meas, options=opts))
@@ -209,6 +320,24 @@ def check_distinct_poses(
             f"'{spec.name}' model has {size} parameters: expected at least "
             f"{size // c + 1} different poses (several times more for a reliable result)"
         )
+
+
+def check_cv_folds(
+    meas: Measurements, k: int, groups: np.ndarray | None, group_name: str | None
+) -> None:
+    """``--cv K``: the folds' own check (too few poses, sets or groups to hold out),
+    run before the calibration rather than after it."""
+    from kinecal.errors import DataError
+    from kinecal.identification import make_folds
+
+    if (
+        k > meas.n
+    ):  # said plainly (the folds' rule would count what is left to hold out)
+        raise DataError(
+            f"{meas.source}: --cv {k}: {k} folds asked, but the data have {meas.n} rows; "
+            f"expected at most {meas.n} (5 or 10 is usual)."
+        )
+    make_folds(meas, k, groups=groups, group_name=group_name or "group")
 
 
 def check_auto_folds(

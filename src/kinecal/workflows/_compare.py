@@ -12,7 +12,14 @@ from kinecal.identification import ComparisonRow
 from kinecal.measurement import Measurements
 from kinecal.robot import RobotDescription
 
-__all__ = ["MODELS", "ModelComparison", "compare_measurements", "write_comparison"]
+__all__ = [
+    "MODELS",
+    "CalibrationComparison",
+    "ModelComparison",
+    "compare_calibration_folders",
+    "compare_measurements",
+    "write_comparison",
+]
 
 # The models a comparison can fit.
 MODELS = ("kinematic", "ntm", "rfcm", "full")
@@ -112,3 +119,63 @@ def write_comparison(
     written += ["report.html", "manifest.json"]
     write_json(out / "manifest.json", manifest(written[:-1]), force=True)
     return written
+
+
+@dataclass(frozen=True)
+class CalibrationComparison:
+    """What :func:`compare_calibration_folders` found (``kinecal report --compare``).
+
+    Attributes
+    ----------
+    result : the parameters that moved beyond their combined uncertainty and each
+        model's accuracy on the other's data (:func:`kinecal.report._compare.
+        compare_calibrations`).
+    """
+
+    result: dict[str, Any] = field(repr=False)
+
+    def html(self) -> str:
+        """compare.html."""
+        from kinecal.report._compare import render_comparison
+
+        return render_comparison(self.result)
+
+    def lines(self) -> list[str]:
+        """The console summary: what moved, then each model on the other's data."""
+        c = self.result
+        out = [
+            f"moved     {len(c['moved'])} of {len(c['parameters'])} parameters beyond "
+            f"{c['significance']:g} combined std"
+            + (f": {', '.join(_shown(c, c['moved']))}" if c["moved"] else "")
+        ]
+        for r in c["cross"]:
+            label = f"{r['model']} model on {r['data']} data"
+            if "skipped" in r:
+                out.append(f"accuracy  {label}: not computed ({r['skipped']})")
+            else:
+                out.append(
+                    f"accuracy  {label}: RMS {r['rms_mm']:.4f} mm  max "
+                    f"{r['max_mm']:.4f} mm"
+                    + ("  (user frame refitted)" if r["refit_user"] else "")
+                )
+        return out
+
+
+def _shown(c: dict[str, Any], names: list[str]) -> list[str]:
+    """Parameter names with the robot's joint name beside them where it has one."""
+    jn = {p["name"]: p.get("joint_name") for p in c["parameters"]}
+    return [f"{n} ({jn[n]})" if jn.get(n) else n for n in names]
+
+
+def compare_calibration_folders(
+    old_dir: str | Path, new_dir: str | Path
+) -> CalibrationComparison:
+    """Two calibrations of one robot (folders written by ``kinecal calibrate``)
+    compared: parameters that moved beyond their combined uncertainty, each model's
+    accuracy on the other's data (when the manifests' data files are still there)."""
+    from kinecal.report._compare import compare_calibrations
+    from kinecal.workflows._report import note_folder_inputs
+
+    for folder in (old_dir, new_dir):
+        note_folder_inputs(Path(folder))
+    return CalibrationComparison(compare_calibrations(old_dir, new_dir))

@@ -46,6 +46,23 @@ class ModelEvaluation:
             lines.append(f"{r},{e[0]:.6f},{e[1]:.6f},{e[2]:.6f},{d:.6f}")
         return "\n".join(lines) + "\n"
 
+    def summary_lines(self) -> list[str]:
+        """The console summary of ``kinecal evaluate``: poses (and what was refitted),
+        the error statistics, per axis, and the orientation errors of pose data."""
+        m = self.evaluation.metrics
+        what = f"  (refitted: {', '.join(self.refit)})" if self.refit else ""
+        lines = [
+            f"poses  {m.n}{what}",
+            f"RMS    {m.rms_mm:.4f} mm   Std {m.std_mm:.4f}   Avg {m.mean_mm:.4f}   "
+            f"Max {m.max_mm:.4f} mm",
+            "axes   RMS x {:.4f}  y {:.4f}  z {:.4f} mm".format(*m.rms_xyz_mm),
+        ]
+        if m.rot_rms_deg is not None:
+            lines.append(
+                f"orient RMS {m.rot_rms_deg:.4f} deg   Max {m.rot_max_deg:.4f} deg"
+            )
+        return lines
+
 
 def evaluate_measurements(
     cal: CalibratedModel,
@@ -86,6 +103,10 @@ def evaluate_measurements(
             say(line)
 
     meas, found = check_data_for_model(meas, cal)
+    if "marker" in refit:  # a marker of one row: its refitted offset matches it exactly
+        from kinecal.io._checks import lone_labels
+
+        found = [*found, *lone_labels(meas, ("marker",))]
     for d in found:
         if d.severity == "warning":
             emit(f"warning   {d.message}")

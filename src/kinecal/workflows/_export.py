@@ -449,6 +449,10 @@ def _check_yaml(
     return float(np.abs(T[:, :3, 3] - out.p_user).max())
 
 
-def labels_text(own: tuple[str, ...]) -> str:
-    """A model's set or marker labels for a message (the default one is '')."""
-    return ", ".join(repr(x) if x else "'' (the default)" for x in own)
+def labels_text(own: tuple[str, ...], what: str = "set") -> str:
+    """What ``--set`` (``--marker``) of a model may name, for a message: its labels,
+    or, for a model of the default one only (data without the column), that it has
+    nothing to choose (never ``''``)."""
+    if own == ("",):
+        return f"none: the model has only the default {what} (leave --{what} out)"
+    return "one of " + ", ".join(repr(x) if x else f"the default {what}" for x in own)

@@ -40,6 +40,32 @@ class PoseReport:
     set: str | None = None
     marker: str | None = None
 
+    def lines(self, model_path: str | None = None) -> list[str]:
+        """The lines ``kinecal fk`` prints: the nominal flange, or (``model_path``: a
+        model's pose) the flange and tool point with all terms and without the
+        compliance and transmission terms."""
+        if model_path is None or self.kinematic is None:
+            return [
+                f"robot   {self.robot}",
+                "flange  x {:.4f}  y {:.4f}  z {:.4f}  mm".format(*self.flange_mm),
+                "        w {:.4f}  p {:.4f}  r {:.4f}  deg".format(*self.wpr_deg),
+            ]
+        out = [f"model   {model_path} ({self.robot})"]
+        for title, d in (("with all terms", self), ("kinematic part", self.kinematic)):
+            assert d.tool_mm is not None and d.tool_wpr_deg is not None
+            out.append(f"{title}:")
+            for what, xyz, wpr in (
+                ("flange (base)", d.flange_mm, d.wpr_deg),
+                ("tool   (user)", d.tool_mm, d.tool_wpr_deg),
+            ):
+                out.append(
+                    f"  {what} x {xyz[0]:.4f}  y {xyz[1]:.4f}  z {xyz[2]:.4f}  mm"
+                )
+                out.append(
+                    f"                 w {wpr[0]:.4f}  p {wpr[1]:.4f}  r {wpr[2]:.4f}  deg"
+                )
+        return out
+
     def as_dict(self) -> dict[str, Any]:
         """The JSON object ``kinecal fk --json`` prints."""
         if self.tool_mm is None:
@@ -158,8 +184,8 @@ def _model_fk(
     ):
         if label is not None and label not in own:
             raise DataError(
-                f"--{what}: {what} {label!r} is not in the model; expected one of "
-                f"{labels_text(own)}."
+                f"--{what}: {what} {label!r} is not in the model; expected "
+                f"{labels_text(own, what)}."
             )
         idx.append(0 if label is None else own.index(label))
     scale = 1.0

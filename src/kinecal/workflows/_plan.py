@@ -100,10 +100,7 @@ def plan_setup(
     from kinecal.planning import planning_model
 
     cal = model if isinstance(model, CalibratedModel) else None
-    kind_of = {"point": "tracker", "pose": "pose", "sensor": "sensor"}
-    inst_name = instrument or (
-        kind_of.get(str(cal.info.get("kind")), "tracker") if cal else "tracker"
-    )
+    inst_name = instrument or default_instrument(cal)
     inst = Instrument(
         inst_name,
         float(noise_mm or 0.01) * 1e-3,
@@ -125,6 +122,90 @@ def plan_setup(
         name = model_name or model
         cm, x = planning_model(robot, model, inst, T_user_base, T_flange_tool)
     return PlanSetup(robot, cm, x, inst, cal, targets, name)
+
+
+def default_instrument(cal: CalibratedModel | None) -> str:
+    """The instrument of a plan without ``--instrument``: the one a calibrated model's
+    data came from (tracker, pose or sensor), else a laser tracker."""
+    kind_of = {"point": "tracker", "pose": "pose", "sensor": "sensor"}
+    return kind_of.get(str(cal.info.get("kind")), "tracker") if cal else "tracker"
+
+
+def model_robot(
+    cal: CalibratedModel, robot_name: str | None, model_name: str
+) -> RobotDescription:
+    """The robot of a calibrated model, which ``--robot`` (when given) must name."""
+    from kinecal.robot import load_robot
+
+    robot = cal.model.robot
+    if robot_name and load_robot(robot_name).name != robot.name:
+        raise ConfigError(
+            f"--robot {robot_name}, but {model_name} was calibrated for "
+            f"{robot.name}: a model and a robot of different kinds."
+        )
+    return robot
+
+
+def joint_ranges(text: str | None, robot: RobotDescription) -> np.ndarray | None:
+    """``J1:-60:60,J3:0:90`` (deg, mm for a prismatic joint) -> (n, 2) [rad, m], the
+    limits where not given; None stays None. ValueError with what is expected."""
+    if text is None:
+        return None
+    r = robot.limits.copy()
+    for item in text.split(","):
+        parts = item.strip().split(":")
+        try:
+            if len(parts) != 3 or parts[0][:1].upper() != "J":
+                raise ValueError
+            j = int(parts[0][1:])
+            lo, hi = float(parts[1]), float(parts[2])
+            if not 1 <= j <= robot.n_joints or not lo <= hi:
+                raise ValueError
+        except ValueError:
+            raise ValueError(
+                f"expected Jk:low:high with 1 <= k <= {robot.n_joints} and low <= high "
+                f"(degrees, or mm for a prismatic joint); got {item!r}"
+            ) from None
+        f = 1e-3 if robot.joints[j - 1].kind == "prismatic" else np.pi / 180
+        r[j - 1] = (lo * f, hi * f)
+    return r
+
+
+def calibration_noise_mm(model_file: str) -> tuple[float | None, Path]:
+    """The noise per axis [mm] that the calibration of ``model_file`` found (its
+    report.json beside it), and that file; None when there is none."""
+    import json
+
+    rep = Path(model_file).with_name("report.json")
+    if not rep.is_file():
+        return None, rep
+    try:
+        noise = json.loads(rep.read_text())["noise_sigma_mm"]
+        if noise is not None and not 0 < float(noise) < 1e3:  # nan too
+            raise ValueError(noise)
+    except (ValueError, TypeError, KeyError) as exc:  # an edited or damaged file
+        raise DataError(
+            f"{rep}: no noise_sigma_mm a calibration writes ({type(exc).__name__}: "
+            f"{exc}); expected the report.json of {model_file}'s calibration (or give "
+            "--noise-mm)."
+        ) from None
+    return (None if noise is None else float(noise)), rep
+
+
+def read_measured_poses(
+    setup: PlanSetup, path: str, allow: bool = False, warn: Say | None = None
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """The poses of a sequential plan's calibration data ``path`` (``--data``): joints
+    (N, n) [rad] and target indices. A file with measurement columns is checked as
+    measurements (``allow``: joints beyond the limits, with a ``warn`` line)."""
+    table, _, q, ti = read_pose_file(path, setup.robot, setup.labels, allow, warn)
+    if {"x_mm", "xc_mm"} & set(table.header):
+        from kinecal.io import read_measurements
+
+        read_measurements(
+            path, setup.robot, setup.targets, allow_out_of_limits=allow, check=False
+        )
+    return q, ti
 
 
 @dataclass(frozen=True)

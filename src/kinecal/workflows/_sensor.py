@@ -4,6 +4,7 @@ planes (with or without the camera) from stripes on a planar target."""
 
 from __future__ import annotations
 
+import math
 import re
 import threading
 from collections import Counter
@@ -144,6 +145,39 @@ def sphere_lines(f: SphereFit, fixed: bool = False) -> list[str]:
     ]
 
 
+def chessboard_target(board: str, square_mm: float) -> ChessboardTarget:
+    """A chessboard of ``board`` (``COLSxROWS`` inner corners) and ``square_mm``.
+
+    Raises
+    ------
+    ValueError
+        (what is expected, the option: ``--board`` or ``--square-mm``): not COLSxROWS,
+        fewer than 3 corners a way, two even or two odd counts (the board would look
+        the same turned by 180 deg), a square that is not a finite number > 0.
+    """
+    from kinecal.sensor import ChessboardTarget
+
+    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", board)
+    if not m:
+        raise ValueError(f"expected COLSxROWS, e.g. 10x7; got {board!r}", "--board")
+    cols, rows = int(m.group(1)), int(m.group(2))
+    if min(cols, rows) < 3:
+        raise ValueError(
+            f"expected at least 3 inner corners each way; got {board!r}", "--board"
+        )
+    if cols % 2 == rows % 2:
+        raise ValueError(
+            f"expected one even and one odd count of inner corners (a board with two "
+            f"even or two odd counts looks the same turned by 180 deg); got {board!r}",
+            "--board",
+        )
+    if not (square_mm > 0 and math.isfinite(square_mm)):
+        raise ValueError(
+            f"expected a finite number > 0 [mm]; got {square_mm}", "--square-mm"
+        )
+    return ChessboardTarget(cols, rows, square_mm * 1e-3)
+
+
 def camera_lines(cc: CameraCalibration) -> list[str]:
     """The intrinsics as the calibration commands print them: value and std, or why
     a term is fixed."""
@@ -183,6 +217,26 @@ class CameraRun:
     skipped: tuple[Path, ...]
     rejected: tuple[Path, ...]
     info: dict[str, Any] = field(repr=False)
+
+    def warning_lines(self) -> list[str]:
+        """The images left out, and why."""
+        return [
+            f"warning: {f}: chessboard not found; image skipped" for f in self.skipped
+        ] + [
+            f"warning: {f}: corners inconsistent with the other views (re-projection "
+            "error far above theirs); image left out"
+            for f in self.rejected
+        ]
+
+    def summary_lines(self) -> list[str]:
+        """The re-projection error and the intrinsics, as ``calibrate-camera`` prints
+        them."""
+        res = self.result
+        return [
+            f"re-projection RMS {res.rms_px:.4f} px over {len(res.used)} images "
+            f"(corner std {res.sigma_px:.4f} px)",
+            *camera_lines(res),
+        ]
 
 
 def calibrate_camera_images(
@@ -271,6 +325,27 @@ class SensorRun:
     skipped: tuple[Path, ...]
     status: dict[str, int]
     info: dict[str, Any] = field(repr=False)
+
+    def summary_lines(self, camera_estimated: bool) -> list[str]:
+        """What ``calibrate-planes`` prints: the camera (when ``camera_estimated``) and
+        the light planes' fit."""
+        res = self.result
+        pc, n = res.planes, len(res.plane_poses)
+        out = []
+        if camera_estimated:
+            cc = res.camera
+            out.append(
+                f"re-projection RMS {cc.rms_px:.4f} px over {len(cc.used)} views and "
+                f"{n} target poses (corner std {cc.sigma_px:.4f} px)"
+            )
+            out += camera_lines(cc)
+        out.append(
+            f"{len(pc.planes)} light planes from {n} target poses: fit "
+            f"RMS {pc.mean_rms_mm:.4f} mm (mean), {np.nanmax(pc.rms_mm):.4f} mm (max); "
+            f"stripe std {res.sigma_stripe_px:.3f} px; "
+            + ", ".join(f"{v} {k}" for k, v in self.status.items())
+        )
+        return out
 
 
 def calibrate_sensor_images(

@@ -10,9 +10,12 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from kinecal.sensor import Sensor
 
 __all__ = ["RenderedSession", "render_calibration_session", "render_scan"]
 
@@ -132,6 +135,36 @@ def render_scan(
     )
     names = [f"plane_{i:03d}.png" for i in idx] + ["sensor.yaml", "truth.json"]
     return RenderedSession(d, int(idx.size), tuple(names))
+
+
+def scene_problem(sen: Sensor, c: np.ndarray, r: float, idx: np.ndarray) -> str | None:
+    """Why the scan cannot see the sphere (its images would be empty), or None: behind
+    the camera or around it, outside the image, or missed by every rendered light
+    plane. ``c`` (3,) [m] camera frame, ``r`` [m], ``idx`` the rendered planes."""
+    c_mm, r_mm = ", ".join(f"{v:g}" for v in c * 1e3), r * 1e3
+    if c[2] - r <= 0:
+        return (
+            f"the sphere ({c_mm}) mm, radius {r_mm:g} mm, is not wholly in front of the "
+            f"camera; expected Z > {r_mm:g} mm (the working distance is 115-135 mm)"
+        )
+    cam = sen.camera
+    xy = c[:2] / c[2]
+    uv = cam.project(c)
+    if (
+        np.abs(xy).max() > 1.0  # beyond 45 deg off axis (where the distortion folds)
+        or not (-0.5 <= uv[0] <= cam.width - 0.5 and -0.5 <= uv[1] <= cam.height - 0.5)
+    ):
+        return (
+            f"the sphere centre ({c_mm}) mm is outside the camera's "
+            f"{cam.width}x{cam.height} image; expected a centre in view, e.g. 0,0,125"
+        )
+    if not np.any(np.abs(sen.planes.distance(c, idx)) < r):
+        return (
+            f"no rendered light plane meets the sphere ({c_mm}) mm, radius {r_mm:g} mm: "
+            "the images would be empty; expected a sphere at the working distance "
+            "(115-135 mm), e.g. 0,0,125"
+        )
+    return None
 
 
 def scan_files(every: int) -> list[str]:
