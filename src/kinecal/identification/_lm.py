@@ -349,168 +349,264 @@ def solve_lm(
     -------
     LMResult
         Non-convergence is reported in ``success``/``status``, never raised.
+
+    The Jacobian at a new point is asked for when an iteration needs it, not when the
+    point is accepted: a run that stops there (converged, or at ``max_iter``) leaves it
+    to whoever asks next (the normal matrix at the solution, the next stage; issue 36).
     """
     opts = options or LMOptions()
     t0 = time.perf_counter()
     x, free, scales = _checked_start(x0, free, scales)
-    fidx = np.flatnonzero(free)
-    s = scales[fidx]
-    pr = prior or Prior.none(x.size)
-    prec = pr.precision[fidx] * s * s  # prior precision in scaled variables
-    pmean = pr.mean[fidx]
+    r, J0 = fun(x, True)
+    J = _check_first_evaluation(r, J0, x.size)
+    run = _Run(_Objective.make(fun, free, scales, opts, prior, s0sq, r.size), label)
+    run.start(x, r, J)
+    for it in range(1, opts.max_iter + 1):
+        if run.iterate(it, on_iteration):
+            break
+    return run.result(time.perf_counter() - t0)
 
-    def unit(c: float) -> float:  # variance of unit weight
-        return s0sq if s0sq is not None else 2.0 * c / max(r.size - fidx.size, 1)
 
-    def total_cost(xx: Float, rr: Float) -> tuple[float, Float]:
-        c, ww = objective(rr, opts)
-        return c + pr.cost(xx) if prior is not None else c, ww
+@dataclass
+class _Objective:
+    """What :func:`solve_lm` minimises: the data term of ``fun``'s residuals and the
+    prior, over the free parameters ``fidx`` in scaled variables (``x = x0 + s z``)."""
+
+    fun: ResidualFn
+    opts: LMOptions
+    prior: Prior | None
+    fidx: np.ndarray
+    s: Float
+    prec: Float  # prior precision in scaled variables
+    s0sq: float | None
+    m: int  # residual components
+
+    @classmethod
+    def make(
+        cls,
+        fun: ResidualFn,
+        free: np.ndarray,
+        scales: Float,
+        opts: LMOptions,
+        prior: Prior | None,
+        s0sq: float | None,
+        m: int,
+    ) -> _Objective:
+        fidx = np.flatnonzero(free)
+        s = scales[fidx]
+        pr = prior or Prior.none(free.size)
+        return cls(fun, opts, prior, fidx, s, pr.precision[fidx] * s * s, s0sq, m)
+
+    def unit(self, c: float) -> float:
+        """The variance of unit weight the statistical stop compares with."""
+        if self.s0sq is not None:
+            return self.s0sq
+        return 2.0 * c / max(self.m - self.fidx.size, 1)
+
+    def cost(self, x: Float, r: Float) -> tuple[float, Float]:
+        """The total cost at ``x`` (residuals ``r``) and the robust row weights."""
+        c, w = objective(r, self.opts)
+        return (c + self.prior.cost(x) if self.prior is not None else c), w
 
     def normal(
-        xx: Float, rr: Float, JJ: Float | NormalSource, ww: Float
+        self, x: Float, r: Float, J: Float | NormalSource, w: Float
     ) -> tuple[Float, Float]:
-        sw_ = None if opts.loss == "linear" else np.sqrt(ww)
-        A_, g_ = normal_of(rr, JJ, fidx, s, sw_)
-        A_ += np.diag(prec)  # the prior of Eq. (T-6), in scaled variables
-        if prior is not None:
-            g_ = g_ + prec * (xx[fidx] - pmean) / s
-        return A_, g_
+        """Normal matrix and gradient in scaled variables, with the prior."""
+        sw = None if self.opts.loss == "linear" else np.sqrt(w)
+        A, g = normal_of(r, J, self.fidx, self.s, sw)
+        A += np.diag(self.prec)  # the prior of Eq. (T-6), in scaled variables
+        if self.prior is not None:
+            g = g + self.prec * (x[self.fidx] - self.prior.mean[self.fidx]) / self.s
+        return A, g
 
-    r, J0 = fun(x, True)
-    J: Float | NormalSource = _check_first_evaluation(r, J0, x.size)
-    n_eval = 1
-    cost, w = total_cost(x, r)
-    mu = opts.mu0
-    nu = 2.0
-    history: list[dict[str, float]] = []
-    status, message = "max_iter", f"{label}: stopped after {opts.max_iter} iterations"
-    success = False
-    A = np.zeros((fidx.size, fidx.size))
-    g = np.zeros(fidx.size)
-    final: Float | Callable[[], tuple[Float, Float]] = A
-    trust = False  # whether the last step's quadratic model predicted its decrease well
-    it = 0
-    for it in range(1, opts.max_iter + 1):
-        A, g = normal(x, r, J, w)
+    def trial(self, x: Float, dz: Float) -> tuple[Float, Float, float, Float]:
+        """The point ``x + s dz``: its parameters, residuals, cost and row weights."""
+        x_new = x.copy()
+        x_new[self.fidx] += dz * self.s
+        r_new, _ = self.fun(x_new, False)
+        cost_new, w_new = self.cost(x_new, r_new)
+        return x_new, r_new, cost_new, w_new
+
+
+class _Run:
+    """The iterations of one :func:`solve_lm` run: the accepted point, its Jacobian
+    (asked for when an iteration needs it), the damping (Nielsen's rule) and the log."""
+
+    def __init__(self, obj: _Objective, label: str) -> None:
+        self.obj, self.label = obj, label
+        self.mu, self.nu = obj.opts.mu0, 2.0
+        self.trust = (
+            False  # the last step's quadratic model predicted its decrease well
+        )
+        self.n_eval, self.it = 1, 0
+        self.history: list[dict[str, float]] = []
+        self.status, self.success = "max_iter", False
+        self.message = f"{label}: stopped after {obj.opts.max_iter} iterations"
+        k = obj.fidx.size
+        self.A, self.g = np.zeros((k, k)), np.zeros(k)
+        self.final: Callable[[], tuple[Float, Float]] | None = None
+
+    def start(self, x: Float, r: Float, J: Float | NormalSource) -> None:
+        self.x, self.r, self.J, self.stale = x, r, J, False
+        self.cost, self.w = self.obj.cost(x, r)
+
+    def _end(self, status: str, message: str, success: bool) -> bool:
+        self.status, self.message, self.success = status, message, success
+        return True
+
+    def iterate(
+        self, it: int, on_iteration: Callable[[int, float, float], None] | None
+    ) -> bool:
+        """Iteration ``it``; True when the run ends."""
+        obj, opts = self.obj, self.obj.opts
+        self.it = it
+        if self.stale:  # the Jacobian at the accepted point, needed now
+            self.r, J1 = obj.fun(self.x, True)
+            self.n_eval += 1
+            self.J = J1 if J1 is not None else self.J
+            self.stale = False
+        A, g = self.A, self.g = obj.normal(self.x, self.r, self.J, self.w)
         gnorm = float(np.abs(g).max()) if g.size else 0.0
-        if gnorm <= opts.gtol * max(cost, 1e-300) or fidx.size == 0:
-            status, message, success = "gtol", f"{label}: gradient vanished", True
-            break
-        accepted = False
+        if gnorm <= opts.gtol * max(self.cost, 1e-300) or obj.fidx.size == 0:
+            return self._end("gtol", f"{self.label}: gradient vanished", True)
+        accepted, new, dz, rho = False, None, np.zeros(0), -1.0
         if opts.stol > 0:
             dz, pred = _gauss_newton(A, g)
-            if pred <= opts.stol * unit(cost):
-                it -= 1  # no step taken in this iteration
-                status, success = "stol", True
-                message = f"{label}: converged (stol) after {it} iterations"
-                break
-            if trust:  # the last step's quadratic model held: the undamped step first
-                x_new = x.copy()
-                x_new[fidx] += dz * s
-                r_new, _ = fun(x_new, False)
-                n_eval += 1
-                cost_new, w_new = total_cost(x_new, r_new)
-                rho = float((cost - cost_new) / pred)
-                accepted = bool(np.isfinite(cost_new)) and rho > 0.75
+            if pred <= opts.stol * obj.unit(self.cost):
+                self.it = it - 1  # no step taken in this iteration
+                msg = f"{self.label}: converged (stol) after {it - 1} iterations"
+                return self._end("stol", msg, True)
+            if self.trust:  # the last step's model held: the undamped step first
+                new = obj.trial(self.x, dz)
+                self.n_eval += 1
+                rho = float((self.cost - new[2]) / pred)
+                accepted = bool(np.isfinite(new[2])) and rho > 0.75
                 if accepted:
-                    mu = max(mu / 10.0, 1e-15)
+                    self.mu = max(self.mu / 10.0, 1e-15)
+        if not accepted:
+            accepted, new, dz, rho = self._damped(A, g)
+        assert new is not None
+        self._log(it, accepted, new[2], dz, rho, on_iteration)
+        if not accepted:
+            return self._stalled(A, g)
+        return self._accept(new, dz, rho)
+
+    def _damped(
+        self, A: Float, g: Float
+    ) -> tuple[bool, tuple[Float, Float, float, Float], Float, float]:
+        """Damped steps, the damping raised until one lowers the cost (or beyond 1e16)."""
         diag = np.diag(A).copy()
         diag = np.maximum(diag, 1e-12 * max(float(diag.max()), 1e-300))
-        while not accepted:
-            dz = -spd_solve(A + mu * np.diag(diag), g)
-            x_new = x.copy()
-            x_new[fidx] += dz * s
-            r_new, _ = fun(x_new, False)
-            n_eval += 1
-            cost_new, w_new = total_cost(x_new, r_new)
+        while True:
+            dz = -spd_solve(A + self.mu * np.diag(diag), g)
+            new = self.obj.trial(self.x, dz)
+            self.n_eval += 1
             pred = -float(g @ dz + 0.5 * dz @ (A @ dz))
-            actual = cost - cost_new
+            actual = self.cost - new[2]
             rho = float(actual / pred) if pred > 0 else -1.0
-            if np.isfinite(cost_new) and rho > 0:
-                accepted = True
-                mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-                nu = 2.0
-                break
-            mu *= nu
-            nu *= 2.0
-            if mu > 1e16:
-                break
-        history.append(
+            if np.isfinite(new[2]) and rho > 0:
+                self.mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+                self.nu = 2.0
+                return True, new, dz, rho
+            self.mu *= self.nu
+            self.nu *= 2.0
+            if self.mu > 1e16:
+                return False, new, dz, rho
+
+    def _log(
+        self,
+        it: int,
+        accepted: bool,
+        cost_new: float,
+        dz: Float,
+        rho: float,
+        on_iteration: Callable[[int, float, float], None] | None,
+    ) -> None:
+        cost = self.cost
+        self.history.append(
             {
                 "iter": it,
                 "cost": cost,
                 "cost_new": cost_new if accepted else cost,
-                "mu": float(mu),
+                "mu": float(self.mu),
                 "step": float(np.linalg.norm(dz)),
                 "gain": float(rho),
             }
         )
-        log.debug("%s it %d cost %.6g -> %.6g mu %.2e", label, it, cost, cost_new, mu)
+        log.debug(
+            "%s it %d cost %.6g -> %.6g mu %.2e",
+            self.label,
+            it,
+            cost,
+            cost_new,
+            self.mu,
+        )
         if on_iteration is not None and accepted:
             on_iteration(it, cost_new, (cost_new - cost) / max(abs(cost), 1e-300))
-        if not accepted:
-            status = "stalled"
-            message = f"{label}: no step reduces the cost (damping {mu:.1e})"
-            # No step helps. That is convergence when even the undamped Gauss-Newton
-            # step promises a decrease at the level of round-off in the cost.
-            try:
-                dz_gn = np.linalg.lstsq(A, -g, rcond=1e-14)[0]
-                pred_gn = float(-(g @ dz_gn + 0.5 * dz_gn @ (A @ dz_gn)))
-            except np.linalg.LinAlgError:
-                pred_gn = float("inf")
-            log.debug(
-                "%s stalled: Gauss-Newton would gain %.3g of %.3g", label, pred_gn, cost
-            )
-            success = pred_gn <= 1e-9 * max(cost, 1e-300) or cost == 0.0
-            if success:
-                message = f"{label}: converged (no further decrease above round-off)"
-            break
-        trust = rho > 0.75
-        dcost = cost - cost_new
-        step_small = np.linalg.norm(dz) <= opts.xtol * (
-            np.linalg.norm(x[fidx] / s) + opts.xtol
+
+    def _stalled(self, A: Float, g: Float) -> bool:
+        """No step helps. That is convergence when even the undamped Gauss-Newton step
+        promises a decrease at the level of round-off in the cost."""
+        cost, label = self.cost, self.label
+        try:
+            dz_gn = np.linalg.lstsq(A, -g, rcond=1e-14)[0]
+            pred_gn = float(-(g @ dz_gn + 0.5 * dz_gn @ (A @ dz_gn)))
+        except np.linalg.LinAlgError:
+            pred_gn = float("inf")
+        log.debug(
+            "%s stalled: Gauss-Newton would gain %.3g of %.3g", label, pred_gn, cost
         )
-        x, r, cost, w = x_new, r_new, cost_new, w_new
+        if pred_gn <= 1e-9 * max(cost, 1e-300) or cost == 0.0:
+            msg = f"{label}: converged (no further decrease above round-off)"
+            return self._end("stalled", msg, True)
+        msg = f"{label}: no step reduces the cost (damping {self.mu:.1e})"
+        return self._end("stalled", msg, False)
+
+    def _accept(
+        self, new: tuple[Float, Float, float, Float], dz: Float, rho: float
+    ) -> bool:
+        """Move to the accepted point; True when a convergence test ends the run."""
+        obj, opts = self.obj, self.obj.opts
+        self.trust = rho > 0.75
+        dcost = self.cost - new[2]
+        step_small = np.linalg.norm(dz) <= opts.xtol * (
+            np.linalg.norm(self.x[obj.fidx] / obj.s) + opts.xtol
+        )
+        self.x, self.r, self.cost, self.w = new
+        self.stale = True
         converged = (
             "ftol"
-            if dcost <= opts.ftol * cost
+            if dcost <= opts.ftol * self.cost
             else "xtol"
             if step_small
             else "stol"
-            if dcost <= opts.stol * unit(cost)
+            if dcost <= opts.stol * obj.unit(self.cost)
             else None
         )
-        if converged is not None:
-            status = converged
-            message = f"{label}: converged ({status}) after {it} iterations"
-            success = True
-            r, J1 = fun(x, True)
-            n_eval += 1
-            if J1 is not None:
-                J = J1
-            # The normal matrix at the solution, computed when asked for (large data
-            # take a pass over every pose for it).
-            final = _deferred(normal, x, r, J, w)
-            break
-        r, J1 = fun(x, True)
-        n_eval += 1
-        if J1 is not None:
-            J = J1
-    return LMResult(
-        x=x,
-        cost=cost,
-        n_iter=it,
-        n_eval=n_eval,
-        success=success,
-        status=status,
-        message=message,
-        _normal=final if callable(final) else A,
-        _gradient=None if callable(final) else g,
-        row_weights=w,
-        residual=r,
-        log=history,
-        seconds=time.perf_counter() - t0,
-    )
+        if converged is None:
+            return False
+        # The normal matrix at the solution, computed when asked for (with the
+        # Jacobian there: large data take a pass over every pose for it).
+        self.final = _deferred(obj, self.x, self.w)
+        msg = f"{self.label}: converged ({converged}) after {self.it} iterations"
+        return self._end(converged, msg, True)
+
+    def result(self, seconds: float) -> LMResult:
+        return LMResult(
+            x=self.x,
+            cost=self.cost,
+            n_iter=self.it,
+            n_eval=self.n_eval,
+            success=self.success,
+            status=self.status,
+            message=self.message,
+            _normal=self.final if self.final is not None else self.A,
+            _gradient=None if self.final is not None else self.g,
+            row_weights=self.w,
+            residual=self.r,
+            log=self.history,
+            seconds=seconds,
+        )
 
 
 def _gauss_newton(A: Float, g: Float) -> tuple[Float, float]:
@@ -521,14 +617,15 @@ def _gauss_newton(A: Float, g: Float) -> tuple[Float, float]:
     return dz, pred if np.isfinite(pred) else float("inf")
 
 
-def _deferred(
-    normal: Callable[[Float, Float, Float | NormalSource, Float], tuple[Float, Float]],
-    x: Float,
-    r: Float,
-    J: Float | NormalSource,
-    w: Float,
-) -> Callable[[], tuple[Float, Float]]:
-    return lambda: normal(x, r, J, w)
+def _deferred(obj: _Objective, x: Float, w: Float) -> Callable[[], tuple[Float, Float]]:
+    """The normal equations at ``x``, with the Jacobian there, when first asked for."""
+
+    def normal() -> tuple[Float, Float]:
+        r, J = obj.fun(x, True)
+        assert J is not None
+        return obj.normal(x, r, J, w)
+
+    return normal
 
 
 def solve_fixed_step(
