@@ -30,6 +30,7 @@ from kinecal.identification._problem import (
     Problem,
     Stage,
     State,
+    Workspace,
     run_stages,
     spec_for,
 )
@@ -124,8 +125,18 @@ def calibrate(
     IdentifiabilityError
         Too few poses for the model.
     """
-    t_start = time.perf_counter()
     problem = Problem.make(robot, meas, model, options, progress)
+    return calibrate_problem(problem, stages, start)
+
+
+def calibrate_problem(
+    problem: Problem,
+    stages: Sequence[Stage] | None = None,
+    start: State | None = None,
+) -> CalibrationResult:
+    """:func:`calibrate` of a problem set up (:meth:`Problem.make`; with another
+    calibration's workspace, say)."""
+    t_start = time.perf_counter()
     recipe = default_stages(problem.options) if stages is None else stages
     # Passes over large data and other long loops report too.
     with reporting(problem.progress.rows, problem.progress.beat):
@@ -160,6 +171,8 @@ class CalibrationResult:
     identified : the state after registration and the identifiability analysis on the
         rows of the final fit (:attr:`State.identified`), for fits with other options that
         start from it (``calibrate(..., start=)``); None when the stages had none.
+    workspace : the calibration's caches on every row (the evaluations at the points it
+        visited), for fits with other options on the same data (the nominal check).
     """
 
     calibrated: CalibratedModel
@@ -179,6 +192,7 @@ class CalibrationResult:
     prior: Prior | None = None
     prior_factors: dict[str, float] = field(default_factory=dict)
     identified: State | None = field(default=None, repr=False)
+    workspace: Workspace | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def from_state(
@@ -240,6 +254,7 @@ class CalibrationResult:
             prior=state.active_prior(),
             prior_factors=dict(state.prior_factors),
             identified=state.identified,
+            workspace=(problem.root or problem).workspace,
         )
 
     @property

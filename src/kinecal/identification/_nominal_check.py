@@ -38,6 +38,7 @@ from kinecal.identification._calibrate import (
     CalibrationResult,
     build_prior,
     calibrate,
+    calibrate_problem,
     default_stages,
 )
 from kinecal.identification._diagnose import Diagnose
@@ -159,7 +160,12 @@ def _without_geometry_priors(
         ]
         at = rest.index(next(s for s in rest if isinstance(s, FullStage)))
         rest.insert(at, _FromFit(result.params))
-    return calibrate(robot, data, result.model.spec, free, stages=rest, start=start)
+    # On the calibration's own rows, with its workspace: the points it evaluated (its
+    # solution, where the fit from it starts) are served from there.
+    problem = Problem.make(
+        robot, data, result.model.spec, free, workspace=result.workspace
+    )
+    return calibrate_problem(problem, rest, start)
 
 
 @one_blas_thread()

@@ -24,6 +24,7 @@ from kinecal.identification._options import (
     STOL,
     CalibrationOptions,
 )
+from kinecal.measurement._blocks import BLOCK_ROWS
 from kinecal.measurement._diagnostics import Diagnostic, Outlier, StageLog
 from kinecal.measurement._measurements import Measurements
 from kinecal.measurement._residuals import ResidualBlock, Weights, residuals
@@ -31,13 +32,28 @@ from kinecal.models import CalibrationModel, ModelInputs, ModelSpec
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float
 
-__all__ = ["EvaluationCache", "Problem", "Stage", "State", "Ticker", "run_stages"]
+__all__ = [
+    "EvaluationCache",
+    "Problem",
+    "Stage",
+    "State",
+    "Ticker",
+    "Workspace",
+    "run_stages",
+]
 
 Progress = Callable[[str, str], None]
 
 # Inside a stage, a progress line at most this often [s] (solver iterations, passes over
 # the poses of large data); each stage's start is always reported.
 REPORT_EVERY = 1.0
+# Evaluations a workspace keeps, held Jacobians included: at most this many bytes
+# (64 MB: 22 of the full model's at 2000 poses) and this many blocks. Fits with other
+# options on the same rows (the rejection's robust probe, the nominal check) revisit the
+# points the calibration evaluated (issue 36).
+CACHE_BYTES = 64 * 2**20
+# The model's forward state per pose (ForwardState: about 110 numbers).
+_FORWARD_BYTES = 110 * 8
 
 
 class Ticker:
@@ -105,11 +121,15 @@ class EvaluationCache:
     re-estimation's refit starts where the last fit ended).
     """
 
-    def __init__(self, meas: Measurements, inputs: ModelInputs, keep: int = 3) -> None:
+    def __init__(
+        self, meas: Measurements, inputs: ModelInputs, keep: int = 3, budget: int = 0
+    ) -> None:
         self.meas = meas
         self.inputs = inputs
-        self._keep = keep
+        self.keep = keep  # blocks kept at least ...
+        self.budget = budget  # ... and more while they take at most these bytes
         self._blocks: list[tuple[CalibrationModel, bytes, Weights, ResidualBlock]] = []
+        self._sizes: list[int] = []
 
     def __call__(
         self,
@@ -146,8 +166,20 @@ class EvaluationCache:
                 keep=True,
                 reuse=forward,
             )
-        self._blocks = [*self._blocks[-(self._keep - 1) :], (cm, key, w, blk)]
+        self._blocks.append((cm, key, w, blk))
+        self._sizes.append(_nbytes(blk))
+        while len(self._blocks) > self.keep and sum(self._sizes) > self.budget:
+            del self._blocks[0], self._sizes[0]
         return blk
+
+    def kept(self, cm: CalibrationModel, x: Float, w: Weights) -> ResidualBlock | None:
+        """The block kept at ``x`` under the weights ``w`` with its Jacobian held, if
+        any (never evaluates)."""
+        key = np.asarray(x, np.float64).tobytes()
+        for m, k, ww, blk in reversed(self._blocks):
+            if m is cm and k == key and ww is w and blk.J is not None:
+                return blk
+        return None
 
     def raw_position(self, cm: CalibrationModel, x: Float, w: Weights) -> Float:
         """Position errors (N, 3) at ``x`` [m], from any block kept at that point."""
@@ -161,6 +193,13 @@ class EvaluationCache:
         """RMS of the 3-D position errors at ``x`` [mm]."""
         e_p = self.raw_position(cm, x, w)
         return float(np.sqrt(np.mean(np.sum(e_p**2, axis=1)))) * 1e3
+
+
+def _nbytes(blk: ResidualBlock) -> int:
+    """Memory a kept block holds (its arrays and the model's forward state)."""
+    arrays = (blk.r, blk.J, blk.raw_position, blk.raw_rotation)
+    held = sum(a.nbytes for a in arrays if a is not None)
+    return held + (_FORWARD_BYTES * blk.r.shape[0] if blk.forward is not None else 0)
 
 
 def _reweighted(blk: ResidualBlock, was: Weights, w: Weights) -> ResidualBlock:
@@ -218,9 +257,42 @@ def spec_for(
     )
 
 
+class Workspace:
+    """The caches of a calibration, beside its constant :class:`Problem`.
+
+    What the stages compute and may need again lives here, not in the problem: the
+    evaluations at the points visited (:class:`EvaluationCache`, shared by the stages and
+    by fits with other options on the same rows: the rejection's robust probe, the
+    nominal check) and the workspace of the rows a state uses when they are not all
+    (:meth:`subset`, one at a time: rejection moves on).
+    """
+
+    def __init__(self, meas: Measurements, inputs: ModelInputs) -> None:
+        self.meas, self.inputs = meas, inputs
+        # Data evaluated whole keep the evaluations that fit in CACHE_BYTES (at least
+        # the last 3); large data, evaluated by blocks of poses, the last 3.
+        held = meas.n * meas.components <= BLOCK_ROWS
+        self.evaluations = EvaluationCache(meas, inputs, 3, CACHE_BYTES if held else 0)
+        self._subsets: dict[bytes, Workspace] = {}
+
+    def subset(
+        self, active: np.ndarray, reference_payload_kg: float | None
+    ) -> Workspace:
+        """The workspace of the rows ``active`` (kept until another subset is asked)."""
+        key = np.packbits(active).tobytes()
+        sub = self._subsets.get(key)
+        if sub is None:
+            meas = self.meas.subset(active)
+            inputs = meas.model_inputs(reference_payload_kg)
+            sub = Workspace(meas, inputs)
+            self._subsets.clear()  # one subset at a time: rejection moves on
+            self._subsets[key] = sub
+        return sub
+
+
 @dataclass(frozen=True, eq=False)
 class Problem:
-    """What a calibration works on and does not change.
+    """What a calibration works on: constant (its caches are in its :class:`Workspace`).
 
     Attributes
     ----------
@@ -230,7 +302,8 @@ class Problem:
         The model structure at nominal kinematics (a stage may replace the state's model by
         one with other reference rotations, never with another layout).
     inputs : ModelInputs of ``meas``.
-    evaluations : EvaluationCache shared by the stages.
+    workspace : Workspace, the caches (``evaluations``), shared by the problems on the
+        same rows with other options (:meth:`with_options`).
     reference_payload_kg : the payload defining the unit weight of lambda*.
     groups : (P,) group of every parameter ('base', 'joint', 'cam', 'ntm', 'load', 'link').
     kinematic : (P,) bool, the unified kinematic parameters (stage 1).
@@ -244,14 +317,13 @@ class Problem:
     options: CalibrationOptions
     model: CalibrationModel
     inputs: ModelInputs
-    evaluations: EvaluationCache
+    workspace: Workspace = field(repr=False)
     reference_payload_kg: float | None
     groups: np.ndarray
     kinematic: np.ndarray
     frames: np.ndarray
     progress: Ticker = field(default_factory=lambda: Ticker(lambda stage, detail: None))
     root: Problem | None = None
-    _views: dict[bytes, Problem] = field(default_factory=dict, repr=False)
 
     @classmethod
     def make(
@@ -261,8 +333,13 @@ class Problem:
         model: str | ModelSpec = "full",
         options: CalibrationOptions | None = None,
         progress: object | None = None,
+        *,
+        workspace: Workspace | None = None,
     ) -> Problem:
         """Check that the data can determine the model and set the problem up.
+
+        ``workspace``: the caches of another problem on the same data (``meas`` itself)
+        to share (a fit with other options: the nominal check); default new ones.
 
         Raises
         ------
@@ -290,61 +367,52 @@ class Problem:
                 f"{cm.size // c + 1} poses (several times more for a reliable result)."
             )
         ref_payload = meas.reference_payload() or robot.payload_kg
-        inputs = meas.model_inputs(ref_payload)
         groups = np.array([s.group for s in cm.layout.specs])
+        if workspace is None or workspace.meas is not meas:
+            workspace = Workspace(meas, meas.model_inputs(ref_payload))
         if isinstance(progress, Ticker):
             say = progress
         else:
             say = Ticker(progress if callable(progress) else (lambda s, d: None))
+        kinematic = np.isin(groups, KINEMATIC_GROUPS)
+        frames = np.isin(groups, ("base", "cam"))
+        for a in (groups, kinematic, frames):
+            a.flags.writeable = False
         return cls(
             robot,
             meas,
             options or CalibrationOptions(),
             cm,
-            inputs,
-            EvaluationCache(meas, inputs),
+            workspace.inputs,
+            workspace,
             ref_payload,
             groups,
-            np.isin(groups, KINEMATIC_GROUPS),
-            np.isin(groups, ("base", "cam")),
+            kinematic,
+            frames,
             say,
         )
+
+    @property
+    def evaluations(self) -> EvaluationCache:
+        """The evaluations of this problem's rows (its workspace's cache)."""
+        return self.workspace.evaluations
 
     def on(self, state: State) -> Problem:
         """The problem on the rows the state uses (``state.active``; all by default).
 
-        Sub-problems are kept, so the stages that follow one another on the same rows
-        share their evaluations.
+        The rows' workspace is kept, so the stages that follow one another on the same
+        rows share their evaluations.
         """
         root = self.root or self
         if state.active is None or state.active.all():
             return root
-        key = np.packbits(state.active).tobytes()
-        view = root._views.get(key)
-        if view is None:
-            meas = root.meas.subset(state.active)
-            inputs = meas.model_inputs(root.reference_payload_kg)
-            view = replace(
-                root,
-                meas=meas,
-                inputs=inputs,
-                evaluations=EvaluationCache(meas, inputs),
-                root=root,
-                _views={},
-            )
-            root._views.clear()  # one view at a time: rejection moves on
-            root._views[key] = view
-        return view
+        sub = root.workspace.subset(state.active, root.reference_payload_kg)
+        return replace(root, meas=sub.meas, inputs=sub.inputs, workspace=sub, root=root)
 
     def with_options(self, options: CalibrationOptions) -> Problem:
-        """The same root problem with other options (and its own evaluations)."""
-        root = self.root or self
-        return replace(
-            root,
-            options=options,
-            evaluations=EvaluationCache(root.meas, root.inputs),
-            _views={},
-        )
+        """The same root problem with other options, sharing its workspace (the
+        residuals depend on the model, the point and the weights, not the options)."""
+        return replace(self.root or self, options=options)
 
     @property
     def n_residuals(self) -> int:

@@ -268,17 +268,36 @@ def pose_variables(
     deflection a unit compliance of that joint would cause under the tool's weight
     (``‖∂p/∂λ*_j‖``, which grows with the joint's gravity load)."""
     meas = problem.meas
-    full, xf = _transferred(state.model, state.x)
-    out = full.evaluate(xf, problem.inputs.subset(rows), jacobian=True)
-    assert out.J_p is not None
-    lam = full.layout.group_indices("load")
-    load = np.linalg.norm(out.J_p[:, :, lam], axis=1)  # (n_rows, n)
+    load = _load_columns(problem, state, rows)  # (n_rows, n)
     n = meas.n_joints
     names = [f"J{j + 1}" for j in range(n)] + [
         f"J{j + 1}'s gravity load" for j in range(n)
     ]
     joints = list(range(1, n + 1)) * 2
     return np.column_stack([meas.q_ctrl[rows], load]), names, joints
+
+
+def _load_columns(problem: Problem, state: State, rows: np.ndarray) -> Float:
+    """``‖∂p/∂λ*_j‖`` at the rows ``rows`` for every joint j: from the Jacobian kept at
+    the state's solution when the model is the full one (the uncertainty's: no new
+    pass, issue 36), else from the full model there."""
+    cm = state.model
+    kept = problem.evaluations.kept(cm, state.x, state.weights)
+    if (
+        kept is not None
+        and kept.J is not None
+        and replace(_full_spec(cm), name=cm.spec.name)
+        == replace(cm.spec, ntm_joints=cm.spec.ntm_joints or cm.robot.ntm_joints)
+    ):
+        lam = cm.layout.group_indices("load")
+        sigma = state.weights.sigma[rows]
+        J_p = kept.J[rows][:, :3][:, :, lam] * sigma[:, None, None]  # unwhitened
+        return np.asarray(np.linalg.norm(J_p, axis=1), np.float64)
+    full, xf = _transferred(cm, state.x)
+    out = full.evaluate(xf, problem.inputs.subset(rows), jacobian=True)
+    assert out.J_p is not None
+    lam = full.layout.group_indices("load")
+    return np.asarray(np.linalg.norm(out.J_p[:, :, lam], axis=1), np.float64)
 
 
 def residual_structure(
