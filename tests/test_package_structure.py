@@ -251,9 +251,7 @@ FUNCTION_LENGTH_OTHERS = (
 FUNCTION_LENGTH_NOT_YET_SPLIT = {
     "kinecal/compensation/_compensate.py": ("compensate",),
     "kinecal/io/_urdf_like.py": ("like_urdf",),
-    "kinecal/models/_definition.py": ("build",),
     "kinecal/models/_ik.py": ("solve_ik",),
-    "kinecal/models/_numpy_jacobian.py": ("jacobian",),
     "kinecal/report/_calibration.py": ("render_calibration_report",),
     "kinecal/report/_html.py": ("write_comparison_report",),
     "kinecal/robot/_schema.py": ("robot_from_dict",),
