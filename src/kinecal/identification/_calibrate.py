@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -24,7 +24,14 @@ from kinecal.identification._identifiability import (
 )
 from kinecal.identification._lm import Prior
 from kinecal.identification._noise import NoiseModel
-from kinecal.identification._options import PRIOR_SIGMA, CalibrationOptions
+from kinecal.identification._options import (
+    PRIOR_SIGMA,
+    CalibrationOptions,
+    FitSettings,
+    IdentifySettings,
+    PriorSettings,
+    RejectSettings,
+)
 from kinecal.identification._priors import EvidencePriors, Priors, build_prior
 from kinecal.identification._problem import (
     Problem,
@@ -68,24 +75,39 @@ __all__ = [
 
 
 def default_stages(options: CalibrationOptions | None = None) -> tuple[Stage, ...]:
-    """The identification of Fig. 6 with kinecal's additions, in order."""
+    """The identification of Fig. 6 with kinecal's additions, in order, each with its
+    settings from ``options`` (without options, each reads them from the problem's
+    options when it runs)."""
+    o = options
+    fit_s = FitSettings.of(o) if o else None
+    prior_s = PriorSettings.of(o) if o else None
+    reject_s = RejectSettings.of(o) if o else None
     fit = (
         Register(),  # closed-form frames, LM on them: the "before" state
-        Identify(),  # hold what the poses cannot determine
-        Priors(),  # physical priors, geometry ones adapted to the data
-        KinematicStage(),  # paper stage 1
-        TransmissionStage(),  # paper stage 2
+        Identify(settings=IdentifySettings.of(o) if o else None),  # what is held
+        Priors(settings=prior_s),  # physical priors, geometry ones adapted to the data
+        KinematicStage(settings=fit_s),  # paper stage 1
+        TransmissionStage(method=o.stage2 if o else None),  # paper stage 2
         FullStage(),  # paper stage 3
         NoiseModel(),  # pose data: the orientation weight that predicts positions best
-        EvidencePriors(),  # compliance priors by maximum evidence, stage 3 again
+        EvidencePriors(settings=prior_s),  # compliance priors by maximum evidence
     )
-    probe = (*fit[:2], KinematicStage())  # a robust kinematic fit finds suspects
+    # A robust kinematic fit finds the suspects.
+    probe = (*fit[:2], KinematicStage(settings=_robust_fit(fit_s)))
     return (
         *fit,
-        RobustRejection(fit, probe),  # gross errors out: the fit again on clean rows
+        # gross errors out: the fit again on clean rows
+        RobustRejection(fit, probe, settings=reject_s),
         Uncertainty(),
-        Diagnose(),
+        Diagnose(settings=reject_s, priors=prior_s),
     )
+
+
+def _robust_fit(fit: FitSettings | None) -> FitSettings | None:
+    """The settings of the rejection's robust probe: a Huber loss for the linear one."""
+    if fit is None or fit.loss != "linear":
+        return fit
+    return replace(fit, loss="huber")
 
 
 @one_blas_thread()

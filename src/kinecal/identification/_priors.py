@@ -22,6 +22,7 @@ from kinecal.identification._options import (
     PRIOR_SIGMA,
     STOL_PRE,
     CalibrationOptions,
+    PriorSettings,
 )
 from kinecal.identification._problem import Problem, State
 from kinecal.identification._solve import run_lm
@@ -40,7 +41,9 @@ _GEOMETRY_FACTORS = (0.1, 0.3, 1.0, 3.0)
 
 
 def build_prior(
-    model: CalibrationModel, start: Float, options: CalibrationOptions
+    model: CalibrationModel,
+    start: Float,
+    options: CalibrationOptions | PriorSettings,
 ) -> Prior:
     """Priors of :data:`PRIOR_SIGMA` (or the robot file's ``priors``) for the groups
     chosen in ``options.priors``, centred on ``start``; ``options.prior_sigma``
@@ -69,10 +72,12 @@ class Priors:
     """
 
     name: str = "priors"
+    settings: PriorSettings | None = None  # None: from the problem's options
 
     def __call__(self, problem: Problem, state: State) -> State:
         kin = problem.kinematic
-        prior = build_prior(state.model, state.x, problem.options)
+        opts = self.settings or PriorSettings.of(problem.options)
+        prior = build_prior(state.model, state.x, opts)
         state = state.but(prior=prior)
         use_prior_kin = state.active_prior(kin) is not None
         needed = use_prior_kin or (
@@ -94,7 +99,7 @@ class Priors:
         state = state.but(x=pre.x)
         if problem.estimate_noise:
             state = estimate_noise(problem, state, pre.x, state.free & kin, None)
-        if use_prior_kin and problem.options.adapt_priors and pre.success:
+        if use_prior_kin and opts.adapt_priors and pre.success:
             prior, widened = adapt_prior(problem, state, pre.x, x_reg, prior)
             state = state.but(prior=prior)
             if widened:
@@ -170,10 +175,12 @@ class EvidencePriors:
     # False: only the scaled priors, the parameters as they are (``--model auto``'s
     # folds then fit with them from there).
     refit: bool = True
+    settings: PriorSettings | None = None  # None: from the problem's options
 
     def __call__(self, problem: Problem, state: State) -> State:
         prior = state.active_prior()
-        if prior is None or not problem.options.adapt_priors:
+        opts = self.settings or PriorSettings.of(problem.options)
+        if prior is None or not opts.adapt_priors:
             return state
         lm3 = replace(state.lm, max_iter=max(state.lm.max_iter, 200))
         prior, chosen = evidence_prior(problem, state, prior)

@@ -35,7 +35,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from kinecal._stats import present
-from kinecal.identification._options import MU0_WARM
+from kinecal.identification._options import MU0_WARM, RejectSettings
 from kinecal.identification._press import loo_position_errors, rms_mm
 from kinecal.identification._problem import Problem, Stage, State, run_stages
 from kinecal.identification._solve import run_lm
@@ -129,9 +129,10 @@ class RobustRejection:
     fit: tuple[Stage, ...] = ()
     probe: tuple[Stage, ...] = ()
     name: str = "robust rejection"
+    settings: RejectSettings | None = None  # None: from the problem's options
 
     def __call__(self, problem: Problem, state: State) -> State:
-        opts = problem.options
+        opts = self.settings or RejectSettings.of(problem.options)
         if opts.reject == "off" or not self.fit:
             return state
         root = problem.root or problem
@@ -143,8 +144,9 @@ class RobustRejection:
         current = state  # the accepted fit
         # Suspects: rows far from a robust fit of the kinematic model on every row (a
         # plain least-squares fit bends towards gross errors and hides them).
+        loss = problem.options.loss
         rob_problem = root.with_options(
-            replace(opts, loss=opts.loss if opts.loss != "linear" else "huber")
+            replace(problem.options, loss=loss if loss != "linear" else "huber")
         )
         rob = run_shared(rob_problem, state, self.probe or self.fit)
         z, _, _ = row_z(rob_problem, rob)
