@@ -86,9 +86,10 @@ def test_the_problem_is_constant_and_its_caches_are_in_the_workspace(exp2_exact)
     # No mutable container among its fields: the caches live in the workspace.
     for f in dataclasses.fields(problem):
         assert not isinstance(getattr(problem, f.name), (dict, list, set)), f.name
+    # Other options (the rejection's robust probe): the same rows, caches of its own.
     other = problem.with_options(CalibrationOptions(loss="huber"))
-    assert other.workspace is problem.workspace and other.options.loss == "huber"
-    assert other.evaluations is problem.evaluations
+    assert other.options.loss == "huber" and other.meas is problem.meas
+    assert other.workspace is not problem.workspace
     rows = np.ones(e.train.n, bool)
     rows[:7] = False
     state = problem.start(rows)
@@ -108,6 +109,10 @@ def test_the_nominal_check_reuses_the_calibrations_workspace(exp2_exact):
     robot, meas = e.truth.robot, e.train
     res = calibrate(robot, meas, "full")
     assert res.workspace is not None and res.workspace.meas is meas
+    # It keeps the evaluations at the solution alone.
+    assert (
+        res.workspace.evaluations.kept(res.model, res.params, res.weights) is not None
+    )
     before = pass_counts()["jacobian"]
     found = nominal_check(res, robot, meas)
     with_ws = pass_counts()["jacobian"] - before

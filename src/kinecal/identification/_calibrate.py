@@ -193,8 +193,9 @@ class CalibrationResult:
     identified : the state after registration and the identifiability analysis on the
         rows of the final fit (:attr:`State.identified`), for fits with other options that
         start from it (``calibrate(..., start=)``); None when the stages had none.
-    workspace : the calibration's caches on every row (the evaluations at the points it
-        visited), for fits with other options on the same data (the nominal check).
+    workspace : the evaluations at the solution on the rows of the fit (a workspace
+        with those alone, when they take at most 16 MB), for fits with other options
+        from there (the nominal check); None otherwise.
     """
 
     calibrated: CalibratedModel
@@ -276,7 +277,7 @@ class CalibrationResult:
             prior=state.active_prior(),
             prior_factors=dict(state.prior_factors),
             identified=state.identified,
-            workspace=(problem.root or problem).workspace,
+            workspace=problem.workspace.at(cm, state.x),
         )
 
     @property

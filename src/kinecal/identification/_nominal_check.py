@@ -162,9 +162,8 @@ def _without_geometry_priors(
         rest.insert(at, _FromFit(result.params))
     # On the calibration's own rows, with its workspace: the points it evaluated (its
     # solution, where the fit from it starts) are served from there.
-    problem = Problem.make(
-        robot, data, result.model.spec, free, workspace=result.workspace
-    )
+    ws = result.workspace.copy() if result.workspace is not None else None
+    problem = Problem.make(robot, data, result.model.spec, free, workspace=ws)
     return calibrate_problem(problem, rest, start)
 
 

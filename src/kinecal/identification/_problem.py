@@ -24,7 +24,6 @@ from kinecal.identification._options import (
     STOL,
     CalibrationOptions,
 )
-from kinecal.measurement._blocks import BLOCK_ROWS
 from kinecal.measurement._diagnostics import Diagnostic, Outlier, StageLog
 from kinecal.measurement._measurements import Measurements
 from kinecal.measurement._residuals import ResidualBlock, Weights, residuals
@@ -47,11 +46,11 @@ Progress = Callable[[str, str], None]
 # Inside a stage, a progress line at most this often [s] (solver iterations, passes over
 # the poses of large data); each stage's start is always reported.
 REPORT_EVERY = 1.0
-# Evaluations a workspace keeps, held Jacobians included: at most this many bytes
-# (64 MB: 22 of the full model's at 2000 poses) and this many blocks. Fits with other
-# options on the same rows (the rejection's robust probe, the nominal check) revisit the
-# points the calibration evaluated (issue 36).
-CACHE_BYTES = 64 * 2**20
+# A calibration result keeps the evaluations at its solution (for the nominal check's fit
+# from there) when they take at most this many bytes (data of a few thousand poses).
+# More is not kept: the fresh memory a larger cache takes costs more (page faults) than
+# the Jacobian passes it saves (issue 36: 0.12 s of system time in the default command).
+RETAIN_BYTES = 16 * 2**20
 # The model's forward state per pose (ForwardState: about 110 numbers).
 _FORWARD_BYTES = 110 * 8
 
@@ -121,15 +120,11 @@ class EvaluationCache:
     re-estimation's refit starts where the last fit ended).
     """
 
-    def __init__(
-        self, meas: Measurements, inputs: ModelInputs, keep: int = 3, budget: int = 0
-    ) -> None:
+    def __init__(self, meas: Measurements, inputs: ModelInputs, keep: int = 3) -> None:
         self.meas = meas
         self.inputs = inputs
-        self.keep = keep  # blocks kept at least ...
-        self.budget = budget  # ... and more while they take at most these bytes
+        self.keep = keep
         self._blocks: list[tuple[CalibrationModel, bytes, Weights, ResidualBlock]] = []
-        self._sizes: list[int] = []
 
     def __call__(
         self,
@@ -166,11 +161,19 @@ class EvaluationCache:
                 keep=True,
                 reuse=forward,
             )
-        self._blocks.append((cm, key, w, blk))
-        self._sizes.append(_nbytes(blk))
-        while len(self._blocks) > self.keep and sum(self._sizes) > self.budget:
-            del self._blocks[0], self._sizes[0]
+        self._blocks = [*self._blocks[-(self.keep - 1) :], (cm, key, w, blk)]
         return blk
+
+    def at(self, cm: CalibrationModel, x: Float, limit: int) -> EvaluationCache | None:
+        """A cache of the blocks kept at ``x`` alone, or None when there are none or
+        they take more than ``limit`` bytes."""
+        key = np.asarray(x, np.float64).tobytes()
+        mine = [e for e in self._blocks if e[0] is cm and e[1] == key]
+        if not mine or sum(_nbytes(e[3]) for e in mine) > limit:
+            return None
+        out = EvaluationCache(self.meas, self.inputs, self.keep)
+        out._blocks = mine
+        return out
 
     def kept(self, cm: CalibrationModel, x: Float, w: Weights) -> ResidualBlock | None:
         """The block kept at ``x`` under the weights ``w`` with its Jacobian held, if
@@ -261,19 +264,36 @@ class Workspace:
     """The caches of a calibration, beside its constant :class:`Problem`.
 
     What the stages compute and may need again lives here, not in the problem: the
-    evaluations at the points visited (:class:`EvaluationCache`, shared by the stages and
-    by fits with other options on the same rows: the rejection's robust probe, the
-    nominal check) and the workspace of the rows a state uses when they are not all
-    (:meth:`subset`, one at a time: rejection moves on).
+    evaluations at the last points visited (:class:`EvaluationCache`: a stage starts
+    where the last one ended, the uncertainty and the diagnosis read the Jacobian at
+    the solution) and the workspace of the rows a state uses when they are not all
+    (:meth:`subset`, one at a time: rejection moves on). A result keeps the evaluations
+    at its solution (:meth:`at`), where the nominal check's fit starts (:meth:`copy`).
     """
 
-    def __init__(self, meas: Measurements, inputs: ModelInputs) -> None:
+    def __init__(
+        self,
+        meas: Measurements,
+        inputs: ModelInputs,
+        evaluations: EvaluationCache | None = None,
+    ) -> None:
         self.meas, self.inputs = meas, inputs
-        # Data evaluated whole keep the evaluations that fit in CACHE_BYTES (at least
-        # the last 3); large data, evaluated by blocks of poses, the last 3.
-        held = meas.n * meas.components <= BLOCK_ROWS
-        self.evaluations = EvaluationCache(meas, inputs, 3, CACHE_BYTES if held else 0)
+        self.evaluations = evaluations or EvaluationCache(meas, inputs)
         self._subsets: dict[bytes, Workspace] = {}
+
+    def at(self, cm: CalibrationModel, x: Float) -> Workspace | None:
+        """A workspace with this one's evaluations at ``x`` alone (what a result keeps
+        for fits from its solution), or None when they take more than
+        :data:`RETAIN_BYTES`."""
+        kept = self.evaluations.at(cm, x, RETAIN_BYTES)
+        return None if kept is None else Workspace(self.meas, self.inputs, kept)
+
+    def copy(self) -> Workspace:
+        """A workspace starting with this one's evaluations, which its own do not
+        change (a fit from a result's solution leaves the result's as they are)."""
+        ev = EvaluationCache(self.meas, self.inputs, self.evaluations.keep)
+        ev._blocks = list(self.evaluations._blocks)
+        return Workspace(self.meas, self.inputs, ev)
 
     def subset(
         self, active: np.ndarray, reference_payload_kg: float | None
@@ -302,8 +322,8 @@ class Problem:
         The model structure at nominal kinematics (a stage may replace the state's model by
         one with other reference rotations, never with another layout).
     inputs : ModelInputs of ``meas``.
-    workspace : Workspace, the caches (``evaluations``), shared by the problems on the
-        same rows with other options (:meth:`with_options`).
+    workspace : Workspace, the caches (``evaluations``); a problem made with another
+        calibration's (:meth:`make`) starts with its evaluations.
     reference_payload_kg : the payload defining the unit weight of lambda*.
     groups : (P,) group of every parameter ('base', 'joint', 'cam', 'ntm', 'load', 'link').
     kinematic : (P,) bool, the unified kinematic parameters (stage 1).
@@ -410,9 +430,13 @@ class Problem:
         return replace(root, meas=sub.meas, inputs=sub.inputs, workspace=sub, root=root)
 
     def with_options(self, options: CalibrationOptions) -> Problem:
-        """The same root problem with other options, sharing its workspace (the
-        residuals depend on the model, the point and the weights, not the options)."""
-        return replace(self.root or self, options=options)
+        """The same root problem with other options and a workspace of its own (a fit
+        with other options visits other points: sharing the last few evaluations would
+        push out the ones this problem's stages come back to)."""
+        root = self.root or self
+        return replace(
+            root, options=options, workspace=Workspace(root.meas, root.inputs)
+        )
 
     @property
     def n_residuals(self) -> int:
