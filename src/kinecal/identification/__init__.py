@@ -34,6 +34,7 @@ if TYPE_CHECKING:
         refit_diagnosed,
         registered_model,
     )
+    from kinecal.identification._fixed_step import solve_fixed_step
     from kinecal.identification._heldout import (
         HeldOutAccuracy,
         HeldOutFigure,
@@ -51,7 +52,6 @@ if TYPE_CHECKING:
         LMOptions,
         LMResult,
         normal_equations,
-        solve_fixed_step,
         solve_lm,
     )
     from kinecal.identification._noise import NoiseModel
@@ -219,11 +219,11 @@ __getattr__, __dir__ = _lazy.exports(
             "priority_order",
         ),
         "_init": ("initial_frames",),
+        "_fixed_step": ("solve_fixed_step",),
         "_lm": (
             "LMOptions",
             "LMResult",
             "normal_equations",
-            "solve_fixed_step",
             "solve_lm",
         ),
         "kinecal.measurement._measurements": (
