@@ -169,15 +169,38 @@ def test_new_weights_at_a_kept_point_take_no_jacobian_pass(exp2_exact, kind):
 
 
 def test_the_calibration_and_its_nominal_check_take_few_jacobian_passes(exp2_exact):
-    """Issue 36, point 3: the stages share their Jacobians through the workspace (the
-    diagnosis reads the uncertainty's, a solver run leaves the Jacobian at its last
-    point to whoever needs it next, the nominal check starts from the solution's, which
-    the result keeps): 14 + 2 passes on these 100 poses (15 + 3 before; 19 -> 17 for
-    the whole command on 2000 twin poses)."""
+    """Issue 36, point 3: the stages share their Jacobians (the diagnosis reads the
+    uncertainty's, a solver run leaves the Jacobian at its last point to whoever needs
+    it next, the rejection's probe continues the priors' pre-fit instead of repeating
+    it, the nominal check starts from the solution's, which the result keeps): 11 + 2
+    passes on these 100 poses (15 + 3 before; 19 -> 13 for the whole command on 2000
+    twin poses)."""
     from kinecal.identification import nominal_check
 
     e = exp2_exact
     robot, meas = e.truth.robot, e.train
     res, n_fit = _jacobians(lambda: calibrate(robot, meas, "full"))
     _, n_check = _jacobians(lambda: nominal_check(res, robot, meas))
-    assert n_fit <= 14 and n_check <= 2
+    assert n_fit <= 11 and n_check <= 2
+
+
+def test_the_probe_continues_the_priors_pre_fit_to_the_same_numbers(exp2_exact):
+    """Stage 1 without priors from the identified state goes on from the priors'
+    pre-fit (the same iterates, stopped at the smaller tolerance): the same x and row z
+    as the probe run afresh, with fewer passes."""
+    from kinecal.identification._solve import SolverRun
+
+    e = exp2_exact
+    res = calibrate(e.truth.robot, e.train, "full")
+    ident = res.identified
+    assert ident is not None and isinstance(ident.prefit, SolverRun)
+    problem = Problem.make(e.truth.robot, e.train, "full", CalibrationOptions())
+    rejection = next(s for s in default_stages() if isinstance(s, RobustRejection))
+    rob = problem.with_options(dataclasses.replace(problem.options, loss="huber"))
+    on = ident.but(identified=ident)  # run_shared starts from its identified state
+    off = ident.but(identified=ident.but(prefit=None))
+    goes_on, n_on = _jacobians(lambda: run_shared(rob, on, rejection.probe))
+    afresh, n_afresh = _jacobians(lambda: run_shared(rob, off, rejection.probe))
+    np.testing.assert_array_equal(goes_on.x, afresh.x)
+    np.testing.assert_array_equal(row_z(rob, goes_on)[0], row_z(rob, afresh)[0])
+    assert n_on < n_afresh

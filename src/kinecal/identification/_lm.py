@@ -23,11 +23,11 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
 
 import numpy as np
 
 from kinecal.identification._lm_entry import check_first_evaluation, checked_start
+from kinecal.identification._normal import NormalSource, normal_equations, normal_of
 from kinecal.typing import Float
 
 __all__ = [
@@ -93,6 +93,31 @@ class LMOptions:
             raise ValueError(f"f_scale must be positive; got {self.f_scale}.")
 
 
+@dataclass(frozen=True)
+class LMCheckpoint:
+    """Where a :func:`solve_lm` run stopped on its statistical tolerance ``stol``: the
+    state a run from the same start with a smaller ``stol`` continues from (its
+    iterates up to there are the same; ``solve_lm(..., resume=)``, issue 36).
+    ``where``: 'top', the Gauss-Newton test at the start of iteration ``it``, or
+    'accept', the test after its step (decrease ``dcost``)."""
+
+    stol: float
+    where: str
+    it: int
+    x: Float
+    r: Float
+    J: object
+    stale: bool
+    cost: float
+    w: Float
+    mu: float
+    nu: float
+    trust: bool
+    n_eval: int
+    history: tuple[dict[str, float], ...]
+    dcost: float = 0.0
+
+
 @dataclass
 class LMResult:
     """Outcome of :func:`solve_lm`.
@@ -116,6 +141,7 @@ class LMResult:
     residual: Float
     log: list[dict[str, float]] = field(default_factory=list)
     seconds: float = 0.0
+    checkpoint: LMCheckpoint | None = None  # where a stop on ``stol`` was decided
 
     @property
     def normal_matrix(self) -> Float:
@@ -142,66 +168,6 @@ def loss_weights(z: Float, loss: str) -> tuple[Float, Float]:
         t = np.sqrt(1.0 + z)
         return 2.0 * (t - 1.0), 1.0 / t
     raise ValueError(f"unknown loss {loss!r}")
-
-
-class NormalSource(Protocol):
-    """A Jacobian that gives its normal equations without being held
-    (:class:`~kinecal.measurement._blocks.BlockJacobian`)."""
-
-    def normal(
-        self, cols: np.ndarray, scales: Float, row_weights: Float | None = None
-    ) -> tuple[Float, Float]: ...
-
-
-def normal_of(
-    r: Float,
-    J: Float | NormalSource,
-    cols: np.ndarray,
-    scales: Float,
-    row_weights: Float | None = None,
-) -> tuple[Float, Float]:
-    """:func:`normal_equations` of a held Jacobian, or those a block-wise one gives."""
-    if isinstance(J, np.ndarray):
-        return normal_equations(r, J, cols, scales, row_weights)
-    return J.normal(cols, scales, row_weights)
-
-
-def normal_equations(
-    r: Float,
-    J: Float,
-    cols: np.ndarray,
-    scales: Float,
-    row_weights: Float | None = None,
-) -> tuple[Float, Float]:
-    """``(Jsᵀ Js, Jsᵀ r)`` for the columns ``cols`` of J in scaled units.
-
-    ``Js = J[:, :, cols] · scales`` with the rows of sample i multiplied by
-    ``row_weights[i]`` (the square roots of robust weights) when given.
-
-    Parameters
-    ----------
-    r : (N, c) residual rows.
-    J : (N, c, P') Jacobian, any memory layout. The model's own (a view of a
-        parameter-major (P', c, N) array) gives one product of contiguous rows over the
-        span of ``cols``, with no copy for unweighted rows.
-    cols : (k,) column indices.
-    scales : (k,) characteristic size of each selected column.
-    row_weights : (N,), optional.
-    """
-    cols = np.asarray(cols, dtype=np.intp)
-    if cols.size == 0:
-        return np.zeros((0, 0)), np.zeros(0)
-    lo, hi = int(cols.min()), int(cols.max()) + 1
-    X = J.transpose(2, 1, 0)[lo:hi]  # (span, c, N), rows in (component, sample) order
-    rt = r.T
-    if row_weights is not None:
-        X = X * row_weights
-        rt = rt * row_weights
-    Xm = X.reshape(hi - lo, -1)
-    A = Xm @ Xm.T
-    g = Xm @ rt.reshape(-1)
-    sel = cols - lo
-    return A[np.ix_(sel, sel)] * np.outer(scales, scales), g[sel] * scales
 
 
 def spd_solve(M: Float, b: Float, rcond: float | None = None) -> Float:
@@ -263,6 +229,7 @@ def solve_lm(
     label: str = "lm",
     on_iteration: Callable[[int, float, float], None] | None = None,
     s0sq: float | None = None,
+    resume: LMCheckpoint | None = None,
 ) -> LMResult:
     """Levenberg-Marquardt on ``fun`` over the parameters flagged in ``free``.
 
@@ -282,6 +249,10 @@ def solve_lm(
         The variance of unit weight the statistical stop (``stol``) compares with;
         default ``2 cost / (m - k)`` of the residuals at hand (a sub-problem such as the
         lifted start passes its parent's).
+    resume : LMCheckpoint, optional
+        Where a run of the same problem from ``x0`` with a larger ``stol`` stopped
+        (:attr:`LMResult.checkpoint`): this run continues from there, with the iterates
+        a run from ``x0`` takes (ignored for a larger ``stol`` than its own).
 
     Returns
     -------
@@ -295,12 +266,18 @@ def solve_lm(
     opts = options or LMOptions()
     t0 = time.perf_counter()
     x, free, scales = checked_start(x0, free, scales)
-    r, J = fun(x, True)
-    check_first_evaluation(r, J, x.size)
-    assert J is not None
-    run = _Run(_Objective.make(fun, free, scales, opts, prior, s0sq, r.size), label)
-    run.start(x, r, J)
-    for it in range(1, opts.max_iter + 1):
+    if resume is not None and opts.stol <= resume.stol:
+        obj = _Objective.make(fun, free, scales, opts, prior, s0sq, resume.r.size)
+        run = _Run(obj, label)
+        first = run.restore(resume)
+    else:
+        r, J = fun(x, True)
+        check_first_evaluation(r, J, x.size)
+        assert J is not None
+        run = _Run(_Objective.make(fun, free, scales, opts, prior, s0sq, r.size), label)
+        run.start(x, r, J)
+        first = 1
+    for it in range(first, opts.max_iter + 1 if first else 0):
         if run.iterate(it, on_iteration):
             break
     return run.result(time.perf_counter() - t0)
@@ -384,6 +361,7 @@ class _Run:
         k = obj.fidx.size
         self.A, self.g = np.zeros((k, k)), np.zeros(k)
         self.final: Callable[[], tuple[Float, Float]] | None = None
+        self.checkpoint: LMCheckpoint | None = None
 
     def start(self, x: Float, r: Float, J: Float | NormalSource) -> None:
         self.x, self.r, self.J, self.stale = x, r, J, False
@@ -412,6 +390,7 @@ class _Run:
         if opts.stol > 0:
             dz, pred = _gauss_newton(A, g)
             if pred <= opts.stol * obj.unit(self.cost):
+                self.checkpoint = self._snapshot("top", it)
                 self.it = it - 1  # no step taken in this iteration
                 msg = f"{self.label}: converged (stol) after {it - 1} iterations"
                 return self._end("stol", msg, True)
@@ -524,11 +503,58 @@ class _Run:
         )
         if converged is None:
             return False
+        if converged == "stol":
+            self.checkpoint = self._snapshot("accept", self.it, dcost)
         # The normal matrix at the solution, computed when asked for (with the
         # Jacobian there: large data take a pass over every pose for it).
         self.final = _deferred(obj, self.x, self.w)
         msg = f"{self.label}: converged ({converged}) after {self.it} iterations"
         return self._end(converged, msg, True)
+
+    def _snapshot(self, where: str, it: int, dcost: float = 0.0) -> LMCheckpoint:
+        return LMCheckpoint(
+            self.obj.opts.stol,
+            where,
+            it,
+            self.x,
+            self.r,
+            self.J,
+            self.stale,
+            self.cost,
+            self.w,
+            self.mu,
+            self.nu,
+            self.trust,
+            self.n_eval,
+            tuple(self.history),
+            dcost,
+        )
+
+    def restore(self, ck: LMCheckpoint) -> int:
+        """The state at ``ck``; the iteration to go on with (0: converged there)."""
+        self.x, self.r, self.stale, self.cost, self.w = (
+            ck.x,
+            ck.r,
+            ck.stale,
+            ck.cost,
+            ck.w,
+        )
+        self.J = ck.J  # type: ignore[assignment]
+        self.mu, self.nu, self.trust, self.n_eval = ck.mu, ck.nu, ck.trust, ck.n_eval
+        self.history = list(ck.history)
+        self.it = ck.it - 1 if ck.where == "top" else ck.it
+        if ck.where == "top":
+            return ck.it
+        # After the step: its decrease against the smaller tolerance (the ftol and
+        # xtol tests, which do not depend on it, had not stopped the run).
+        opts = self.obj.opts
+        if ck.dcost <= opts.stol * self.obj.unit(self.cost):
+            self.final = _deferred(self.obj, self.x, self.w)
+            self.checkpoint = ck
+            msg = f"{self.label}: converged (stol) after {self.it} iterations"
+            self._end("stol", msg, True)
+            return 0
+        return ck.it + 1
 
     def result(self, seconds: float) -> LMResult:
         return LMResult(
@@ -545,6 +571,7 @@ class _Run:
             residual=self.r,
             log=self.history,
             seconds=seconds,
+            checkpoint=self.checkpoint,
         )
 
 

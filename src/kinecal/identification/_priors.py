@@ -25,7 +25,7 @@ from kinecal.identification._options import (
     PriorSettings,
 )
 from kinecal.identification._problem import Problem, State
-from kinecal.identification._solve import run_lm
+from kinecal.identification._solve import SolverRun, run_lm
 from kinecal.measurement._diagnostics import Diagnostic
 from kinecal.models import CalibrationModel, ParamSpec
 from kinecal.typing import Float
@@ -87,15 +87,16 @@ class Priors:
             return state
         x_reg = state.x
         name = "stage 1: kinematic" + (" (no priors)" if use_prior_kin else "")
+        lm_pre = replace(state.lm, stol=STOL_PRE)
         state, pre = run_lm(
-            problem,
-            state,
-            name,
-            x_reg,
-            state.free & kin,
-            replace(state.lm, stol=STOL_PRE),
-            required=False,
+            problem, state, name, x_reg, state.free & kin, lm_pre, required=False
         )
+        # Stage 1 without priors from the identified state (the rejection's probe, the
+        # nominal check) continues this run instead of repeating it.
+        ident = state.identified
+        run = SolverRun.of(problem, state, x_reg, state.free & kin, lm_pre, pre)
+        if ident is not None and run is not None:
+            state = state.but(identified=ident.but(prefit=run))
         state = state.but(x=pre.x)
         if problem.estimate_noise:
             state = estimate_noise(problem, state, pre.x, state.free & kin, None)

@@ -169,11 +169,18 @@ class EvaluationCache:
         they take more than ``limit`` bytes."""
         key = np.asarray(x, np.float64).tobytes()
         mine = [e for e in self._blocks if e[0] is cm and e[1] == key]
-        if not mine or sum(_nbytes(e[3]) for e in mine) > limit:
+        if not mine or sum(nbytes(e[3]) for e in mine) > limit:
             return None
         out = EvaluationCache(self.meas, self.inputs, self.keep)
         out._blocks = mine
         return out
+
+    def put(
+        self, cm: CalibrationModel, x: Float, w: Weights, blk: ResidualBlock
+    ) -> None:
+        """Keep ``blk``, evaluated elsewhere, as the block at ``x`` under ``w``."""
+        key = np.asarray(x, np.float64).tobytes()
+        self._blocks = [*self._blocks[-(self.keep - 1) :], (cm, key, w, blk)]
 
     def kept(self, cm: CalibrationModel, x: Float, w: Weights) -> ResidualBlock | None:
         """The block kept at ``x`` under the weights ``w`` with its Jacobian held, if
@@ -198,7 +205,7 @@ class EvaluationCache:
         return float(np.sqrt(np.mean(np.sum(e_p**2, axis=1)))) * 1e3
 
 
-def _nbytes(blk: ResidualBlock) -> int:
+def nbytes(blk: ResidualBlock) -> int:
     """Memory a kept block holds (its arrays and the model's forward state)."""
     arrays = (blk.r, blk.J, blk.raw_position, blk.raw_rotation)
     held = sum(a.nbytes for a in arrays if a is not None)
@@ -496,6 +503,10 @@ class State:
         Neither depends on the loss or the priors, so fits with other options on these
         rows (the rejection's robust probe, the nominal check) start from it instead of
         computing it again (issue 36).
+    prefit : on the :attr:`identified` state, the priors' unconstrained stage-1 pre-fit
+        from it (a :class:`~kinecal.identification._solve.SolverRun`), which stage 1
+        without priors from that state continues instead of repeating it (the same
+        iterates: the rejection's probe, the nominal check); None otherwise.
     """
 
     model: CalibrationModel
@@ -519,6 +530,7 @@ class State:
     stages: tuple[StageLog, ...] = ()
     diagnostics: tuple[Diagnostic, ...] = ()
     identified: State | None = field(default=None, repr=False)
+    prefit: object | None = field(default=None, repr=False)
 
     def but(self, **changes: object) -> State:
         """A copy with some fields changed."""

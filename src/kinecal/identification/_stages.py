@@ -224,7 +224,16 @@ class KinematicStage:
     def __call__(self, problem: Problem, state: State) -> State:
         kin = state.free & problem.kinematic
         prior = state.active_prior(problem.kinematic)
-        state, res = run_lm(problem, state, self.name, state.x, kin, state.lm, prior)
+        state, res = run_lm(
+            problem,
+            state,
+            self.name,
+            state.x,
+            kin,
+            state.lm,
+            prior,
+            resume=state.prefit,  # the priors' pre-fit, when this fit goes on from it
+        )
         state = state.but(x=res.x)
         if problem.estimate_noise and not state.noise_estimated:
             state = estimate_noise(problem, state, state.x, kin, prior)
