@@ -259,9 +259,8 @@ def solve_lm(
     LMResult
         Non-convergence is reported in ``success``/``status``, never raised.
 
-    The Jacobian at a new point is asked for when an iteration needs it, not when the
-    point is accepted: a run that stops there (converged, or at ``max_iter``) leaves it
-    to whoever asks next (the normal matrix at the solution, the next stage; issue 36).
+    The Jacobian at an accepted point is asked for when the next iteration needs it, or
+    when the run ends there (the next stage starts from it).
     """
     opts = options or LMOptions()
     t0 = time.perf_counter()
@@ -280,6 +279,8 @@ def solve_lm(
     for it in range(first, opts.max_iter + 1 if first else 0):
         if run.iterate(it, on_iteration):
             break
+    else:
+        run._jacobian()  # at the last point, where the next stage starts
     return run.result(time.perf_counter() - t0)
 
 
@@ -377,11 +378,7 @@ class _Run:
         """Iteration ``it``; True when the run ends."""
         obj, opts = self.obj, self.obj.opts
         self.it = it
-        if self.stale:  # the Jacobian at the accepted point, needed now
-            self.r, J1 = obj.fun(self.x, True)
-            self.n_eval += 1
-            self.J = J1 if J1 is not None else self.J
-            self.stale = False
+        self._jacobian()  # at the accepted point, needed now
         A, g = self.A, self.g = obj.normal(self.x, self.r, self.J, self.w)
         gnorm = float(np.abs(g).max()) if g.size else 0.0
         if gnorm <= opts.gtol * max(self.cost, 1e-300) or obj.fidx.size == 0:
@@ -503,13 +500,22 @@ class _Run:
         )
         if converged is None:
             return False
+        self._jacobian()  # at the solution: the next stage starts there
         if converged == "stol":
             self.checkpoint = self._snapshot("accept", self.it, dcost)
-        # The normal matrix at the solution, computed when asked for (with the
-        # Jacobian there: large data take a pass over every pose for it).
-        self.final = _deferred(obj, self.x, self.w)
+        # The normal matrix at the solution, computed when asked for (large data take
+        # a pass over every pose for it).
+        self.final = _deferred(obj, self.x, self.r, self.J, self.w)
         msg = f"{self.label}: converged ({converged}) after {self.it} iterations"
         return self._end(converged, msg, True)
+
+    def _jacobian(self) -> None:
+        """The Jacobian (and residuals) at the accepted point, if not yet evaluated."""
+        if self.stale:
+            self.r, J1 = self.obj.fun(self.x, True)
+            self.n_eval += 1
+            self.J = J1 if J1 is not None else self.J
+            self.stale = False
 
     def _snapshot(self, where: str, it: int, dcost: float = 0.0) -> LMCheckpoint:
         return LMCheckpoint(
@@ -549,7 +555,7 @@ class _Run:
         # xtol tests, which do not depend on it, had not stopped the run).
         opts = self.obj.opts
         if ck.dcost <= opts.stol * self.obj.unit(self.cost):
-            self.final = _deferred(self.obj, self.x, self.w)
+            self.final = _deferred(self.obj, self.x, self.r, self.J, self.w)
             self.checkpoint = ck
             msg = f"{self.label}: converged (stol) after {self.it} iterations"
             self._end("stol", msg, True)
@@ -583,12 +589,7 @@ def _gauss_newton(A: Float, g: Float) -> tuple[Float, float]:
     return dz, pred if np.isfinite(pred) else float("inf")
 
 
-def _deferred(obj: _Objective, x: Float, w: Float) -> Callable[[], tuple[Float, Float]]:
-    """The normal equations at ``x``, with the Jacobian there, when first asked for."""
-
-    def normal() -> tuple[Float, Float]:
-        r, J = obj.fun(x, True)
-        assert J is not None
-        return obj.normal(x, r, J, w)
-
-    return normal
+def _deferred(
+    obj: _Objective, x: Float, r: Float, J: Float | NormalSource, w: Float
+) -> Callable[[], tuple[Float, Float]]:
+    return lambda: obj.normal(x, r, J, w)
