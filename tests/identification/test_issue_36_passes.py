@@ -170,9 +170,9 @@ def test_new_weights_at_a_kept_point_take_no_jacobian_pass(exp2_exact, kind):
 
 def test_the_calibration_and_its_nominal_check_take_few_jacobian_passes(exp2_exact):
     """Issue 36, point 3: the stages share their Jacobians (the diagnosis reads the
-    uncertainty's, a solver run leaves the Jacobian at its last point to whoever needs
-    it next, the rejection's probe continues the priors' pre-fit instead of repeating
-    it, the nominal check starts from the solution's, which the result keeps): 11 + 2
+    uncertainty's, the rejection's probe continues the priors' pre-fit instead of
+    repeating it, the nominal check starts from the solution's, which the result
+    keeps): 11 + 2
     passes on these 100 poses (15 + 3 before; 19 -> 13 for the whole command on 2000
     twin poses)."""
     from kinecal.identification import nominal_check
