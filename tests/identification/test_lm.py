@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from kinecal.identification import LMOptions, solve_lm
 
@@ -71,3 +72,42 @@ def test_issue_26_the_iterations_do_not_grow_with_the_data(rng):
         assert res.success and res.status in ("stol", "gtol")  # gtol: at the optimum
         its.append(res.n_iter)
     assert its[0] == its[1] <= 4, its
+
+
+@pytest.mark.parametrize("loose_stol, where", [(1e-1, "accept"), (1e-3, "top")])
+def test_a_run_resumed_from_a_looser_stop_takes_the_same_iterates(loose_stol, where):
+    """Issue 36: a run stopped on a loose ``stol`` (after a step, or on the Gauss-Newton
+    test before one) and continued with a tighter one (``resume=``) ends where a run
+    with the tighter one from the start ends, to the last bit, with its iteration count
+    and log, and without its evaluations again."""
+    fun = _noisy_rosenbrock(np.random.default_rng(0))
+    calls = []
+
+    def counted(x, jac):
+        calls.append(jac)
+        return fun(x, jac)
+
+    x0, free, scales = np.array([-1.2, 1.0]), np.ones(2, bool), np.ones(2)
+    loose = solve_lm(fun, x0, free, scales, LMOptions(max_iter=500, stol=loose_stol))
+    assert loose.status == "stol" and loose.checkpoint is not None
+    assert loose.checkpoint.where == where
+    for stol in (1e-4, 1e-6):
+        tight = LMOptions(max_iter=500, stol=stol)
+        calls[:] = []
+        fresh = solve_lm(counted, x0, free, scales, tight)
+        n_fresh, calls[:] = len(calls), []
+        on = solve_lm(counted, x0, free, scales, tight, resume=loose.checkpoint)
+        np.testing.assert_array_equal(on.x, fresh.x)
+        assert (on.cost, on.n_iter, on.status, on.log) == (
+            fresh.cost,
+            fresh.n_iter,
+            fresh.status,
+            fresh.log,
+        )
+        np.testing.assert_array_equal(on.normal_matrix, fresh.normal_matrix)
+        assert len(calls) < n_fresh
+    # A looser tolerance than the checkpoint's: a run from the start.
+    looser = LMOptions(max_iter=500, stol=1.0)
+    again = solve_lm(fun, x0, free, scales, looser, resume=loose.checkpoint)
+    alone = solve_lm(fun, x0, free, scales, looser)
+    np.testing.assert_array_equal(again.x, alone.x)

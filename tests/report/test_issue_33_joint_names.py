@@ -4,8 +4,8 @@ keys); a robot with the default names J1..Jn shows none."""
 
 from __future__ import annotations
 
-from kinecal.workflows._compare import _shown
 from kinecal.report._tables import name_cell
+from kinecal.workflows._compare import _shown
 from tests.independent_arm import UR6, urdf_text
 
 

@@ -23,6 +23,7 @@ if TYPE_CHECKING:
         refit_diagnosed,
         registered_model,
     )
+    from kinecal.identification._fixed_step import solve_fixed_step
     from kinecal.identification._identifiability import (
         DroppedParameter,
         Identifiability,
@@ -35,7 +36,6 @@ if TYPE_CHECKING:
         LMOptions,
         LMResult,
         normal_equations,
-        solve_fixed_step,
         solve_lm,
     )
     from kinecal.identification._noise import NoiseModel
@@ -225,11 +225,11 @@ __getattr__, __dir__ = _lazy.exports(
             "priority_order",
         ),
         "_init": ("initial_frames",),
+        "_fixed_step": ("solve_fixed_step",),
         "_lm": (
             "LMOptions",
             "LMResult",
             "normal_equations",
-            "solve_fixed_step",
             "solve_lm",
         ),
         "kinecal.measurement._measurements": (

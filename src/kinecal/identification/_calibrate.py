@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -24,12 +24,20 @@ from kinecal.identification._identifiability import (
 )
 from kinecal.identification._lm import Prior
 from kinecal.identification._noise import NoiseModel
-from kinecal.identification._options import PRIOR_SIGMA, CalibrationOptions
+from kinecal.identification._options import (
+    PRIOR_SIGMA,
+    CalibrationOptions,
+    FitSettings,
+    IdentifySettings,
+    PriorSettings,
+    RejectSettings,
+)
 from kinecal.identification._priors import EvidencePriors, Priors, build_prior
 from kinecal.identification._problem import (
     Problem,
     Stage,
     State,
+    Workspace,
     run_stages,
     spec_for,
 )
@@ -67,24 +75,39 @@ __all__ = [
 
 
 def default_stages(options: CalibrationOptions | None = None) -> tuple[Stage, ...]:
-    """The identification of Fig. 6 with kinecal's additions, in order."""
+    """The identification of Fig. 6 with kinecal's additions, in order, each with its
+    settings from ``options`` (without options, each reads them from the problem's
+    options when it runs)."""
+    o = options
+    fit_s = FitSettings.of(o) if o else None
+    prior_s = PriorSettings.of(o) if o else None
+    reject_s = RejectSettings.of(o) if o else None
     fit = (
         Register(),  # closed-form frames, LM on them: the "before" state
-        Identify(),  # hold what the poses cannot determine
-        Priors(),  # physical priors, geometry ones adapted to the data
-        KinematicStage(),  # paper stage 1
-        TransmissionStage(),  # paper stage 2
+        Identify(settings=IdentifySettings.of(o) if o else None),  # what is held
+        Priors(settings=prior_s),  # physical priors, geometry ones adapted to the data
+        KinematicStage(settings=fit_s),  # paper stage 1
+        TransmissionStage(method=o.stage2 if o else None),  # paper stage 2
         FullStage(),  # paper stage 3
         NoiseModel(),  # pose data: the orientation weight that predicts positions best
-        EvidencePriors(),  # compliance priors by maximum evidence, stage 3 again
+        EvidencePriors(settings=prior_s),  # compliance priors by maximum evidence
     )
-    probe = (*fit[:2], KinematicStage())  # a robust kinematic fit finds suspects
+    # A robust kinematic fit finds the suspects.
+    probe = (*fit[:2], KinematicStage(settings=_robust_fit(fit_s)))
     return (
         *fit,
-        RobustRejection(fit, probe),  # gross errors out: the fit again on clean rows
+        # gross errors out: the fit again on clean rows
+        RobustRejection(fit, probe, settings=reject_s),
         Uncertainty(),
-        Diagnose(),
+        Diagnose(settings=reject_s, priors=prior_s),
     )
+
+
+def _robust_fit(fit: FitSettings | None) -> FitSettings | None:
+    """The settings of the rejection's robust probe: a Huber loss for the linear one."""
+    if fit is None or fit.loss != "linear":
+        return fit
+    return replace(fit, loss="huber")
 
 
 @one_blas_thread()
@@ -124,8 +147,18 @@ def calibrate(
     IdentifiabilityError
         Too few poses for the model.
     """
-    t_start = time.perf_counter()
     problem = Problem.make(robot, meas, model, options, progress)
+    return calibrate_problem(problem, stages, start)
+
+
+def calibrate_problem(
+    problem: Problem,
+    stages: Sequence[Stage] | None = None,
+    start: State | None = None,
+) -> CalibrationResult:
+    """:func:`calibrate` of a problem set up (:meth:`Problem.make`; with another
+    calibration's workspace, say)."""
+    t_start = time.perf_counter()
     recipe = default_stages(problem.options) if stages is None else stages
     # Passes over large data and other long loops report too.
     with reporting(problem.progress.rows, problem.progress.beat):
@@ -160,6 +193,9 @@ class CalibrationResult:
     identified : the state after registration and the identifiability analysis on the
         rows of the final fit (:attr:`State.identified`), for fits with other options that
         start from it (``calibrate(..., start=)``); None when the stages had none.
+    workspace : the evaluations at the solution on the rows of the fit (a workspace
+        with those alone, when they take at most 16 MB), for fits with other options
+        from there (the nominal check); None otherwise.
     """
 
     calibrated: CalibratedModel
@@ -179,6 +215,7 @@ class CalibrationResult:
     prior: Prior | None = None
     prior_factors: dict[str, float] = field(default_factory=dict)
     identified: State | None = field(default=None, repr=False)
+    workspace: Workspace | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def from_state(
@@ -240,6 +277,7 @@ class CalibrationResult:
             prior=state.active_prior(),
             prior_factors=dict(state.prior_factors),
             identified=state.identified,
+            workspace=problem.workspace.at(cm, state.x),
         )
 
     @property

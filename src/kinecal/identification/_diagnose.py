@@ -8,6 +8,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal.identification._options import PriorSettings, RejectSettings
 from kinecal.identification._priors import build_prior
 from kinecal.identification._problem import Problem, State
 from kinecal.identification._robust import (
@@ -30,9 +31,12 @@ class Diagnose:
     follow the pose), ``prior_dominated``, ``loose_parameters`` and ``overfit_risk``."""
 
     name: str = "diagnose"
+    settings: RejectSettings | None = None  # None: from the problem's options
+    priors: PriorSettings | None = None  # ... the default priors' scales too
 
     def __call__(self, problem: Problem, state: State) -> State:
-        cm, opts = state.model, problem.options
+        cm = state.model
+        opts = self.settings or RejectSettings.of(problem.options)
         blk = problem.evaluations(cm, state.x, state.weights)
         found = []
         outliers = find_outliers(blk.r, blk.raw_position, problem.meas, opts.outlier_p)
@@ -44,7 +48,7 @@ class Diagnose:
             if not told:
                 found.append(systematic_diagnostic(problem, state, st, self.name))
         elif outliers:
-            found.append(_outlier_diagnostic(problem, outliers))
+            found.append(_outlier_diagnostic(problem, outliers, opts))
         fidx = np.flatnonzero(state.free)
         std = state.std if state.std is not None else np.full(cm.size, np.nan)
         prior = state.active_prior()
@@ -68,7 +72,8 @@ class Diagnose:
                     )
                 )
         assert state.prior is not None and state.x_registered is not None
-        loose = _loose_parameters(problem, state, std, fidx)
+        priors = self.priors or PriorSettings.of(problem.options)
+        loose = _loose_parameters(state, std, fidx, priors)
         if loose:
             found.append(
                 Diagnostic(
@@ -99,9 +104,11 @@ class Diagnose:
         return state.but(outliers=tuple(outliers)).note(*found)
 
 
-def _outlier_diagnostic(problem: Problem, outliers: list) -> Diagnostic:
+def _outlier_diagnostic(
+    problem: Problem, outliers: list, opts: RejectSettings
+) -> Diagnostic:
     """Rows kept although improbable, with the reason and what else to do."""
-    meas, opts = problem.meas, problem.options
+    meas = problem.meas
     where = "file lines" if meas.source.endswith(".csv") else "rows"
     lines = ", ".join(f"{o.row} (z {o.z:.3g})" for o in outliers[:10])
     more = f" and {len(outliers) - 10} more" if len(outliers) > 10 else ""
@@ -128,7 +135,7 @@ def _outlier_diagnostic(problem: Problem, outliers: list) -> Diagnostic:
 
 
 def _loose_parameters(
-    problem: Problem, state: State, std: Float, fidx: np.ndarray
+    state: State, std: Float, fidx: np.ndarray, priors: PriorSettings
 ) -> list[tuple[str, float]]:
     """Estimated parameters without a prior (``sigma`` infinite) whose standard
     deviation exceeds the prior ``--priors all`` would give them (their plausible size),
@@ -137,9 +144,7 @@ def _loose_parameters(
     assert state.prior is not None and state.x_registered is not None
     cm = state.model
     sigma = state.prior.sigma
-    plausible = build_prior(
-        cm, state.x_registered, replace(problem.options, priors="all")
-    ).sigma
+    plausible = build_prior(cm, state.x_registered, replace(priors, priors="all")).sigma
     out = [
         (cm.layout.names[i], float(std[i] / plausible[i]))
         for i in fidx

@@ -13,7 +13,8 @@ positive and adapts ``mu`` (Nielsen's rule). Robust losses enter by iteratively 
 least squares on whole rows, so an outlying pose is down-weighted, not a single axis.
 
 The paper's fixed-step update (``eta += 0.005 · GN step``, Sec. 4) is
-:func:`solve_fixed_step`, kept only as a benchmark baseline.
+:func:`~kinecal.identification._fixed_step.solve_fixed_step`, kept only as a benchmark
+baseline.
 """
 
 from __future__ import annotations
@@ -22,11 +23,12 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Protocol
 
 import numpy as np
 
-from kinecal.typing import ArrayLike, Float
+from kinecal.identification._lm_entry import check_first_evaluation, checked_start
+from kinecal.identification._normal import NormalSource, normal_equations, normal_of
+from kinecal.typing import Float
 
 __all__ = [
     "LOSSES",
@@ -39,7 +41,6 @@ __all__ = [
     "normal_of",
     "objective",
     "psd_inverse",
-    "solve_fixed_step",
     "solve_lm",
     "spd_solve",
 ]
@@ -92,6 +93,31 @@ class LMOptions:
             raise ValueError(f"f_scale must be positive; got {self.f_scale}.")
 
 
+@dataclass(frozen=True)
+class LMCheckpoint:
+    """Where a :func:`solve_lm` run stopped on its statistical tolerance ``stol``: the
+    state a run from the same start with a smaller ``stol`` continues from (its
+    iterates up to there are the same; ``solve_lm(..., resume=)``, issue 36).
+    ``where``: 'top', the Gauss-Newton test at the start of iteration ``it``, or
+    'accept', the test after its step (decrease ``dcost``)."""
+
+    stol: float
+    where: str
+    it: int
+    x: Float
+    r: Float
+    J: object
+    stale: bool
+    cost: float
+    w: Float
+    mu: float
+    nu: float
+    trust: bool
+    n_eval: int
+    history: tuple[dict[str, float], ...]
+    dcost: float = 0.0
+
+
 @dataclass
 class LMResult:
     """Outcome of :func:`solve_lm`.
@@ -115,6 +141,7 @@ class LMResult:
     residual: Float
     log: list[dict[str, float]] = field(default_factory=list)
     seconds: float = 0.0
+    checkpoint: LMCheckpoint | None = None  # where a stop on ``stol`` was decided
 
     @property
     def normal_matrix(self) -> Float:
@@ -141,66 +168,6 @@ def loss_weights(z: Float, loss: str) -> tuple[Float, Float]:
         t = np.sqrt(1.0 + z)
         return 2.0 * (t - 1.0), 1.0 / t
     raise ValueError(f"unknown loss {loss!r}")
-
-
-class NormalSource(Protocol):
-    """A Jacobian that gives its normal equations without being held
-    (:class:`~kinecal.measurement._blocks.BlockJacobian`)."""
-
-    def normal(
-        self, cols: np.ndarray, scales: Float, row_weights: Float | None = None
-    ) -> tuple[Float, Float]: ...
-
-
-def normal_of(
-    r: Float,
-    J: Float | NormalSource,
-    cols: np.ndarray,
-    scales: Float,
-    row_weights: Float | None = None,
-) -> tuple[Float, Float]:
-    """:func:`normal_equations` of a held Jacobian, or those a block-wise one gives."""
-    if isinstance(J, np.ndarray):
-        return normal_equations(r, J, cols, scales, row_weights)
-    return J.normal(cols, scales, row_weights)
-
-
-def normal_equations(
-    r: Float,
-    J: Float,
-    cols: np.ndarray,
-    scales: Float,
-    row_weights: Float | None = None,
-) -> tuple[Float, Float]:
-    """``(Jsᵀ Js, Jsᵀ r)`` for the columns ``cols`` of J in scaled units.
-
-    ``Js = J[:, :, cols] · scales`` with the rows of sample i multiplied by
-    ``row_weights[i]`` (the square roots of robust weights) when given.
-
-    Parameters
-    ----------
-    r : (N, c) residual rows.
-    J : (N, c, P') Jacobian, any memory layout. The model's own (a view of a
-        parameter-major (P', c, N) array) gives one product of contiguous rows over the
-        span of ``cols``, with no copy for unweighted rows.
-    cols : (k,) column indices.
-    scales : (k,) characteristic size of each selected column.
-    row_weights : (N,), optional.
-    """
-    cols = np.asarray(cols, dtype=np.intp)
-    if cols.size == 0:
-        return np.zeros((0, 0)), np.zeros(0)
-    lo, hi = int(cols.min()), int(cols.max()) + 1
-    X = J.transpose(2, 1, 0)[lo:hi]  # (span, c, N), rows in (component, sample) order
-    rt = r.T
-    if row_weights is not None:
-        X = X * row_weights
-        rt = rt * row_weights
-    Xm = X.reshape(hi - lo, -1)
-    A = Xm @ Xm.T
-    g = Xm @ rt.reshape(-1)
-    sel = cols - lo
-    return A[np.ix_(sel, sel)] * np.outer(scales, scales), g[sel] * scales
 
 
 def spd_solve(M: Float, b: Float, rcond: float | None = None) -> Float:
@@ -251,69 +218,6 @@ class Prior:
         return np.where(np.isfinite(self.sigma), 1.0 / self.sigma**2, 0.0)
 
 
-def _checked_start(
-    x0: ArrayLike, free: ArrayLike, scales: ArrayLike
-) -> tuple[Float, np.ndarray, Float]:
-    """``x0``, ``free`` and ``scales`` as arrays, validated (scipy-style: a ValueError
-    naming the argument and the shapes)."""
-    x = np.array(x0, dtype=np.float64)
-    if x.ndim != 1:
-        raise ValueError(f"solve_lm: x0 must be a vector (P,); got shape {x.shape}.")
-    f = np.asarray(free)
-    if f.shape != x.shape:
-        raise ValueError(
-            f"solve_lm: free must have the shape of x0 {x.shape}; got {f.shape}."
-        )
-    if f.dtype != np.bool_:
-        raise ValueError(f"solve_lm: free must be booleans; got dtype {f.dtype}.")
-    sc = np.asarray(scales, dtype=np.float64)
-    if sc.shape != x.shape:
-        raise ValueError(
-            f"solve_lm: scales must have the shape of x0 {x.shape}; got {sc.shape}."
-        )
-    if not np.all(np.isfinite(x)):
-        raise ValueError(
-            f"solve_lm: x0 must be finite; entries {np.flatnonzero(~np.isfinite(x))[:5]}"
-            " are not."
-        )
-    bad = ~(np.isfinite(sc) & (sc > 0)) & f
-    if np.any(bad):
-        raise ValueError(
-            "solve_lm: scales of the free parameters must be finite and > 0; entries "
-            f"{np.flatnonzero(bad)[:5]} are not."
-        )
-    return x, f, sc
-
-
-def _check_first_evaluation(
-    r: Any, J: Float | NormalSource | None, size: int
-) -> Float | NormalSource:
-    """The residuals and the Jacobian of ``fun`` at ``x0``: finite, of matching
-    shapes (a NaN at the start would otherwise end as "stalled")."""
-    if J is None:
-        raise ValueError("solve_lm: fun(x, True) must return a Jacobian; got None.")
-    r = np.asarray(r)
-    if r.ndim < 1 or r.size == 0:
-        raise ValueError(
-            f"solve_lm: fun(x0) must return residual rows (N, c); got shape {r.shape}."
-        )
-    if not np.all(np.isfinite(r)):
-        n_bad = int(np.count_nonzero(~np.isfinite(r)))
-        raise ValueError(
-            f"solve_lm: the residuals at x0 are not finite ({n_bad} of {r.size} "
-            "entries NaN or inf); check the data and the start."
-        )
-    if isinstance(J, np.ndarray) and (
-        J.shape[:-1] != r.shape or J.ndim != r.ndim + 1 or J.shape[-1] < size
-    ):
-        # (a lifted stage's Jacobian carries extra product columns after the P)
-        raise ValueError(
-            f"solve_lm: the Jacobian at x0 must have shape {(*r.shape, size)} (residuals "
-            f"{r.shape} by {size} parameters of x0); got {J.shape}."
-        )
-    return J
-
-
 def solve_lm(
     fun: ResidualFn,
     x0: Float,
@@ -325,6 +229,7 @@ def solve_lm(
     label: str = "lm",
     on_iteration: Callable[[int, float, float], None] | None = None,
     s0sq: float | None = None,
+    resume: LMCheckpoint | None = None,
 ) -> LMResult:
     """Levenberg-Marquardt on ``fun`` over the parameters flagged in ``free``.
 
@@ -344,173 +249,336 @@ def solve_lm(
         The variance of unit weight the statistical stop (``stol``) compares with;
         default ``2 cost / (m - k)`` of the residuals at hand (a sub-problem such as the
         lifted start passes its parent's).
+    resume : LMCheckpoint, optional
+        Where a run of the same problem from ``x0`` with a larger ``stol`` stopped
+        (:attr:`LMResult.checkpoint`): this run continues from there, with the iterates
+        a run from ``x0`` takes (ignored for a larger ``stol`` than its own).
 
     Returns
     -------
     LMResult
         Non-convergence is reported in ``success``/``status``, never raised.
+
+    The Jacobian at an accepted point is asked for when the next iteration needs it, or
+    when the run ends there (the next stage starts from it).
     """
     opts = options or LMOptions()
     t0 = time.perf_counter()
-    x, free, scales = _checked_start(x0, free, scales)
-    fidx = np.flatnonzero(free)
-    s = scales[fidx]
-    pr = prior or Prior.none(x.size)
-    prec = pr.precision[fidx] * s * s  # prior precision in scaled variables
-    pmean = pr.mean[fidx]
+    x, free, scales = checked_start(x0, free, scales)
+    if resume is not None and opts.stol <= resume.stol:
+        obj = _Objective.make(fun, free, scales, opts, prior, s0sq, resume.r.size)
+        run = _Run(obj, label)
+        first = run.restore(resume)
+    else:
+        r, J = fun(x, True)
+        check_first_evaluation(r, J, x.size)
+        assert J is not None
+        run = _Run(_Objective.make(fun, free, scales, opts, prior, s0sq, r.size), label)
+        run.start(x, r, J)
+        first = 1
+    for it in range(first, opts.max_iter + 1 if first else 0):
+        if run.iterate(it, on_iteration):
+            break
+    else:
+        run._jacobian()  # at the last point, where the next stage starts
+    return run.result(time.perf_counter() - t0)
 
-    def unit(c: float) -> float:  # variance of unit weight
-        return s0sq if s0sq is not None else 2.0 * c / max(r.size - fidx.size, 1)
 
-    def total_cost(xx: Float, rr: Float) -> tuple[float, Float]:
-        c, ww = objective(rr, opts)
-        return c + pr.cost(xx) if prior is not None else c, ww
+@dataclass
+class _Objective:
+    """What :func:`solve_lm` minimises: the data term of ``fun``'s residuals and the
+    prior, over the free parameters ``fidx`` in scaled variables (``x = x0 + s z``)."""
+
+    fun: ResidualFn
+    opts: LMOptions
+    prior: Prior | None
+    fidx: np.ndarray
+    s: Float
+    prec: Float  # prior precision in scaled variables
+    s0sq: float | None
+    m: int  # residual components
+
+    @classmethod
+    def make(
+        cls,
+        fun: ResidualFn,
+        free: np.ndarray,
+        scales: Float,
+        opts: LMOptions,
+        prior: Prior | None,
+        s0sq: float | None,
+        m: int,
+    ) -> _Objective:
+        fidx = np.flatnonzero(free)
+        s = scales[fidx]
+        pr = prior or Prior.none(free.size)
+        return cls(fun, opts, prior, fidx, s, pr.precision[fidx] * s * s, s0sq, m)
+
+    def unit(self, c: float) -> float:
+        """The variance of unit weight the statistical stop compares with."""
+        if self.s0sq is not None:
+            return self.s0sq
+        return 2.0 * c / max(self.m - self.fidx.size, 1)
+
+    def cost(self, x: Float, r: Float) -> tuple[float, Float]:
+        """The total cost at ``x`` (residuals ``r``) and the robust row weights."""
+        c, w = objective(r, self.opts)
+        return (c + self.prior.cost(x) if self.prior is not None else c), w
 
     def normal(
-        xx: Float, rr: Float, JJ: Float | NormalSource, ww: Float
+        self, x: Float, r: Float, J: Float | NormalSource, w: Float
     ) -> tuple[Float, Float]:
-        sw_ = None if opts.loss == "linear" else np.sqrt(ww)
-        A_, g_ = normal_of(rr, JJ, fidx, s, sw_)
-        A_ += np.diag(prec)  # the prior of Eq. (T-6), in scaled variables
-        if prior is not None:
-            g_ = g_ + prec * (xx[fidx] - pmean) / s
-        return A_, g_
+        """Normal matrix and gradient in scaled variables, with the prior."""
+        sw = None if self.opts.loss == "linear" else np.sqrt(w)
+        A, g = normal_of(r, J, self.fidx, self.s, sw)
+        A += np.diag(self.prec)  # the prior of Eq. (T-6), in scaled variables
+        if self.prior is not None:
+            g = g + self.prec * (x[self.fidx] - self.prior.mean[self.fidx]) / self.s
+        return A, g
 
-    r, J0 = fun(x, True)
-    J: Float | NormalSource = _check_first_evaluation(r, J0, x.size)
-    n_eval = 1
-    cost, w = total_cost(x, r)
-    mu = opts.mu0
-    nu = 2.0
-    history: list[dict[str, float]] = []
-    status, message = "max_iter", f"{label}: stopped after {opts.max_iter} iterations"
-    success = False
-    A = np.zeros((fidx.size, fidx.size))
-    g = np.zeros(fidx.size)
-    final: Float | Callable[[], tuple[Float, Float]] = A
-    trust = False  # whether the last step's quadratic model predicted its decrease well
-    it = 0
-    for it in range(1, opts.max_iter + 1):
-        A, g = normal(x, r, J, w)
+    def trial(self, x: Float, dz: Float) -> tuple[Float, Float, float, Float]:
+        """The point ``x + s dz``: its parameters, residuals, cost and row weights."""
+        x_new = x.copy()
+        x_new[self.fidx] += dz * self.s
+        r_new, _ = self.fun(x_new, False)
+        cost_new, w_new = self.cost(x_new, r_new)
+        return x_new, r_new, cost_new, w_new
+
+
+class _Run:
+    """The iterations of one :func:`solve_lm` run: the accepted point, its Jacobian
+    (asked for when an iteration needs it), the damping (Nielsen's rule) and the log."""
+
+    def __init__(self, obj: _Objective, label: str) -> None:
+        self.obj, self.label = obj, label
+        self.mu, self.nu = obj.opts.mu0, 2.0
+        self.trust = (
+            False  # the last step's quadratic model predicted its decrease well
+        )
+        self.n_eval, self.it = 1, 0
+        self.history: list[dict[str, float]] = []
+        self.status, self.success = "max_iter", False
+        self.message = f"{label}: stopped after {obj.opts.max_iter} iterations"
+        k = obj.fidx.size
+        self.A, self.g = np.zeros((k, k)), np.zeros(k)
+        self.final: Callable[[], tuple[Float, Float]] | None = None
+        self.checkpoint: LMCheckpoint | None = None
+
+    def start(self, x: Float, r: Float, J: Float | NormalSource) -> None:
+        self.x, self.r, self.J, self.stale = x, r, J, False
+        self.cost, self.w = self.obj.cost(x, r)
+
+    def _end(self, status: str, message: str, success: bool) -> bool:
+        self.status, self.message, self.success = status, message, success
+        return True
+
+    def iterate(
+        self, it: int, on_iteration: Callable[[int, float, float], None] | None
+    ) -> bool:
+        """Iteration ``it``; True when the run ends."""
+        obj, opts = self.obj, self.obj.opts
+        self.it = it
+        self._jacobian()  # at the accepted point, needed now
+        A, g = self.A, self.g = obj.normal(self.x, self.r, self.J, self.w)
         gnorm = float(np.abs(g).max()) if g.size else 0.0
-        if gnorm <= opts.gtol * max(cost, 1e-300) or fidx.size == 0:
-            status, message, success = "gtol", f"{label}: gradient vanished", True
-            break
-        accepted = False
+        if gnorm <= opts.gtol * max(self.cost, 1e-300) or obj.fidx.size == 0:
+            return self._end("gtol", f"{self.label}: gradient vanished", True)
+        accepted, new, dz, rho = False, None, np.zeros(0), -1.0
         if opts.stol > 0:
             dz, pred = _gauss_newton(A, g)
-            if pred <= opts.stol * unit(cost):
-                it -= 1  # no step taken in this iteration
-                status, success = "stol", True
-                message = f"{label}: converged (stol) after {it} iterations"
-                break
-            if trust:  # the last step's quadratic model held: the undamped step first
-                x_new = x.copy()
-                x_new[fidx] += dz * s
-                r_new, _ = fun(x_new, False)
-                n_eval += 1
-                cost_new, w_new = total_cost(x_new, r_new)
-                rho = float((cost - cost_new) / pred)
-                accepted = bool(np.isfinite(cost_new)) and rho > 0.75
+            if pred <= opts.stol * obj.unit(self.cost):
+                self.checkpoint = self._snapshot("top", it)
+                self.it = it - 1  # no step taken in this iteration
+                msg = f"{self.label}: converged (stol) after {it - 1} iterations"
+                return self._end("stol", msg, True)
+            if self.trust:  # the last step's model held: the undamped step first
+                new = obj.trial(self.x, dz)
+                self.n_eval += 1
+                rho = float((self.cost - new[2]) / pred)
+                accepted = bool(np.isfinite(new[2])) and rho > 0.75
                 if accepted:
-                    mu = max(mu / 10.0, 1e-15)
+                    self.mu = max(self.mu / 10.0, 1e-15)
+        if not accepted:
+            accepted, new, dz, rho = self._damped(A, g)
+        assert new is not None
+        self._log(it, accepted, new[2], dz, rho, on_iteration)
+        if not accepted:
+            return self._stalled(A, g)
+        return self._accept(new, dz, rho)
+
+    def _damped(
+        self, A: Float, g: Float
+    ) -> tuple[bool, tuple[Float, Float, float, Float], Float, float]:
+        """Damped steps, the damping raised until one lowers the cost (or beyond 1e16)."""
         diag = np.diag(A).copy()
         diag = np.maximum(diag, 1e-12 * max(float(diag.max()), 1e-300))
-        while not accepted:
-            dz = -spd_solve(A + mu * np.diag(diag), g)
-            x_new = x.copy()
-            x_new[fidx] += dz * s
-            r_new, _ = fun(x_new, False)
-            n_eval += 1
-            cost_new, w_new = total_cost(x_new, r_new)
+        while True:
+            dz = -spd_solve(A + self.mu * np.diag(diag), g)
+            new = self.obj.trial(self.x, dz)
+            self.n_eval += 1
             pred = -float(g @ dz + 0.5 * dz @ (A @ dz))
-            actual = cost - cost_new
+            actual = self.cost - new[2]
             rho = float(actual / pred) if pred > 0 else -1.0
-            if np.isfinite(cost_new) and rho > 0:
-                accepted = True
-                mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-                nu = 2.0
-                break
-            mu *= nu
-            nu *= 2.0
-            if mu > 1e16:
-                break
-        history.append(
+            if np.isfinite(new[2]) and rho > 0:
+                self.mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+                self.nu = 2.0
+                return True, new, dz, rho
+            self.mu *= self.nu
+            self.nu *= 2.0
+            if self.mu > 1e16:
+                return False, new, dz, rho
+
+    def _log(
+        self,
+        it: int,
+        accepted: bool,
+        cost_new: float,
+        dz: Float,
+        rho: float,
+        on_iteration: Callable[[int, float, float], None] | None,
+    ) -> None:
+        cost = self.cost
+        self.history.append(
             {
                 "iter": it,
                 "cost": cost,
                 "cost_new": cost_new if accepted else cost,
-                "mu": float(mu),
+                "mu": float(self.mu),
                 "step": float(np.linalg.norm(dz)),
                 "gain": float(rho),
             }
         )
-        log.debug("%s it %d cost %.6g -> %.6g mu %.2e", label, it, cost, cost_new, mu)
+        log.debug(
+            "%s it %d cost %.6g -> %.6g mu %.2e",
+            self.label,
+            it,
+            cost,
+            cost_new,
+            self.mu,
+        )
         if on_iteration is not None and accepted:
             on_iteration(it, cost_new, (cost_new - cost) / max(abs(cost), 1e-300))
-        if not accepted:
-            status = "stalled"
-            message = f"{label}: no step reduces the cost (damping {mu:.1e})"
-            # No step helps. That is convergence when even the undamped Gauss-Newton
-            # step promises a decrease at the level of round-off in the cost.
-            try:
-                dz_gn = np.linalg.lstsq(A, -g, rcond=1e-14)[0]
-                pred_gn = float(-(g @ dz_gn + 0.5 * dz_gn @ (A @ dz_gn)))
-            except np.linalg.LinAlgError:
-                pred_gn = float("inf")
-            log.debug(
-                "%s stalled: Gauss-Newton would gain %.3g of %.3g", label, pred_gn, cost
-            )
-            success = pred_gn <= 1e-9 * max(cost, 1e-300) or cost == 0.0
-            if success:
-                message = f"{label}: converged (no further decrease above round-off)"
-            break
-        trust = rho > 0.75
-        dcost = cost - cost_new
-        step_small = np.linalg.norm(dz) <= opts.xtol * (
-            np.linalg.norm(x[fidx] / s) + opts.xtol
+
+    def _stalled(self, A: Float, g: Float) -> bool:
+        """No step helps. That is convergence when even the undamped Gauss-Newton step
+        promises a decrease at the level of round-off in the cost."""
+        cost, label = self.cost, self.label
+        try:
+            dz_gn = np.linalg.lstsq(A, -g, rcond=1e-14)[0]
+            pred_gn = float(-(g @ dz_gn + 0.5 * dz_gn @ (A @ dz_gn)))
+        except np.linalg.LinAlgError:
+            pred_gn = float("inf")
+        log.debug(
+            "%s stalled: Gauss-Newton would gain %.3g of %.3g", label, pred_gn, cost
         )
-        x, r, cost, w = x_new, r_new, cost_new, w_new
+        if pred_gn <= 1e-9 * max(cost, 1e-300) or cost == 0.0:
+            msg = f"{label}: converged (no further decrease above round-off)"
+            return self._end("stalled", msg, True)
+        msg = f"{label}: no step reduces the cost (damping {self.mu:.1e})"
+        return self._end("stalled", msg, False)
+
+    def _accept(
+        self, new: tuple[Float, Float, float, Float], dz: Float, rho: float
+    ) -> bool:
+        """Move to the accepted point; True when a convergence test ends the run."""
+        obj, opts = self.obj, self.obj.opts
+        self.trust = rho > 0.75
+        dcost = self.cost - new[2]
+        step_small = np.linalg.norm(dz) <= opts.xtol * (
+            np.linalg.norm(self.x[obj.fidx] / obj.s) + opts.xtol
+        )
+        self.x, self.r, self.cost, self.w = new
+        self.stale = True
         converged = (
             "ftol"
-            if dcost <= opts.ftol * cost
+            if dcost <= opts.ftol * self.cost
             else "xtol"
             if step_small
             else "stol"
-            if dcost <= opts.stol * unit(cost)
+            if dcost <= opts.stol * obj.unit(self.cost)
             else None
         )
-        if converged is not None:
-            status = converged
-            message = f"{label}: converged ({status}) after {it} iterations"
-            success = True
-            r, J1 = fun(x, True)
-            n_eval += 1
-            if J1 is not None:
-                J = J1
-            # The normal matrix at the solution, computed when asked for (large data
-            # take a pass over every pose for it).
-            final = _deferred(normal, x, r, J, w)
-            break
-        r, J1 = fun(x, True)
-        n_eval += 1
-        if J1 is not None:
-            J = J1
-    return LMResult(
-        x=x,
-        cost=cost,
-        n_iter=it,
-        n_eval=n_eval,
-        success=success,
-        status=status,
-        message=message,
-        _normal=final if callable(final) else A,
-        _gradient=None if callable(final) else g,
-        row_weights=w,
-        residual=r,
-        log=history,
-        seconds=time.perf_counter() - t0,
-    )
+        if converged is None:
+            return False
+        self._jacobian()  # at the solution: the next stage starts there
+        if converged == "stol":
+            self.checkpoint = self._snapshot("accept", self.it, dcost)
+        # The normal matrix at the solution, computed when asked for (large data take
+        # a pass over every pose for it).
+        self.final = _deferred(obj, self.x, self.r, self.J, self.w)
+        msg = f"{self.label}: converged ({converged}) after {self.it} iterations"
+        return self._end(converged, msg, True)
+
+    def _jacobian(self) -> None:
+        """The Jacobian (and residuals) at the accepted point, if not yet evaluated."""
+        if self.stale:
+            self.r, J1 = self.obj.fun(self.x, True)
+            self.n_eval += 1
+            self.J = J1 if J1 is not None else self.J
+            self.stale = False
+
+    def _snapshot(self, where: str, it: int, dcost: float = 0.0) -> LMCheckpoint:
+        return LMCheckpoint(
+            self.obj.opts.stol,
+            where,
+            it,
+            self.x,
+            self.r,
+            self.J,
+            self.stale,
+            self.cost,
+            self.w,
+            self.mu,
+            self.nu,
+            self.trust,
+            self.n_eval,
+            tuple(self.history),
+            dcost,
+        )
+
+    def restore(self, ck: LMCheckpoint) -> int:
+        """The state at ``ck``; the iteration to go on with (0: converged there)."""
+        self.x, self.r, self.stale, self.cost, self.w = (
+            ck.x,
+            ck.r,
+            ck.stale,
+            ck.cost,
+            ck.w,
+        )
+        self.J = ck.J  # type: ignore[assignment]
+        self.mu, self.nu, self.trust, self.n_eval = ck.mu, ck.nu, ck.trust, ck.n_eval
+        self.history = list(ck.history)
+        self.it = ck.it - 1 if ck.where == "top" else ck.it
+        if ck.where == "top":
+            return ck.it
+        # After the step: its decrease against the smaller tolerance (the ftol and
+        # xtol tests, which do not depend on it, had not stopped the run).
+        opts = self.obj.opts
+        if ck.dcost <= opts.stol * self.obj.unit(self.cost):
+            self.final = _deferred(self.obj, self.x, self.r, self.J, self.w)
+            self.checkpoint = ck
+            msg = f"{self.label}: converged (stol) after {self.it} iterations"
+            self._end("stol", msg, True)
+            return 0
+        return ck.it + 1
+
+    def result(self, seconds: float) -> LMResult:
+        return LMResult(
+            x=self.x,
+            cost=self.cost,
+            n_iter=self.it,
+            n_eval=self.n_eval,
+            success=self.success,
+            status=self.status,
+            message=self.message,
+            _normal=self.final if self.final is not None else self.A,
+            _gradient=None if self.final is not None else self.g,
+            row_weights=self.w,
+            residual=self.r,
+            log=self.history,
+            seconds=seconds,
+            checkpoint=self.checkpoint,
+        )
 
 
 def _gauss_newton(A: Float, g: Float) -> tuple[Float, float]:
@@ -522,42 +590,6 @@ def _gauss_newton(A: Float, g: Float) -> tuple[Float, float]:
 
 
 def _deferred(
-    normal: Callable[[Float, Float, Float | NormalSource, Float], tuple[Float, Float]],
-    x: Float,
-    r: Float,
-    J: Float | NormalSource,
-    w: Float,
+    obj: _Objective, x: Float, r: Float, J: Float | NormalSource, w: Float
 ) -> Callable[[], tuple[Float, Float]]:
-    return lambda: normal(x, r, J, w)
-
-
-def solve_fixed_step(
-    fun: ResidualFn,
-    x0: Float,
-    free: np.ndarray,
-    *,
-    zeta: float = 0.005,
-    n_iter: int = 200,
-) -> tuple[Float, list[float]]:
-    """The paper's update ``eta_{k+1} = eta_k + zeta (J^T J)^-1 J^T dq`` (Sec. 4).
-
-    A benchmark baseline only: with ``zeta = 0.005`` each iteration removes 0.5 % of the
-    Gauss-Newton step, so it needs thousands of iterations to converge.
-
-    Returns
-    -------
-    x : (P,) final parameters
-    costs : list of ``|r|^2 / 2`` per iteration
-    """
-    x = np.array(x0, dtype=np.float64)
-    fidx = np.flatnonzero(np.asarray(free, dtype=bool))
-    costs = []
-    for _ in range(n_iter):
-        r, J = fun(x, True)
-        assert isinstance(J, np.ndarray), "solve_fixed_step needs the Jacobian held"
-        Jf = J[:, :, fidx].reshape(-1, fidx.size)
-        rf = r.reshape(-1)
-        costs.append(0.5 * float(rf @ rf))
-        step = np.linalg.lstsq(Jf, -rf, rcond=None)[0]  # (J^T J)^-1 J^T dq, Eq. (28)
-        x[fidx] += zeta * step  # the paper's update, step (3) after Eq. (28)
-    return x, costs
+    return lambda: obj.normal(x, r, J, w)

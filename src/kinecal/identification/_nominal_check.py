@@ -38,6 +38,7 @@ from kinecal.identification._calibrate import (
     CalibrationResult,
     build_prior,
     calibrate,
+    calibrate_problem,
     default_stages,
 )
 from kinecal.identification._diagnose import Diagnose
@@ -159,7 +160,11 @@ def _without_geometry_priors(
         ]
         at = rest.index(next(s for s in rest if isinstance(s, FullStage)))
         rest.insert(at, _FromFit(result.params))
-    return calibrate(robot, data, result.model.spec, free, stages=rest, start=start)
+    # On the calibration's own rows, with its workspace: the points it evaluated (its
+    # solution, where the fit from it starts) are served from there.
+    ws = result.workspace.copy() if result.workspace is not None else None
+    problem = Problem.make(robot, data, result.model.spec, free, workspace=ws)
+    return calibrate_problem(problem, rest, start)
 
 
 @one_blas_thread()
@@ -200,10 +205,6 @@ def nominal_check(
         if ls is None or result.sigma0 > SCREEN_RATIO * ls.sigma0:
             ls = _without_geometry_priors(result, robot, meas, opts)
     assert ls is not None
-    names = result.model.layout.names
-    x0 = result.registered
-    sigma = result.prior.sigma
-    default = build_prior(result.model, x0, opts).sigma
     est = np.array(
         [
             a == "estimated" == b
@@ -211,42 +212,69 @@ def nominal_check(
         ]
     )
     out: list[Diagnostic] = []
-    ratio = result.sigma0 / max(ls.sigma0, 1e-12)
     held: list[str] = []
-    if ratio > HELD_RATIO:
-        pull = np.where(
-            np.isfinite(sigma) & est, np.abs(result.params - x0) / sigma, 0.0
+    if result.sigma0 / max(ls.sigma0, 1e-12) > HELD_RATIO:
+        held, found = _priors_held(result, ls, est)
+        out.append(found)
+    default = build_prior(result.model, result.registered, opts).sigma
+    mismatch = _nominal_mismatch(result, robot, est, default, held)
+    return out + ([mismatch] if mismatch is not None else [])
+
+
+def _priors_held(
+    result: CalibrationResult, ls: CalibrationResult, est: np.ndarray
+) -> tuple[list[str], Diagnostic]:
+    """``priors_held``: the parameters the priors hold at least :data:`HELD_PULL` of
+    their sigmas from nominal, which the fit without them (``ls``) puts further still
+    the same way, and the finding."""
+    assert result.prior is not None
+    names = result.model.layout.names
+    x0, sigma = result.registered, result.prior.sigma
+    ratio = result.sigma0 / max(ls.sigma0, 1e-12)
+    pull = np.where(np.isfinite(sigma) & est, np.abs(result.params - x0) / sigma, 0.0)
+    # ... and the data, without its prior, put it further still the same way.
+    d_map, d_ls = result.params - x0, ls.params - x0
+    further = (np.sign(d_ls) == np.sign(d_map)) & (np.abs(d_ls) > np.abs(d_map))
+    order = np.argsort(-pull)
+    held = [names[i] for i in order if pull[i] >= HELD_PULL and further[i]]
+    parts = []
+    for i in (names.index(n) for n in held[:4]):
+        kind = KINDS[result.model.layout.specs[i].kind]
+        f, unit = kind.to_file, kind.file_unit
+        parts.append(
+            f"{names[i]} {(result.params[i] - x0[i]) * f:+.3g} {unit} from nominal "
+            f"(prior {sigma[i] * f:.3g} {unit}; {(ls.params[i] - x0[i]) * f:+.3g} ± "
+            f"{ls.std[i] * f:.2g} {unit} without)"
         )
-        # ... and the data, without its prior, put it further still the same way.
-        d_map, d_ls = result.params - x0, ls.params - x0
-        further = (np.sign(d_ls) == np.sign(d_map)) & (np.abs(d_ls) > np.abs(d_map))
-        order = np.argsort(-pull)
-        held = [names[i] for i in order if pull[i] >= HELD_PULL and further[i]]
-        parts = []
-        for i in (names.index(n) for n in held[:4]):
-            kind = KINDS[result.model.layout.specs[i].kind]
-            f, unit = kind.to_file, kind.file_unit
-            parts.append(
-                f"{names[i]} {(result.params[i] - x0[i]) * f:+.3g} {unit} from nominal "
-                f"(prior {sigma[i] * f:.3g} {unit}; {(ls.params[i] - x0[i]) * f:+.3g} ± "
-                f"{ls.std[i] * f:.2g} {unit} without)"
-            )
-        out.append(
-            Diagnostic(
-                "priors_held",
-                f"the priors hold the fit back: it leaves {ratio:.2f}x the residuals "
-                "(relative to the noise) of a fit without the geometry priors "
-                "(--priors compliance: RMS "
-                f"{ls.metrics_after.rms_mm:.4g} mm against {result.metrics_after.rms_mm:.4g} "
-                "mm)"
-                + (f"; held: {'; '.join(parts)}" if parts else "")
-                + ". The nominal values are likely wrong: check the robot model "
-                "(version, e-Series or CB) and the robot file, or calibrate with "
-                "--priors compliance.",
-                parameters=tuple(held),
-                stage=_STAGE,
-            )
-        )
+    return held, Diagnostic(
+        "priors_held",
+        f"the priors hold the fit back: it leaves {ratio:.2f}x the residuals "
+        "(relative to the noise) of a fit without the geometry priors "
+        "(--priors compliance: RMS "
+        f"{ls.metrics_after.rms_mm:.4g} mm against {result.metrics_after.rms_mm:.4g} "
+        "mm)"
+        + (f"; held: {'; '.join(parts)}" if parts else "")
+        + ". The nominal values are likely wrong: check the robot model "
+        "(version, e-Series or CB) and the robot file, or calibrate with "
+        "--priors compliance.",
+        parameters=tuple(held),
+        stage=_STAGE,
+    )
+
+
+def _nominal_mismatch(
+    result: CalibrationResult,
+    robot: RobotDescription,
+    est: np.ndarray,
+    default: Float,
+    held: list[str],
+) -> Diagnostic | None:
+    """``nominal_mismatch``: parameters held, or joint-geometry priors widened beyond
+    :data:`WIDE_FACTOR` times their ``default`` (lengths) or :data:`WIDE_ANGLE_DEG`,
+    while the nominal robot with fitted frames leaves :data:`FAR_FACTOR` times the
+    calibrated errors."""
+    assert result.prior is not None
+    names, sigma = result.model.layout.names, result.prior.sigma
     specs = result.model.layout.specs
     limit = np.array(
         [
@@ -261,25 +289,23 @@ def nominal_check(
     joint = np.array([sp.group == "joint" for sp in specs])
     widened = joint & est & np.isfinite(sigma) & np.isfinite(default) & (sigma > limit)
     before, after = result.metrics_before.rms_mm, result.metrics_after.rms_mm
-    if (held or widened.any()) and before > FAR_FACTOR * after:
-        wide = [names[i] for i in np.flatnonzero(widened)]
-        because = (
-            "the data put the joint geometry far from nominal (priors widened beyond "
-            f"{WIDE_FACTOR:g} mm or {WIDE_ANGLE_DEG:g} deg) for "
-            + ", ".join(wide[:4])
-            + (" ..." if len(wide) > 4 else "")
-            if wide and not held
-            else "the priors hold parameters far from where the data put them"
-        )
-        out.append(
-            Diagnostic(
-                "nominal_mismatch",
-                f"the nominal {robot.name} with fitted frames leaves {before:.4g} mm RMS, "
-                f"{before / max(after, 1e-12):.1f}x the calibrated {after:.4g} mm, and "
-                f"{because}: a nominal table of another robot (or version), or a robot "
-                "file in the wrong units?",
-                parameters=tuple(held or wide),
-                stage=_STAGE,
-            )
-        )
-    return out
+    if not ((held or widened.any()) and before > FAR_FACTOR * after):
+        return None
+    wide = [names[i] for i in np.flatnonzero(widened)]
+    because = (
+        "the data put the joint geometry far from nominal (priors widened beyond "
+        f"{WIDE_FACTOR:g} mm or {WIDE_ANGLE_DEG:g} deg) for "
+        + ", ".join(wide[:4])
+        + (" ..." if len(wide) > 4 else "")
+        if wide and not held
+        else "the priors hold parameters far from where the data put them"
+    )
+    return Diagnostic(
+        "nominal_mismatch",
+        f"the nominal {robot.name} with fitted frames leaves {before:.4g} mm RMS, "
+        f"{before / max(after, 1e-12):.1f}x the calibrated {after:.4g} mm, and "
+        f"{because}: a nominal table of another robot (or version), or a robot "
+        "file in the wrong units?",
+        parameters=tuple(held or wide),
+        stage=_STAGE,
+    )

@@ -13,7 +13,15 @@ import numpy as np
 
 from kinecal.identification._lm import LMOptions
 
-__all__ = ["PRIOR_GROUPS", "PRIOR_SIGMA", "CalibrationOptions"]
+__all__ = [
+    "PRIOR_GROUPS",
+    "PRIOR_SIGMA",
+    "CalibrationOptions",
+    "FitSettings",
+    "IdentifySettings",
+    "PriorSettings",
+    "RejectSettings",
+]
 
 # Prior standard deviations (SI) by parameter group and kind: physical scales of the
 # deviations from nominal (DH), of transmission errors (NTM) and of per-unit-weight
@@ -128,3 +136,69 @@ class CalibrationOptions:
                 f"stage2 must be 'direct', 'project' or 'none'; got {self.stage2!r}."
             )
         LMOptions(loss=self.loss)  # validates the loss name
+
+
+# The settings each stage owns (issue 32, point 3a): a stage is constructed with its own
+# (``default_stages(options)`` makes them from the options); one constructed without
+# (``Identify()``) reads them from the problem's options when it runs.
+
+
+@dataclass(frozen=True)
+class FitSettings:
+    """What the fitting stages read: the data term's loss, where a robust loss bends
+    (mm; None: three times a robust noise estimate) and the iteration limit."""
+
+    loss: str = "linear"
+    f_scale_mm: float | None = None
+    max_iter: int = 100
+
+    @classmethod
+    def of(cls, options: CalibrationOptions) -> FitSettings:
+        return cls(options.loss, options.f_scale_mm, options.max_iter)
+
+
+@dataclass(frozen=True)
+class IdentifySettings:
+    """The identifiability analysis' tolerances (:func:`analyse_identifiability`)."""
+
+    drop_tol: float = 1e-6
+    weak_tol: float = 1e-3
+
+    @classmethod
+    def of(cls, options: CalibrationOptions) -> IdentifySettings:
+        return cls(options.drop_tol, options.weak_tol)
+
+
+@dataclass(frozen=True)
+class PriorSettings:
+    """Which groups carry priors, per-parameter overrides, a common scale and whether
+    the data adapt them (see :class:`CalibrationOptions`)."""
+
+    priors: str = "all"
+    prior_sigma: dict[str, float] | None = None
+    prior_scale: float = 1.0
+    adapt_priors: bool = True
+
+    @classmethod
+    def of(cls, options: CalibrationOptions) -> PriorSettings:
+        return cls(
+            options.priors,
+            options.prior_sigma,
+            options.prior_scale,
+            options.adapt_priors,
+        )
+
+
+@dataclass(frozen=True)
+class RejectSettings:
+    """Gross-error rejection and outlier reporting (see :class:`CalibrationOptions`):
+    the fit's loss names what a kept outlier met."""
+
+    reject: str = "auto"
+    reject_z: float | None = None
+    outlier_p: float = 1e-5
+    loss: str = "linear"
+
+    @classmethod
+    def of(cls, options: CalibrationOptions) -> RejectSettings:
+        return cls(options.reject, options.reject_z, options.outlier_p, options.loss)

@@ -22,9 +22,10 @@ from kinecal.identification._options import (
     PRIOR_SIGMA,
     STOL_PRE,
     CalibrationOptions,
+    PriorSettings,
 )
 from kinecal.identification._problem import Problem, State
-from kinecal.identification._solve import run_lm
+from kinecal.identification._solve import SolverRun, run_lm
 from kinecal.measurement._diagnostics import Diagnostic
 from kinecal.models import CalibrationModel, ParamSpec
 from kinecal.typing import Float
@@ -40,7 +41,9 @@ _GEOMETRY_FACTORS = (0.1, 0.3, 1.0, 3.0)
 
 
 def build_prior(
-    model: CalibrationModel, start: Float, options: CalibrationOptions
+    model: CalibrationModel,
+    start: Float,
+    options: CalibrationOptions | PriorSettings,
 ) -> Prior:
     """Priors of :data:`PRIOR_SIGMA` (or the robot file's ``priors``; the joint
     compliances of a robot with link masses: :func:`kinecal.robot.compliance_priors`)
@@ -76,10 +79,12 @@ class Priors:
     """
 
     name: str = "priors"
+    settings: PriorSettings | None = None  # None: from the problem's options
 
     def __call__(self, problem: Problem, state: State) -> State:
         kin = problem.kinematic
-        prior = build_prior(state.model, state.x, problem.options)
+        opts = self.settings or PriorSettings.of(problem.options)
+        prior = build_prior(state.model, state.x, opts)
         state = state.but(prior=prior)
         use_prior_kin = state.active_prior(kin) is not None
         needed = use_prior_kin or (
@@ -89,19 +94,20 @@ class Priors:
             return state
         x_reg = state.x
         name = "stage 1: kinematic" + (" (no priors)" if use_prior_kin else "")
+        lm_pre = replace(state.lm, stol=STOL_PRE)
         state, pre = run_lm(
-            problem,
-            state,
-            name,
-            x_reg,
-            state.free & kin,
-            replace(state.lm, stol=STOL_PRE),
-            required=False,
+            problem, state, name, x_reg, state.free & kin, lm_pre, required=False
         )
+        # Stage 1 without priors from the identified state (the rejection's probe, the
+        # nominal check) continues this run instead of repeating it.
+        ident = state.identified
+        run = SolverRun.of(problem, state, x_reg, state.free & kin, lm_pre, pre)
+        if ident is not None and run is not None:
+            state = state.but(identified=ident.but(prefit=run))
         state = state.but(x=pre.x)
         if problem.estimate_noise:
             state = estimate_noise(problem, state, pre.x, state.free & kin, None)
-        if use_prior_kin and problem.options.adapt_priors and pre.success:
+        if use_prior_kin and opts.adapt_priors and pre.success:
             prior, widened = adapt_prior(problem, state, pre.x, x_reg, prior)
             state = state.but(prior=prior)
             if widened:
@@ -177,10 +183,12 @@ class EvidencePriors:
     # False: only the scaled priors, the parameters as they are (``--model auto``'s
     # folds then fit with them from there).
     refit: bool = True
+    settings: PriorSettings | None = None  # None: from the problem's options
 
     def __call__(self, problem: Problem, state: State) -> State:
         prior = state.active_prior()
-        if prior is None or not problem.options.adapt_priors:
+        opts = self.settings or PriorSettings.of(problem.options)
+        if prior is None or not opts.adapt_priors:
             return state
         lm3 = replace(state.lm, max_iter=max(state.lm.max_iter, 200))
         prior, chosen = evidence_prior(problem, state, prior)

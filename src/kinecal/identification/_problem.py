@@ -31,13 +31,28 @@ from kinecal.models import CalibrationModel, ModelInputs, ModelSpec
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float
 
-__all__ = ["EvaluationCache", "Problem", "Stage", "State", "Ticker", "run_stages"]
+__all__ = [
+    "EvaluationCache",
+    "Problem",
+    "Stage",
+    "State",
+    "Ticker",
+    "Workspace",
+    "run_stages",
+]
 
 Progress = Callable[[str, str], None]
 
 # Inside a stage, a progress line at most this often [s] (solver iterations, passes over
 # the poses of large data); each stage's start is always reported.
 REPORT_EVERY = 1.0
+# A calibration result keeps the evaluations at its solution (for the nominal check's fit
+# from there) when they take at most this many bytes (data of a few thousand poses).
+# More is not kept: the fresh memory a larger cache takes costs more (page faults) than
+# the Jacobian passes it saves (issue 36: 0.12 s of system time in the default command).
+RETAIN_BYTES = 16 * 2**20
+# The model's forward state per pose (ForwardState: about 110 numbers).
+_FORWARD_BYTES = 110 * 8
 
 
 class Ticker:
@@ -108,7 +123,7 @@ class EvaluationCache:
     def __init__(self, meas: Measurements, inputs: ModelInputs, keep: int = 3) -> None:
         self.meas = meas
         self.inputs = inputs
-        self._keep = keep
+        self.keep = keep
         self._blocks: list[tuple[CalibrationModel, bytes, Weights, ResidualBlock]] = []
 
     def __call__(
@@ -146,8 +161,35 @@ class EvaluationCache:
                 keep=True,
                 reuse=forward,
             )
-        self._blocks = [*self._blocks[-(self._keep - 1) :], (cm, key, w, blk)]
+        self._blocks = [*self._blocks[-(self.keep - 1) :], (cm, key, w, blk)]
         return blk
+
+    def at(self, cm: CalibrationModel, x: Float, limit: int) -> EvaluationCache | None:
+        """A cache of the blocks kept at ``x`` alone, or None when there are none or
+        they take more than ``limit`` bytes."""
+        key = np.asarray(x, np.float64).tobytes()
+        mine = [e for e in self._blocks if e[0] is cm and e[1] == key]
+        if not mine or sum(nbytes(e[3]) for e in mine) > limit:
+            return None
+        out = EvaluationCache(self.meas, self.inputs, self.keep)
+        out._blocks = mine
+        return out
+
+    def put(
+        self, cm: CalibrationModel, x: Float, w: Weights, blk: ResidualBlock
+    ) -> None:
+        """Keep ``blk``, evaluated elsewhere, as the block at ``x`` under ``w``."""
+        key = np.asarray(x, np.float64).tobytes()
+        self._blocks = [*self._blocks[-(self.keep - 1) :], (cm, key, w, blk)]
+
+    def kept(self, cm: CalibrationModel, x: Float, w: Weights) -> ResidualBlock | None:
+        """The block kept at ``x`` under the weights ``w`` with its Jacobian held, if
+        any (never evaluates)."""
+        key = np.asarray(x, np.float64).tobytes()
+        for m, k, ww, blk in reversed(self._blocks):
+            if m is cm and k == key and ww is w and blk.J is not None:
+                return blk
+        return None
 
     def raw_position(self, cm: CalibrationModel, x: Float, w: Weights) -> Float:
         """Position errors (N, 3) at ``x`` [m], from any block kept at that point."""
@@ -161,6 +203,13 @@ class EvaluationCache:
         """RMS of the 3-D position errors at ``x`` [mm]."""
         e_p = self.raw_position(cm, x, w)
         return float(np.sqrt(np.mean(np.sum(e_p**2, axis=1)))) * 1e3
+
+
+def nbytes(blk: ResidualBlock) -> int:
+    """Memory a kept block holds (its arrays and the model's forward state)."""
+    arrays = (blk.r, blk.J, blk.raw_position, blk.raw_rotation)
+    held = sum(a.nbytes for a in arrays if a is not None)
+    return held + (_FORWARD_BYTES * blk.r.shape[0] if blk.forward is not None else 0)
 
 
 def _reweighted(blk: ResidualBlock, was: Weights, w: Weights) -> ResidualBlock:
@@ -218,9 +267,59 @@ def spec_for(
     )
 
 
+class Workspace:
+    """The caches of a calibration, beside its constant :class:`Problem`.
+
+    What the stages compute and may need again lives here, not in the problem: the
+    evaluations at the last points visited (:class:`EvaluationCache`: a stage starts
+    where the last one ended, the uncertainty and the diagnosis read the Jacobian at
+    the solution) and the workspace of the rows a state uses when they are not all
+    (:meth:`subset`, one at a time: rejection moves on). A result keeps the evaluations
+    at its solution (:meth:`at`), where the nominal check's fit starts (:meth:`copy`).
+    """
+
+    def __init__(
+        self,
+        meas: Measurements,
+        inputs: ModelInputs,
+        evaluations: EvaluationCache | None = None,
+    ) -> None:
+        self.meas, self.inputs = meas, inputs
+        self.evaluations = evaluations or EvaluationCache(meas, inputs)
+        self._subsets: dict[bytes, Workspace] = {}
+
+    def at(self, cm: CalibrationModel, x: Float) -> Workspace | None:
+        """A workspace with this one's evaluations at ``x`` alone (what a result keeps
+        for fits from its solution), or None when they take more than
+        :data:`RETAIN_BYTES`."""
+        kept = self.evaluations.at(cm, x, RETAIN_BYTES)
+        return None if kept is None else Workspace(self.meas, self.inputs, kept)
+
+    def copy(self) -> Workspace:
+        """A workspace starting with this one's evaluations, which its own do not
+        change (a fit from a result's solution leaves the result's as they are)."""
+        ev = EvaluationCache(self.meas, self.inputs, self.evaluations.keep)
+        ev._blocks = list(self.evaluations._blocks)
+        return Workspace(self.meas, self.inputs, ev)
+
+    def subset(
+        self, active: np.ndarray, reference_payload_kg: float | None
+    ) -> Workspace:
+        """The workspace of the rows ``active`` (kept until another subset is asked)."""
+        key = np.packbits(active).tobytes()
+        sub = self._subsets.get(key)
+        if sub is None:
+            meas = self.meas.subset(active)
+            inputs = meas.model_inputs(reference_payload_kg)
+            sub = Workspace(meas, inputs)
+            self._subsets.clear()  # one subset at a time: rejection moves on
+            self._subsets[key] = sub
+        return sub
+
+
 @dataclass(frozen=True, eq=False)
 class Problem:
-    """What a calibration works on and does not change.
+    """What a calibration works on: constant (its caches are in its :class:`Workspace`).
 
     Attributes
     ----------
@@ -230,7 +329,8 @@ class Problem:
         The model structure at nominal kinematics (a stage may replace the state's model by
         one with other reference rotations, never with another layout).
     inputs : ModelInputs of ``meas``.
-    evaluations : EvaluationCache shared by the stages.
+    workspace : Workspace, the caches (``evaluations``); a problem made with another
+        calibration's (:meth:`make`) starts with its evaluations.
     reference_payload_kg : the payload defining the unit weight of lambda*.
     groups : (P,) group of every parameter ('base', 'joint', 'cam', 'ntm', 'load', 'link').
     kinematic : (P,) bool, the unified kinematic parameters (stage 1).
@@ -244,14 +344,13 @@ class Problem:
     options: CalibrationOptions
     model: CalibrationModel
     inputs: ModelInputs
-    evaluations: EvaluationCache
+    workspace: Workspace = field(repr=False)
     reference_payload_kg: float | None
     groups: np.ndarray
     kinematic: np.ndarray
     frames: np.ndarray
     progress: Ticker = field(default_factory=lambda: Ticker(lambda stage, detail: None))
     root: Problem | None = None
-    _views: dict[bytes, Problem] = field(default_factory=dict, repr=False)
 
     @classmethod
     def make(
@@ -261,8 +360,13 @@ class Problem:
         model: str | ModelSpec = "full",
         options: CalibrationOptions | None = None,
         progress: object | None = None,
+        *,
+        workspace: Workspace | None = None,
     ) -> Problem:
         """Check that the data can determine the model and set the problem up.
+
+        ``workspace``: the caches of another problem on the same data (``meas`` itself)
+        to share (a fit with other options: the nominal check); default new ones.
 
         Raises
         ------
@@ -290,60 +394,55 @@ class Problem:
                 f"{cm.size // c + 1} poses (several times more for a reliable result)."
             )
         ref_payload = meas.reference_payload() or robot.payload_kg
-        inputs = meas.model_inputs(ref_payload)
         groups = np.array([s.group for s in cm.layout.specs])
+        if workspace is None or workspace.meas is not meas:
+            workspace = Workspace(meas, meas.model_inputs(ref_payload))
         if isinstance(progress, Ticker):
             say = progress
         else:
             say = Ticker(progress if callable(progress) else (lambda s, d: None))
+        kinematic = np.isin(groups, KINEMATIC_GROUPS)
+        frames = np.isin(groups, ("base", "cam"))
+        for a in (groups, kinematic, frames):
+            a.flags.writeable = False
         return cls(
             robot,
             meas,
             options or CalibrationOptions(),
             cm,
-            inputs,
-            EvaluationCache(meas, inputs),
+            workspace.inputs,
+            workspace,
             ref_payload,
             groups,
-            np.isin(groups, KINEMATIC_GROUPS),
-            np.isin(groups, ("base", "cam")),
+            kinematic,
+            frames,
             say,
         )
+
+    @property
+    def evaluations(self) -> EvaluationCache:
+        """The evaluations of this problem's rows (its workspace's cache)."""
+        return self.workspace.evaluations
 
     def on(self, state: State) -> Problem:
         """The problem on the rows the state uses (``state.active``; all by default).
 
-        Sub-problems are kept, so the stages that follow one another on the same rows
-        share their evaluations.
+        The rows' workspace is kept, so the stages that follow one another on the same
+        rows share their evaluations.
         """
         root = self.root or self
         if state.active is None or state.active.all():
             return root
-        key = np.packbits(state.active).tobytes()
-        view = root._views.get(key)
-        if view is None:
-            meas = root.meas.subset(state.active)
-            inputs = meas.model_inputs(root.reference_payload_kg)
-            view = replace(
-                root,
-                meas=meas,
-                inputs=inputs,
-                evaluations=EvaluationCache(meas, inputs),
-                root=root,
-                _views={},
-            )
-            root._views.clear()  # one view at a time: rejection moves on
-            root._views[key] = view
-        return view
+        sub = root.workspace.subset(state.active, root.reference_payload_kg)
+        return replace(root, meas=sub.meas, inputs=sub.inputs, workspace=sub, root=root)
 
     def with_options(self, options: CalibrationOptions) -> Problem:
-        """The same root problem with other options (and its own evaluations)."""
+        """The same root problem with other options and a workspace of its own (a fit
+        with other options visits other points: sharing the last few evaluations would
+        push out the ones this problem's stages come back to)."""
         root = self.root or self
         return replace(
-            root,
-            options=options,
-            evaluations=EvaluationCache(root.meas, root.inputs),
-            _views={},
+            root, options=options, workspace=Workspace(root.meas, root.inputs)
         )
 
     @property
@@ -404,6 +503,10 @@ class State:
         Neither depends on the loss or the priors, so fits with other options on these
         rows (the rejection's robust probe, the nominal check) start from it instead of
         computing it again (issue 36).
+    prefit : on the :attr:`identified` state, the priors' unconstrained stage-1 pre-fit
+        from it (a :class:`~kinecal.identification._solve.SolverRun`), which stage 1
+        without priors from that state continues instead of repeating it (the same
+        iterates: the rejection's probe, the nominal check); None otherwise.
     """
 
     model: CalibrationModel
@@ -427,6 +530,7 @@ class State:
     stages: tuple[StageLog, ...] = ()
     diagnostics: tuple[Diagnostic, ...] = ()
     identified: State | None = field(default=None, repr=False)
+    prefit: object | None = field(default=None, repr=False)
 
     def but(self, **changes: object) -> State:
         """A copy with some fields changed."""

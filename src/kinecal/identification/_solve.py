@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from kinecal.identification._lift import lifted_start
 from kinecal.identification._lm import (
+    LMCheckpoint,
     LMOptions,
     LMResult,
     NormalSource,
@@ -25,13 +26,13 @@ from kinecal.identification._lm import (
     spd_solve,
 )
 from kinecal.identification._options import MU0_WARM
-from kinecal.identification._problem import Problem, State
+from kinecal.identification._problem import RETAIN_BYTES, Problem, State, nbytes
 from kinecal.measurement._diagnostics import Diagnostic, StageLog
-from kinecal.measurement._residuals import Weights
+from kinecal.measurement._residuals import ResidualBlock, Weights
 from kinecal.models import CalibrationModel
 from kinecal.typing import Float
 
-__all__ = ["active_prior", "lift_kept", "run_lm", "warm_options"]
+__all__ = ["SolverRun", "active_prior", "lift_kept", "run_lm", "warm_options"]
 
 log = logging.getLogger(__name__)
 
@@ -47,6 +48,7 @@ def run_lm(
     *,
     required: bool = True,
     lifted: bool = False,
+    resume: object | None = None,
 ) -> tuple[State, LMResult]:
     """Levenberg-Marquardt over ``free`` from ``x0`` with the state's model and weights.
 
@@ -57,6 +59,9 @@ def run_lm(
     lifted : bool
         Start from the lifted start of the link products (:func:`lifted_start`), kept
         only where it does not raise the cost, with little initial damping.
+    resume : SolverRun, optional
+        A run of this fit with a larger ``stol`` (:attr:`State.prefit`): continued,
+        where it is of this fit, instead of run again (the same iterates).
 
     Returns
     -------
@@ -72,6 +77,12 @@ def run_lm(
         x0 = lift_kept(problem, cm, x0, free, lm, w, prior)
         lm = replace(lm, mu0=MU0_WARM)
 
+    ck = None
+    if isinstance(resume, SolverRun) and resume.serves(cm, x0, free, w, lm, prior):
+        ck = resume.checkpoint
+        if resume.block is not None:  # its last evaluation, for the runs after it
+            ev.put(cm, ck.x, w, resume.block)
+
     def fun(x: Float, jac: bool) -> tuple[Float, Float | NormalSource | None]:
         # A lifted stage's Jacobians carry the product columns (served from the cache).
         blk = ev(cm, x, w, jacobian=jac, products=lifted)
@@ -86,6 +97,7 @@ def run_lm(
         prior=prior,
         label=name,
         on_iteration=lambda it, c, ch: problem.progress.iteration(name, it, c, ch),
+        resume=None if lifted else ck,
     )
     after = ev.rms_mm(cm, res.x, w)
     entry = StageLog(
@@ -119,6 +131,65 @@ def run_lm(
             )
         )
     return out, res
+
+
+@dataclass(frozen=True)
+class SolverRun:
+    """A :func:`run_lm` run without priors that stopped on its statistical tolerance,
+    for a run of the same fit with a smaller one to continue (issue 36: the stage-1
+    fit without priors of the rejection's robust probe and of the nominal check goes on
+    from the priors' pre-fit instead of repeating its iterations)."""
+
+    model: CalibrationModel
+    x0: bytes
+    free: bytes
+    weights: Weights
+    lm: LMOptions
+    checkpoint: LMCheckpoint
+    block: ResidualBlock | None  # the evaluation at the checkpoint, its Jacobian held
+
+    @classmethod
+    def of(
+        cls,
+        problem: Problem,
+        state: State,
+        x0: Float,
+        free: np.ndarray,
+        lm: LMOptions,
+        res: LMResult,
+    ) -> SolverRun | None:
+        """The run ``res`` (of ``state``'s model and weights from ``x0``, no prior),
+        when it stopped on ``stol`` and what it keeps takes at most RETAIN_BYTES."""
+        ck = res.checkpoint
+        if ck is None or not isinstance(ck.J, np.ndarray):
+            return None
+        cm, w = state.model, state.weights
+        block = None if ck.stale else problem.evaluations.kept(cm, ck.x, w)
+        if ck.J.nbytes + (0 if block is None else nbytes(block)) > RETAIN_BYTES:
+            return None
+        x0b, fb = np.asarray(x0, np.float64).tobytes(), np.asarray(free).tobytes()
+        return cls(cm, x0b, fb, w, lm, ck, block)
+
+    def serves(
+        self,
+        cm: CalibrationModel,
+        x0: Float,
+        free: np.ndarray,
+        w: Weights,
+        lm: LMOptions,
+        prior: Prior | None,
+    ) -> bool:
+        """Whether a run of ``cm`` from ``x0`` over ``free`` under ``w`` with ``lm``
+        and ``prior`` is this one's fit with at most its ``stol``."""
+        return (
+            prior is None
+            and cm is self.model
+            and w is self.weights
+            and lm.stol <= self.lm.stol
+            and replace(lm, stol=0.0) == replace(self.lm, stol=0.0)
+            and np.asarray(x0, np.float64).tobytes() == self.x0
+            and np.asarray(free).tobytes() == self.free
+        )
 
 
 def lift_kept(

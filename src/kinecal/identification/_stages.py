@@ -32,7 +32,12 @@ from kinecal.identification._identifiability import (
 )
 from kinecal.identification._lm import LMOptions, spd_solve
 from kinecal.identification._noise import estimate_noise
-from kinecal.identification._options import MU0_WARM, STOL
+from kinecal.identification._options import (
+    MU0_WARM,
+    STOL,
+    FitSettings,
+    IdentifySettings,
+)
 from kinecal.identification._problem import Problem, Stage, State, run_stages
 from kinecal.identification._registration import initial_registration
 from kinecal.identification._solve import run_lm
@@ -130,10 +135,12 @@ class Identify:
     """
 
     name: str = "identifiability"
+    settings: IdentifySettings | None = None  # None: from the problem's options
 
     def __call__(self, problem: Problem, state: State) -> State:
         problem.progress("identifiability", "scaled Jacobian")
-        cm, meas, opts = state.model, problem.meas, problem.options
+        cm, meas = state.model, problem.meas
+        opts = self.settings or IdentifySettings.of(problem.options)
         blk = residuals(
             cm,
             _generic_point(cm, state.x),
@@ -212,15 +219,25 @@ class KinematicStage:
     three times a robust noise estimate (or ``f_scale_mm``)."""
 
     name: str = "stage 1: kinematic"
+    settings: FitSettings | None = None  # None: from the problem's options
 
     def __call__(self, problem: Problem, state: State) -> State:
         kin = state.free & problem.kinematic
         prior = state.active_prior(problem.kinematic)
-        state, res = run_lm(problem, state, self.name, state.x, kin, state.lm, prior)
+        state, res = run_lm(
+            problem,
+            state,
+            self.name,
+            state.x,
+            kin,
+            state.lm,
+            prior,
+            resume=state.prefit,  # the priors' pre-fit, when this fit goes on from it
+        )
         state = state.but(x=res.x)
         if problem.estimate_noise and not state.noise_estimated:
             state = estimate_noise(problem, state, state.x, kin, prior)
-        opts = problem.options
+        opts = self.settings or FitSettings.of(problem.options)
         if opts.loss == "linear":
             return state
         r1 = problem.evaluations(state.model, state.x, state.weights).r
@@ -245,9 +262,10 @@ class TransmissionStage:
     joints by Eq. (29), then a Fourier fit per joint). Kept only if it lowers the error."""
 
     name: str = "stage 2: transmission"
+    method: str | None = None  # 'direct', 'project' or 'none'; None: the options'
 
     def __call__(self, problem: Problem, state: State) -> State:
-        method = problem.options.stage2
+        method = self.method or problem.options.stage2
         cols = state.free & (problem.groups == "ntm")
         if not np.any(cols) or method == "none":
             return state

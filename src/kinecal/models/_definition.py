@@ -29,21 +29,25 @@ import numpy as np
 from kinecal.errors import ModelError
 from kinecal.geometry import (
     euler_zyx_to_matrix,
-    make_transform,
     matrix_to_euler_zyx,
-    rot_x,
-    rot_z,
-    transform_to_euler,
 )
 from kinecal.models._chain import chain_frames
 from kinecal.models._compliance import (
-    general_link_pattern,
-    link_torque_pattern,
     ntm_basis_rows,
-    ntm_names,
 )
 from kinecal.models._inputs import ModelInputs
-from kinecal.models._layout import ParameterLayout, ParamSpec
+from kinecal.models._layout import ParameterLayout
+from kinecal.models._parameters import (
+    FRAME_FIELDS,
+    ROW_FIELDS,
+    Params,
+    base_frames,
+    cam_frames,
+    check_terms,
+    compliance_terms,
+    joint_rows,
+    link_pattern,
+)
 from kinecal.models._spec import ModelSpec
 from kinecal.robot import RobotDescription, SelfWeightSpec, dh_transforms
 from kinecal.typing import Float
@@ -55,19 +59,7 @@ __all__ = [
     "euler_axes",
 ]
 
-#: Fields of an Euler frame (Eq. 8-9), in the order of :attr:`ModelDefinition.base_idx`.
-FRAME_FIELDS = ("x", "y", "z", "r", "w", "p")
-#: Fields of a chain row (Eq. 10), the columns of :meth:`ModelDefinition.rows`.
-ROW_FIELDS = ("theta_offset", "d", "a", "alpha", "beta")
 OFF, D, A, ALPHA, BETA = range(5)
-_ROW_KINDS = ("angle", "length", "length", "angle", "angle")
-# Terms of a body of the general link model: mass and first moment (frame k axes).
-_BODY_TERMS = ("m", "mx", "my", "mz")
-
-
-def _frame_group(group: str, label: str) -> str:
-    """Name prefix of a frame: ``base``, or ``base@b`` for the set labelled 'b'."""
-    return group if label == "" else f"{group}@{label}"
 
 
 def euler_axes(R_ref: Float, rwp: Float) -> Float:
@@ -210,148 +202,34 @@ class ModelDefinition:
             Terms the robot cannot have (a joint it lacks, a Fourier series on a prismatic
             joint, a Hayati row at non-parallel axes, link terms without self-weight data).
         """
-        _check(robot, spec)
+        check_terms(robot, spec)
         n = robot.n_joints
         chain = robot.dh_chain()
-        specs: list[ParamSpec] = []
-        nominal: list[float] = []
-
-        def add(param: ParamSpec, value: float = 0.0) -> int:
-            specs.append(param)
-            nominal.append(float(value))
-            return len(specs) - 1
-
-        # ---------------------------------------------------------- frames: user <- base
-        # Joint 1's theta offset and d are absorbed by the base frame (Eq. 10).
-        off1, d1 = chain.theta_offset[0], chain.d[0]
-        T_base_b0 = chain.T_base_0 @ make_transform(rot_z(off1), [0.0, 0.0, d1])
-        base0 = transform_to_euler(T_base_b0)  # Eq. (8) at the nominal base
-        base_idx = [
-            [
-                add(_frame_spec("base", lab, key), v)
-                for key, v in zip(FRAME_FIELDS, base0)
-            ]
-            for lab in spec.sets
-        ]
-
-        # ---------------------------------------------------------- joint rows (Eq. 10)
-        row_const = np.zeros((n, 5))
-        row_idx = -np.ones((n, 5), dtype=np.intp)
-        d_shift = np.zeros(n + 1)  # d moved out of Hayati rows into the next row
-        for i in range(n):
-            j = i + 1
-            off, d, a, al = (
-                chain.theta_offset[i],
-                chain.d[i],
-                chain.a[i],
-                chain.alpha[i],
-            )
-            d = d + d_shift[i]
-            if j == 1:
-                fields = {"a": a, "alpha": al}
-            elif j == n:
-                fields = {}
-            elif j in spec.hayati:
-                if abs(np.sin(al)) > 1e-6:
-                    raise ModelError(
-                        f"joint {j}: a Hayati row needs axis {j} parallel to axis {j + 1} "
-                        f"(alpha = 0 or 180 deg); nominal alpha is {np.degrees(al):.3f} deg."
-                    )
-                d_shift[i + 1] += d * np.cos(
-                    al
-                )  # Tz(d) slides to the next parallel axis
-                fields = {"theta_offset": off, "a": a, "alpha": al, "beta": 0.0}
-            else:
-                fields = {"theta_offset": off, "d": d, "a": a, "alpha": al}
-            for c, key in enumerate(ROW_FIELDS):
-                if key in fields:
-                    row = ParamSpec(
-                        f"joint{j}.{key}", _ROW_KINDS[c], "joint", joint=j, field=key
-                    )
-                    row_idx[i, c] = add(row, fields[key])
-
-        # ---------------------------------------------------------- frames: flange <- cam
-        # The last row keeps only its rotation; its offset, d, a, alpha, the physical
-        # flange and the nominal tool become the starting value of T_flange_cam (Eq. 9).
-        T_fc = (
-            make_transform(
-                rot_z(chain.theta_offset[-1]), [0.0, 0.0, chain.d[-1] + d_shift[n - 1]]
-            )
-            @ make_transform(rot_x(chain.alpha[-1]), [chain.a[-1], 0.0, 0.0])
-            @ chain.T_n_flange
-            @ robot.T_flange_tool
-        )
-        cam0 = transform_to_euler(T_fc)
-        cam_keys = FRAME_FIELDS if spec.cam_rotation else FRAME_FIELDS[:3]
-        cam_idx = [
-            [
-                add(_frame_spec("cam", m, key), cam0[FRAME_FIELDS.index(key)])
-                for key in cam_keys
-            ]
-            for m in spec.markers
-        ]
+        params = Params()
+        T_base_b0, base_idx = base_frames(chain, spec, params)
+        row_idx, d_shift = joint_rows(chain, spec, params)
+        T_fc, cam_keys, cam_idx = cam_frames(robot, chain, spec, d_shift, params)
         # Reference rotations (fixed): identity for identified rotations; the nominal
         # rotation when the cam rotation is not identified.
         R_ref_base = np.broadcast_to(np.eye(3), (len(spec.sets), 3, 3)).copy()
         R_cam_fixed = T_fc[:3, :3] if not spec.cam_rotation else np.eye(3)
         R_ref_cam = np.broadcast_to(R_cam_fixed, (len(spec.markers), 3, 3)).copy()
-
-        # ---------------------------------------------------------- compliance
-        ntm_terms = (
-            ntm_names(spec.ntm_order, spec.ntm_offset) if spec.ntm_joints else []
-        )
-        ntm_start = len(specs)
-        for j in spec.ntm_joints:  # Eq. (16-17): one series per joint
-            for coef in ntm_terms:
-                add(ParamSpec(f"joint{j}.{coef}", "ntm", "ntm", joint=j, field=coef))
-        load_start = len(specs)
-        if spec.load:  # Eq. (24): lambda* per joint
-            for j in range(1, n + 1):
-                name = f"joint{j}.lambda"
-                add(ParamSpec(name, "compliance", "load", joint=j, field="lambda"))
-        link_start = len(specs)
-        lumped: list[str] = []
-        if spec.link == "paper":  # Eq. (25-26): s1*, s2*
-            lumped = ["s1", "s2"]
-        elif spec.link == "rfcm":
-            lumped = ["s1", "s2_shoulder", "s2_elbow"]
-        for term in lumped:
-            add(ParamSpec(f"link.{term}", "moment", "link", field=term))
-        for k in spec.link_bodies:  # the general form of Eq. (25), per body
-            for term in _BODY_TERMS:
-                kind = "ratio" if term == "m" else "moment"
-                add(ParamSpec(f"link{k}.{term}", kind, "link", joint=k, field=term))
-        link_names = tuple(s.name for s in specs[link_start:])
-        layout = ParameterLayout(specs)
-
+        ntm_terms, ntm_start, load_start, link_start = compliance_terms(spec, n, params)
+        link_names = tuple(s.name for s in params.specs[link_start:])
         # Gravity direction in the model base frame (the robot base rotated by joint 1's
         # absorbed offset).
         g_unit = robot.gravity / np.linalg.norm(robot.gravity)
         sw = robot.self_weight
-        x_sign = 1.0
-        if sw is not None and spec.link in ("paper", "rfcm"):
-            x_sign = 1.0 if chain.a[sw.shoulder - 1] >= 0 else -1.0
-        prismatic = chain.prismatic.copy()
-        # Where a link parameter s_k acts on joint j, the deflection holds the product
-        # lambda*_j s_k: (joint index, column of the link basis) of every such pair.
-        pattern: list[tuple[int, int]] = []
-        if spec.link in ("paper", "rfcm") and sw is not None:
-            pattern += link_torque_pattern(spec.link, sw.shoulder, sw.elbow)
-        if spec.link_bodies:
-            first = len(link_names) - 4 * len(spec.link_bodies)
-            pattern += [
-                (j, first + k)
-                for j, k in general_link_pattern(spec.link_bodies, prismatic)
-            ]
+        x_sign, pattern = link_pattern(robot, chain, spec, len(link_names))
         defn = cls(
             robot=robot,
             spec=spec,
-            layout=layout,
-            nominal=np.array(nominal),
+            layout=ParameterLayout(params.specs),
+            nominal=np.array(params.nominal),
             T_robotbase_modelbase=T_base_b0,
             g_hat=T_base_b0[:3, :3].T @ g_unit,
-            prismatic=prismatic,
-            row_const=row_const,
+            prismatic=chain.prismatic.copy(),
+            row_const=np.zeros((n, 5)),
             row_idx=row_idx,
             row_mask=row_idx >= 0,
             has_beta=bool(np.any(row_idx[:, BETA] >= 0)),
@@ -360,7 +238,7 @@ class ModelDefinition:
             cam_idx=np.array(cam_idx),
             R_ref_base=R_ref_base,
             R_ref_cam=R_ref_cam,
-            ntm_terms=tuple(ntm_terms),
+            ntm_terms=ntm_terms,
             ntm_start=ntm_start,
             load_start=load_start,
             lam_idx=(
@@ -532,37 +410,3 @@ def _link_mass_nominal(defn: ModelDefinition) -> Float:
         for axis, v in zip("xyz", c):
             x[defn.layout.index(f"link{k}.m{axis}")] = b.mass * v / m_ref
     return x
-
-
-def _frame_spec(group: str, label: str, key: str) -> ParamSpec:
-    return ParamSpec(
-        f"{_frame_group(group, label)}.{key}",
-        "length" if key in "xyz" else "angle",
-        group,
-        label=label,
-        field=key,
-    )
-
-
-def _check(robot: RobotDescription, spec: ModelSpec) -> None:
-    """Refuse terms the robot cannot have."""
-    n = robot.n_joints
-    for j in spec.hayati:
-        if not 2 <= j <= n - 1:
-            raise ModelError(f"Hayati rows are for joints 2..{n - 1}; got joint {j}.")
-    for j in spec.ntm_joints:
-        if not 1 <= j <= n:
-            raise ModelError(
-                f"NTM joint {j} does not exist; the robot has joints 1..{n}."
-            )
-        if robot.joints[j - 1].kind != "revolute":
-            raise ModelError(
-                f"NTM joint {j} is prismatic; a Fourier series needs a revolute joint."
-            )
-    for k in spec.link_bodies:
-        if not 1 <= k <= n:
-            raise ModelError(f"link body {k} does not exist; bodies are 1..{n}.")
-    if spec.link in ("paper", "rfcm") and robot.self_weight is None:
-        raise ModelError(
-            f"{robot.name} has no self_weight section; link self-weight terms need one."
-        )

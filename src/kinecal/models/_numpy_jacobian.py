@@ -54,23 +54,8 @@ def jacobian(
     alloc : callable
         Storage of the result, from its shape (every entry is written).
     """
-    spec = defn.spec
-    p, inputs = fw.params, fw.inputs
-    N, n = inputs.q_ctrl.shape
-    ntm_bases, fr0, fr, p_load, tau, link_T, g = (
-        fw.ntm_bases,
-        fw.fr0,
-        fw.fr,
-        fw.p_load,
-        fw.tau,
-        fw.link_T,
-        fw.g,
-    )
-    t_b, p_u, p_cam_fl = fw.t_base, fw.p_u, fw.p_cam_fl
-    R_fl = fr.cols[n]
-    single_s, single_m = len(spec.sets) == 1, len(spec.markers) == 1
-    si, mi = inputs.set_index, inputs.marker_index
-
+    N, n = fw.inputs.q_ctrl.shape
+    fr = fw.fr
     # Columns (user frame), position rows 0:3 and rotation rows 3:6, stored
     # parameter-major: every column of every component is a contiguous row.
     P = defn.size
@@ -79,13 +64,29 @@ def jacobian(
     # Every row is assigned below; only the parts no term writes are zeroed.
     Jb = alloc((P + K, c, N))
     Z = fr.cols[:n, 2]  # (n, 3, N): joint i + 1 turns about z_i
-    rot_cols = vcross(Z, p_u - fr.origin[:n])  # rotation about z_i
+    rot_cols = vcross(Z, fw.p_u - fr.origin[:n])  # rotation about z_i
     G = joint_columns(defn, Z, rot_cols, orientation)  # d output / d theta_i
+    _joint_rows(defn, fw, Jb, Z, rot_cols, orientation)
+    _cam_rows(defn, fw, Jb, orientation)
+    _angle_terms(defn, fw, Jb, G, products)
+    _base_rows(defn, fw, Jb, orientation)
+    return Jb
+
+
+def _joint_rows(
+    defn: ModelDefinition,
+    fw: ForwardState,
+    Jb: Float,
+    Z: Float,
+    rot_cols: Float,
+    orientation: bool,
+) -> None:
+    """Joint rows (Eq. 10): a turn about z_i, a slide along z_i or x_i, a turn about x_i
+    (or y_i for a Hayati beta), each moving the point and every frame after the row."""
+    fr, p_u = fw.fr, fw.p_u
     ax = fr.a_dir
     alpha_cols = vcross(ax, p_u - fr.origin[1:])
-    # Joint rows (Eq. 10): a turn about z_i, a slide along z_i or x_i, a turn about x_i
-    # (or y_i for a Hayati beta), each moving the point and every frame after the row.
-    for i in range(n):
+    for i in range(fw.inputs.q_ctrl.shape[1]):
         idx = defn.row_idx[i]
         if idx[OFF] >= 0:
             Jb[idx[OFF], :3] = rot_cols[i]
@@ -107,9 +108,16 @@ def jacobian(
             if orientation:
                 Jb[idx[BETA], 3:] = y_i
 
-    # Cam frame parameters (Eq. 9), per marker.
-    rel_cam = rotate(R_fl, p_cam_fl)
-    cam_axes = defn.cam_axes(p) if spec.cam_rotation else None
+
+def _cam_rows(
+    defn: ModelDefinition, fw: ForwardState, Jb: Float, orientation: bool
+) -> None:
+    """Cam frame parameters (Eq. 9), per marker."""
+    spec, n = defn.spec, fw.inputs.q_ctrl.shape[1]
+    R_fl = fw.fr.cols[n]
+    single_m, mi = len(spec.markers) == 1, fw.inputs.marker_index
+    rel_cam = rotate(R_fl, fw.p_cam_fl)
+    cam_axes = defn.cam_axes(fw.params) if spec.cam_rotation else None
     for m in range(len(spec.markers)):
         mask = 1.0 if single_m else (mi == m).astype(np.float64)
         cols = defn.cam_idx[m]
@@ -122,13 +130,19 @@ def jacobian(
             if orientation:
                 Jb[cols[3:], 3:] = ax_b * mask
 
-    # Parameters acting through the joint angles (Eq. 14, 21-26): J(theta) times the
-    # derivative of the angle, plus the torques' dependence on the geometry.
+
+def _angle_terms(
+    defn: ModelDefinition, fw: ForwardState, Jb: Float, G: Float, products: bool
+) -> None:
+    """Parameters acting through the joint angles (Eq. 14, 21-26): J(theta) times the
+    derivative of the angle, plus the torques' dependence on the geometry."""
+    spec, p, P = defn.spec, fw.params, defn.size
     turns: dict[int, Float] = {}
     if spec.load:
+        fr0, p_load, tau, link_T = fw.fr0, fw.p_load, fw.tau, fw.link_T
         assert fr0 is not None and p_load is not None and tau is not None
         H = G * p[defn.lam_idx, None, None]  # lambda* d output / d theta
-        turns = _add_torque_geometry(defn, p, inputs, fr0, p_load, g, H, Jb)
+        turns = _add_torque_geometry(defn, p, fw.inputs, fr0, p_load, fw.g, H, Jb)
         Jb[defn.lam_idx] = G * tau[:, None, :]  # Eq. (24)
         if link_T is not None:
             # d output / d s_k = sum_j H_j link_T[j, k] over the pattern's joints (Eq. 26)
@@ -143,10 +157,16 @@ def jacobian(
     for k, j in enumerate(spec.ntm_joints):
         sl = slice(defn.ntm_start + k * nb, defn.ntm_start + (k + 1) * nb)
         d_turn = G[j - 1] + turns[j] if j in turns else G[j - 1]
-        Jb[sl] = d_turn * ntm_bases[k][:, None, :]  # Eq. (14), (17)
+        Jb[sl] = d_turn * fw.ntm_bases[k][:, None, :]  # Eq. (14), (17)
 
-    # User frame parameters (Eq. 8), per set.
-    base_axes = defn.base_axes(p)
+
+def _base_rows(
+    defn: ModelDefinition, fw: ForwardState, Jb: Float, orientation: bool
+) -> None:
+    """User frame parameters (Eq. 8), per set."""
+    spec, N = defn.spec, fw.inputs.q_ctrl.shape[0]
+    single_s, si = len(spec.sets) == 1, fw.inputs.set_index
+    base_axes = defn.base_axes(fw.params)
     for k_set in range(len(spec.sets)):
         mask = np.ones(N) if single_s else (si == k_set).astype(np.float64)
         cols = defn.base_idx[k_set]
@@ -154,11 +174,10 @@ def jacobian(
         for k in range(3):
             Jb[cols[k], k] = mask
         axes = base_axes[k_set]
-        rel = (p_u - t_b[k_set][:, None]) * mask
+        rel = (fw.p_u - fw.t_base[k_set][:, None]) * mask
         Jb[cols[3:], :3] = vcross(axes.T[:, :, None], rel)
         if orientation:
             Jb[cols[3:], 3:] = axes.T[:, :, None] * mask
-    return Jb
 
 
 def _add_torque_geometry(

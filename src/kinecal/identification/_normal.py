@@ -1,0 +1,72 @@
+"""The normal equations of the Levenberg-Marquardt solver (:mod:`._lm`): of a held
+Jacobian, or those a Jacobian evaluated by blocks of poses gives."""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from kinecal.typing import Float
+
+__all__ = ["NormalSource", "normal_equations", "normal_of"]
+
+
+class NormalSource(Protocol):
+    """A Jacobian that gives its normal equations without being held
+    (:class:`~kinecal.measurement._blocks.BlockJacobian`)."""
+
+    def normal(
+        self, cols: np.ndarray, scales: Float, row_weights: Float | None = None
+    ) -> tuple[Float, Float]: ...
+
+
+def normal_of(
+    r: Float,
+    J: Float | NormalSource,
+    cols: np.ndarray,
+    scales: Float,
+    row_weights: Float | None = None,
+) -> tuple[Float, Float]:
+    """:func:`normal_equations` of a held Jacobian, or those a block-wise one gives."""
+    if isinstance(J, np.ndarray):
+        return normal_equations(r, J, cols, scales, row_weights)
+    return J.normal(cols, scales, row_weights)
+
+
+def normal_equations(
+    r: Float,
+    J: Float,
+    cols: np.ndarray,
+    scales: Float,
+    row_weights: Float | None = None,
+) -> tuple[Float, Float]:
+    """``(Jsᵀ Js, Jsᵀ r)`` for the columns ``cols`` of J in scaled units.
+
+    ``Js = J[:, :, cols] · scales`` with the rows of sample i multiplied by
+    ``row_weights[i]`` (the square roots of robust weights) when given.
+
+    Parameters
+    ----------
+    r : (N, c) residual rows.
+    J : (N, c, P') Jacobian, any memory layout. The model's own (a view of a
+        parameter-major (P', c, N) array) gives one product of contiguous rows over the
+        span of ``cols``, with no copy for unweighted rows.
+    cols : (k,) column indices.
+    scales : (k,) characteristic size of each selected column.
+    row_weights : (N,), optional.
+    """
+    cols = np.asarray(cols, dtype=np.intp)
+    if cols.size == 0:
+        return np.zeros((0, 0)), np.zeros(0)
+    lo, hi = int(cols.min()), int(cols.max()) + 1
+    X = J.transpose(2, 1, 0)[lo:hi]  # (span, c, N), rows in (component, sample) order
+    rt = r.T
+    if row_weights is not None:
+        X = X * row_weights
+        rt = rt * row_weights
+    Xm = X.reshape(hi - lo, -1)
+    A = Xm @ Xm.T
+    g = Xm @ rt.reshape(-1)
+    sel = cols - lo
+    return A[np.ix_(sel, sel)] * np.outer(scales, scales), g[sel] * scales
