@@ -8,9 +8,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinecal.identification._lm import loss_weights, psd_inverse
+from kinecal.identification._priors import (
+    evidence_factors,
+    evidence_group,
+    evidence_tuned,
+)
 from kinecal.identification._problem import Problem, State
 from kinecal.measurement._diagnostics import Diagnostic
 from kinecal.measurement._residuals import ResidualBlock
+from kinecal.models import CalibrationModel
 from kinecal.typing import Float
 
 __all__ = ["Uncertainty"]
@@ -40,24 +46,29 @@ class Uncertainty:
         )
         A = A + np.diag(prec)
         cov = np.zeros((cm.size, cm.size))
-        jack = None
         found = []
         try:
             Ai = psd_inverse(A, 1e-14)
+            # The posterior covariance in two parts (Eq. (T-3c)): what the data leave,
+            # Ai (J^T W J) Ai, and what the prior holds, Ai P Ai.
             if state.noise is None:
-                cov_f = sigma0**2 * Ai  # Eq. (T-3)
+                data = sigma0**2 * (Ai @ (A - np.diag(prec)) @ Ai)  # Eq. (T-3)
+                held = sigma0**2 * (Ai * prec) @ Ai
             else:
                 # The data are weighed otherwise than their noise (orientations
                 # down-weighted): the sandwich A^-1 (J^T W S W J + P) A^-1 with the noise S.
-                meat = _meat(blk, fidx, scales, state)
-                cov_f = Ai @ (meat + np.diag(prec)) @ Ai
-            jack = _jackknife(problem, blk, fidx, scales, wr, Ai)
-            if jack is not None:  # never below the spread over left-out poses
-                sd = np.sqrt(np.clip(np.diag(cov_f), 0.0, None))
-                wide = np.maximum(sd, np.sqrt(jack))
-                ratio = np.divide(wide, sd, out=np.ones_like(sd), where=sd > 0)
-                cov_f = cov_f * np.outer(ratio, ratio)
+                data = Ai @ _meat(blk, fidx, scales, state) @ Ai
+                held = (Ai * prec) @ Ai
+            jack = _evidence_jackknife(problem, state, blk, fidx, scales, wr)
+            if jack is None:
+                jack = _jackknife(problem, blk, fidx, scales, wr, Ai)
+            if jack is not None:  # the data's part never below the jackknife's
+                data = _widen(data, jack)
+            cov_f = data + held
             cov[np.ix_(fidx, fidx)] = cov_f * np.outer(scales, scales)
+            found += _prior_dominated(
+                cm, fidx, np.diag(held), np.diag(cov_f), self.name
+            )
         except np.linalg.LinAlgError:
             found.append(
                 Diagnostic(
@@ -73,6 +84,107 @@ class Uncertainty:
 
 # The jackknife over left-out poses runs up to this many poses (one small solve each).
 _JACKKNIFE_POSES = 5000
+# ... and chooses the prior scales by evidence again for each left-out pose up to this
+# many poses (about 60 small factorisations each; beyond, one pose hardly moves them).
+_EVIDENCE_JACKKNIFE_POSES = 200
+
+
+def _prior_dominated(
+    cm: CalibrationModel, fidx: np.ndarray, held: Float, total: Float, stage: str
+) -> list[Diagnostic]:
+    """``prior_dominated``: the parameters whose variance is more their prior's part
+    than the data's (Eq. (T-3c)); the spread of their estimates over left-out poses
+    cannot show their uncertainty (every refit is held alike)."""
+    share = np.divide(held, total, out=np.zeros_like(held), where=total > 0)
+    weak = [cm.layout.names[i] for i in fidx[share > 0.5]]
+    if not weak:
+        return []
+    return [
+        Diagnostic(
+            "prior_dominated",
+            f"{len(weak)} parameters are determined mostly by their prior, "
+            f"not by the data: {', '.join(weak[:8])}"
+            + (" ..." if len(weak) > 8 else "")
+            + ".",
+            parameters=tuple(weak),
+            stage=stage,
+        )
+    ]
+
+
+def _evidence_jackknife(
+    problem: Problem,
+    state: State,
+    blk: ResidualBlock,
+    fidx: np.ndarray,
+    scales: Float,
+    wr: Float,
+) -> Float | None:
+    """The jackknife variance over left-out poses (Eq. (T-3b)) with the prior scales
+    chosen by evidence again without each pose (:func:`evidence_factors`, as the fit
+    without it would choose them): a pose whose absence switches terms on or off shows
+    in the spread. Each fit without pose g is the Gauss-Newton step from the solution
+    on the downdated normal equations with that pose's priors. None where the evidence
+    did not scale the priors, or fewer than 10 or more than
+    :data:`_EVIDENCE_JACKKNIFE_POSES` poses."""
+    prior = state.active_prior()
+    meas = problem.meas
+    if (
+        prior is None
+        or not state.prior_factors
+        or not problem.options.adapt_priors
+        or meas.n != blk.r.shape[0]
+    ):
+        return None
+    g = meas.pose_groups()
+    G = int(g.max()) + 1 if g.size else 0
+    if not 10 <= G <= _EVIDENCE_JACKKNIFE_POSES:
+        return None
+    groups = np.array([evidence_group(state.model.layout.specs[i]) for i in fidx])
+    now = np.array([state.prior_factors.get(str(grp), 1.0) for grp in groups])
+    base = prior.sigma[fidx] / now  # the priors before the evidence scaled them
+    tune = evidence_tuned(groups, base)
+    if not tune:
+        return None
+    sw = np.sqrt(wr)[:, None]
+    r = blk.r * sw
+    k = fidx.size
+    JJ = np.zeros((G, k, k))
+    Jr = np.zeros((G, k))
+    for rows, J in blk.jacobian_blocks():  # (held, or by blocks for large data)
+        Js = J[:, :, fidx] * scales * sw[rows, :, None]  # whitened, scaled
+        np.add.at(JJ, g[rows], np.einsum("nck,ncl->nkl", Js, Js))
+        np.add.at(Jr, g[rows], np.einsum("nck,nc->nk", Js, r[rows]))
+    rr = np.bincount(g, np.sum(r**2, axis=1), minlength=G)
+    xs = (state.x[fidx] - prior.mean[fidx]) / scales
+    # without pose g: J^T J, J^T r, and b = r + J (m - x) about the prior mean
+    JtJ = JJ.sum(axis=0) - JJ
+    Jtr = Jr.sum(axis=0) - Jr
+    JJx = JtJ @ xs
+    Jtb = Jtr - JJx
+    btb = (rr.sum() - rr) - 2.0 * (Jtr @ xs) + JJx @ xs
+    if state.noise_estimated:
+        # The fit without pose g estimates the noise without it (Helmert, on the
+        # residuals): its data weigh sigma^2 / sigma_g^2 as much against the priors.
+        m = r.size
+        mg = np.bincount(g, minlength=G) * r.shape[1]
+        c = (rr.sum() / max(m - k, 1)) / ((rr.sum() - rr) / np.maximum(m - mg - k, 1))
+        JtJ, Jtr = JtJ * c[:, None, None], Jtr * c[:, None]
+        Jtb, btb = Jtb * c[:, None], btb * c
+    finite = np.isfinite(base)
+    base_var = np.where(finite, (base / scales) ** 2, 1e8)
+    factors = evidence_factors(JtJ, Jtb, btb, base_var, groups, tune)  # (G, T)
+    var = np.broadcast_to(base_var, (G, k)).copy()
+    for j, grp in enumerate(tune):
+        var[:, groups == grp] *= (factors[:, j] ** 2)[:, None]
+    prec = np.where(finite, 1.0 / var, 0.0)
+    M = JtJ + prec[:, :, None] * np.eye(k)
+    try:
+        d = -np.linalg.solve(M, (Jtr + prec * xs)[..., None])[..., 0]
+    except np.linalg.LinAlgError:  # a pose the others cannot do without
+        return None
+    d -= d.mean(axis=0)
+    return (G - 1) / G * (d.T @ d)
 
 
 def _jackknife(
@@ -119,7 +231,25 @@ def _jackknife(
         return None
     d = np.concatenate(parts)
     d -= d.mean(axis=0)
-    return (G - 1) / G * np.sum(d**2, axis=0)
+    return (G - 1) / G * (d.T @ d)
+
+
+def _widen(C: Float, Cj: Float) -> Float:
+    """The smallest widening of the covariance ``C`` that is at least the jackknife's
+    ``Cj`` in every direction (Eq. (T-3b)): with ``C = L Lᵀ`` and the eigenvectors ``V``
+    and values ``l`` of ``L⁻¹ Cj L⁻ᵀ``, ``L V max(l, 1) Vᵀ Lᵀ``. Combinations of the
+    parameters the jackknife finds no worse keep the variance of ``C`` (a predicted
+    position does not inherit the spread of two correlated parameters that move
+    together); the result does not depend on the parameters' units."""
+    k = C.shape[0]
+    if k == 0:
+        return C
+    reg = 1e-9 * (np.diag(C) + max(float(np.trace(C)) / k, 1e-300))
+    L = np.linalg.cholesky(C + np.diag(reg))
+    M = np.linalg.solve(L, np.linalg.solve(L, Cj).T)
+    lam, V = np.linalg.eigh(0.5 * (M + M.T))
+    W = L @ V
+    return (W * np.maximum(lam, 1.0)) @ W.T
 
 
 def _steps(Js: Float, r: Float, g: np.ndarray, Ai: Float) -> Float:
