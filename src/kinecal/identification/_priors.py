@@ -29,14 +29,7 @@ from kinecal.measurement._diagnostics import Diagnostic
 from kinecal.models import CalibrationModel, ParamSpec
 from kinecal.typing import Float
 
-__all__ = [
-    "EvidencePriors",
-    "Priors",
-    "build_prior",
-    "evidence_factors",
-    "evidence_group",
-    "evidence_tuned",
-]
+__all__ = ["EvidencePriors", "Priors", "build_prior", "evidence_group"]
 
 log = logging.getLogger(__name__)
 
@@ -213,7 +206,11 @@ def evidence_prior(
     cm, x, lm = state.model, state.x, state.lm
     fidx = np.flatnonzero(state.free)
     groups = np.array([evidence_group(sp) for sp in (cm.layout.specs[i] for i in fidx)])
-    tune = evidence_tuned(groups, prior.sigma[fidx])
+    tune = [
+        g
+        for g in _EVIDENCE_GROUPS
+        if np.any((groups == g) & np.isfinite(prior.sigma[fidx]))
+    ]
     if not tune:
         return prior, {}
     blk = problem.evaluations(cm, x, state.weights, jacobian=True)
@@ -227,92 +224,58 @@ def evidence_prior(
     base_var = np.where(
         np.isfinite(prior.sigma[fidx]), (prior.sigma[fidx] / sc) ** 2, 1e8
     )
-    found = evidence_factors(
-        JtJ[None], Jtb[None], np.array([btb]), base_var, groups, tune
-    )
-    factors = {g: float(f) for g, f in zip(tune, found[0], strict=True)}
+
+    def log_evidence(var: Float) -> list[float]:
+        # Eq. (T-9): -1/2 (b^T (I + J S J^T)^-1 b + log det(I + J S J^T)), by Woodbury,
+        # for a stack of candidate variances (K, n): the factorisations and solves in
+        # one call each (LAPACK on each matrix as alone: the same numbers), the sums
+        # per candidate as before.
+        M = JtJ + (1.0 / var)[:, :, None] * eye
+        try:
+            L = np.linalg.cholesky(M)
+        except np.linalg.LinAlgError:  # one of them failed: each alone
+            return [_one(m, v) for m, v in zip(M, var)]
+        Y = np.linalg.solve(L, np.broadcast_to(Jtb[:, None], (len(var), Jtb.size, 1)))
+        return [_value(y[:, 0], lk, v) for y, lk, v in zip(Y, L, var)]
+
+    def _value(y: np.ndarray, L: np.ndarray, var: np.ndarray) -> float:
+        quad = btb - float(y @ y)
+        logdet = float(np.sum(np.log(var))) + 2.0 * float(np.sum(np.log(np.diag(L))))
+        return -0.5 * (quad + logdet)
+
+    def _one(M: Float, var: Float) -> float:
+        try:
+            L = np.linalg.cholesky(M)
+        except np.linalg.LinAlgError:
+            return -np.inf
+        return _value(np.linalg.solve(L, Jtb), L, var)
+
+    eye = np.eye(fidx.size)
+    factors = {g: 1.0 for g in tune}
+
+    def variance(change: dict[str, float] | None = None) -> Float:
+        v = base_var.copy()
+        for g, f in {**factors, **(change or {})}.items():
+            v[groups == g] *= f * f
+        return v
+
+    for _ in range(2):  # coordinate ascent
+        for g in tune:
+            cands = _GEOMETRY_FACTORS if g.startswith("joint") else _EVIDENCE_FACTORS
+            le = log_evidence(
+                np.array([variance()] + [variance({g: f}) for f in cands])
+            )
+            best = (le[0], factors[g])
+            for f, value in zip(cands, le[1:]):
+                if value > best[0] + 1e-9:
+                    best = (value, f)
+            factors[g] = best[1]
     sigma = prior.sigma.copy()
     all_groups = np.array([evidence_group(sp) for sp in cm.layout.specs])
     for g, f in factors.items():
         sel = (all_groups == g) & np.isfinite(sigma)
         sigma[sel] *= f
     return Prior(prior.mean, sigma), factors
-
-
-def evidence_tuned(groups: np.ndarray, sigma: Float) -> list[str]:
-    """The groups whose prior scale the evidence tunes, in the order of the ascent:
-    those of :func:`evidence_group` ``groups`` with a finite prior ``sigma``."""
-    return [g for g in _EVIDENCE_GROUPS if np.any((groups == g) & np.isfinite(sigma))]
-
-
-def evidence_factors(
-    JtJ: Float,
-    Jtb: Float,
-    btb: Float,
-    base_var: Float,
-    groups: np.ndarray,
-    tune: list[str],
-) -> Float:
-    """The prior scale of each group in ``tune`` by maximum evidence (Eq. (T-9)), for a
-    batch of data sets given by their normal equations about the prior mean: ``JtJ``
-    (B, k, k), ``Jtb`` (B, k), ``btb`` (B,) (whitened, scaled), ``base_var`` (k,) the
-    prior variances before scaling (a very wide one for parameters without a prior),
-    ``groups`` (k,) each parameter's :func:`evidence_group`. Coordinate ascent over the
-    groups from scale 1, twice; each data set of the batch independently (the leave-one-
-    pose-out jackknife asks for one per pose). Returns (B, len(tune)) scales."""
-    B, k = Jtb.shape
-    eye = np.eye(k)
-    factors = np.ones((B, len(tune)))
-    masks = [groups == g for g in tune]
-
-    def variance(f: Float) -> Float:  # (..., len(tune)) -> (..., k)
-        v = np.broadcast_to(base_var, (*f.shape[:-1], k)).copy()
-        for j, m in enumerate(masks):
-            v[..., m] *= (f[..., j] ** 2)[..., None]
-        return v
-
-    for _ in range(2):  # coordinate ascent
-        for j, g in enumerate(tune):
-            cands = _GEOMETRY_FACTORS if g.startswith("joint") else _EVIDENCE_FACTORS
-            trial = np.repeat(factors[:, None, :], 1 + len(cands), axis=1)
-            trial[:, 1:, j] = cands
-            le = _log_evidence(JtJ, Jtb, btb, variance(trial), eye)  # (B, 1 + n)
-            best_v, best_f = le[:, 0].copy(), factors[:, j].copy()
-            for c, f in enumerate(cands, start=1):
-                up = le[:, c] > best_v + 1e-9
-                best_v[up], best_f[up] = le[up, c], f
-            factors[:, j] = best_f
-    return factors
-
-
-def _log_evidence(JtJ: Float, Jtb: Float, btb: Float, var: Float, eye: Float) -> Float:
-    """Eq. (T-9): -1/2 (b^T (I + J S J^T)^-1 b + log det(I + J S J^T)), by Woodbury, for
-    each data set b of the batch and each of its candidate variances ``var`` (B, K, k):
-    the factorisations and solves in one call each (LAPACK on each matrix as alone: the
-    same numbers); -inf where a factorisation fails."""
-    B, K, k = var.shape
-    M = JtJ[:, None] + (1.0 / var)[..., None] * eye  # (B, K, k, k)
-    rhs = np.broadcast_to(Jtb[:, None, :, None], (B, K, k, 1))
-    try:
-        L = np.linalg.cholesky(M)
-        Y = np.linalg.solve(L, rhs)[..., 0]
-        ok = np.ones((B, K), bool)
-    except np.linalg.LinAlgError:  # one of them failed: each alone
-        L = np.zeros_like(M)
-        Y = np.zeros((B, K, k))
-        ok = np.zeros((B, K), bool)
-        for b, c in np.ndindex(B, K):
-            try:
-                L[b, c] = np.linalg.cholesky(M[b, c])
-            except np.linalg.LinAlgError:
-                continue
-            Y[b, c] = np.linalg.solve(L[b, c], Jtb[b])
-            ok[b, c] = True
-    quad = btb[:, None] - np.einsum("bck,bck->bc", Y, Y)
-    diag = np.diagonal(L, axis1=-2, axis2=-1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        logdet = np.sum(np.log(var), axis=-1) + 2.0 * np.sum(np.log(diag), axis=-1)
-    return np.where(ok, -0.5 * (quad + logdet), -np.inf)
 
 
 def evidence_group(spec: ParamSpec) -> str:

@@ -8,11 +8,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinecal.identification._lm import loss_weights, psd_inverse
-from kinecal.identification._priors import (
-    evidence_factors,
-    evidence_group,
-    evidence_tuned,
-)
 from kinecal.identification._problem import Problem, State
 from kinecal.measurement._diagnostics import Diagnostic
 from kinecal.measurement._residuals import ResidualBlock
@@ -59,12 +54,10 @@ class Uncertainty:
                 # down-weighted): the sandwich A^-1 (J^T W S W J + P) A^-1 with the noise S.
                 data = Ai @ _meat(blk, fidx, scales, state) @ Ai
                 held = (Ai * prec) @ Ai
-            jack = _evidence_jackknife(problem, state, blk, fidx, scales, wr)
-            if jack is None:
-                jack = _jackknife(problem, blk, fidx, scales, wr, Ai)
-            if jack is not None:  # the data's part never below the jackknife's
-                data = _widen(data, jack)
             cov_f = data + held
+            jack = _jackknife(problem, blk, fidx, scales, wr, Ai)
+            if jack is not None:  # never below the jackknife where it is clearly above
+                cov_f = _widen(cov_f, *jack)
             cov[np.ix_(fidx, fidx)] = cov_f * np.outer(scales, scales)
             found += _prior_dominated(
                 cm, fidx, np.diag(held), np.diag(cov_f), self.name
@@ -84,9 +77,6 @@ class Uncertainty:
 
 # The jackknife over left-out poses runs up to this many poses (one small solve each).
 _JACKKNIFE_POSES = 5000
-# ... and chooses the prior scales by evidence again for each left-out pose up to this
-# many poses (about 60 small factorisations each; beyond, one pose hardly moves them).
-_EVIDENCE_JACKKNIFE_POSES = 200
 
 
 def _prior_dominated(
@@ -112,81 +102,6 @@ def _prior_dominated(
     ]
 
 
-def _evidence_jackknife(
-    problem: Problem,
-    state: State,
-    blk: ResidualBlock,
-    fidx: np.ndarray,
-    scales: Float,
-    wr: Float,
-) -> Float | None:
-    """The jackknife variance over left-out poses (Eq. (T-3b)) with the prior scales
-    chosen by evidence again without each pose (:func:`evidence_factors`, as the fit
-    without it would choose them): a pose whose absence switches terms on or off shows
-    in the spread. Each fit without pose g is the Gauss-Newton step from the solution
-    on the downdated normal equations with that pose's priors. None where the evidence
-    did not scale the priors, or fewer than 10 or more than
-    :data:`_EVIDENCE_JACKKNIFE_POSES` poses."""
-    prior = state.active_prior()
-    meas = problem.meas
-    if (
-        prior is None
-        or not state.prior_factors
-        or not problem.options.adapt_priors
-        or meas.n != blk.r.shape[0]
-    ):
-        return None
-    g = meas.pose_groups()
-    G = int(g.max()) + 1 if g.size else 0
-    if not 10 <= G <= _EVIDENCE_JACKKNIFE_POSES:
-        return None
-    groups = np.array([evidence_group(state.model.layout.specs[i]) for i in fidx])
-    now = np.array([state.prior_factors.get(str(grp), 1.0) for grp in groups])
-    base = prior.sigma[fidx] / now  # the priors before the evidence scaled them
-    tune = evidence_tuned(groups, base)
-    if not tune:
-        return None
-    sw = np.sqrt(wr)[:, None]
-    r = blk.r * sw
-    k = fidx.size
-    JJ = np.zeros((G, k, k))
-    Jr = np.zeros((G, k))
-    for rows, J in blk.jacobian_blocks():  # (held, or by blocks for large data)
-        Js = J[:, :, fidx] * scales * sw[rows, :, None]  # whitened, scaled
-        np.add.at(JJ, g[rows], np.einsum("nck,ncl->nkl", Js, Js))
-        np.add.at(Jr, g[rows], np.einsum("nck,nc->nk", Js, r[rows]))
-    rr = np.bincount(g, np.sum(r**2, axis=1), minlength=G)
-    xs = (state.x[fidx] - prior.mean[fidx]) / scales
-    # without pose g: J^T J, J^T r, and b = r + J (m - x) about the prior mean
-    JtJ = JJ.sum(axis=0) - JJ
-    Jtr = Jr.sum(axis=0) - Jr
-    JJx = JtJ @ xs
-    Jtb = Jtr - JJx
-    btb = (rr.sum() - rr) - 2.0 * (Jtr @ xs) + JJx @ xs
-    if state.noise_estimated:
-        # The fit without pose g estimates the noise without it (Helmert, on the
-        # residuals): its data weigh sigma^2 / sigma_g^2 as much against the priors.
-        m = r.size
-        mg = np.bincount(g, minlength=G) * r.shape[1]
-        c = (rr.sum() / max(m - k, 1)) / ((rr.sum() - rr) / np.maximum(m - mg - k, 1))
-        JtJ, Jtr = JtJ * c[:, None, None], Jtr * c[:, None]
-        Jtb, btb = Jtb * c[:, None], btb * c
-    finite = np.isfinite(base)
-    base_var = np.where(finite, (base / scales) ** 2, 1e8)
-    factors = evidence_factors(JtJ, Jtb, btb, base_var, groups, tune)  # (G, T)
-    var = np.broadcast_to(base_var, (G, k)).copy()
-    for j, grp in enumerate(tune):
-        var[:, groups == grp] *= (factors[:, j] ** 2)[:, None]
-    prec = np.where(finite, 1.0 / var, 0.0)
-    M = JtJ + prec[:, :, None] * np.eye(k)
-    try:
-        d = -np.linalg.solve(M, (Jtr + prec * xs)[..., None])[..., 0]
-    except np.linalg.LinAlgError:  # a pose the others cannot do without
-        return None
-    d -= d.mean(axis=0)
-    return (G - 1) / G * (d.T @ d)
-
-
 def _jackknife(
     problem: Problem,
     blk: ResidualBlock,
@@ -194,12 +109,14 @@ def _jackknife(
     scales: Float,
     wr: Float,
     Ai: Float,
-) -> Float | None:
-    """The jackknife variance of each free parameter (scaled units) over left-out poses:
+) -> tuple[Float, int] | None:
+    """The jackknife covariance of the free parameters (scaled units) over left-out poses
+    and the number of poses G:
     the fit without pose g one Gauss-Newton step from the solution on the downdated
     normal equations, ``d_g = (A - J_g^T J_g)^-1 J_g^T r_g`` (Woodbury with ``A^-1``),
-    and ``(G-1)/G sum (d_g - mean d)^2``. It sees what the row-by-row covariance does not:
-    residuals of a pose that move together (several markers), effects the model lacks.
+    and ``(G-1)/G sum (d_g - mean d)(d_g - mean d)^T``. It sees what the row-by-row
+    covariance does not: residuals of a pose that move together (several markers),
+    effects the model lacks.
     None where it is not formed: fewer than 10 or more than :data:`_JACKKNIFE_POSES`
     poses, or the rows of a pose not next to each other in the data."""
     meas = problem.meas
@@ -231,16 +148,18 @@ def _jackknife(
         return None
     d = np.concatenate(parts)
     d -= d.mean(axis=0)
-    return (G - 1) / G * (d.T @ d)
+    return (G - 1) / G * (d.T @ d), G
 
 
-def _widen(C: Float, Cj: Float) -> Float:
-    """The smallest widening of the covariance ``C`` that is at least the jackknife's
-    ``Cj`` in every direction (Eq. (T-3b)): with ``C = L Lᵀ`` and the eigenvectors ``V``
-    and values ``l`` of ``L⁻¹ Cj L⁻ᵀ``, ``L V max(l, 1) Vᵀ Lᵀ``. Combinations of the
-    parameters the jackknife finds no worse keep the variance of ``C`` (a predicted
-    position does not inherit the spread of two correlated parameters that move
-    together); the result does not depend on the parameters' units."""
+def _widen(C: Float, Cj: Float, G: int) -> Float:
+    """The covariance ``C`` widened to the jackknife's ``Cj`` (from ``G`` poses) in the
+    directions where ``Cj`` is clearly larger (Eq. (T-3d)). With ``C = L Lᵀ`` and the
+    eigenvectors ``V`` and values ``l`` of ``L⁻¹ Cj L⁻ᵀ``: ``L V l' Vᵀ Lᵀ`` with
+    ``l' = l`` beyond the largest value chance gives when ``C`` is right (the
+    Marchenko-Pastur edge ``(1 + sqrt(k / (G - 1)))²`` for k parameters), else 1.
+    Direction by direction, not parameter by parameter: two correlated parameters
+    widened alone by different factors would no longer cancel in a prediction. The
+    result does not depend on the parameters' units."""
     k = C.shape[0]
     if k == 0:
         return C
@@ -248,8 +167,11 @@ def _widen(C: Float, Cj: Float) -> Float:
     L = np.linalg.cholesky(C + np.diag(reg))
     M = np.linalg.solve(L, np.linalg.solve(L, Cj).T)
     lam, V = np.linalg.eigh(0.5 * (M + M.T))
+    edge = (1.0 + np.sqrt(k / max(G - 1, 1))) ** 2
+    if not np.any(lam > edge):
+        return C
     W = L @ V
-    return (W * np.maximum(lam, 1.0)) @ W.T
+    return (W * np.where(lam > edge, lam, 1.0)) @ W.T
 
 
 def _steps(Js: Float, r: Float, g: np.ndarray, Ai: Float) -> Float:
