@@ -164,9 +164,12 @@ def _widen(C: Float, Cj: Float, G: int) -> Float:
     if k == 0:
         return C
     reg = 1e-9 * (np.diag(C) + max(float(np.trace(C)) / k, 1e-300))
-    L = np.linalg.cholesky(C + np.diag(reg))
-    M = np.linalg.solve(L, np.linalg.solve(L, Cj).T)
-    lam, V = np.linalg.eigh(0.5 * (M + M.T))
+    try:
+        L = np.linalg.cholesky(C + np.diag(reg))
+        M = np.linalg.solve(L, np.linalg.solve(L, Cj).T)
+        lam, V = np.linalg.eigh(0.5 * (M + M.T))
+    except np.linalg.LinAlgError:  # C not positive definite: left as it is
+        return C
     edge = (1.0 + np.sqrt(k / max(G - 1, 1))) ** 2
     if not np.any(lam > edge):
         return C
