@@ -21,7 +21,9 @@ from kinecal.identification import (
     pose_features,
     select_model,
 )
+from kinecal.identification._select import Candidate, _choose
 from kinecal.io import read_measurements
+from kinecal.models import ModelSpec
 from kinecal.robot import load_robot
 from kinecal.simulation import LaserTracker, experiment2
 
@@ -96,24 +98,27 @@ REAL_SETS = {
     ["ur10e", *(pytest.param(n, marks=pytest.mark.slow) for n in ("fr3", "tiago"))],
 )
 def test_default_on_the_shipped_real_sets_five_fold(name):
-    """5-fold, the selection inside every fold: the default within 2 % of the better of
-    the kinematic and the full model (TIAGo: 4.332 against kinematic 4.276 mm; UR10e
-    equal to kinematic, FR3 better than both)."""
+    """5-fold, the selection inside every fold: the default no worse than the kinematic
+    model and within 2 % of the better of the kinematic and the full model (TIAGo: 4.276
+    mm, the kinematic model's, 4.332 with the rule on fold differences in mm; UR10e equal
+    to kinematic; FR3 1.184 against kinematic 1.247, full 1.178)."""
     f, rb = REAL_SETS[name]
     robot = load_robot(rb)
     meas = read_measurements(REAL / f, robot, check=False)
     got = _nested(robot, meas, 5)
     kin = cross_validate(robot, meas, "kinematic", k=5).rms_mm
     full = cross_validate(robot, meas, "full", k=5).rms_mm
+    assert got <= 1.001 * kin, (got, kin)
     assert got <= 1.02 * min(kin, full), (got, kin, full)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(REAL_SETS))
 def test_default_on_the_shipped_real_sets_leave_one_out(name):
-    """Leave one pose out (the selection inside every fold): within 2 % of the better
-    of kinematic and full (TIAGo 4.217 against kinematic 4.186 mm, FR3 1.168 against
-    full 1.153, UR10e equal to kinematic)."""
+    """Leave one pose out (the selection inside every fold): no worse than the kinematic
+    model (to 0.1 %) and within 2 % of the better of kinematic and full (TIAGo 4.187
+    against kinematic 4.186 mm, 4.217 with the rule on fold differences in mm; FR3
+    1.166 against full 1.153; UR10e equal to kinematic)."""
     f, rb = REAL_SETS[name]
     robot = load_robot(rb)
     meas = read_measurements(REAL / f, robot, check=False)
@@ -123,4 +128,48 @@ def test_default_on_the_shipped_real_sets_leave_one_out(name):
     got = _nested(robot, meas, poses)
     kin = cross_validate(robot, meas, "kinematic", k=poses).rms_mm
     full = cross_validate(robot, meas, "full", k=poses).rms_mm
+    assert got <= 1.001 * kin, (got, kin)
     assert got <= 1.02 * min(kin, full), (got, kin, full)
+
+
+def _table(folds: dict[str, list[float]]) -> list[Candidate]:
+    sizes = {"kinematic": 41, "ntm": 56, "full": 64}
+    return [
+        Candidate(
+            label,
+            ModelSpec(name=label),
+            1.0,
+            sizes[label],
+            float(np.sqrt(np.mean(np.square(f)))),
+            0.0,
+            0.0,
+            fold_rms_mm=tuple(f),
+        )
+        for label, f in folds.items()
+    ]
+
+
+def test_rule_weighs_every_region_alike():
+    """The selection table of one TIAGo fold (5 region folds, mm): the full model's gain
+    over the kinematic model is 1.9 paired standard errors in mm, most of it from the
+    hardest region (9.49 -> 7.78 mm), 1.7 in log ratios; the rule (1.75 standard
+    errors) keeps the kinematic model, which predicted the held-out poses better (4.78
+    against 5.00-5.02 mm). A gain that holds in every region is taken."""
+    folds = {
+        "kinematic": [3.5021, 6.2506, 9.4949, 2.8378, 3.3083],
+        "ntm": [3.4550, 5.9556, 8.0048, 2.6339, 3.3494],
+        "full": [3.4538, 5.8929, 7.7811, 2.6866, 3.3510],
+    }
+    kin, full = np.array(folds["kinematic"]), np.array(folds["full"])
+
+    def se(d):
+        return d.std(ddof=1) / np.sqrt(d.size)
+
+    rms = [float(np.sqrt(np.mean(x**2))) for x in (kin, full)]
+    ratio = np.log(kin / full)
+    assert (rms[0] - rms[1]) / se(kin - full) > 1.75  # in mm it would not be kept
+    assert ratio.mean() / se(ratio) < 1.75
+    assert _choose(_table(folds)).label == "kinematic"
+    better = {"kinematic": folds["kinematic"]}
+    better["full"] = [0.9 * x for x in folds["kinematic"]]
+    assert _choose(_table(better)).label == "full"

@@ -28,7 +28,9 @@ log = logging.getLogger(__name__)
 class Diagnose:
     """Findings about the solution: ``outliers`` (rows improbable under the noise of the
     others, by their file lines) or ``systematic_residuals`` (when the largest errors
-    follow the pose), ``prior_dominated``, ``loose_parameters`` and ``overfit_risk``."""
+    follow the pose), ``loose_parameters`` and ``overfit_risk`` (``prior_dominated``:
+    :class:`~kinecal.identification._uncertainty.Uncertainty`, from the prior's share of
+    each variance)."""
 
     name: str = "diagnose"
     settings: RejectSettings | None = None  # None: from the problem's options
@@ -51,26 +53,6 @@ class Diagnose:
             found.append(_outlier_diagnostic(problem, outliers, opts))
         fidx = np.flatnonzero(state.free)
         std = state.std if state.std is not None else np.full(cm.size, np.nan)
-        prior = state.active_prior()
-        if prior is not None:
-            # Terms the data barely inform: the posterior is (almost) the prior.
-            weak = [
-                cm.layout.names[i]
-                for i in fidx
-                if np.isfinite(prior.sigma[i]) and std[i] > 0.7 * prior.sigma[i]
-            ]
-            if weak:
-                found.append(
-                    Diagnostic(
-                        "prior_dominated",
-                        f"{len(weak)} parameters are determined mostly by their prior, "
-                        f"not by the data: {', '.join(weak[:8])}"
-                        + (" ..." if len(weak) > 8 else "")
-                        + ".",
-                        parameters=tuple(weak),
-                        stage=self.name,
-                    )
-                )
         assert state.prior is not None and state.x_registered is not None
         priors = self.priors or PriorSettings.of(problem.options)
         loose = _loose_parameters(state, std, fidx, priors)

@@ -11,6 +11,7 @@ from kinecal.identification._lm import loss_weights, psd_inverse
 from kinecal.identification._problem import Problem, State
 from kinecal.measurement._diagnostics import Diagnostic
 from kinecal.measurement._residuals import ResidualBlock
+from kinecal.models import CalibrationModel
 from kinecal.typing import Float
 
 __all__ = ["Uncertainty"]
@@ -40,24 +41,27 @@ class Uncertainty:
         )
         A = A + np.diag(prec)
         cov = np.zeros((cm.size, cm.size))
-        jack = None
         found = []
         try:
             Ai = psd_inverse(A, 1e-14)
+            # The posterior covariance in two parts (Eq. (T-3c)): what the data leave,
+            # Ai (J^T W J) Ai, and what the prior holds, Ai P Ai.
             if state.noise is None:
-                cov_f = sigma0**2 * Ai  # Eq. (T-3)
+                data = sigma0**2 * (Ai @ (A - np.diag(prec)) @ Ai)  # Eq. (T-3)
+                held = sigma0**2 * (Ai * prec) @ Ai
             else:
                 # The data are weighed otherwise than their noise (orientations
                 # down-weighted): the sandwich A^-1 (J^T W S W J + P) A^-1 with the noise S.
-                meat = _meat(blk, fidx, scales, state)
-                cov_f = Ai @ (meat + np.diag(prec)) @ Ai
+                data = Ai @ _meat(blk, fidx, scales, state) @ Ai
+                held = (Ai * prec) @ Ai
+            cov_f = data + held
             jack = _jackknife(problem, blk, fidx, scales, wr, Ai)
-            if jack is not None:  # never below the spread over left-out poses
-                sd = np.sqrt(np.clip(np.diag(cov_f), 0.0, None))
-                wide = np.maximum(sd, np.sqrt(jack))
-                ratio = np.divide(wide, sd, out=np.ones_like(sd), where=sd > 0)
-                cov_f = cov_f * np.outer(ratio, ratio)
+            if jack is not None:  # never below the jackknife where it is clearly above
+                cov_f = _widen(cov_f, *jack)
             cov[np.ix_(fidx, fidx)] = cov_f * np.outer(scales, scales)
+            found += _prior_dominated(
+                cm, fidx, np.diag(held), np.diag(cov_f), self.name
+            )
         except np.linalg.LinAlgError:
             found.append(
                 Diagnostic(
@@ -75,6 +79,29 @@ class Uncertainty:
 _JACKKNIFE_POSES = 5000
 
 
+def _prior_dominated(
+    cm: CalibrationModel, fidx: np.ndarray, held: Float, total: Float, stage: str
+) -> list[Diagnostic]:
+    """``prior_dominated``: the parameters whose variance is more their prior's part
+    than the data's (Eq. (T-3c)); the spread of their estimates over left-out poses
+    cannot show their uncertainty (every refit is held alike)."""
+    share = np.divide(held, total, out=np.zeros_like(held), where=total > 0)
+    weak = [cm.layout.names[i] for i in fidx[share > 0.5]]
+    if not weak:
+        return []
+    return [
+        Diagnostic(
+            "prior_dominated",
+            f"{len(weak)} parameters are determined mostly by their prior, "
+            f"not by the data: {', '.join(weak[:8])}"
+            + (" ..." if len(weak) > 8 else "")
+            + ".",
+            parameters=tuple(weak),
+            stage=stage,
+        )
+    ]
+
+
 def _jackknife(
     problem: Problem,
     blk: ResidualBlock,
@@ -82,12 +109,14 @@ def _jackknife(
     scales: Float,
     wr: Float,
     Ai: Float,
-) -> Float | None:
-    """The jackknife variance of each free parameter (scaled units) over left-out poses:
+) -> tuple[Float, int] | None:
+    """The jackknife covariance of the free parameters (scaled units) over left-out poses
+    and the number of poses G:
     the fit without pose g one Gauss-Newton step from the solution on the downdated
     normal equations, ``d_g = (A - J_g^T J_g)^-1 J_g^T r_g`` (Woodbury with ``A^-1``),
-    and ``(G-1)/G sum (d_g - mean d)^2``. It sees what the row-by-row covariance does not:
-    residuals of a pose that move together (several markers), effects the model lacks.
+    and ``(G-1)/G sum (d_g - mean d)(d_g - mean d)^T``. It sees what the row-by-row
+    covariance does not: residuals of a pose that move together (several markers),
+    effects the model lacks.
     None where it is not formed: fewer than 10 or more than :data:`_JACKKNIFE_POSES`
     poses, or the rows of a pose not next to each other in the data."""
     meas = problem.meas
@@ -119,7 +148,33 @@ def _jackknife(
         return None
     d = np.concatenate(parts)
     d -= d.mean(axis=0)
-    return (G - 1) / G * np.sum(d**2, axis=0)
+    return (G - 1) / G * (d.T @ d), G
+
+
+def _widen(C: Float, Cj: Float, G: int) -> Float:
+    """The covariance ``C`` widened to the jackknife's ``Cj`` (from ``G`` poses) in the
+    directions where ``Cj`` is clearly larger (Eq. (T-3d)). With ``C = L Lᵀ`` and the
+    eigenvectors ``V`` and values ``l`` of ``L⁻¹ Cj L⁻ᵀ``: ``L V l' Vᵀ Lᵀ`` with
+    ``l' = l`` beyond the largest value chance gives when ``C`` is right (the
+    Marchenko-Pastur edge ``(1 + sqrt(k / (G - 1)))²`` for k parameters), else 1.
+    Direction by direction, not parameter by parameter: two correlated parameters
+    widened alone by different factors would no longer cancel in a prediction. The
+    result does not depend on the parameters' units."""
+    k = C.shape[0]
+    if k == 0:
+        return C
+    reg = 1e-9 * (np.diag(C) + max(float(np.trace(C)) / k, 1e-300))
+    try:
+        L = np.linalg.cholesky(C + np.diag(reg))
+        M = np.linalg.solve(L, np.linalg.solve(L, Cj).T)
+        lam, V = np.linalg.eigh(0.5 * (M + M.T))
+    except np.linalg.LinAlgError:  # C not positive definite: left as it is
+        return C
+    edge = (1.0 + np.sqrt(k / max(G - 1, 1))) ** 2
+    if not np.any(lam > edge):
+        return C
+    W = L @ V
+    return (W * np.where(lam > edge, lam, 1.0)) @ W.T
 
 
 def _steps(Js: Float, r: Float, g: np.ndarray, Ai: Float) -> Float:
