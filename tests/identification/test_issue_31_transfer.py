@@ -21,7 +21,7 @@ from kinecal.identification import (
     pose_features,
     select_model,
 )
-from kinecal.identification._select import Candidate, _choose
+from kinecal.identification.selection._select import Candidate, choose_candidate
 from kinecal.io import read_measurements
 from kinecal.models import ModelSpec
 from kinecal.robot import load_robot
@@ -169,7 +169,7 @@ def test_rule_weighs_every_region_alike():
     ratio = np.log(kin / full)
     assert (rms[0] - rms[1]) / se(kin - full) > 1.75  # in mm it would not be kept
     assert ratio.mean() / se(ratio) < 1.75
-    assert _choose(_table(folds)).label == "kinematic"
+    assert choose_candidate(_table(folds)).label == "kinematic"
     better = {"kinematic": folds["kinematic"]}
     better["full"] = [0.9 * x for x in folds["kinematic"]]
-    assert _choose(_table(better)).label == "full"
+    assert choose_candidate(_table(better)).label == "full"

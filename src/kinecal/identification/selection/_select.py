@@ -50,6 +50,7 @@ __all__ = [
     "Candidate",
     "Selection",
     "candidate_specs",
+    "choose_candidate",
     "cross_validate_models",
     "select_model",
 ]
@@ -503,7 +504,7 @@ def select_model(
         prior_scales = (1.0,) if opts.adapt_priors else (0.3, 1.0, 3.0)
     if opts.priors != "none":  # the best layout with other prior strengths
         run([(best.label, best.spec, s) for s in prior_scales if s != 1.0])
-    chosen = _choose(cands)
+    chosen = choose_candidate(cands)
     spec = replace(chosen.spec, name=f"auto:{chosen.label}")
     sel = Selection(
         spec, chosen.prior_scale, cands, _warnings(cands), len(folds.test), shared
@@ -512,8 +513,9 @@ def select_model(
     return sel
 
 
-def _choose(cands: list[Candidate]) -> Candidate:
-    """The one-standard-error rule (see :func:`select_model`)."""
+def choose_candidate(cands: list[Candidate]) -> Candidate:
+    """The candidate the rule of :func:`select_model` chooses from a scored table
+    (marked ``chosen``)."""
     best = min(cands, key=lambda c: c.cv_rms_mm)
     eligible = [c for c in cands if _within_one_se(c, best)]
     # The smallest model; among equal sizes the strongest priors (the simplest fit).
