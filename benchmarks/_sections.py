@@ -331,10 +331,15 @@ def default_cv_case(b: Bench) -> None:
         base += ["--robot", "fanuc-lrmate200id", "--out", str(Path(tmp) / "o")]
         base += ["--force", "-q"]
         _run(base)  # warm-up
-        on, off = [], []
-        for _ in range(b.rep):
-            on.append(_median_time(lambda: _run(base), 1)[0])
-            off.append(_median_time(lambda: _run([*base, "--cv", "off"]), 1)[0])
+        on, off, cpu_on, cpu_off = [], [], [], []
+        for _ in range(max(b.rep, 11)):  # pairs: the ratio is noisy on a shared machine
+            for cmd, wall, cpu in (
+                (base, on, cpu_on),
+                ([*base, "--cv", "off"], off, cpu_off),
+            ):
+                c0 = _children_cpu()
+                wall.append(_median_time(lambda cmd=cmd: _run(cmd), 1)[0])
+                cpu.append(_children_cpu() - c0)
     t_on, t_off = statistics.median(on), statistics.median(off)
     b.record(
         "calibrate_default_cv_twin",
@@ -349,7 +354,19 @@ def default_cv_case(b: Bench) -> None:
             min(float(a) / float(c) for a, c in zip(on, off, strict=True)),
             max(float(a) / float(c) for a, c in zip(on, off, strict=True)),
         ],
+        pairs=len(on),
+        cpu_seconds=statistics.median(cpu_on),
+        cpu_off_seconds=statistics.median(cpu_off),
+        paired_cpu_ratio_median=statistics.median(
+            a / c for a, c in zip(cpu_on, cpu_off, strict=True)
+        ),
     )
+
+
+def _children_cpu() -> float:
+    """User + system CPU seconds of the finished child processes so far."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
 
 
 def fixed_step_case(b: Bench, f: Fit) -> None:
