@@ -10,12 +10,14 @@ import numpy as np
 
 from kinecal._stats import present as used
 from kinecal.errors import IdentifiabilityError
-from kinecal.identification._evaluate import evaluate
 from kinecal.identification._lm import Prior, spd_solve
 from kinecal.identification._problem import Problem, State
 from kinecal.identification._solve import active_prior, run_lm, warm_options
 from kinecal.identification.selection._candidates import CandidateFit
-from kinecal.identification.selection._crossval import relabel_sets
+from kinecal.identification.selection._crossval import (
+    held_out_metrics,
+    relabel_sets,
+)
 from kinecal.measurement._calibrated import CalibratedModel
 from kinecal.measurement._metrics import Metrics, metrics_from_errors
 from kinecal.measurement._residuals import ResidualBlock, Weights
@@ -28,10 +30,11 @@ Score = tuple[Metrics, Metrics] | ValueError  # training and held-out metrics
 
 
 def run_folds(
-    fit: CandidateFit, test: list[np.ndarray], always_train: np.ndarray, by_set: bool
+    fit: CandidateFit, test: list[np.ndarray], always_train: np.ndarray, unit: str
 ) -> list[Score]:
     """The training and held-out metrics of the candidate in every fold (a
-    ``ValueError`` for a fold whose training rows cannot determine it)."""
+    ``ValueError`` for a fold whose training rows cannot determine it; a held-out set
+    scored by :func:`~kinecal.identification.selection._crossval.held_out_metrics`)."""
     problem, cm = fit.problem()
     meas, shared = fit.meas, fit.shared
     lm = warm_options(shared.lm)
@@ -88,13 +91,12 @@ def run_folds(
             every = whole.evaluations(cm, x, w_all)
         e_p, e_r = every.raw_position, every.raw_rotation
         trained = metrics_from_errors(e_p[train], None if e_r is None else e_r[train])
-        if by_set:  # a held-out set: its user frame refitted first
+        if unit == "set":  # a held-out set: its user frame refitted first
             status = ["estimated" if f else "unidentifiable" for f in fit.free]
             cal = CalibratedModel(
                 cm, x, np.full(cm.size, np.nan), status, problem.reference_payload_kg
             )
-            test_meas = relabel_sets(meas.subset(mask))
-            held_out = evaluate(cal, test_meas, refit_user=True).metrics
+            held_out = held_out_metrics(cal, relabel_sets(meas.subset(mask)), unit)
         else:
             held_out = metrics_from_errors(
                 e_p[mask], None if e_r is None else e_r[mask]

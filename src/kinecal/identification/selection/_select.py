@@ -367,7 +367,7 @@ class _Scored:
 
 def _folds_of(task: tuple[CandidateFit, Folds]) -> list[Score]:
     fit, folds = task
-    return run_folds(fit, folds.test, folds.always_train, folds.by_set)
+    return run_folds(fit, folds.test, folds.always_train, folds.unit)
 
 
 def _candidate(robot: RobotDescription, run: Run, cv: CrossValidation) -> Candidate:
