@@ -71,6 +71,11 @@ BAD = [
         lambda d: d["robot"]["joints"][1].__setitem__("a", 340.0),
         ["robot_sha256", "edited after the calibration"],
     ),
+    # the model section's own fields: the key named once, after the file
+    (lambda d: d["model"].__setitem__("sets", ["", ""]), ["model.sets", "unique"]),
+    (lambda d: d["model"].__setitem__("markers", "a"), ["model.markers", "labels"]),
+    (lambda d: d["model"].__setitem__("hayati", [9]), ["model.hayati", "1..6"]),
+    (lambda d: d["model"].__setitem__("load", "yes"), ["model.load"]),
 ]
 
 
@@ -81,6 +86,7 @@ def test_issue_35_bad_model_values_are_refused(doc, tmp_path, edit, needles):
         load_model(f)
     msg = str(e.value)
     assert msg.startswith(str(f)), msg
+    assert msg.count(str(f)) == 1, msg  # the file named once
     for n in needles:
         assert n in msg, msg
 

@@ -229,6 +229,8 @@ def _spec(s: Any, n_joints: int, where: str) -> ModelSpec:
             markers=_labels(s, "markers", where),
             name=name,
         )
+    except ConfigError:  # a field's own message names the file and the key already
+        raise
     except ValueError as exc:  # ModelError: an inconsistent combination
         raise ConfigError(f"{where}: {exc}") from None
 
