@@ -139,3 +139,36 @@ def test_lifting_column_off_the_base_origin(tmp_path, rng):
     q = rng.uniform(-1.0, 1.0, size=(30, 3))
     want = np.array([urdf_chain_fk(f, "l0", "l3", qq) for qq in q])
     np.testing.assert_allclose(robot.fk_flange(q), want, atol=1e-12)
+
+
+def test_a_urdf_in_millimetres_is_refused(tmp_path, capsys):
+    """URDF lengths are metres: a file written in mm (every origin 1000x) is refused by
+    every reader of URDFs, naming the file and the longest origin (it was read as a
+    robot kilometres long, and import-urdf failed with an internal error)."""
+    import re
+
+    from tests.cli_contract import failed_with, run_kinecal
+    from tests.independent_arm import urdf_text
+
+    good = urdf_text()
+    mm = re.sub(
+        r'xyz="([^"]*)"',
+        lambda m: 'xyz="{}"'.format(
+            " ".join(f"{float(v) * 1e3:g}" for v in m.group(1).split())
+        ),
+        re.sub(r"<axis[^>]*/>", lambda m: m.group(0).replace("xyz", "AXIS"), good),
+    ).replace("AXIS", "xyz")
+    assert mm != good
+    f = tmp_path / "arm_mm.urdf"
+    f.write_text(mm)
+    with pytest.raises(ConfigError, match=r"arm_mm.urdf: the joint origins add up to"):
+        robot_from_urdf(f, tip="flange")
+    (tmp_path / "arm.urdf").write_text(good)
+    assert robot_from_urdf(tmp_path / "arm.urdf", tip="flange").n_joints == 7
+    for args in (
+        ("import-urdf", f, "--tip", "flange", "--out", tmp_path / "arm.yaml"),
+        ("fk", "--robot", f, "--", *["0"] * 7),
+    ):
+        res = run_kinecal(capsys, *map(str, args))
+        failed_with(res, "arm_mm.urdf", "millimetres")
+    assert not (tmp_path / "arm.yaml").exists()

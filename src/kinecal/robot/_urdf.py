@@ -320,6 +320,30 @@ class _Walk:
     T_tip: np.ndarray = field(default_factory=lambda: np.eye(4))
 
 
+# The longest chain (sum of the joint origins' offsets, base to tip) a robot's URDF can
+# plausibly hold [m]: the largest industrial arms reach about 4.7 m; a track or gantry's
+# travel is a joint limit, not an origin. A file written in mm is 1000x longer.
+_MAX_CHAIN_M = 50.0
+
+
+def _check_metres(chain: list[ET.Element], src: str) -> None:
+    """Refuse a chain whose origins add up to more than :data:`_MAX_CHAIN_M`: URDF
+    lengths are metres (REP 103), and such a file is most likely in millimetres."""
+    steps = [
+        (j.get("name", "?"), float(np.linalg.norm(_origin(j, src)[:3, 3])))
+        for j in chain
+    ]
+    total = sum(d for _, d in steps)
+    if total > _MAX_CHAIN_M:
+        name, longest = max(steps, key=lambda s: s[1])
+        raise ConfigError(
+            f"{src}: the joint origins add up to {total:.4g} m from base to tip (joint "
+            f"{name!r}: {longest:.4g} m); expected a robot's size, at most "
+            f"{_MAX_CHAIN_M:g} m: URDF lengths are metres, and this file looks like it "
+            "is in millimetres (divide its lengths by 1000)."
+        )
+
+
 def _walk(chain: list[ET.Element], base: str, src: str) -> _Walk:
     """Axis lines and joint specifications of ``chain`` (see :class:`_Walk`)."""
     w = _Walk(placed=[(base, np.eye(4), 0)])
@@ -524,6 +548,7 @@ def robot_from_urdf(
     w = _walk(chain, base, src)
     if not w.lines:
         raise ConfigError(f"{src}: no movable joint between {base!r} and {tip!r}.")
+    _check_metres(chain, src)
     if w.mimics:  # bodies numbered by the independent joints (a mimic joint's link
         # belongs to the body of the joint it is merged with, or the one before)
         kept = np.cumsum([i not in w.mimics for i in range(len(w.lines))])

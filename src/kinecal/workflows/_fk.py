@@ -274,8 +274,10 @@ def import_urdf_robot(
     # Check the written document: it must load and give the same flange poses.
     again = robot_from_dict(yaml.load(yaml.dump(doc)), source=urdf)
     q = np.random.default_rng(0).uniform(-1.0, 1.0, (16, robot.n_joints))
-    err = float(np.abs(again.fk_flange(q) - robot.fk_flange(q)).max())
-    if err > 1e-9:  # pragma: no cover - a defect, not a user error
+    T = robot.fk_flange(q)
+    err = float(np.abs(again.fk_flange(q) - T).max())
+    scale = max(1.0, float(np.abs(T[..., :3, 3]).max()))  # [m]: metres or radians
+    if err > 1e-9 * scale:  # pragma: no cover - a defect, not a user error
         raise RuntimeError(
             f"import-urdf: the YAML does not reproduce the URDF ({err})."
         )
