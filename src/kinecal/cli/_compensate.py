@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 from typing import Any
 
 import click
@@ -17,7 +18,8 @@ from kinecal.cli._common import (
 )
 
 _FORMATS = ("csv", "fanuc-ls", "urscript", "rapid", "krl")
-_PROGRAM_ONLY = ("decimals", "report_path", "uframes", "utools", "frames_path")
+_PROGRAM_ONLY = ("decimals", "report_path", "uframes", "utools", "frames_path",
+                 "registers")  # fmt: skip
 
 
 @click.command()
@@ -96,6 +98,13 @@ _PROGRAM_ONLY = ("decimals", "report_path", "uframes", "utools", "frames_path")
     "$config.dat (BASE_DATA[n], TOOL_DATA[n]).",
 )
 @click.option(
+    "--registers",
+    type=click.Path(dir_okay=False, exists=True),
+    help="FANUC: the controller's POSREG.VA. The position registers the program moves "
+    "to are corrected (in the UFRAME_NUM/UTOOL_NUM it selects) and written as a TP "
+    "program setting them: --out's name with _PR (CORRECTED_PR.LS).",
+)
+@click.option(
     "--warn-dq-deg",
     type=FiniteFloat(0.0),
     default=1.0,
@@ -119,6 +128,7 @@ def compensate(
     uframes: tuple[str, ...],
     utools: tuple[str, ...],
     frames_path: str | None,
+    registers: str | None,
     warn_dq_deg: float,
     allow_out_of_limits: bool,
     as_json: bool,
@@ -140,22 +150,17 @@ def compensate(
     Unreachable or out-of-limit rows are listed, and the command exits with code 4
     unless --allow-unreachable.
     """
-    from pathlib import Path
-
-    from kinecal.io import (
-        atomic_write_files,
-        atomic_write_text,
-        detect_program_format,
-        load_model,
-    )
+    from kinecal import io
     from kinecal.workflows import compensate_program, compensate_targets
+    from kinecal.workflows._compensate_cartesian import frames_of
 
-    fmt = fmt or detect_program_format(targets) or "csv"
+    fmt = fmt or io.detect_program_format(targets) or "csv"
     if not Path(targets).is_file():
         raise FileNotFoundError(f"{targets}: file not found.")
-    _check_outputs(targets, fmt, out_path, report_path, force)
+    pr_path = registers and str(Path(out_path).with_stem(Path(out_path).stem + "_PR"))
+    _check_outputs(targets, fmt, out_path, report_path, force, pr_path)
     say = Progress(quiet)  # lines only for stages that last (many targets)
-    cal = load_model(model_path)
+    cal = io.load_model(model_path)
     say.begin("compensate", f"reading {targets} and solving")
     if fmt == "csv":
         run: Any = compensate_targets(
@@ -164,16 +169,17 @@ def compensate(
         )  # fmt: skip
         files: dict[str, bytes | str] = {}
     else:
-        from kinecal.io import program_bytes
-
-        uf, ut = _frames(fmt, uframes, utools, frames_path)
+        uf, ut = frames_of(fmt, uframes, utools, frames_path)
         run = compensate_program(
             cal, targets, fmt, tol_mm=tol_mm, payload_kg=payload_kg,
             decimals=decimals, uframes=uf, utools=ut, say=_stderr,
+            registers=registers, registers_name=Path(pr_path or "KC_PR").stem,
         )  # fmt: skip
-        files = {out_path: program_bytes(run.text)}
+        files = {out_path: io.program_bytes(run.text)}
         if report_path:
             files[report_path] = run.report
+        if pr_path and run.registers:
+            files[pr_path] = run.registers
     for line in run.motion_warnings(targets, warn_dq_deg):
         click.echo(line, err=True)
     bad = run.unreachable()
@@ -192,9 +198,11 @@ def compensate(
             "nothing written (--allow-unreachable writes them flagged).",
         )
     if fmt == "csv":
-        atomic_write_text(out_path, run.csv_text(), force=force)
+        io.atomic_write_text(out_path, run.csv_text(), force=force)
     else:
-        atomic_write_files(files, force=force)  # the program and its report, or neither
+        io.atomic_write_files(
+            files, force=force
+        )  # the program and its report, or neither
     program = fmt != "csv"
     _print_result(
         summary, as_json, program and run.written_note, program and report_path
@@ -219,8 +227,9 @@ def _print_result(
 
 
 def _check_outputs(
-    targets: str, fmt: str, out_path: str, report_path: str | None, force: bool
-) -> None:
+    targets: str, fmt: str, out_path: str, report_path: str | None, force: bool,
+    pr_path: str | None,
+) -> None:  # fmt: skip
     """Refuse an --out of another kind than the input, or files there without --force
     (before the work, not after it)."""
     from pathlib import Path
@@ -241,23 +250,14 @@ def _check_outputs(
             f"(as {Path(targets).suffix or '.csv'}), not {suffix}.",
             param_hint="--out",
         )
-    check_distinct_outputs([out_path, report_path])
-    for p in (out_path, report_path):
+    if pr_path and fmt != "fanuc-ls":
+        raise click.BadParameter(f"is for FANUC programs; {targets} is {fmt}.",
+                                 param_hint="--registers")  # fmt: skip
+    check_distinct_outputs([out_path, report_path, pr_path])
+    for p in (out_path, report_path, pr_path):
         if p and Path(p).exists() and not force:
             raise FileExistsError(f"{p}: exists; use --force to overwrite it.")
 
 
 def _stderr(line: str) -> None:
     click.echo(line, err=True)
-
-
-def _frames(
-    fmt: str, uframes: tuple[str, ...], utools: tuple[str, ...], frames_path: str | None
-) -> tuple[dict[str, Any], dict[str, Any]]:
-    """(uframes, utools) of a program run: --frames, then --uframe/--utool over it."""
-    from kinecal.workflows._compensate_cartesian import load_frames_file, parse_frames
-
-    uf, ut = load_frames_file(frames_path, fmt) if frames_path else ({}, {})
-    uf.update(parse_frames(uframes, fmt, "--uframe"))
-    ut.update(parse_frames(utools, fmt, "--utool"))
-    return uf, ut

@@ -125,9 +125,12 @@ def _fanuc_registers(text: str) -> list[CartesianPoint]:
     """Motion instructions to position registers ``PR[n]``: their values live in the
     controller, not in the program; counted and left."""
     out = []
-    pat = r"^\s*\d+\s*:\s*[JLCA]\s+(PR\[[^\]]*\])"
+    pat = r"^\s*\d+\s*:\s*[JLCA]\s+(PR\[(?:[^\[\]]|\[[^\]]*\])*\])"
     for m in re.finditer(pat, text, re.M):
-        why = "a position register: its value is in the controller, not in the program"
+        why = (
+            "a position register: its value is in the controller, not in the program "
+            "(--registers POSREG.VA corrects the registers themselves)"
+        )
         at = m.start(1)
         out.append(CartesianPoint(m.group(1), _line(text, at), ((at, at),), (), (),
                                   None, "", "", why_not=why))  # fmt: skip

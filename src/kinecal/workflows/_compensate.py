@@ -133,6 +133,7 @@ class ProgramCompensation(_Compensation):
     text: str = field(repr=False)
     report: str = field(repr=False)
     written_note: str | None = None
+    registers: str | None = field(default=None, repr=False)  # the PR[] program
 
 
 def compensate_targets(
@@ -208,6 +209,8 @@ def compensate_program(
     uframes: dict[str, np.ndarray] | None = None,
     utools: dict[str, np.ndarray] | None = None,
     say: Say | None = None,
+    registers: str | Path | None = None,
+    registers_name: str = "KC_PR",
 ) -> ProgramCompensation:
     """The corrected robot program ``path`` (``fmt``: fanuc-ls, urscript, rapid, krl),
     as ``kinecal compensate PROGRAM`` writes it.
@@ -217,7 +220,10 @@ def compensate_program(
     tool frames: ``uframes``, ``utools``, {id: pose (4, 4) [m]}) becomes the pose the
     nominal controller must be commanded for the real robot to reach it. ``decimals``:
     of the written joints (default: the file's). ``say`` gets each message line as it
-    is found (they are also in ``messages``).
+    is found (they are also in ``messages``). ``registers``: a FANUC program's
+    ``POSREG.VA``: the position registers it moves to are corrected too and returned
+    as the TP program ``registers_name`` that sets them
+    (:mod:`kinecal.workflows._compensate_registers`).
 
     Returns
     -------
@@ -273,7 +279,62 @@ def compensate_program(
             "(the joints rounded to the file's decimals)."
         )
     where = tuple(f"line {ln} ({nm})" for ln, nm in zip(lines_, names))
-    return ProgramCompensation(res, where, tuple(lines), text, report, note)
+    regs = None
+    if registers is not None:
+        res, where, regs = _with_registers(
+            cal, prog, registers, res, where, emit, uframes=uframes or {},
+            utools=utools or {}, tol_mm=tol_mm, payload_kg=payload_kg,
+            name=registers_name,
+        )  # fmt: skip
+    return ProgramCompensation(res, where, tuple(lines), text, report, note, regs)
+
+
+def _with_registers(
+    cal: CalibratedModel,
+    prog: Any,
+    registers: str | Path,
+    res: CompensationResult,
+    where: tuple[str, ...],
+    emit: Say,
+    **kw: Any,
+) -> tuple[CompensationResult, tuple[str, ...], str]:
+    """The program's result with its position registers' rows after it, and the TP
+    program that sets the corrected registers."""
+    from kinecal.workflows._compensate_registers import compensate_registers
+
+    if prog.format != "fanuc-ls":
+        raise DataError(
+            f"{registers}: position registers are FANUC's; {prog.path} is a "
+            f"{prog.format} program."
+        )
+    rr = compensate_registers(cal, prog, registers, solve=compensate_program, **kw)
+    for line in rr.messages:
+        emit(line)
+    for why in rr.left:
+        emit(f"{registers}: {why}: left as it is")
+    got = rr.result
+    st = np.zeros(0, str) if got is None else np.asarray(got.status, str)
+    n_ok, n_left = int((st == "ok").sum()), len(rr.left) + int((st == "left").sum())
+    emit(
+        f"{registers}: {len(rr.left) + st.size} position registers moved to: {n_ok} "
+        f"corrected, {n_left} left as they are, {st.size - n_ok - n_left + len(rr.left)}"
+        " unreachable"
+    )
+    if got is None:
+        return res, where, rr.text
+    fields_ = ("q_ctrl", "q_program", "error", "rotation_error", "status",
+               "limit_joint", "cond")  # fmt: skip
+    cols = {f: np.concatenate([getattr(res, f), getattr(got, f)]) for f in fields_}
+    relaxed = [
+        np.zeros(len(r.status), bool) if r.relaxed is None else r.relaxed
+        for r in (res, got)
+    ]
+    joined = CompensationResult(
+        **cols,
+        iterations=max(res.iterations, got.iterations),
+        relaxed=np.concatenate(relaxed),
+    )
+    return joined, (*where, *(f"{registers} {w}" for w in rr.where)), rr.text
 
 
 def _emitter(lines: list[str], say: Say | None) -> Say:

@@ -105,6 +105,17 @@ def load_frames_file(path: str, fmt: str) -> tuple[dict, dict]:
     return out[0], out[1]
 
 
+def frames_of(
+    fmt: str, uframes: tuple[str, ...], utools: tuple[str, ...], frames_path: str | None
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(uframes, utools) of a program run: the ``--frames`` file's, then the
+    ``--uframe``/``--utool`` values over them."""
+    uf, ut = load_frames_file(frames_path, fmt) if frames_path else ({}, {})
+    uf.update(parse_frames(uframes, fmt, "--uframe"))
+    ut.update(parse_frames(utools, fmt, "--utool"))
+    return uf, ut
+
+
 @dataclass
 class CartesianRun:
     """What the Cartesian part of a run found and did, per target."""
