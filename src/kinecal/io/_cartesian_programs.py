@@ -12,9 +12,9 @@ krl         ``{X .., Y .., Z .., A .., B .., C .., S .., T  A, B, C [deg]:  FDAT
 rapid       ``robtarget name := [[x, y, z], [q1..q4],       quaternion      tool, wobj
             [cf1, cf4, cf6, cfx], [eax]]``, and inline      (w, x, y, z)    of the moves
             ``MoveL [[..], ..]``                                            using it
-urscript    ``movel/movej/movep(p[x, y, z, rx, ry, rz]``    rotation vector ``set_tcp``
-            and ``global Name_p=p[...]`` (Polyscope, with   [rad]
-            ``Name_q=[...]``)
+urscript    moves to ``p[x, y, z, rx, ry, rz]``, to pose    rotation vector ``set_tcp``,
+            variables and ``pose_trans(FEATURE, POSE)``     [rad]           the feature
+            (:mod:`kinecal.io._urscript_targets`)
 ==========  ==============================================  ==============  ============
 
 Units: mm and deg (URScript m and rad). A target is returned with its pose in its own
@@ -25,7 +25,6 @@ is for the caller (:mod:`kinecal.workflows._compensate`).
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -39,6 +38,13 @@ from kinecal.geometry import (
     so3_exp,
     so3_log,
 )
+from kinecal.io._cartesian_point import NUM as _NUM
+from kinecal.io._cartesian_point import CartesianPoint
+from kinecal.io._cartesian_point import bracket_list as _bracket_list
+from kinecal.io._cartesian_point import decimals_of as _decimals
+from kinecal.io._cartesian_point import line_of as _line
+from kinecal.io._cartesian_point import make_point as _make
+from kinecal.io._urscript_targets import urscript_targets
 from kinecal.typing import Float, Pose
 
 __all__ = [
@@ -49,58 +55,7 @@ __all__ = [
     "read_cartesian",
 ]
 
-_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _MIN_DECIMALS = {"fanuc-ls": 3, "krl": 4, "rapid": 6, "urscript": 8}
-
-
-@dataclass(frozen=True)
-class CartesianPoint:
-    """One Cartesian target.
-
-    Attributes
-    ----------
-    name, line : how the program names it, 1-based line of its first value.
-    spans : character spans of its pose numbers (FANUC: with the blanks before).
-    values : the numbers as written (x, y, z then W P R / A B C / q1..q4 / rx ry rz).
-    decimals : decimals of each number as written.
-    config : the configuration as written: FANUC ``('N', 'U', 'T', t1, t4, t6)``, KRL
-        ``(S, T)``, RAPID ``(cf1, cf4, cf6, cfx)``; None where the target has none.
-    frame, tool : the user / tool frame it names (FANUC UF/UT numbers, KRL BASE_NO /
-        TOOL_NO, RAPID wobj / tool names, URScript the TCP pose text or '').
-    q_spans : URScript Polyscope ``Name_q`` joints (spans), else empty.
-    config_spans : where the configuration is written (FANUC: the CONFIG text inside the
-        quotes; KRL: S, T; RAPID: cf1, cf4, cf6, cfx).
-    q_values : those joints [rad].
-    why_not : why it cannot be corrected ('' when it can).
-    """
-
-    name: str
-    line: int
-    spans: tuple[tuple[int, int], ...]
-    values: tuple[float, ...]
-    decimals: tuple[int, ...]
-    config: tuple | None
-    frame: str
-    tool: str
-    q_spans: tuple[tuple[int, int], ...] = ()
-    q_values: tuple[float, ...] = ()
-    why_not: str = ""
-    config_spans: tuple[tuple[int, int], ...] = ()
-
-
-def _line(text: str, pos: int) -> int:
-    return text.count("\n", 0, pos) + 1
-
-
-def _decimals(token: str) -> int:
-    m = re.match(r"\s*[-+]?\d*\.?(\d*)", token)
-    return len(m.group(1)) if m and "." in token else 0
-
-
-def _make(text, name, spans, **kw) -> CartesianPoint:
-    vals = tuple(float(text[a:b]) for a, b in spans)
-    dec = tuple(_decimals(text[a:b]) for a, b in spans)
-    return CartesianPoint(name, _line(text, spans[0][0]), tuple(spans), vals, dec, **kw)
 
 
 # ------------------------------------------------------------------ FANUC
@@ -254,15 +209,6 @@ def _krl(text: str) -> list[CartesianPoint]:
 
 
 # ------------------------------------------------------------------ RAPID
-def _bracket_list(text: str, start: int) -> list[tuple[int, int]]:
-    """Spans of the numbers in the '[...]' list opening at ``start``."""
-    close = text.find("]", start)
-    return [
-        (start + 1 + m.start(), start + 1 + m.end())
-        for m in re.finditer(_NUM, text[start + 1 : close])
-    ]
-
-
 def _rapid_uses(text: str) -> dict[str, set[tuple[str, str]]]:
     """robtarget name ('' for an inline one) -> {(tool, wobj)} of the move
     instructions that use it."""
@@ -361,37 +307,12 @@ def _rapid(text: str) -> list[CartesianPoint]:
     return out
 
 
-# ------------------------------------------------------------------ URScript
-def _urscript(text: str) -> list[CartesianPoint]:
-    tcps = [
-        (m.start(), m.group(1))
-        for m in re.finditer(r"\bset_tcp\s*\(\s*(p\[[^\]]*\])", text)
-    ]
-
-    def tcp_at(pos: int) -> str:
-        before = [t for at, t in tcps if at < pos]
-        return before[-1] if before else (tcps[0][1] if tcps else "")
-
-    out = []
-    for m in re.finditer(r"\b(movej|movel|movep)\s*\(\s*p\[", text):
-        spans = _bracket_list(text, m.end() - 1)
-        if len(spans) == 6:
-            out.append(_make(text, m.group(1), spans, config=None, frame="",
-                             tool=tcp_at(m.start())))  # fmt: skip
-    for m in re.finditer(r"\bglobal\s+(\w+)_p\s*=\s*p\[", text):
-        spans = _bracket_list(text, m.end() - 1)
-        qm = re.search(rf"\bglobal\s+{m.group(1)}_q\s*=\s*\[", text)
-        q_spans = _bracket_list(text, qm.end() - 1) if qm else []
-        q_vals = tuple(float(text[a:b]) for a, b in q_spans)
-        if len(spans) == 6:
-            out.append(
-                _make(text, f"{m.group(1)}_p", spans, config=None, frame="",
-                      tool=tcp_at(m.start()), q_spans=tuple(q_spans), q_values=q_vals)
-            )  # fmt: skip
-    return sorted(out, key=lambda c: c.spans[0][0])
-
-
-_READERS = {"fanuc-ls": _fanuc, "krl": _krl, "rapid": _rapid, "urscript": _urscript}
+_READERS = {
+    "fanuc-ls": _fanuc,
+    "krl": _krl,
+    "rapid": _rapid,
+    "urscript": urscript_targets,
+}
 
 
 def read_cartesian(text: str, fmt: str) -> list[CartesianPoint]:

@@ -153,10 +153,11 @@ def _frames(
     T_uf, T_tool = np.tile(np.eye(4), (N, 1, 1)), np.tile(np.eye(4), (N, 1, 1))
     why = [pt.why_not for pt in pts]
     for k, pt in enumerate(pts):
-        if fmt == "urscript":
-            if pt.tool:
-                vals = [float(v) for v in pt.tool[2:-1].split(",")]
-                T_tool[k] = point_pose("urscript", tuple(vals))
+        if fmt == "urscript":  # the TCP and a feature's pose as p[..] texts
+            for text, out in ((pt.tool, T_tool), (pt.frame, T_uf)):
+                if text:
+                    vals = [float(v) for v in text[2:-1].split(",")]
+                    out[k] = point_pose("urscript", tuple(vals))
             continue
         for ident, base, known, out, what in (
             (pt.frame, _BASE_IDS[fmt], known_uf, T_uf, "user frame"),
@@ -190,7 +191,7 @@ def _near_joints(
         if len(pt.q_values) >= n:
             out[k] = pt.q_values[:n]
             continue
-        before = np.flatnonzero(starts < pt.spans[0][0])
+        before = np.flatnonzero(starts < max(pt.spans[0][0], pt.used_at))
         if before.size:
             out[k] = q_joint[before[-1]]
     return out
