@@ -212,7 +212,7 @@ def test_issue_34_readers_find_the_active_frames():
     assert got == [(4, "3", "2", None), (6, "3", "4", (2, 3))]
     rapid = (
         "CONST robtarget p10:=[[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
-        "MoveL Offs(p10, 0, 0, 50), v100, fine, tA\\WObj:=w1;\n"
+        "MoveL Offs(p10, 0, 0, 50), v100, fine, tGrip\\WObj:=w1;\n"
         "MoveL p10, v100, z10, tGrip\\WObj:=w1;\n"
     )
     (pt,) = read_cartesian(rapid, "rapid")
@@ -222,6 +222,10 @@ def test_issue_34_readers_find_the_active_frames():
         (0, 0, 0, 0),
         "",
     )
+    # Offs(p10, ..) is a use of p10: with another tool, one correction cannot serve
+    # both moves (it was ignored, and the other tool's move got tGrip's correction).
+    (pt,) = read_cartesian(rapid.replace("fine, tGrip", "fine, tA"), "rapid")
+    assert pt.why_not == "moves use it with different tools or wobjs"
 
 
 @pytest.mark.parametrize("fmt", ["fanuc-ls", "krl"])

@@ -224,9 +224,35 @@ def _rapid_uses(text: str) -> dict[str, set[tuple[str, str]]]:
         w = re.search(r"\\WObj\s*:=\s*(\w+)", m.group(2), re.I)
         pair = (tool.group(1) if tool else "tool0", w.group(1) if w else "wobj0")
         for a in args[:n_targets]:
-            name = re.match(r"(\w+)", a)
+            # Offs(p10, ..) and RelTool(p10, ..) move to p10 displaced: a use of p10
+            name = re.match(r"(?:(?:Offs|RelTool)\s*\(\s*)?(\w+)", a, re.I)
             uses.setdefault(name.group(1) if name else "", set()).add(pair)
     return uses
+
+
+def _rapid_unknown(text: str, declared: set[str]) -> list[CartesianPoint]:
+    """Move instructions whose target is not a robtarget of the module nor an inline
+    one (a robtarget of another module, an array element, ``CRobT()``): counted and
+    left, with why."""
+    out = []
+    for m in re.finditer(r"\b(Move(?:L|J|C|LDO|JDO))\b([^;]*);", text, re.I):
+        args = [a.strip() for a in re.split(r",(?![^\[(]*[\])])", m.group(2))]
+        for a in args[: 2 if m.group(1).upper() == "MOVEC" else 1]:
+            base = re.fullmatch(
+                r"(?:(?:Offs|RelTool)\s*\(\s*)?(\w+)\b.*", a, re.I | re.S
+            )
+            if a.startswith("[") or (base and base.group(1) in declared):
+                continue
+            known = base is not None and re.fullmatch(r"\w+", a) is not None
+            why = (
+                f"{a}: not a robtarget declared in this module"
+                if known
+                else f"a computed target ({a[:40]})"
+            )
+            at = m.start(2) + m.group(2).find(a[:1])
+            out.append(CartesianPoint(a[:40], _line(text, at), ((at, at),), (), (),
+                                      None, "", "", why_not=why))  # fmt: skip
+    return out
 
 
 def _rapid_pose(text: str, at: int) -> tuple[Pose, int]:
@@ -304,7 +330,8 @@ def _rapid(text: str) -> list[CartesianPoint]:
                   config_spans=tuple(conf),
                   why_not=why)
         )  # fmt: skip
-    return out
+    declared = set(re.findall(r"\brobtarget\s+(\w+)\s*:=", text, re.I))
+    return sorted(out + _rapid_unknown(text, declared), key=lambda c: c.spans[0][0])
 
 
 _READERS = {
