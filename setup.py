@@ -22,14 +22,18 @@ NOTE = Path("kinecal", "models", "_ckernel_build.txt")
 
 
 class BuildExt(build_ext):
-    """GCC and Clang: no fused multiply-adds, so that every build rounds alike (ARM64
-    compilers contract a * b + c by default). A failed build of the kernel is reported
+    """No fused multiply-adds, so that every build rounds alike (ARM64 compilers
+    contract a * b + c by default): GCC and Clang by a flag, MSVC by the source's pragma. A failed build of the kernel is reported
     in a banner and a note installed with the package."""
 
     def build_extensions(self) -> None:
-        if self.compiler.compiler_type == "unix":
+        # MSVC: /fp:contract is off by default from Visual Studio 2022 17.0 under the
+        # default /fp:precise, on before it; _ckernel.c's `#pragma fp_contract (off)`
+        # turns it off for every version (Microsoft C++ docs, "fp_contract pragma").
+        flag = {"unix": "-ffp-contract=off"}.get(self.compiler.compiler_type)
+        if flag:
             for ext in self.extensions:
-                ext.extra_compile_args = [*ext.extra_compile_args, "-ffp-contract=off"]
+                ext.extra_compile_args = [*ext.extra_compile_args, flag]
         super().build_extensions()
 
     def _note(self) -> Path:

@@ -390,8 +390,10 @@ def _figures(summary: Mapping[str, Any], poses: PoseErrors | None) -> list[str]:
         # by one take a sample of a large run (:meth:`PoseErrors.sample`).
         hist_b = np.linalg.norm(poses.before_mm, axis=1)
         hist_a = np.linalg.norm(poses.after_mm, axis=1)
-        if poses.n > FIGURE_POSES:
-            total = poses.n
+        if poses.all_norms_mm is not None:  # a sample read from the file
+            hist_b, hist_a = poses.all_norms_mm
+        if poses.total > FIGURE_POSES:
+            total = poses.total
             poses = poses.sample(FIGURE_POSES)
             out.append(
                 f"<p class=muted>The figures per pose show {poses.n} of the {total} "
@@ -518,7 +520,7 @@ def write_report(
             )
     cal = load_model(d / "model.yaml")
     res = d / RESIDUALS_CSV
-    poses = read_pose_errors(res) if res.is_file() else None
+    poses = read_pose_errors(res, FIGURE_POSES) if res.is_file() else None
     return atomic_write_text(
         target, render_calibration_report(summary, cal, poses), force=True
     )
