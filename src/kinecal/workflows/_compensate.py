@@ -428,6 +428,7 @@ def _joint_part(
     from kinecal.io import program_joints
 
     q_prog = program_joints(prog, cal.model.robot)
+    _refuse_wild(prog, q_prog, cal.model.robot)
     N = q_prog.shape[0]
     ls = None if scale is None else np.full(N, scale)
     if N == 0:
@@ -437,6 +438,30 @@ def _joint_part(
         cal, p_t, q_prog, R_target=R_t, load_scale=ls, tol=tol_mm * 1e-3
     )
     return q_prog, p_t, res, ls
+
+
+def _refuse_wild(prog: Any, q: np.ndarray, robot: Any) -> None:
+    """A joint target more than a turn (a stroke, at least 100 mm) beyond the robot's
+    limits is no joint value (1e9 deg was wrapped and 'corrected' into another pose);
+    one nearer them is solved and reported as 'joint_limit'."""
+    lim = robot.limits
+    far = np.where(robot.prismatic, np.maximum(lim[:, 1] - lim[:, 0], 0.1), 2 * np.pi)
+    wild = (q < lim[:, 0] - far) | (q > lim[:, 1] + far) | ~np.isfinite(q)
+    if not wild.any():
+        return
+    i, k = (int(x) for x in np.argwhere(wild)[0])
+    pt = prog.points[i]
+    rad = prog.format == "urscript"  # URScript: m and rad; the others mm and deg
+    unit, f = (
+        ("m" if rad else "mm", 1.0 if rad else 1e3)
+        if robot.prismatic[k]
+        else ("rad" if rad else "deg", 1.0 if rad else 180.0 / np.pi)
+    )
+    raise DataError(
+        f"{prog.path}: line {pt.line} ({pt.name}): J{k + 1} = {pt.values[k]:.6g} {unit} "
+        f"is not a joint value of {robot.name} (limits [{lim[k, 0] * f:.6g}, "
+        f"{lim[k, 1] * f:.6g}] {unit}); expected a value within a turn of them."
+    )
 
 
 def _joined(res: CompensationResult | None, run: Any, n: int) -> CompensationResult:
