@@ -241,3 +241,24 @@ def test_issue_34_registers_for_other_formats_and_outputs_refused(
     assert res.returncode != 0 and "out_PR.ls" in res.stderr and "--force" in res.stderr
     assert (tmp_path / "out_PR.ls").read_text() == "keep"
     assert not (tmp_path / "out.ls").exists()
+
+
+def test_issue_34_a_wild_register_is_named_by_the_register(
+    model_file, run_cli, tmp_path
+):
+    va = tmp_path / "POSREG.VA"
+    va.write_text(
+        "[*POSREG*]$POSREG  Storage: CMOS  Access: RW  : ARRAY[1,2] OF Position Reg\n"
+        "    [1,1] =   'Home'   Group: 1\n"
+        "  J1 = 1000000000.000 deg   J2 = 0.000 deg   J3 = 0.000 deg \n"
+        "  J4 =     0.000 deg   J5 =   -30.000 deg   J6 =  0.000 deg \n"
+    )
+    ls = tmp_path / "p.ls"
+    ls.write_text(_program(1, 0))
+    res = run_cli(
+        "compensate", ls, "--model", model_file, "--out", tmp_path / "o.ls",
+        "--registers", va,
+    )  # fmt: skip
+    assert res.returncode == 2, res.stderr
+    assert f"{va}: PR[1]: J1 = 1e+09 deg is not a joint value" in res.stderr
+    assert "registers.ls" not in res.stderr  # not the stand-in program's name

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from kinecal.compensation import CompensationResult
+from kinecal.errors import DataError
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
@@ -123,15 +124,21 @@ def compensate_registers(
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "registers.ls"
         path.write_text(text)
-        run = solve(
-            cal, path, "fanuc-ls", tol_mm=tol_mm, payload_kg=payload_kg,
-            decimals=4, uframes=uframes, utools=utools, say=said.append,
-        )  # fmt: skip
         tmp_name = str(path)
 
-    def named(line: str) -> str:  # the registers by their numbers, not the stand-in's
-        line = re.sub(r"line \d+ \((P\[\d+\])(, Cartesian)?\)", r"P\1", line)
-        return line.replace(tmp_name, source).replace("PP[", "PR[")
+        def named(
+            line: str,
+        ) -> str:  # the registers by their numbers, not the stand-in's
+            line = re.sub(r"line \d+ \((P\[\d+\])(, Cartesian)?\)", r"P\1", line)
+            return line.replace(tmp_name, source).replace("PP[", "PR[")
+
+        try:
+            run = solve(
+                cal, path, "fanuc-ls", tol_mm=tol_mm, payload_kg=payload_kg,
+                decimals=4, uframes=uframes, utools=utools, say=said.append,
+            )  # fmt: skip
+        except DataError as exc:  # named by the registers, not the stand-in program
+            raise DataError(named(str(exc))) from None
 
     values, notes = [], []
     for reg, _, _ in todo:
