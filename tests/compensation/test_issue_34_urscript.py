@@ -137,3 +137,34 @@ def test_issue_34_urscript_ambiguous_variables_left():
         (8, "v"),
         (10, "set_tcp"),
     }, got
+
+
+def test_issue_34_urscript_polyscope_movej_and_joint_variables():
+    """Polyscope's MoveJ to a waypoint, movej(get_inverse_kin(Waypoint_1_p, qnear=..)),
+    is a move to Waypoint_1_p (it was left uncounted, and the waypoint uncorrected); a
+    move to a joint-list variable is a joint target at its assignment."""
+    text = "\n".join(
+        [
+            "def prog():",
+            "  global Waypoint_1_p=p[0.4, 0.1, 0.3, 0.0, 3.1, 0.0]",
+            "  global Waypoint_1_q=[0.1, -1.2, 1.5, -1.8, -1.6, 0.0]",
+            "  movej(get_inverse_kin(Waypoint_1_p, qnear=Waypoint_1_q), a=1.39, v=1.04)",
+            "  q_home = [0.0, -1.57, 1.2, -1.57, -1.57, 0.0]",
+            "  movej(q_home, a=1.0, v=0.5)",
+            "end",
+        ]
+    )
+    cart = read_cartesian(text, "urscript")
+    assert [(p.name, p.line, p.why_not) for p in cart] == [("Waypoint_1_p", 2, "")]
+    assert cart[0].q_values == (0.1, -1.2, 1.5, -1.8, -1.6, 0.0)
+
+
+def test_issue_34_urscript_joint_variable_is_a_joint_target(tmp_path):
+    from kinecal.io import read_program
+
+    f = tmp_path / "p.script"
+    f.write_text("def p():\n  q_home = [0.0, -1.57, 1.2, -1.57, -1.57, 0.0]\n"
+                 "  movej(q_home, a=1.0, v=0.5)\n  movej(q_home)\nend\n")  # fmt: skip
+    prog = read_program(f)
+    assert [(p.name, p.line) for p in prog.points] == [("q_home", 2)]
+    assert read_cartesian(f.read_text(), "urscript") == []

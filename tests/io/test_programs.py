@@ -24,7 +24,7 @@ from kinecal.robot import load_robot
 DATA = Path(__file__).parents[1] / "data" / "programs"
 SAMPLES = {
     "pick_demo.ls": ("fanuc-ls", 3, 1),
-    "pick_demo.script": ("urscript", 3, 1),
+    "pick_demo.script": ("urscript", 4, 1),  # q_rest = [..]; movej(q_rest): a target
     "pick_demo.mod": ("rapid", 3, 1),
     "pick_demo.dat": ("krl", 2, 1),
 }

@@ -202,6 +202,23 @@ def _urscript(text: str) -> tuple[list[ProgramPoint], int]:
         spans = _bracket_numbers(text, m.end() - 1)
         if spans:
             points.append(_point(text, m.group(1), spans))
+    # Moves to a joint-list variable assigned once (q_home = [..]): its assignment.
+    moves = r"\b(?:movej|movel|movep|servoj)\s*\(\s*([A-Za-z_]\w*)\s*[,)]"
+    scope = r"^[ \t]*(?:(?:global|local)\s+)?"
+    assigned = {
+        name: list(re.finditer(rf"{scope}{name}\s*=(?!=)", text, re.M))
+        for name in set(re.findall(moves, text))
+    }
+    for name, found in sorted(assigned.items()):
+        if len(found) != 1:
+            continue
+        at = text.find("[", found[0].end())
+        if text[found[0].end() : at].strip():  # not a list literal (p[..], a call)
+            continue
+        spans = _bracket_numbers(text, at)
+        if spans:
+            points.append(_point(text, name, spans))
+    points.sort(key=lambda pt: pt.spans[0][0])
     return points, skipped
 
 

@@ -10,6 +10,7 @@ target argument:
   ``global Waypoint_1_p=p[..]`` keeps its ``Waypoint_1_q`` joints beside it;
 * ``pose_trans(FEATURE, POSE)``: ``POSE`` (a literal or a pose variable) in the frame of
   ``FEATURE`` (a literal or a pose variable: a Polyscope feature such as ``Plane_1``);
+* ``get_inverse_kin(POSE, ..)`` (Polyscope's MoveJ to a waypoint): ``POSE`` as above;
 * anything else (an expression, ``get_inverse_kin(..)``, a variable assigned twice or
   computed): counted and left as written, with the reason.
 
@@ -68,6 +69,14 @@ def _pose_vars(text: str) -> dict[str, list[int]]:
     return out
 
 
+def _joint_var(text: str, name: str) -> bool:
+    """Whether ``name`` is assigned a joint list ``[..]`` (once) in the script."""
+    if not re.fullmatch(r"[A-Za-z_]\w*", name):
+        return False
+    pat = rf"^[ \t]*(?:(?:global|local)\s+)?{name}\s*=\s*\["
+    return len(re.findall(pat, text, re.M)) == 1
+
+
 class _Reader:
     def __init__(self, text: str) -> None:
         self.text = text
@@ -115,8 +124,12 @@ def urscript_targets(text: str) -> list[CartesianPoint]:
         targets = args[:2] if m.group(1) == "movec" else args[:1]
         for a, b in targets:
             arg = text[a:b].strip()
-            if arg.startswith("["):
-                continue  # a joint target
+            if re.fullmatch(r"get_inverse_kin\s*\((.*)\)", arg, re.S):
+                # Polyscope's MoveJ to a pose: movej(get_inverse_kin(POSE, qnear=..))
+                a, b = _args(text, a + text[a:b].find("("))[0]
+                arg = text[a:b].strip()
+            if arg.startswith("[") or _joint_var(text, arg):
+                continue  # a joint target (kinecal.io._programs)
             frame, why = "", ""
             call = re.fullmatch(r"pose_trans\s*\((.*)\)", arg, re.S)
             if call is not None:
