@@ -90,10 +90,11 @@ _PROGRAM_ONLY = ("decimals", "report_path", "uframes", "utools", "frames_path")
 @click.option(
     "--frames",
     "frames_path",
+    multiple=True,
     type=click.Path(dir_okay=False),
-    help="Program files: a YAML file of the controller's frames, {uframe: {ID: [...]}, "
-    "utool: {ID: [...]}} (numbers as for --uframe); for KRL also the controller's "
-    "$config.dat (BASE_DATA[n], TOOL_DATA[n]).",
+    help="Program files: the controller's frames (repeatable): YAML {uframe: {ID: [...]}, "
+    "utool: {ID: [...]}, posreg: {n: ...}} (numbers as for --uframe); KRL $config.dat; "
+    "FANUC SYSFRAME.VA or POSREG.VA (registers corrected into OUT_PR.LS).",
 )
 @click.option(
     "--warn-dq-deg",
@@ -118,7 +119,7 @@ def compensate(
     allow_unreachable: bool,
     uframes: tuple[str, ...],
     utools: tuple[str, ...],
-    frames_path: str | None,
+    frames_path: tuple[str, ...],
     warn_dq_deg: float,
     allow_out_of_limits: bool,
     as_json: bool,
@@ -153,7 +154,10 @@ def compensate(
     fmt = fmt or detect_program_format(targets) or "csv"
     if not Path(targets).is_file():
         raise FileNotFoundError(f"{targets}: file not found.")
-    _check_outputs(targets, fmt, out_path, report_path, force)
+    from kinecal.workflows._compensate import register_path
+
+    pr = register_path(out_path)[0] if fmt == "fanuc-ls" and frames_path else None
+    _check_outputs(targets, fmt, out_path, report_path, force, pr)
     say = Progress(quiet)  # lines only for stages that last (many targets)
     cal = load_model(model_path)
     say.begin("compensate", f"reading {targets} and solving")
@@ -165,13 +169,14 @@ def compensate(
         files: dict[str, bytes | str] = {}
     else:
         from kinecal.io import program_bytes
+        from kinecal.workflows._compensate_cartesian import program_frames
 
-        uf, ut = _frames(fmt, uframes, utools, frames_path)
+        uf, ut, regs = program_frames(fmt, uframes, utools, frames_path)
         run = compensate_program(
             cal, targets, fmt, tol_mm=tol_mm, payload_kg=payload_kg,
-            decimals=decimals, uframes=uf, utools=ut, say=_stderr,
+            decimals=decimals, uframes=uf, utools=ut, registers=regs, say=_stderr,
         )  # fmt: skip
-        files = {out_path: program_bytes(run.text)}
+        files = {out_path: program_bytes(run.text), **run.register_outputs(out_path)}
         if report_path:
             files[report_path] = run.report
     for line in run.motion_warnings(targets, warn_dq_deg):
@@ -219,10 +224,10 @@ def _print_result(
 
 
 def _check_outputs(
-    targets: str, fmt: str, out_path: str, report_path: str | None, force: bool
+    targets: str, fmt: str, out: str, report: str | None, force: bool, pr: str | None
 ) -> None:
     """Refuse an --out of another kind than the input, or files there without --force
-    (before the work, not after it)."""
+    (before the work, not after it); ``pr``: a FANUC register program written beside."""
     from pathlib import Path
 
     from kinecal.io import detect_program_format
@@ -232,32 +237,20 @@ def _check_outputs(
         refuse_unused(dict.fromkeys(_PROGRAM_ONLY, "is for program files"))
     # The output is of the input's kind: an --out named for another kind would hold
     # what its name does not say (a FANUC program in c.csv).
-    suffix = Path(out_path).suffix.lower()
-    out_kind = "csv" if suffix == ".csv" else detect_program_format(out_path)
+    suffix = Path(out).suffix.lower()
+    out_kind = "csv" if suffix == ".csv" else detect_program_format(out)
     if out_kind is not None and out_kind != fmt:
         want = "a CSV file (.csv)" if fmt == "csv" else f"a {fmt} program"
         raise click.BadParameter(
-            f"{out_path}: the corrected {targets} is {want}; name --out for it "
+            f"{out}: the corrected {targets} is {want}; name --out for it "
             f"(as {Path(targets).suffix or '.csv'}), not {suffix}.",
             param_hint="--out",
         )
-    check_distinct_outputs([out_path, report_path])
-    for p in (out_path, report_path):
+    check_distinct_outputs([out, report, pr])
+    for p in (out, report, pr):
         if p and Path(p).exists() and not force:
             raise FileExistsError(f"{p}: exists; use --force to overwrite it.")
 
 
 def _stderr(line: str) -> None:
     click.echo(line, err=True)
-
-
-def _frames(
-    fmt: str, uframes: tuple[str, ...], utools: tuple[str, ...], frames_path: str | None
-) -> tuple[dict[str, Any], dict[str, Any]]:
-    """(uframes, utools) of a program run: --frames, then --uframe/--utool over it."""
-    from kinecal.workflows._compensate_cartesian import load_frames_file, parse_frames
-
-    uf, ut = load_frames_file(frames_path, fmt) if frames_path else ({}, {})
-    uf.update(parse_frames(uframes, fmt, "--uframe"))
-    ut.update(parse_frames(utools, fmt, "--utool"))
-    return uf, ut

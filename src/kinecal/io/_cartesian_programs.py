@@ -44,6 +44,7 @@ from kinecal.typing import Float, Pose
 __all__ = [
     "CartesianPoint",
     "cartesian_edits",
+    "cartesian_numbers",
     "point_pose",
     "rapid_frames",
     "read_cartesian",
@@ -71,6 +72,9 @@ class CartesianPoint:
     config_spans : where the configuration is written (FANUC: the CONFIG text inside the
         quotes; KRL: S, T; RAPID: cf1, cf4, cf6, cfx).
     q_values : those joints [rad].
+    register : FANUC: 'cartesian' or 'joint' for a position register whose value was
+        given (its span: where the first move names it; the value is written to a
+        register program, not the text), else ''.
     why_not : why it cannot be corrected ('' when it can).
     """
 
@@ -86,6 +90,7 @@ class CartesianPoint:
     q_values: tuple[float, ...] = ()
     why_not: str = ""
     config_spans: tuple[tuple[int, int], ...] = ()
+    register: str = ""
 
 
 def _line(text: str, pos: int) -> int:
@@ -114,29 +119,79 @@ def _fanuc_config(text: str, at: int, name: str, cfg: str) -> tuple:
     except ValueError:
         ok = False
     if not ok:
+        where = f"line {_line(text, at)}: " if at or text != cfg else ""
         raise DataError(
-            f"line {_line(text, at)}: {name} CONFIG {cfg!r}; expected 'N|F U|D T|B, "
+            f"{where}{name} CONFIG {cfg!r}; expected 'N|F U|D T|B, "
             "t1, t4, t6' (turn numbers integers)."
         )
     return (*letters, *t)
 
 
-def _fanuc_registers(text: str) -> list[CartesianPoint]:
-    """Motion instructions to position registers ``PR[n]``: their values live in the
-    controller, not in the program; counted and left."""
-    out = []
-    pat = r"^\s*\d+\s*:\s*[JLCA]\s+(PR\[[^\]]*\])"
+def _active(text: str, pos: int, what: str) -> str | None:
+    """The ``UFRAME_NUM`` / ``UTOOL_NUM`` set last before ``pos`` ('' for none, None for
+    one set from a register or expression)."""
+    last = ""
+    for m in re.finditer(rf"^\s*\d+\s*:\s*{what}\s*=\s*([^;]*);", text[:pos], re.M):
+        last = m.group(1).strip()
+    return last if last == "" or last.isdigit() else None
+
+
+def _fanuc_registers(text: str, registers: dict | None) -> list[CartesianPoint]:
+    """The position registers ``PR[n]`` motion instructions move to, one target per
+    register (at its first use), with the frames active at its uses; its value from
+    ``registers`` ({n: :class:`kinecal.io._fanuc_va.Register`}, a controller's
+    POSREG.VA), else counted and left."""
+    uses: dict[str, list[tuple[int, str | None, str | None, str]]] = {}
+    pat = r"^\s*\d+\s*:\s*[JLCA]\s+(PR\[((?:[^\[\]]|\[[^\]]*\])*)\])"
     for m in re.finditer(pat, text, re.M):
-        why = "a position register: its value is in the controller, not in the program"
+        idx = re.fullmatch(r"\s*(?:GP1\s*:\s*)?(\d+)\s*(?::.*)?", m.group(2))
+        key = idx.group(1) if idx else m.group(1)
         at = m.start(1)
-        out.append(CartesianPoint(m.group(1), _line(text, at), ((at, at),), (), (),
-                                  None, "", "", why_not=why))  # fmt: skip
+        uses.setdefault(key, []).append(
+            (at, _active(text, at, "UFRAME_NUM"), _active(text, at, "UTOOL_NUM"),
+             m.group(1))
+        )  # fmt: skip
+    out = []
+    for key, found in uses.items():
+        at, uf, ut, name = found[0]
+        frames = {(u, t) for _, u, t, _ in found}
+        reg = (registers or {}).get(int(key)) if key.isdigit() else None
+        why = ""
+        if not key.isdigit():
+            why = "an indirect register index: its value is not known before it runs"
+        elif reg is None:
+            why = (
+                "a position register: its value is in the controller (give the "
+                "controller's POSREG.VA, or posreg: in a YAML file, with --frames)"
+            )
+        elif reg.kind == "uninitialized":
+            why = "the register is uninitialized in the registers given"
+        kind = "" if reg is None else reg.kind
+        if not why and kind == "cartesian":
+            if len(frames) > 1:
+                why = "moves use it with different UFRAME_NUM/UTOOL_NUM"
+            elif None in (uf, ut) or "" in (uf, ut):
+                why = "UFRAME_NUM and UTOOL_NUM are not both set (to numbers) before it"
+        config = None
+        if not why and kind == "cartesian":
+            try:
+                config = _fanuc_config(reg.config, 0, f"PR[{key}]", reg.config)
+            except DataError:
+                why = f"its CONFIG {reg.config!r} is not 'N|F U|D T|B, t1, t4, t6'"
+        vals = reg.values if reg is not None else ()
+        if kind == "joint":  # joints: no frame
+            uf = ut = "0"
+        out.append(
+            CartesianPoint(name, _line(text, at), ((at, at),), tuple(vals), (3,) * len(vals),
+                           config, uf or "0", ut or "0", why_not=why,
+                           register=kind if not why else "")
+        )  # fmt: skip
     return out
 
 
-def _fanuc(text: str) -> list[CartesianPoint]:
+def _fanuc(text: str, registers: dict | None = None) -> list[CartesianPoint]:
     pos = re.search(r"^/POS\b", text, re.M)
-    registers = _fanuc_registers(text)
+    registers = _fanuc_registers(text, registers)
     if pos is None:
         return registers
     end = re.search(r"^/END\b", text[pos.end() :], re.M)
@@ -391,14 +446,19 @@ def _urscript(text: str) -> list[CartesianPoint]:
 _READERS = {"fanuc-ls": _fanuc, "krl": _krl, "rapid": _rapid, "urscript": _urscript}
 
 
-def read_cartesian(text: str, fmt: str) -> list[CartesianPoint]:
-    """The Cartesian targets of a program text (see the module docstring).
+def read_cartesian(
+    text: str, fmt: str, registers: dict | None = None
+) -> list[CartesianPoint]:
+    """The Cartesian targets of a program text (see the module docstring);
+    ``registers``: FANUC position register values ({n: Register}).
 
     Raises
     ------
     DataError
         A malformed target (naming its line).
     """
+    if fmt == "fanuc-ls":
+        return _fanuc(text, registers)
     return _READERS[fmt](text)
 
 
@@ -415,7 +475,7 @@ def point_pose(fmt: str, values: tuple[float, ...]) -> Pose:
     return make_transform(R, v[:3] * 1e-3)
 
 
-def _numbers(fmt: str, T: Pose, old: tuple[float, ...]) -> Float:
+def cartesian_numbers(fmt: str, T: Pose, old: tuple[float, ...]) -> Float:
     """A pose as the format's numbers, the angle set nearest the old one."""
     if fmt == "rapid":
         q = matrix_to_quat_wxyz(T[:3, :3])
@@ -469,12 +529,12 @@ def cartesian_edits(
     ``configs`` has them); rows with NaN are kept."""
     edits = []
     for k, pt in enumerate(points):
-        if not pt.values or not np.isfinite(poses[k]).all():
-            continue
+        if not pt.values or pt.register or not np.isfinite(poses[k]).all():
+            continue  # a register's value is written to the register program
         new_cfg = None if configs is None else configs[k]
         if new_cfg is not None and pt.config_spans:
             edits += _config_edits(fmt, pt, new_cfg)
-        nums = _numbers(fmt, poses[k], pt.values)
+        nums = cartesian_numbers(fmt, poses[k], pt.values)
         for j, (a, b) in enumerate(pt.spans):
             dec = (
                 decimals

@@ -133,6 +133,28 @@ class ProgramCompensation(_Compensation):
     text: str = field(repr=False)
     report: str = field(repr=False)
     written_note: str | None = None
+    registers: dict = field(default_factory=dict, repr=False)  # FANUC {n: corrected}
+
+    def register_outputs(self, out_path: str | Path) -> dict[str, str]:
+        """FANUC: {path: text} of the TP program writing the corrected position
+        registers (:func:`register_path`; none when no register was corrected)."""
+        from kinecal.io._fanuc_va import register_program
+
+        if not self.registers:
+            return {}
+        path, name = register_path(out_path)
+        return {path: register_program(name, self.registers, Path(out_path).name)}
+
+
+def register_path(out_path: str | Path) -> tuple[str, str]:
+    """(path, program name) of the register program of a corrected FANUC program
+    ``out_path``: ``<OUT>_PR.LS`` beside it (a TP name: letters, digits, '_')."""
+    import re
+
+    out = Path(out_path)
+    name = re.sub(r"\W", "_", out.stem.upper())[:33] + "_PR"
+    name = name if name[0].isalpha() else "P" + name[:35]
+    return str(out.with_name(name + (".LS" if out.suffix.isupper() else ".ls"))), name
 
 
 def compensate_targets(
@@ -207,6 +229,7 @@ def compensate_program(
     decimals: int | None = None,
     uframes: dict[str, np.ndarray] | None = None,
     utools: dict[str, np.ndarray] | None = None,
+    registers: dict | None = None,
     say: Say | None = None,
 ) -> ProgramCompensation:
     """The corrected robot program ``path`` (``fmt``: fanuc-ls, urscript, rapid, krl),
@@ -215,7 +238,10 @@ def compensate_program(
     Each joint target is moved so that the real robot takes the flange pose the
     nominal robot has at the programmed joints; each Cartesian target (in its user and
     tool frames: ``uframes``, ``utools``, {id: pose (4, 4) [m]}) becomes the pose the
-    nominal controller must be commanded for the real robot to reach it. ``decimals``:
+    nominal controller must be commanded for the real robot to reach it; FANUC
+    ``registers`` ({n: :class:`kinecal.io._fanuc_va.Register`}, the controller's
+    position registers) are corrected where the program moves to them
+    (:meth:`ProgramCompensation.register_outputs`). ``decimals``:
     of the written joints (default: the file's). ``say`` gets each message line as it
     is found (they are also in ``messages``).
 
@@ -235,8 +261,9 @@ def compensate_program(
     prog = read_program(path, fmt)
     q_prog, p_t, res_j, ls = _joint_part(cal, prog, scale, tol_mm)
     run = cartesian_run(
-        cal, prog, q_prog, uframes or {}, utools or {}, scale, tol_mm, decimals
-    )
+        cal, prog, q_prog, uframes or {}, utools or {}, scale, tol_mm, decimals,
+        registers,
+    )  # fmt: skip
     q_all = np.vstack([q_prog, run.q_seed[np.all(np.isfinite(run.q_seed), axis=1)]])
     _warn_extrapolation(
         cal, q_all, range(1, q_all.shape[0] + 1), f"{path} (targets in order)", emit
@@ -273,7 +300,9 @@ def compensate_program(
             "(the joints rounded to the file's decimals)."
         )
     where = tuple(f"line {ln} ({nm})" for ln, nm in zip(lines_, names))
-    return ProgramCompensation(res, where, tuple(lines), text, report, note)
+    return ProgramCompensation(
+        res, where, tuple(lines), text, report, note, run.registers_new
+    )
 
 
 def _emitter(lines: list[str], say: Say | None) -> Say:
