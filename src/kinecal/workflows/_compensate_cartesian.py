@@ -199,10 +199,17 @@ def _frames(
     prog: Any, pts: list[Any], uframes: dict[str, Any], utools: dict[str, Any]
 ) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Per target: T_base_uframe, T_flange_tool (N, 4, 4) and why a frame is missing."""
-    from kinecal.io._cartesian_programs import point_pose, rapid_frames
+    from kinecal.io._cartesian_programs import (
+        point_pose,
+        rapid_frames,
+        urscript_features,
+    )
 
     fmt = prog.format
     known_uf, known_tool = dict(uframes), dict(utools)
+    if fmt == "urscript":  # --uframe NAME=... over the script's own value
+        for name, frame in urscript_features(prog.text).items():
+            known_uf.setdefault(name, frame)
     if fmt == "rapid":
         tools, wobjs = rapid_frames(prog.text)
         for name, frame in tools.items():
@@ -213,16 +220,27 @@ def _frames(
     T_uf, T_tool = np.tile(np.eye(4), (N, 1, 1)), np.tile(np.eye(4), (N, 1, 1))
     why = [pt.why_not for pt in pts]
     for k, pt in enumerate(pts):
+        if fmt == "urscript" and pt.tool and not pt.tool.startswith("?"):
+            vals = [float(v) for v in pt.tool[2:-1].split(",")]
+            T_tool[k] = point_pose("urscript", tuple(vals))
         if fmt == "urscript":
-            if pt.tool:
-                vals = [float(v) for v in pt.tool[2:-1].split(",")]
-                T_tool[k] = point_pose("urscript", tuple(vals))
+            val: Any = known_uf.get(pt.frame)
+            if isinstance(val, str):
+                why[k] = why[k] or f"feature {pt.frame}: {val}"
+            elif val is not None:
+                T_uf[k] = val
+            elif pt.frame:
+                why[k] = why[k] or (
+                    f"feature {pt.frame}: its pose is not assigned in the script (an "
+                    f"installation feature?); give it with --uframe {pt.frame}=x,y,z,"
+                    "rx,ry,rz (m, rad)"
+                )
             continue
         for ident, base, known, out, what in (
             (pt.frame, _BASE_IDS[fmt], known_uf, T_uf, "user frame"),
             (pt.tool, _FLANGE_IDS[fmt], known_tool, T_tool, "tool"),
         ):
-            val: Any = known.get(ident)
+            val = known.get(ident)
             if isinstance(val, str):
                 why[k] = why[k] or f"{what} {ident}: {val}"
             elif val is not None:
