@@ -212,16 +212,28 @@ def test_issue_34_readers_find_the_active_frames():
     assert got == [(4, "3", "2", None), (6, "3", "4", (2, 3))]
     rapid = (
         "CONST robtarget p10:=[[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
-        "MoveL Offs(p10, 0, 0, 50), v100, fine, tA\\WObj:=w1;\n"
+        "MoveL Offs(p10, 0, 0, 50), v100, fine, tGrip\\WObj:=w1;\n"
         "MoveL p10, v100, z10, tGrip\\WObj:=w1;\n"
     )
-    (pt,) = read_cartesian(rapid, "rapid")
-    assert (pt.tool, pt.frame, pt.config, pt.why_not) == (
+    pt, off = read_cartesian(rapid, "rapid")
+    assert (pt.tool, pt.frame, pt.config, pt.why_not, pt.offset) == (
         "tGrip",
         "w1",
         (0, 0, 0, 0),
         "",
+        (),
     )
+    assert (off.name, off.follows, off.offset, off.line) == (
+        "Offs(p10; 0; 0; 50)",
+        "p10",
+        ("Offs", 0.0, 0.0, 50.0),
+        2,
+    )
+    # With another tool at the offset move: one correction cannot serve both.
+    pts = read_cartesian(rapid.replace("fine, tGrip", "fine, tA"), "rapid")
+    assert [p.why_not for p in pts] == [
+        "moves use it with different tools or wobjs"
+    ] * 2
 
 
 @pytest.mark.parametrize("fmt", ["fanuc-ls", "krl"])

@@ -11,8 +11,10 @@ import re
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from kinecal.compensation._cartesian import calibrated_flange
+from kinecal.compensation._configs import encode_config
 from kinecal.io import save_model
 from tests.compensation.test_issue_34_cartesian import (
     T_TOOL,
@@ -127,3 +129,127 @@ def test_issue_34_urscript_features_and_pose_variables(
     )  # fmt: skip
     assert res.returncode == 0, res.stderr
     assert json.loads(res.stdout.strip().splitlines()[-1])["ok"] == 6
+
+
+def _rapid_numbers(T):
+    x, y, z, w = Rotation.from_matrix(T[:3, :3]).as_quat()
+    return [*(T[:3, 3] * 1e3), w, x, y, z]
+
+
+def _offs(T, d_mm):
+    out = T.copy()
+    out[:3, 3] += np.asarray(d_mm) * 1e-3
+    return out
+
+
+def _reltool(T, d_mm, rz_deg):
+    M = np.eye(4)
+    M[:3, :3] = Rotation.from_euler("z", rz_deg, degrees=True).as_matrix()
+    M[:3, 3] = np.asarray(d_mm) * 1e-3
+    return T @ M
+
+
+def _robtarget(name, T, flags):
+    v = _rapid_numbers(T)
+    return (
+        f"CONST robtarget {name}:=[[{v[0]:.4f},{v[1]:.4f},{v[2]:.4f}],"
+        f"[{v[3]:.9f},{v[4]:.9f},{v[5]:.9f},{v[6]:.9f}],"
+        f"[{flags[0]},{flags[1]},{flags[2]},{flags[3]}],"
+        "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];"
+    )
+
+
+def test_issue_34_rapid_offs_and_reltool(tracker_twin, model_file, run_cli, tmp_path):
+    """A robtarget reached only through Offs/RelTool is corrected for that pose; one
+    reached directly and through Offs is corrected for itself and the offset move is
+    checked and counted; offsets that are not numbers leave the robtarget."""
+    cal = tracker_twin.calibrated
+    robot = cal.model.robot
+    q = _taught(np.random.default_rng(342), 5)
+    flags = encode_config(cal, "rapid", q)
+    T_obj = np.linalg.inv(T_UF) @ robot.fk_flange(q) @ T_TOOL  # where the robot goes
+    base = [
+        T_obj[0],  # p0: MoveL p0
+        T_obj[1],  # p1: MoveL p1 and MoveL Offs(p1, 0, 0, 20)
+        _offs(T_obj[2], [0, 0, -30]),  # p2: only Offs(p2, 0, 0, 30)
+        None,  # p3: set below
+        T_obj[4],  # p4: Offs with a variable
+    ]
+    M = np.eye(4)
+    M[:3, :3] = Rotation.from_euler("z", 30, degrees=True).as_matrix()
+    M[:3, 3] = [0, 0, -0.025]
+    base[3] = T_obj[3] @ np.linalg.inv(M)  # p3: only RelTool(p3, 0, 0, -25 \Rz:=30)
+    tool = _rapid_numbers(T_TOOL)
+    uf = _rapid_numbers(T_UF)
+    lines = [
+        "MODULE Offsets",
+        "PERS tooldata tGrip:=[TRUE,[[" + ",".join(f"{x:.9f}" for x in tool[:3]) + "],["
+        + ",".join(f"{x:.9f}" for x in tool[3:]) + "]],[1,[0,0,1],[1,0,0,0],0,0,0]];",
+        "PERS wobjdata wTable:=[FALSE,TRUE,\"\",[[" + ",".join(f"{x:.9f}" for x in uf[:3])
+        + "],[" + ",".join(f"{x:.9f}" for x in uf[3:]) + "]],[[0,0,0],[1,0,0,0]]];",
+        *(_robtarget(f"p{i}", base[i], flags[i]) for i in range(5)),
+        "PROC main()",
+        "  MoveL p0, v200, fine, tGrip\\WObj:=wTable;",
+        "  MoveL Offs(p1, 0, 0, 20), v200, z10, tGrip\\WObj:=wTable;",
+        "  MoveL p1, v200, fine, tGrip\\WObj:=wTable;",
+        "  MoveL Offs(p2, 0, 0, 30), v200, fine, tGrip\\WObj:=wTable;",
+        "  MoveJ RelTool(p3, 0, 0, -25 \\Rz:=30), v200, fine, tGrip\\WObj:=wTable;",
+        "  MoveL Offs(p4, 0, 0, dz), v200, fine, tGrip\\WObj:=wTable;",
+        "ENDPROC",
+        "ENDMODULE",
+        "",
+    ]  # fmt: skip
+    src, out = tmp_path / "o.mod", tmp_path / "c.mod"
+    src.write_text("\n".join(lines))
+    res = run_cli(
+        "compensate", str(src), "--model", str(model_file), "--out", str(out), "--json",
+        "--tol-mm", "0.005",
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    summary = json.loads(res.stdout.strip().splitlines()[-1])
+    assert summary["n"] == 6, res.stderr  # p0..p4 and Offs(p1, ..)
+    assert (
+        "line 8 (p4): left as written: a move uses it in an expression or with "
+        "offsets that are not numbers (line 15)" in res.stderr
+    )
+    recs = re.findall(r"robtarget (p\d):=\[\[([^\]]*)\],\[([^\]]*)\]", out.read_text())
+    new = {n: _read_pose("rapid", [float(x) for x in (a + "," + b).split(",")])
+           for n, a, b in recs}  # fmt: skip
+
+    def reach(T_new_obj, k):
+        F = T_UF @ T_new_obj @ np.linalg.inv(T_TOOL)
+        q_ctrl = _controller(robot, F, q[k])
+        got = calibrated_flange(cal, q_ctrl[None])[0] @ T_TOOL
+        return np.linalg.norm(got[:3, 3] - (T_UF @ T_obj[k])[:3, 3]) * 1e3
+
+    assert reach(new["p0"], 0) < 0.01
+    assert reach(new["p1"], 1) < 0.01
+    assert reach(_offs(new["p2"], [0, 0, 30]), 2) < 0.01
+    assert reach(new["p3"] @ M, 3) < 0.01
+    assert np.linalg.norm(new["p2"][:3, 3] - base[2][:3, 3]) * 1e3 > 0.1  # moved
+    # Offs(p1, 0, 0, 20) follows p1: the controller's pose there, against the taught
+    # Offs of the taught p1.
+    want = T_UF @ _offs(T_obj[1], [0, 0, 20])
+    F = want @ np.linalg.inv(T_TOOL)
+    F_new = T_UF @ _offs(new["p1"], [0, 0, 20]) @ np.linalg.inv(T_TOOL)
+    q_ctrl = _controller(robot, F_new, _controller(robot, F, q[1]))
+    err = (
+        np.linalg.norm(
+            (calibrated_flange(cal, q_ctrl[None])[0] @ T_TOOL)[:3, 3] - want[:3, 3]
+        )
+        * 1e3
+    )
+    follow_ok = err <= 0.005
+    assert summary["ok"] == 4 + follow_ok and summary["left"] == 2 - follow_ok
+    if not follow_ok:
+        m = re.search(r"Offs\(p1; 0; 0; 20\)\): left as written: follows p1's "
+                      r"correction, (\S+) mm", res.stderr)  # fmt: skip
+        assert m and abs(float(m.group(1)) - err) < 2e-4, (res.stderr, err)
+    q0 = _controller(robot, F, q[1])  # uncorrected: the taught Offs as written
+    err0 = (
+        np.linalg.norm(
+            (calibrated_flange(cal, q0[None])[0] @ T_TOOL)[:3, 3] - want[:3, 3]
+        )
+        * 1e3
+    )
+    assert err < 0.5 * err0, (err, err0)

@@ -17,6 +17,14 @@ urscript    ``movel/movej/movep(p[x, y, z, rx, ry, rz]``    rotation vector ``se
             ``Name_q=[...]``)
 ==========  ==============================================  ==============  ============
 
+Also: FANUC motions to position registers ``PR[n]`` (one target per register, in the
+``UFRAME_NUM``/``UTOOL_NUM`` active at its moves; its value from the controller's
+POSREG.VA, :mod:`._fanuc_va`); RAPID moves to ``Offs(p, dx, dy, dz)`` /
+``RelTool(p, dx, dy, dz \\Rx \\Ry \\Rz)`` (the robtarget corrected for its own move,
+else for its first offset; other offsets follow it and are checked, :mod:`._cartesian_rapid`);
+URScript pose variables assigned anywhere and ``pose_trans(FEATURE, target)``
+(:mod:`._cartesian_urscript`).
+
 Units: mm and deg (URScript m and rad). A target is returned with its pose in its own
 frame, the frame ids it names and its configuration as written; which frame an id means
 is for the caller (:mod:`kinecal.workflows._compensate`).
@@ -25,88 +33,41 @@ is for the caller (:mod:`kinecal.workflows._compensate`).
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, replace
 
 import numpy as np
 
 from kinecal.errors import DataError
-from kinecal.geometry import (
-    euler_zyx_to_matrix,
-    make_transform,
-    matrix_to_euler_zyx,
-    matrix_to_quat_wxyz,
-    quat_wxyz_to_matrix,
-    so3_exp,
-    so3_log,
+from kinecal.geometry import matrix_to_euler_zyx, matrix_to_quat_wxyz, so3_log
+from kinecal.io._cartesian_base import (
+    _NUM,
+    CartesianPoint,
+    _decimals,
+    _line,
+    _make,
+    point_pose,
 )
+from kinecal.io._cartesian_rapid import (
+    _rapid,
+    apply_offset,
+    rapid_frames,
+    remove_offset,
+)
+from kinecal.io._cartesian_urscript import _urscript, urscript_features
 from kinecal.typing import Float, Pose
 
 __all__ = [
     "CartesianPoint",
+    "apply_offset",
     "cartesian_edits",
     "cartesian_numbers",
     "point_pose",
     "rapid_frames",
     "read_cartesian",
+    "remove_offset",
     "urscript_features",
 ]
 
-_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _MIN_DECIMALS = {"fanuc-ls": 3, "krl": 4, "rapid": 6, "urscript": 8}
-
-
-@dataclass(frozen=True)
-class CartesianPoint:
-    """One Cartesian target.
-
-    Attributes
-    ----------
-    name, line : how the program names it, 1-based line of its first value.
-    spans : character spans of its pose numbers (FANUC: with the blanks before).
-    values : the numbers as written (x, y, z then W P R / A B C / q1..q4 / rx ry rz).
-    decimals : decimals of each number as written.
-    config : the configuration as written: FANUC ``('N', 'U', 'T', t1, t4, t6)``, KRL
-        ``(S, T)``, RAPID ``(cf1, cf4, cf6, cfx)``; None where the target has none.
-    frame, tool : the user / tool frame it names (FANUC UF/UT numbers, KRL BASE_NO /
-        TOOL_NO, RAPID wobj / tool names, URScript the TCP pose text or '').
-    q_spans : URScript Polyscope ``Name_q`` joints (spans), else empty.
-    config_spans : where the configuration is written (FANUC: the CONFIG text inside the
-        quotes; KRL: S, T; RAPID: cf1, cf4, cf6, cfx).
-    q_values : those joints [rad].
-    register : FANUC: 'cartesian' or 'joint' for a position register whose value was
-        given (its span: where the first move names it; the value is written to a
-        register program, not the text), else ''.
-    why_not : why it cannot be corrected ('' when it can).
-    """
-
-    name: str
-    line: int
-    spans: tuple[tuple[int, int], ...]
-    values: tuple[float, ...]
-    decimals: tuple[int, ...]
-    config: tuple | None
-    frame: str
-    tool: str
-    q_spans: tuple[tuple[int, int], ...] = ()
-    q_values: tuple[float, ...] = ()
-    why_not: str = ""
-    config_spans: tuple[tuple[int, int], ...] = ()
-    register: str = ""
-
-
-def _line(text: str, pos: int) -> int:
-    return text.count("\n", 0, pos) + 1
-
-
-def _decimals(token: str) -> int:
-    m = re.match(r"\s*[-+]?\d*\.?(\d*)", token)
-    return len(m.group(1)) if m and "." in token else 0
-
-
-def _make(text, name, spans, **kw) -> CartesianPoint:
-    vals = tuple(float(text[a:b]) for a, b in spans)
-    dec = tuple(_decimals(text[a:b]) for a, b in spans)
-    return CartesianPoint(name, _line(text, spans[0][0]), tuple(spans), vals, dec, **kw)
 
 
 # ------------------------------------------------------------------ FANUC
@@ -306,297 +267,6 @@ def _krl(text: str) -> list[CartesianPoint]:
     return out
 
 
-# ------------------------------------------------------------------ RAPID
-def _bracket_list(text: str, start: int) -> list[tuple[int, int]]:
-    """Spans of the numbers in the '[...]' list opening at ``start``."""
-    close = text.find("]", start)
-    return [
-        (start + 1 + m.start(), start + 1 + m.end())
-        for m in re.finditer(_NUM, text[start + 1 : close])
-    ]
-
-
-def _rapid_uses(text: str) -> dict[str, set[tuple[str, str]]]:
-    """robtarget name ('' for an inline one) -> {(tool, wobj)} of the move
-    instructions that use it."""
-    uses: dict[str, set[tuple[str, str]]] = {}
-    for m in re.finditer(r"\b(Move(?:L|J|C|LDO|JDO))\b([^;]*);", text, re.I):
-        # Commas inside [..] (an inline target) or (..) (Offs(p10, 0, 0, 50)) do not
-        # separate arguments.
-        args = [a.strip() for a in re.split(r",(?![^\[(]*[\])])", m.group(2))]
-        n_targets = 2 if m.group(1).upper() == "MOVEC" else 1
-        if len(args) < n_targets + 3:
-            continue
-        tool = re.match(r"\s*(\w+)", args[n_targets + 2])
-        w = re.search(r"\\WObj\s*:=\s*(\w+)", m.group(2), re.I)
-        pair = (tool.group(1) if tool else "tool0", w.group(1) if w else "wobj0")
-        for a in args[:n_targets]:
-            name = re.match(r"(\w+)", a)
-            uses.setdefault(name.group(1) if name else "", set()).add(pair)
-    return uses
-
-
-def _rapid_pose(text: str, at: int) -> tuple[Pose, int]:
-    """The pose ``[[x, y, z], [q1..q4]]`` whose first '[' is the first after ``at``, and
-    the end of its quaternion list."""
-    t_at = text.find("[", text.find("[", at) + 1)
-    trans = _bracket_list(text, t_at)
-    q_at = text.find("[", text.find("]", t_at) + 1)
-    quat = _bracket_list(text, q_at)
-    if len(trans) != 3 or len(quat) != 4:
-        raise DataError(
-            f"line {_line(text, at)}: expected a pose [[x, y, z], [q1, q2, q3, q4]]."
-        )
-    v = [float(text[a:b]) for a, b in trans + quat]
-    return point_pose("rapid", tuple(v)), text.find("]", q_at)
-
-
-def rapid_frames(text: str) -> tuple[dict[str, Pose | str], dict[str, Pose | str]]:
-    """tooldata and wobjdata of a RAPID text: ({tool name: the tool in the flange frame},
-    {wobj name: the object frame in the world frame}) (4, 4) [m], or why it cannot be
-    used (str)."""
-    tools: dict[str, Pose | str] = {}
-    wobjs: dict[str, Pose | str] = {}
-    pat = r"\b(tooldata|wobjdata)\s+(\w+)\s*:=\s*\[\s*(TRUE|FALSE)\s*,"
-    for m in re.finditer(pat, text, re.I):
-        kind, name, hold = m.group(1).lower(), m.group(2), m.group(3).upper()
-        if kind == "tooldata":
-            T, _ = _rapid_pose(text, m.end())
-            tools[name] = T if hold == "TRUE" else "a stationary tool (robhold FALSE)"
-            continue
-        head = re.match(
-            r"\s*(TRUE|FALSE)\s*,\s*\"([^\"]*)\"\s*,", text[m.end() :], re.I
-        )
-        if head is None:
-            raise DataError(f"line {_line(text, m.start())}: wobjdata {name}: expected "
-                            "[robhold, ufprog, \"ufmec\", [uframe], [oframe]].")  # fmt: skip
-        uf, end = _rapid_pose(text, m.end() + head.end())
-        of, _ = _rapid_pose(text, end + 1)
-        why = "held by the robot (robhold TRUE)" if hold == "TRUE" else ""
-        why = why or ("moved by a mechanical unit" if head.group(2) else "")
-        wobjs[name] = why or uf @ of
-    return tools, wobjs
-
-
-def _rapid(text: str) -> list[CartesianPoint]:
-    uses = _rapid_uses(text)
-    out = []
-    decl = r"\brobtarget\s+(\w+)\s*:=\s*\[|\b(Move(?:L|J))\s+\["
-    for m in re.finditer(decl, text, re.I):
-        open_at = m.end() - 1
-        trans = _bracket_list(text, text.find("[", open_at + 1))
-        q_at = text.find("[", text.find("]", open_at + 1) + 1)
-        quat = _bracket_list(text, q_at)
-        conf = _bracket_list(text, text.find("[", text.find("]", q_at) + 1))
-        if len(trans) != 3 or len(quat) != 4 or len(conf) != 4:
-            raise DataError(
-                f"line {_line(text, m.start())}: robtarget {m.group(1) or m.group(2)}: "
-                "expected [[x, y, z], [q1, q2, q3, q4], [cf1, cf4, cf6, cfx], [...]]."
-            )
-        config = tuple(int(float(text[a:b])) for a, b in conf)
-        name = m.group(1) or m.group(2)
-        if m.group(2):  # inline: the instruction's own tool and wobj
-            rest = text[m.start() : text.find(";", m.start())]
-            used = _rapid_uses(rest + ";").get("", {("tool0", "wobj0")})
-        else:
-            used = uses.get(name, set())
-        why = ""
-        if not used:
-            why = "no move instruction uses it (its tool and wobj are unknown)"
-        elif len(used) > 1:
-            why = "moves use it with different tools or wobjs"
-        tool, wobj = next(iter(used)) if len(used) == 1 else ("", "")
-        out.append(
-            _make(text, name, trans + quat, config=config, frame=wobj, tool=tool,
-                  config_spans=tuple(conf),
-                  why_not=why)
-        )  # fmt: skip
-    return out
-
-
-# ------------------------------------------------------------------ URScript
-_ID = r"[A-Za-z_]\w*"
-
-
-def _close(text: str, at: int) -> int:
-    """The index just past the bracket closing the one at ``at`` (end of text if
-    none)."""
-    depth = 0
-    for i in range(at, len(text)):
-        depth += text[i] in "(["
-        depth -= text[i] in ")]"
-        if depth == 0:
-            return i + 1
-    return len(text)
-
-
-def _strip(text: str, a: int, b: int) -> tuple[int, int]:
-    while a < b and text[a].isspace():
-        a += 1
-    while b > a and text[b - 1].isspace():
-        b -= 1
-    return a, b
-
-
-def _args(text: str, open_at: int) -> list[tuple[int, int]]:
-    """Spans of the top-level arguments of the call whose '(' is at ``open_at``."""
-    end = _close(text, open_at) - 1
-    out, depth, start = [], 0, open_at + 1
-    for i in range(open_at + 1, end):
-        c = text[i]
-        depth += c in "(["
-        depth -= c in ")]"
-        if c == "," and depth == 0:
-            out.append(_strip(text, start, i))
-            start = i + 1
-    out.append(_strip(text, start, end))
-    return out
-
-
-def _ur_target(text: str, a: int, b: int) -> tuple[str, str, int] | None:
-    """A move's target expression ``text[a:b]`` -> (frame, 'p' or a variable name, the
-    index of the pose literal's '[' or of the name); None: not a plain Cartesian
-    target (a joint list, an expression)."""
-    arg = text[a:b]
-    call = re.match(r"(get_inverse_kin|pose_trans)\s*\(", arg)
-    if call and _close(text, a + call.end() - 1) == b:
-        inner = _args(text, a + call.end() - 1)
-        if call.group(1) == "get_inverse_kin":
-            return _ur_target(text, *inner[0])
-        feat = re.fullmatch(_ID, text[inner[0][0] : inner[0][1]])
-        if len(inner) != 2 or feat is None:
-            return None
-        got = _ur_target(text, *inner[1])
-        return None if got is None or got[0] else (feat.group(0), got[1], got[2])
-    if arg.startswith("p[") and _close(text, a + 1) == b:
-        return "", "p", a + 1
-    if re.fullmatch(_ID, arg):
-        return "", arg, a
-    return None
-
-
-def _ur_tcps(text: str) -> list[tuple[int, str]]:
-    """(position, TCP pose text 'p[...]', or '?<expression>' when not a literal)."""
-    out = []
-    for m in re.finditer(r"\bset_tcp\s*\(", text):
-        args = _args(text, m.end() - 1)
-        arg = text[args[0][0] : args[0][1]] if args else ""
-        lit = arg.startswith("p[") and _close(text, args[0][0] + 1) == args[0][1]
-        out.append((m.start(), arg if lit else "?" + arg))
-    return out
-
-
-def _ur_assignments(text: str) -> dict[str, list[tuple[int, int]]]:
-    """Variable -> [(start of its assignment, index of its '[' or -1: not a pose
-    literal)], for every ``[global|local] name = ...``."""
-    out: dict[str, list[tuple[int, int]]] = {}
-    pat = rf"^[ \t]*(?:(?:global|local)\s+)?({_ID})\s*=(?!=)\s*"
-    for m in re.finditer(pat, text, re.M):
-        lit = text.startswith("p[", m.end())
-        out.setdefault(m.group(1), []).append((m.start(1), m.end() + 1 if lit else -1))
-    return out
-
-
-def urscript_features(text: str) -> dict[str, Pose | str]:
-    """Variables used as the frame of ``pose_trans(FEATURE, target)`` in moves: their
-    pose in the base frame (4, 4) [m] where the script assigns one literal pose, else
-    why it cannot be used."""
-    assigned = _ur_assignments(text)
-    out: dict[str, Pose | str] = {}
-    for frame in {u[0] for u in _ur_uses(text)[0] if u[0]}:
-        got = assigned.get(frame, [])
-        if not got:
-            continue  # not in the script: --uframe NAME=... may give it
-        if len(got) > 1 or got[0][1] < 0:
-            out[frame] = "assigned more than once or from an expression in the script"
-            continue
-        spans = _bracket_list(text, got[0][1])
-        if len(spans) != 6:
-            out[frame] = "not a pose p[x, y, z, rx, ry, rz]"
-            continue
-        out[frame] = point_pose("urscript", tuple(float(text[a:b]) for a, b in spans))
-    return out
-
-
-def _ur_uses(text: str) -> tuple[list[tuple[str, str, int, int]], dict[str, int]]:
-    """The Cartesian targets of move instructions: [(frame, 'p' or variable, index of
-    the literal or name, position of the move)], and {variable: position} of variables
-    a move uses otherwise (in an expression)."""
-    uses, other = [], {}
-    for m in re.finditer(r"\b(movej|movel|movep|movec|servoj)\s*\(", text):
-        args = _args(text, m.end() - 1)
-        n = 2 if m.group(1) == "movec" else 1
-        for a, b in args[:n]:
-            got = _ur_target(text, a, b)
-            if got is not None:
-                uses.append((*got, m.start()))
-                continue
-            for v in re.finditer(_ID, text[a:b]):
-                other.setdefault(v.group(0), a + v.start())
-    return uses, other
-
-
-def _urscript(text: str) -> list[CartesianPoint]:
-    tcps = _ur_tcps(text)
-
-    def tcp_at(pos: int) -> str:
-        before = [t for at, t in tcps if at < pos]
-        return before[-1] if before else (tcps[0][1] if tcps else "")
-
-    uses, other = _ur_uses(text)
-    assigned = _ur_assignments(text)
-    features = {u[0] for u in uses if u[0]}
-    out = []
-    for frame, what, at, pos in uses:  # inline poses
-        if what != "p":
-            continue
-        spans = _bracket_list(text, at)
-        if len(spans) == 6:
-            out.append(_make(text, text[pos:text.find("(", pos)], spans, config=None,
-                             frame=frame, tool=tcp_at(pos)))  # fmt: skip
-    for name, sites in assigned.items():
-        lits = [(a, b) for a, b in sites if b >= 0]
-        if not lits or name in features:
-            continue
-        used = {(u[0], tcp_at(u[3])) for u in uses if u[1] == name}
-        polyscope = re.fullmatch(r"\w+_p", name) and re.search(
-            rf"^[ \t]*global\s+{name}\s*=", text, re.M
-        )
-        if not used and not polyscope:
-            continue  # a pose no move goes to: not a target
-        qm = (
-            re.search(rf"\bglobal\s+{name[:-2]}_q\s*=\s*\[", text)
-            if polyscope
-            else None
-        )
-        q_spans = _bracket_list(text, qm.end() - 1) if qm else []
-        q_vals = tuple(float(text[a:b]) for a, b in q_spans)
-        why = ""
-        if name in other:
-            why = (f"a move uses it in an expression (line {_line(text, other[name])}): "
-                   "one correction cannot serve both")  # fmt: skip
-        elif len(used) > 1:
-            why = "moves use it with different features or TCPs"
-        elif len(lits) < len(sites):
-            why = "it is also assigned from an expression: its value is not known"
-        frame, tool = next(iter(used)) if len(used) == 1 else ("", tcp_at(lits[0][0]))
-        for _, b in lits:
-            spans = _bracket_list(text, b)
-            if len(spans) != 6:  # p[x, 0.1, ...]: not six numbers
-                out.append(CartesianPoint(name, _line(text, b), ((b, b),), (), (), None,
-                                          frame, tool, why_not="its pose is not six "
-                                          "numbers p[x, y, z, rx, ry, rz]"))  # fmt: skip
-                continue
-            out.append(_make(text, name, spans, config=None, frame=frame,
-                             tool=tool, q_spans=tuple(q_spans), q_values=q_vals,
-                             why_not=why))  # fmt: skip
-    for k, pt in enumerate(out):
-        if pt.tool.startswith("?") and not pt.why_not:
-            out[k] = replace(pt, why_not=f"set_tcp({pt.tool[1:]}): the TCP is not a pose "
-                                         "literal")  # fmt: skip
-    return sorted(out, key=lambda c: c.spans[0][0])
-
-
 _READERS = {"fanuc-ls": _fanuc, "krl": _krl, "rapid": _rapid, "urscript": _urscript}
 
 
@@ -614,19 +284,6 @@ def read_cartesian(
     if fmt == "fanuc-ls":
         return _fanuc(text, registers)
     return _READERS[fmt](text)
-
-
-def point_pose(fmt: str, values: tuple[float, ...]) -> Pose:
-    """A target's numbers as a pose (4, 4) in SI [m]."""
-    v = np.asarray(values, np.float64)
-    if fmt == "urscript":
-        return make_transform(so3_exp(v[3:6]), v[:3])
-    if fmt == "rapid":
-        return make_transform(quat_wxyz_to_matrix(v[3:7]), v[:3] * 1e-3)
-    a = np.radians(v[3:6])
-    # FANUC W, P, R about x, y, z; KRL A, B, C about z, y, x.
-    R = euler_zyx_to_matrix(a[::-1] if fmt == "fanuc-ls" else a)
-    return make_transform(R, v[:3] * 1e-3)
 
 
 def cartesian_numbers(fmt: str, T: Pose, old: tuple[float, ...]) -> Float:
@@ -683,7 +340,12 @@ def cartesian_edits(
     ``configs`` has them); rows with NaN are kept."""
     edits = []
     for k, pt in enumerate(points):
-        if not pt.values or pt.register or not np.isfinite(poses[k]).all():
+        if (
+            not pt.values
+            or pt.register
+            or pt.follows
+            or not np.isfinite(poses[k]).all()
+        ):
             continue  # a register's value is written to the register program
         new_cfg = None if configs is None else configs[k]
         if new_cfg is not None and pt.config_spans:

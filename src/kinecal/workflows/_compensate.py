@@ -252,7 +252,11 @@ def compensate_program(
     """
     from kinecal.io import read_program, write_program, written_joints
     from kinecal.models import ModelInputs
-    from kinecal.workflows._compensate_cartesian import cartesian_run, written_errors
+    from kinecal.workflows._compensate_cartesian import (
+        cartesian_run,
+        settle_follows,
+        written_errors,
+    )
 
     lines: list[str] = []
     emit = _emitter(lines, say)
@@ -282,6 +286,7 @@ def compensate_program(
         ).p_user
         err_w = np.linalg.norm(out - p_t, axis=1)
     err_c, rot_c = written_errors(cal, run, text, prog.format, scale)
+    settle_follows(run, err_c, rot_c, tol_mm)
     res = _joined(res_j, run, robot.n_joints)
     names = [pt.name for pt in prog.points] + [
         f"{pt.name}, Cartesian" for pt in run.points
@@ -422,6 +427,8 @@ def _joined(res: CompensationResult | None, run: Any, n: int) -> CompensationRes
         err[run.rows], rot[run.rows], cond[run.rows] = r.error, r.rotation_error, r.cond
         lim[run.rows] = r.limit_joint
         relaxed[run.rows] = r.relaxed
+    for k, (e, r_) in run.follow_err.items():  # RAPID offsets following a robtarget
+        err[k], rot[k], cond[k] = e, r_, np.nan
     parts = [
         (np.nan_to_num(q_new), np.nan_to_num(run.q_seed), err, rot,
          np.asarray(run.status, str), lim, cond, relaxed)

@@ -18,6 +18,9 @@ import numpy as np
 
 from kinecal.errors import DataError
 
+# Why a RAPID move to Offs(p10, ..) is not solved itself: p10 is corrected once.
+_FOLLOWS = "follows its robtarget"
+
 # Frame id meaning the robot base (user frames) or the flange (tools), per format.
 _BASE_IDS = {"fanuc-ls": "0", "krl": "0", "rapid": "wobj0", "urscript": ""}
 _FLANGE_IDS = {"fanuc-ls": "0", "krl": "0", "rapid": "tool0", "urscript": ""}
@@ -193,6 +196,7 @@ class CartesianRun:
     fmt: str = ""
     registers: dict = field(default_factory=dict)  # FANUC {n: Register} as given
     registers_new: dict = field(default_factory=dict)  # {n: Register} corrected
+    follow_err: dict = field(default_factory=dict)  # {k: (err, rot)} of RAPID offsets
 
 
 def _frames(
@@ -362,9 +366,9 @@ def register_q(robot: Any, values: Any) -> np.ndarray:
 
 
 def _target_poses(robot: Any, fmt: str, pts: list[Any], why: list[str]) -> np.ndarray:
-    """Each target's pose in its frames (N, 4, 4) [m]; a joint register: the nominal
-    flange pose of its joints (in the base frame, no tool)."""
-    from kinecal.io._cartesian_programs import point_pose
+    """Each target's pose in its frames (N, 4, 4) [m] (RAPID: at its offset); a joint
+    register: the nominal flange pose of its joints (in the base frame, no tool)."""
+    from kinecal.io._cartesian_programs import apply_offset, point_pose
 
     out = np.tile(np.eye(4), (len(pts), 1, 1))
     for k, p in enumerate(pts):
@@ -377,7 +381,7 @@ def _target_poses(robot: Any, fmt: str, pts: list[Any], why: list[str]) -> np.nd
                 continue
             out[k] = robot.fk_flange(register_q(robot, p.values)[None])[0]
         elif p.values:
-            out[k] = point_pose(fmt, p.values)
+            out[k] = apply_offset(point_pose(fmt, p.values), p.offset)
     return out
 
 
@@ -424,6 +428,7 @@ def cartesian_run(
     from kinecal.io._cartesian_programs import (
         cartesian_edits,
         read_cartesian,
+        remove_offset,
     )
 
     fmt, robot = prog.format, cal.model.robot
@@ -433,6 +438,8 @@ def cartesian_run(
         raise DataError(f"{prog.path}: {exc}") from None
     N, n = len(pts), robot.n_joints
     T_uf, T_tool, why = _frames(prog, pts, uframes, utools)
+    for k, p in enumerate(pts):  # checked after the robtarget is corrected
+        why[k] = why[k] or (_FOLLOWS if p.follows else "")
     T_target = _target_poses(robot, fmt, pts, why).reshape(N, 4, 4)
     T_tcp = T_uf @ T_target
     F_want = T_tcp @ transform_inv(T_tool) if N else T_tcp
@@ -459,6 +466,8 @@ def cartesian_run(
     T_corr = np.full((N, 4, 4), np.nan)
     T_corr[rows] = pc.T_corrected
     T_new[ok] = transform_inv(T_uf[ok]) @ T_corr[ok] @ T_tool[ok]
+    for k in ok:  # a robtarget corrected for its offset: the robtarget written
+        T_new[k] = remove_offset(T_new[k], pts[k].offset)
     run.edits = cartesian_edits(
         prog.text, fmt, pts, T_new, q_new, decimals=decimals, configs=new_configs
     )
@@ -485,7 +494,11 @@ def written_errors(
     pts = read_cartesian(text, fmt, {**run.registers, **run.registers_new})
     N = len(pts)
     err_p, err_r = np.full(N, np.nan), np.full(N, np.nan)
-    done = np.flatnonzero(run.status == "ok")
+    ok = run.status == "ok"
+    base_ok = {p.name for k, p in enumerate(pts) if ok[k] and not p.follows}
+    done = np.flatnonzero(
+        ok | np.array([p.follows in base_ok and p.follows != "" for p in pts], bool)
+    )
     if done.size == 0:
         return err_p, err_r
     T = _target_poses(cal.model.robot, fmt, [pts[k] for k in done], [""] * done.size)
@@ -495,6 +508,7 @@ def written_errors(
         q, found = branch_solutions(cal, F, config_accept(cal, fmt, flags))
     else:  # a controller without flags starts from the joints it is at
         q, found = nearest_solutions(cal, F, run.q_new[done])
+    run.q_new[done] = np.where(np.isnan(run.q_new[done]), q, run.q_new[done])
     ls = None if scale is None else np.full(done.size, scale)
     got = calibrated_flange(cal, np.nan_to_num(q), ls) @ run.T_tool[done]
     want = run.T_tcp[done]
@@ -505,3 +519,28 @@ def written_errors(
     err_p[done] = np.where(found, ep, np.inf)
     err_r[done] = np.where(found, er, np.inf)
     return err_p, err_r
+
+
+def settle_follows(
+    run: CartesianRun, err: np.ndarray, rot: np.ndarray, tol_mm: float
+) -> None:
+    """The status of RAPID moves to ``Offs(p10, ..)`` / ``RelTool(p10, ..)`` that follow
+    p10's correction: 'ok' where the calibrated robot reaches the taught pose within
+    ``tol_mm`` there, else left with how far it stays (one robtarget cannot be exact at
+    two poses); ``err`` and ``rot`` from :func:`written_errors`."""
+    for k, p in enumerate(run.points):
+        if not p.follows or run.why[k] != _FOLLOWS:
+            continue
+        run.q_seed[k] = run.q_new[k]
+        if not np.isfinite(err[k]):
+            run.why[k] = f"its robtarget {p.follows} is not corrected"
+        elif err[k] * 1e3 <= tol_mm:
+            run.status[k] = "ok"
+            run.follow_err[k] = (err[k], rot[k])
+        else:
+            run.why[k] = (
+                f"follows {p.follows}'s correction, {err[k] * 1e3:.4f} mm from the "
+                "taught pose here (one robtarget cannot be exact at both; a robtarget "
+                "of its own would be)"
+            )
+            run.notes.append((k, run.why[k]))
