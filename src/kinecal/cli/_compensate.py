@@ -76,8 +76,8 @@ _PROGRAM_ONLY = ("decimals", "report_path", "uframes", "utools", "frames_path")
     multiple=True,
     metavar="ID=x,y,z,a,b,c",
     help="Program files: a user frame the Cartesian targets name (FANUC UF, KRL BASE_NO, "
-    "RAPID wobj), in the program's units and angles (FANUC W,P,R; KRL A,B,C; RAPID "
-    "x,y,z,q1..q4). Repeatable. 0 / wobj0: the robot base.",
+    "RAPID wobj, URScript feature), in the program's units and angles (FANUC W,P,R; KRL "
+    "A,B,C; RAPID x,y,z,q1..q4; URScript m, rad). Repeatable. 0 / wobj0: the robot base.",
 )
 @click.option(
     "--utool",

@@ -135,7 +135,7 @@ def _fanuc_registers(text: str, registers: dict | None) -> list[CartesianPoint]:
             elif None in (uf, ut) or "" in (uf, ut):
                 why = "UFRAME_NUM and UTOOL_NUM are not both set (to numbers) before it"
         config = None
-        if not why and kind == "cartesian":
+        if not why and kind == "cartesian" and reg is not None:
             try:
                 config = _fanuc_config(reg.config, 0, f"PR[{key}]", reg.config)
             except DataError:
@@ -151,9 +151,9 @@ def _fanuc_registers(text: str, registers: dict | None) -> list[CartesianPoint]:
     return out
 
 
-def _fanuc(text: str, registers: dict | None = None) -> list[CartesianPoint]:
+def _fanuc(text: str, values: dict | None = None) -> list[CartesianPoint]:
     pos = re.search(r"^/POS\b", text, re.M)
-    registers = _fanuc_registers(text, registers)
+    registers = _fanuc_registers(text, values)
     if pos is None:
         return registers
     end = re.search(r"^/END\b", text[pos.end() :], re.M)

@@ -183,7 +183,8 @@ def _rapid(text: str) -> list[CartesianPoint]:
         if m.group(2):  # inline: the instruction's own tool and wobj
             rest = text[m.start() : text.find(";", m.start())]
             found = _rapid_uses(rest + ";").get("", [])
-            ulist = [(*(found[0][:2] if found else ("tool0", "wobj0")), None, 0)]
+            pair = found[0][:2] if found else ("tool0", "wobj0")
+            ulist: list[tuple[str, str, tuple | None, int]] = [(*pair, None, 0)]
         else:
             ulist = uses.get(name, [])
         why = _rapid_why(text, ulist)

@@ -21,6 +21,7 @@ from kinecal.typing import Pose
 __all__ = ["urscript_features"]
 
 _ID = r"[A-Za-z_]\w*"
+_NOT_SIX = "its pose is not six numbers p[x, y, z, rx, ry, rz]"
 
 
 def _ur_target(text: str, a: int, b: int) -> tuple[str, str, int] | None:
@@ -92,7 +93,8 @@ def _ur_uses(text: str) -> tuple[list[tuple[str, str, int, int]], dict[str, int]
     """The Cartesian targets of move instructions: [(frame, 'p' or variable, index of
     the literal or name, position of the move)], and {variable: position} of variables
     a move uses otherwise (in an expression)."""
-    uses, other = [], {}
+    uses: list[tuple[str, str, int, int]] = []
+    other: dict[str, int] = {}
     for m in re.finditer(r"\b(movej|movel|movep|movec|servoj)\s*\(", text):
         args = _args(text, m.end() - 1)
         n = 2 if m.group(1) == "movec" else 1
@@ -121,7 +123,11 @@ def _urscript(text: str) -> list[CartesianPoint]:
         if what != "p":
             continue
         spans = _bracket_list(text, at)
-        if len(spans) == 6:
+        if len(spans) != 6:  # p[x, 0.1, ...]: not six numbers
+            out.append(CartesianPoint(text[pos:text.find("(", pos)], _line(text, at),
+                                      ((at, at),), (), (), None, frame, "",
+                                      why_not=_NOT_SIX))  # fmt: skip
+        else:
             out.append(_make(text, text[pos:text.find("(", pos)], spans, config=None,
                              frame=frame, tool=tcp_at(pos)))  # fmt: skip
     for name, sites in assigned.items():
@@ -154,8 +160,7 @@ def _urscript(text: str) -> list[CartesianPoint]:
             spans = _bracket_list(text, b)
             if len(spans) != 6:  # p[x, 0.1, ...]: not six numbers
                 out.append(CartesianPoint(name, _line(text, b), ((b, b),), (), (), None,
-                                          frame, tool, why_not="its pose is not six "
-                                          "numbers p[x, y, z, rx, ry, rz]"))  # fmt: skip
+                                          frame, tool, why_not=_NOT_SIX))  # fmt: skip
                 continue
             out.append(_make(text, name, spans, config=None, frame=frame,
                              tool=tool, q_spans=tuple(q_spans), q_values=q_vals,

@@ -116,7 +116,7 @@ def _cartesian(path: str, body: list[str], k: int, start: int) -> tuple[tuple, i
 
 def _elements(path: str, start: int, body: list[str]) -> list[tuple]:
     """(group, index, comment, kind, values, config, line) of an array's elements."""
-    out = []
+    out: list[tuple] = []
     k = 0
     while k < len(body):
         m = _ELEM.match(body[k])

@@ -98,7 +98,7 @@ def _yaml_registers(path: str, group: Any) -> dict:
         keys = set(entry) if ok else set()
         cart = keys == {"xyzwpr", "config"}
         ok = ok and (cart or keys == {"joints"})
-        vals = entry.get("xyzwpr" if cart else "joints") if ok else None
+        vals: Any = entry.get("xyzwpr" if cart else "joints") if ok else None
         ok = ok and isinstance(vals, list) and len(vals) >= (6 if cart else 1)
         ok = ok and all(isinstance(v, (int, float)) and np.isfinite(v) for v in vals)
         if not ok or (
@@ -130,10 +130,10 @@ def load_frames_file(path: str, fmt: str) -> tuple[dict, dict, dict]:
         if "$POSREG" in text.upper():
             return {}, {}, read_posreg(path, text)
         uf, ut = read_va_frames(path, text)
-        specs = [tuple(f"{i}=" + ",".join(repr(v) for v in vals) for i, vals in d.items())
-                 for d in (uf, ut)]  # fmt: skip
-        return (parse_frames(specs[0], fmt, f"{path}: $MNUFRAME"),
-                parse_frames(specs[1], fmt, f"{path}: $MNUTOOL"), {})  # fmt: skip
+        va = [tuple(f"{i}=" + ",".join(repr(v) for v in vals) for i, vals in d.items())
+              for d in (uf, ut)]  # fmt: skip
+        return (parse_frames(va[0], fmt, f"{path}: $MNUFRAME"),
+                parse_frames(va[1], fmt, f"{path}: $MNUTOOL"), {})  # fmt: skip
     try:
         doc = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
     except (OSError, yaml.YAMLError, UnicodeDecodeError) as exc:
@@ -150,11 +150,11 @@ def load_frames_file(path: str, fmt: str) -> tuple[dict, dict, dict]:
         group = doc.get(key) or {}
         if not isinstance(group, dict):
             raise DataError(f"{path}: {key}: expected ID: [numbers] entries.")
-        specs = []
-        for ident, vals in group.items():
-            if not isinstance(vals, list):
+        specs: list[str] = []
+        for ident, nums in group.items():
+            if not isinstance(nums, list):
                 raise DataError(f"{path}: {key} {ident}: expected a list of numbers.")
-            specs.append(f"{ident}=" + ",".join(str(v) for v in vals))
+            specs.append(f"{ident}=" + ",".join(str(v) for v in nums))
         out.append(parse_frames(tuple(specs), fmt, f"{path}: {key}"))
     return out[0], out[1], _yaml_registers(path, doc.get("posreg") or {})
 
@@ -397,7 +397,9 @@ def _corrected_registers(
     for k, pt in enumerate(run.points):
         if not pt.register or run.status[k] != "ok":
             continue
-        n = int(re.fullmatch(r"PR\[\s*(?:GP1\s*:\s*)?(\d+).*", pt.name, re.S).group(1))
+        found = re.fullmatch(r"PR\[\s*(?:GP1\s*:\s*)?(\d+).*", pt.name, re.S)
+        assert found is not None  # a register with a value has a number
+        n = int(found.group(1))
         if pt.register == "joint":
             deg = np.where(robot.prismatic, q_new[k] * 1e3, np.degrees(q_new[k]))
             vals = tuple(float(v) for v in deg)
