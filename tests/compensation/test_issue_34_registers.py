@@ -250,3 +250,57 @@ def test_issue_34_bad_posreg_yaml(
         str(tmp_path / "o.ls"), "--frames", str(tmp_path / "f.yaml"),
     )  # fmt: skip
     assert res.returncode != 0 and re.search(message, res.stderr), res.stderr
+
+
+def test_issue_34_register_program_is_an_output(
+    tracker_twin, model_file, run_cli, tmp_path
+):
+    """OUT_PR.LS: refused when it exists (before any work) unless --force, and never
+    written over an input."""
+    cal = tracker_twin.calibrated
+    q = _taught(np.random.default_rng(136), 1)
+    prog = tmp_path / "prs.ls"
+    prog.write_bytes(_program(1).encode())
+    va = tmp_path / "POSREG.VA"
+    va.write_bytes(_posreg(cal, q, _targets(cal, q), q[0]).encode())
+    (tmp_path / "SYSFRAME.VA").write_bytes(_sysframe().encode())
+    pr = tmp_path / "C_PR.ls"
+    pr.write_text("old")
+    args = ["compensate", str(prog), "--model", str(model_file), "--out",
+            str(tmp_path / "c.ls"), "--frames", str(tmp_path / "SYSFRAME.VA"),
+            "--frames", str(va)]  # fmt: skip
+    res = run_cli(*args)
+    assert res.returncode != 0 and "C_PR.ls: exists; use --force" in res.stderr
+    assert pr.read_text() == "old" and not (tmp_path / "c.ls").exists()
+    res = run_cli(*args, "--force")
+    assert res.returncode == 0, res.stderr
+    assert pr.read_text().startswith("/PROG  C_PR")
+    # The register program's path is an input: refused even with --force.
+    va.rename(pr)
+    res = run_cli(*args[:-1], str(pr), "--force")
+    assert res.returncode != 0 and "C_PR.ls" in res.stderr, res.stderr
+    assert pr.read_bytes().startswith(b"[*POSREG*]")
+
+
+def test_issue_34_va_elements_as_controllers_print_them():
+    """Config on the element line, numbers without a leading zero, EXT lines, other
+    groups and uninitialized elements; SYSFRAME.VA frames by number."""
+    from kinecal.io._fanuc_va import read_posreg, read_va_frames
+
+    text = (
+        "[*POSREG*]$POSREG  Storage: CMOS  Access: RW  : ARRAY[2,8] OF Position Reg\n"
+        "    [1,6] =   'Maint'   Group: 1   Config: F U T, 0, 0, 1\n"
+        "  X:  2066.881   Y: -1269.113   Z: -1122.291\n"
+        "  W:  -179.786   P:     -.649   R:   -58.819\n"
+        "  EXT1:    40.492 mm  \n"
+        "    [1,7] =   '' Uninitialized\n"
+        "    [2,7] =   'Turn'   Group: 2\n  J1 =    45.000 deg \n"
+    )
+    regs = read_posreg("POSREG.VA", text)
+    assert sorted(regs) == [6, 7]
+    assert regs[6].kind == "cartesian" and regs[6].config == "F U T, 0, 0, 1"
+    assert regs[6].values == (2066.881, -1269.113, -1122.291, -179.786, -0.649, -58.819)
+    assert regs[6].line == 2 and regs[7].kind == "uninitialized"
+    uf, ut = read_va_frames("SYSFRAME.VA", _sysframe())
+    assert sorted(uf) == ["1"] and sorted(ut) == ["1"]
+    np.testing.assert_allclose(uf["1"], _numbers("fanuc-ls", T_UF), atol=6e-4)
