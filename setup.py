@@ -22,19 +22,36 @@ NOTE = Path("kinecal", "models", "_ckernel_build.txt")
 
 
 class BuildExt(build_ext):
-    """No fused multiply-adds, so that every build rounds alike (ARM64 compilers
-    contract a * b + c by default): GCC and Clang by a flag, MSVC by the source's pragma. A failed build of the kernel is reported
-    in a banner and a note installed with the package."""
+    """GCC, Clang and MSVC: no fused multiply-adds, so that every build rounds alike
+    (ARM64 compilers contract a * b + c by default, MSVC before 17.0 under its default
+    /fp:precise). A failed build of the kernel is reported in a banner and a note
+    installed with the package."""
 
     def build_extensions(self) -> None:
-        # MSVC: /fp:contract is off by default from Visual Studio 2022 17.0 under the
-        # default /fp:precise, on before it; _ckernel.c's `#pragma fp_contract (off)`
-        # turns it off for every version (Microsoft C++ docs, "fp_contract pragma").
-        flag = {"unix": "-ffp-contract=off"}.get(self.compiler.compiler_type)
-        if flag:
-            for ext in self.extensions:
-                ext.extra_compile_args = [*ext.extra_compile_args, flag]
+        kind = self.compiler.compiler_type
+        for ext in self.extensions:
+            if kind == "unix":
+                ext.extra_compile_args = [*ext.extra_compile_args, "-ffp-contract=off"]
+            elif kind == "msvc":
+                ext.extra_compile_args = [*ext.extra_compile_args, *self._msvc_args()]
         super().build_extensions()
+
+    def _msvc_args(self) -> list[str]:
+        """MSVC: no contractions under every version's default /fp:precise.
+
+        Microsoft's documentation of ``#pragma fp_contract``
+        (https://learn.microsoft.com/cpp/preprocessor/fp-contract): "When you use the
+        default compiler options, fp_contract is off ... This behavior is new in Visual
+        Studio 2022 version 17.0. In previous compiler versions, fp_contract defaulted
+        to on." The /fp:contract option exists from 17.0 only (older compilers refuse
+        it), so the portable switch is the pragma itself, put at the top of the kernel
+        by a header forced in with /FI, keeping /fp:precise (not /fp:strict, whose
+        floating-point environment access costs speed).
+        """
+        header = Path(self.build_temp, "kinecal_fp_contract_off.h")
+        header.parent.mkdir(parents=True, exist_ok=True)
+        header.write_text("#pragma fp_contract(off)\n", encoding="ascii")
+        return ["/fp:precise", f"/FI{header.resolve()}"]
 
     def _note(self) -> Path:
         root = Path("src") if self.inplace else Path(self.build_lib)

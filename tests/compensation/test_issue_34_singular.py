@@ -215,17 +215,25 @@ def test_issue_34_readers_find_the_active_frames():
         "MoveL Offs(p10, 0, 0, 50), v100, fine, tGrip\\WObj:=w1;\n"
         "MoveL p10, v100, z10, tGrip\\WObj:=w1;\n"
     )
-    (pt,) = read_cartesian(rapid, "rapid")
-    assert (pt.tool, pt.frame, pt.config, pt.why_not) == (
+    pt, off = read_cartesian(rapid, "rapid")
+    assert (pt.tool, pt.frame, pt.config, pt.why_not, pt.offset) == (
         "tGrip",
         "w1",
         (0, 0, 0, 0),
         "",
+        (),
     )
-    # Offs(p10, ..) is a use of p10: with another tool, one correction cannot serve
-    # both moves (it was ignored, and the other tool's move got tGrip's correction).
-    (pt,) = read_cartesian(rapid.replace("fine, tGrip", "fine, tA"), "rapid")
-    assert pt.why_not == "moves use it with different tools or wobjs"
+    assert (off.name, off.follows, off.offset, off.line) == (
+        "Offs(p10; 0; 0; 50)",
+        "p10",
+        ("Offs", 0.0, 0.0, 50.0),
+        2,
+    )
+    # With another tool at the offset move: one correction cannot serve both.
+    pts = read_cartesian(rapid.replace("fine, tGrip", "fine, tA"), "rapid")
+    assert [p.why_not for p in pts] == [
+        "moves use it with different tools or wobjs"
+    ] * 2
 
 
 @pytest.mark.parametrize("fmt", ["fanuc-ls", "krl"])

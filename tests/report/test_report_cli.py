@@ -210,36 +210,3 @@ def test_issue_36_large_run_figures_from_a_sample_tables_from_all(
     html = write_report(out, out=tmp_path / "all.html").read_text()
     assert "poses evenly spaced" not in html
     assert seen["fig_workspace"][0].shape[0] == full.n
-
-
-def test_issue_34_large_residuals_read_as_a_sample(result_dir, tmp_path):
-    """`kinecal report DIR` on a large run reads every row's errors (the histogram) but
-    the other columns of the sample only: the same sample and norms as reading it all."""
-    from kinecal.errors import DataError
-    from kinecal.report import _poses
-
-    out, _ = result_dir
-    full = _poses.read_pose_errors(out / "residuals.csv")
-    got = _poses.read_pose_errors(out / "residuals.csv", sample=25)
-    want = full.sample(25)
-    assert got.n == 25 and got.total == full.n
-    for a, b in ((got.row, want.row), (got.q, want.q), (got.p_mm, want.p_mm),
-                 (got.before_mm, want.before_mm), (got.after_mm, want.after_mm)):  # fmt: skip
-        np.testing.assert_array_equal(a, b)
-    assert got.all_norms_mm is not None
-    np.testing.assert_allclose(
-        got.all_norms_mm[1], np.linalg.norm(full.after_mm, axis=1), rtol=1e-12
-    )
-    small = _poses.read_pose_errors(out / "residuals.csv", sample=full.n)
-    assert small.all_norms_mm is None and small.n == full.n
-    # a bad value in a sampled row is named by its line in the file
-    lines = (out / "residuals.csv").read_text().splitlines()
-    k = int(want.row.size // 2)
-    i = int(np.flatnonzero(full.row == want.row[k])[0])
-    cells = lines[i + 1].split(",")
-    cells[1] = "1e9"
-    lines[i + 1] = ",".join(cells)
-    bad = tmp_path / "residuals.csv"
-    bad.write_text("\n".join(lines) + "\n")
-    with pytest.raises(DataError, match=rf"line {i + 2}, column 'j1_deg'"):
-        _poses.read_pose_errors(bad, sample=25)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from typing import Any
 
 import click
@@ -18,8 +17,7 @@ from kinecal.cli._common import (
 )
 
 _FORMATS = ("csv", "fanuc-ls", "urscript", "rapid", "krl")
-_PROGRAM_ONLY = ("decimals", "report_path", "uframes", "utools", "frames_path",
-                 "registers")  # fmt: skip
+_PROGRAM_ONLY = ("decimals", "report_path", "uframes", "utools", "frames_path")
 
 
 @click.command()
@@ -78,8 +76,8 @@ _PROGRAM_ONLY = ("decimals", "report_path", "uframes", "utools", "frames_path",
     multiple=True,
     metavar="ID=x,y,z,a,b,c",
     help="Program files: a user frame the Cartesian targets name (FANUC UF, KRL BASE_NO, "
-    "RAPID wobj), in the program's units and angles (FANUC W,P,R; KRL A,B,C; RAPID "
-    "x,y,z,q1..q4). Repeatable. 0 / wobj0: the robot base.",
+    "RAPID wobj, URScript feature), in the program's units and angles (FANUC W,P,R; KRL "
+    "A,B,C; RAPID x,y,z,q1..q4; URScript m, rad). Repeatable. 0 / wobj0: the robot base.",
 )
 @click.option(
     "--utool",
@@ -92,17 +90,11 @@ _PROGRAM_ONLY = ("decimals", "report_path", "uframes", "utools", "frames_path",
 @click.option(
     "--frames",
     "frames_path",
+    multiple=True,
     type=click.Path(dir_okay=False),
-    help="Program files: a YAML file of the controller's frames, {uframe: {ID: [...]}, "
-    "utool: {ID: [...]}} (numbers as for --uframe); for KRL also the controller's "
-    "$config.dat (BASE_DATA[n], TOOL_DATA[n]).",
-)
-@click.option(
-    "--registers",
-    type=click.Path(dir_okay=False, exists=True),
-    help="FANUC: the controller's POSREG.VA. The position registers the program moves "
-    "to are corrected (in the UFRAME_NUM/UTOOL_NUM it selects) and written as a TP "
-    "program setting them: --out's name with _PR (CORRECTED_PR.LS).",
+    help="Program files: the controller's frames (repeatable): YAML {uframe: {ID: [...]}, "
+    "utool: {ID: [...]}, posreg: {n: ...}} (numbers as for --uframe); KRL $config.dat; "
+    "FANUC SYSFRAME.VA or POSREG.VA (registers corrected into OUT_PR.LS).",
 )
 @click.option(
     "--warn-dq-deg",
@@ -127,8 +119,7 @@ def compensate(
     allow_unreachable: bool,
     uframes: tuple[str, ...],
     utools: tuple[str, ...],
-    frames_path: str | None,
-    registers: str | None,
+    frames_path: tuple[str, ...],
     warn_dq_deg: float,
     allow_out_of_limits: bool,
     as_json: bool,
@@ -150,17 +141,25 @@ def compensate(
     Unreachable or out-of-limit rows are listed, and the command exits with code 4
     unless --allow-unreachable.
     """
-    from kinecal import io
-    from kinecal.workflows import compensate_program, compensate_targets
-    from kinecal.workflows._compensate_cartesian import frames_of
+    from pathlib import Path
 
-    fmt = fmt or io.detect_program_format(targets) or "csv"
+    from kinecal.io import (
+        atomic_write_files,
+        atomic_write_text,
+        detect_program_format,
+        load_model,
+    )
+    from kinecal.workflows import compensate_program, compensate_targets
+
+    fmt = fmt or detect_program_format(targets) or "csv"
     if not Path(targets).is_file():
         raise FileNotFoundError(f"{targets}: file not found.")
-    pr_path = registers and str(Path(out_path).with_stem(Path(out_path).stem + "_PR"))
-    _check_outputs(targets, fmt, out_path, report_path, force, pr_path)
+    from kinecal.workflows._compensate import register_path
+
+    pr = register_path(out_path)[0] if fmt == "fanuc-ls" and frames_path else None
+    _check_outputs(targets, fmt, out_path, report_path, force, pr)
     say = Progress(quiet)  # lines only for stages that last (many targets)
-    cal = io.load_model(model_path)
+    cal = load_model(model_path)
     say.begin("compensate", f"reading {targets} and solving")
     if fmt == "csv":
         run: Any = compensate_targets(
@@ -169,17 +168,17 @@ def compensate(
         )  # fmt: skip
         files: dict[str, bytes | str] = {}
     else:
-        uf, ut = frames_of(fmt, uframes, utools, frames_path)
+        from kinecal.io import program_bytes
+        from kinecal.workflows._compensate_cartesian import program_frames
+
+        uf, ut, regs = program_frames(fmt, uframes, utools, frames_path)
         run = compensate_program(
             cal, targets, fmt, tol_mm=tol_mm, payload_kg=payload_kg,
-            decimals=decimals, uframes=uf, utools=ut, say=_stderr,
-            registers=registers, registers_name=Path(pr_path or "KC_PR").stem,
+            decimals=decimals, uframes=uf, utools=ut, registers=regs, say=_stderr,
         )  # fmt: skip
-        files = {out_path: io.program_bytes(run.text)}
+        files = {out_path: program_bytes(run.text), **run.register_outputs(out_path)}
         if report_path:
             files[report_path] = run.report
-        if pr_path and run.registers:
-            files[pr_path] = run.registers
     for line in run.motion_warnings(targets, warn_dq_deg):
         click.echo(line, err=True)
     bad = run.unreachable()
@@ -198,11 +197,9 @@ def compensate(
             "nothing written (--allow-unreachable writes them flagged).",
         )
     if fmt == "csv":
-        io.atomic_write_text(out_path, run.csv_text(), force=force)
+        atomic_write_text(out_path, run.csv_text(), force=force)
     else:
-        io.atomic_write_files(
-            files, force=force
-        )  # the program and its report, or neither
+        atomic_write_files(files, force=force)  # the program and its report, or neither
     program = fmt != "csv"
     _print_result(
         summary, as_json, program and run.written_note, program and report_path
@@ -227,11 +224,10 @@ def _print_result(
 
 
 def _check_outputs(
-    targets: str, fmt: str, out_path: str, report_path: str | None, force: bool,
-    pr_path: str | None,
-) -> None:  # fmt: skip
+    targets: str, fmt: str, out: str, report: str | None, force: bool, pr: str | None
+) -> None:
     """Refuse an --out of another kind than the input, or files there without --force
-    (before the work, not after it)."""
+    (before the work, not after it); ``pr``: a FANUC register program written beside."""
     from pathlib import Path
 
     from kinecal.io import detect_program_format
@@ -241,20 +237,17 @@ def _check_outputs(
         refuse_unused(dict.fromkeys(_PROGRAM_ONLY, "is for program files"))
     # The output is of the input's kind: an --out named for another kind would hold
     # what its name does not say (a FANUC program in c.csv).
-    suffix = Path(out_path).suffix.lower()
-    out_kind = "csv" if suffix == ".csv" else detect_program_format(out_path)
+    suffix = Path(out).suffix.lower()
+    out_kind = "csv" if suffix == ".csv" else detect_program_format(out)
     if out_kind is not None and out_kind != fmt:
         want = "a CSV file (.csv)" if fmt == "csv" else f"a {fmt} program"
         raise click.BadParameter(
-            f"{out_path}: the corrected {targets} is {want}; name --out for it "
+            f"{out}: the corrected {targets} is {want}; name --out for it "
             f"(as {Path(targets).suffix or '.csv'}), not {suffix}.",
             param_hint="--out",
         )
-    if pr_path and fmt != "fanuc-ls":
-        raise click.BadParameter(f"is for FANUC programs; {targets} is {fmt}.",
-                                 param_hint="--registers")  # fmt: skip
-    check_distinct_outputs([out_path, report_path, pr_path])
-    for p in (out_path, report_path, pr_path):
+    check_distinct_outputs([out, report, pr])
+    for p in (out, report, pr):
         if p and Path(p).exists() and not force:
             raise FileExistsError(f"{p}: exists; use --force to overwrite it.")
 

@@ -12,10 +12,18 @@ krl         ``{X .., Y .., Z .., A .., B .., C .., S .., T  A, B, C [deg]:  FDAT
 rapid       ``robtarget name := [[x, y, z], [q1..q4],       quaternion      tool, wobj
             [cf1, cf4, cf6, cfx], [eax]]``, and inline      (w, x, y, z)    of the moves
             ``MoveL [[..], ..]``                                            using it
-urscript    moves to ``p[x, y, z, rx, ry, rz]``, to pose    rotation vector ``set_tcp``,
-            variables and ``pose_trans(FEATURE, POSE)``     [rad]           the feature
-            (:mod:`kinecal.io._urscript_targets`)
+urscript    ``movel/movej/movep(p[x, y, z, rx, ry, rz]``    rotation vector ``set_tcp``
+            and ``global Name_p=p[...]`` (Polyscope, with   [rad]
+            ``Name_q=[...]``)
 ==========  ==============================================  ==============  ============
+
+Also: FANUC motions to position registers ``PR[n]`` (one target per register, in the
+``UFRAME_NUM``/``UTOOL_NUM`` active at its moves; its value from the controller's
+POSREG.VA, :mod:`._fanuc_va`); RAPID moves to ``Offs(p, dx, dy, dz)`` /
+``RelTool(p, dx, dy, dz \\Rx \\Ry \\Rz)`` (the robtarget corrected for its own move,
+else for its first offset; other offsets follow it and are checked, :mod:`._cartesian_rapid`);
+URScript pose variables assigned anywhere and ``pose_trans(FEATURE, target)``
+(:mod:`._cartesian_urscript`).
 
 Units: mm and deg (URScript m and rad). A target is returned with its pose in its own
 frame, the frame ids it names and its configuration as written; which frame an id means
@@ -29,30 +37,34 @@ import re
 import numpy as np
 
 from kinecal.errors import DataError
-from kinecal.geometry import (
-    euler_zyx_to_matrix,
-    make_transform,
-    matrix_to_euler_zyx,
-    matrix_to_quat_wxyz,
-    quat_wxyz_to_matrix,
-    so3_exp,
-    so3_log,
+from kinecal.geometry import matrix_to_euler_zyx, matrix_to_quat_wxyz, so3_log
+from kinecal.io._cartesian_base import (
+    _NUM,
+    CartesianPoint,
+    _decimals,
+    _line,
+    _make,
+    point_pose,
 )
-from kinecal.io._cartesian_point import NUM as _NUM
-from kinecal.io._cartesian_point import CartesianPoint
-from kinecal.io._cartesian_point import bracket_list as _bracket_list
-from kinecal.io._cartesian_point import decimals_of as _decimals
-from kinecal.io._cartesian_point import line_of as _line
-from kinecal.io._cartesian_point import make_point as _make
-from kinecal.io._urscript_targets import urscript_targets
+from kinecal.io._cartesian_rapid import (
+    _rapid,
+    apply_offset,
+    rapid_frames,
+    remove_offset,
+)
+from kinecal.io._cartesian_urscript import _urscript, urscript_features
 from kinecal.typing import Float, Pose
 
 __all__ = [
     "CartesianPoint",
+    "apply_offset",
     "cartesian_edits",
+    "cartesian_numbers",
     "point_pose",
     "rapid_frames",
     "read_cartesian",
+    "remove_offset",
+    "urscript_features",
 ]
 
 _MIN_DECIMALS = {"fanuc-ls": 3, "krl": 4, "rapid": 6, "urscript": 8}
@@ -69,32 +81,79 @@ def _fanuc_config(text: str, at: int, name: str, cfg: str) -> tuple:
     except ValueError:
         ok = False
     if not ok:
+        where = f"line {_line(text, at)}: " if at or text != cfg else ""
         raise DataError(
-            f"line {_line(text, at)}: {name} CONFIG {cfg!r}; expected 'N|F U|D T|B, "
+            f"{where}{name} CONFIG {cfg!r}; expected 'N|F U|D T|B, "
             "t1, t4, t6' (turn numbers integers)."
         )
     return (*letters, *t)
 
 
-def _fanuc_registers(text: str) -> list[CartesianPoint]:
-    """Motion instructions to position registers ``PR[n]``: their values live in the
-    controller, not in the program; counted and left."""
-    out = []
-    pat = r"^\s*\d+\s*:\s*[JLCA]\s+(PR\[(?:[^\[\]]|\[[^\]]*\])*\])"
+def _active(text: str, pos: int, what: str) -> str | None:
+    """The ``UFRAME_NUM`` / ``UTOOL_NUM`` set last before ``pos`` ('' for none, None for
+    one set from a register or expression)."""
+    last = ""
+    for m in re.finditer(rf"^\s*\d+\s*:\s*{what}\s*=\s*([^;]*);", text[:pos], re.M):
+        last = m.group(1).strip()
+    return last if last == "" or last.isdigit() else None
+
+
+def _fanuc_registers(text: str, registers: dict | None) -> list[CartesianPoint]:
+    """The position registers ``PR[n]`` motion instructions move to, one target per
+    register (at its first use), with the frames active at its uses; its value from
+    ``registers`` ({n: :class:`kinecal.io._fanuc_va.Register`}, a controller's
+    POSREG.VA), else counted and left."""
+    uses: dict[str, list[tuple[int, str | None, str | None, str]]] = {}
+    pat = r"^\s*\d+\s*:\s*[JLCA]\s+(PR\[((?:[^\[\]]|\[[^\]]*\])*)\])"
     for m in re.finditer(pat, text, re.M):
-        why = (
-            "a position register: its value is in the controller, not in the program "
-            "(--registers POSREG.VA corrects the registers themselves)"
-        )
+        idx = re.fullmatch(r"\s*(?:GP1\s*:\s*)?(\d+)\s*(?::.*)?", m.group(2))
+        key = idx.group(1) if idx else m.group(1)
         at = m.start(1)
-        out.append(CartesianPoint(m.group(1), _line(text, at), ((at, at),), (), (),
-                                  None, "", "", why_not=why))  # fmt: skip
+        uses.setdefault(key, []).append(
+            (at, _active(text, at, "UFRAME_NUM"), _active(text, at, "UTOOL_NUM"),
+             m.group(1))
+        )  # fmt: skip
+    out = []
+    for key, found in uses.items():
+        at, uf, ut, name = found[0]
+        frames = {(u, t) for _, u, t, _ in found}
+        reg = (registers or {}).get(int(key)) if key.isdigit() else None
+        why = ""
+        if not key.isdigit():
+            why = "an indirect register index: its value is not known before it runs"
+        elif reg is None:
+            why = (
+                "a position register: its value is in the controller (give the "
+                "controller's POSREG.VA, or posreg: in a YAML file, with --frames)"
+            )
+        elif reg.kind == "uninitialized":
+            why = "the register is uninitialized in the registers given"
+        kind = "" if reg is None else reg.kind
+        if not why and kind == "cartesian":
+            if len(frames) > 1:
+                why = "moves use it with different UFRAME_NUM/UTOOL_NUM"
+            elif None in (uf, ut) or "" in (uf, ut):
+                why = "UFRAME_NUM and UTOOL_NUM are not both set (to numbers) before it"
+        config = None
+        if not why and kind == "cartesian" and reg is not None:
+            try:
+                config = _fanuc_config(reg.config, 0, f"PR[{key}]", reg.config)
+            except DataError:
+                why = f"its CONFIG {reg.config!r} is not 'N|F U|D T|B, t1, t4, t6'"
+        vals = reg.values if reg is not None else ()
+        if kind == "joint":  # joints: no frame
+            uf = ut = "0"
+        out.append(
+            CartesianPoint(name, _line(text, at), ((at, at),), tuple(vals), (3,) * len(vals),
+                           config, uf or "0", ut or "0", why_not=why,
+                           register=kind if not why else "")
+        )  # fmt: skip
     return out
 
 
-def _fanuc(text: str) -> list[CartesianPoint]:
+def _fanuc(text: str, values: dict | None = None) -> list[CartesianPoint]:
     pos = re.search(r"^/POS\b", text, re.M)
-    registers = _fanuc_registers(text)
+    registers = _fanuc_registers(text, values)
     if pos is None:
         return registers
     end = re.search(r"^/END\b", text[pos.end() :], re.M)
@@ -208,165 +267,26 @@ def _krl(text: str) -> list[CartesianPoint]:
     return out
 
 
-# ------------------------------------------------------------------ RAPID
-def _rapid_uses(text: str) -> dict[str, set[tuple[str, str]]]:
-    """robtarget name ('' for an inline one) -> {(tool, wobj)} of the move
-    instructions that use it."""
-    uses: dict[str, set[tuple[str, str]]] = {}
-    for m in re.finditer(r"\b(Move(?:L|J|C|LDO|JDO))\b([^;]*);", text, re.I):
-        # Commas inside [..] (an inline target) or (..) (Offs(p10, 0, 0, 50)) do not
-        # separate arguments.
-        args = [a.strip() for a in re.split(r",(?![^\[(]*[\])])", m.group(2))]
-        n_targets = 2 if m.group(1).upper() == "MOVEC" else 1
-        if len(args) < n_targets + 3:
-            continue
-        tool = re.match(r"\s*(\w+)", args[n_targets + 2])
-        w = re.search(r"\\WObj\s*:=\s*(\w+)", m.group(2), re.I)
-        pair = (tool.group(1) if tool else "tool0", w.group(1) if w else "wobj0")
-        for a in args[:n_targets]:
-            # Offs(p10, ..) and RelTool(p10, ..) move to p10 displaced: a use of p10
-            name = re.match(r"(?:(?:Offs|RelTool)\s*\(\s*)?(\w+)", a, re.I)
-            uses.setdefault(name.group(1) if name else "", set()).add(pair)
-    return uses
+_READERS = {"fanuc-ls": _fanuc, "krl": _krl, "rapid": _rapid, "urscript": _urscript}
 
 
-def _rapid_unknown(text: str, declared: set[str]) -> list[CartesianPoint]:
-    """Move instructions whose target is not a robtarget of the module nor an inline
-    one (a robtarget of another module, an array element, ``CRobT()``): counted and
-    left, with why."""
-    out = []
-    for m in re.finditer(r"\b(Move(?:L|J|C|LDO|JDO))\b([^;]*);", text, re.I):
-        args = [a.strip() for a in re.split(r",(?![^\[(]*[\])])", m.group(2))]
-        for a in args[: 2 if m.group(1).upper() == "MOVEC" else 1]:
-            base = re.fullmatch(
-                r"(?:(?:Offs|RelTool)\s*\(\s*)?(\w+)\b.*", a, re.I | re.S
-            )
-            if a.startswith("[") or (base and base.group(1) in declared):
-                continue
-            known = base is not None and re.fullmatch(r"\w+", a) is not None
-            why = (
-                f"{a}: not a robtarget declared in this module"
-                if known
-                else f"a computed target ({a[:40]})"
-            )
-            at = m.start(2) + m.group(2).find(a[:1])
-            out.append(CartesianPoint(a[:40], _line(text, at), ((at, at),), (), (),
-                                      None, "", "", why_not=why))  # fmt: skip
-    return out
-
-
-def _rapid_pose(text: str, at: int) -> tuple[Pose, int]:
-    """The pose ``[[x, y, z], [q1..q4]]`` whose first '[' is the first after ``at``, and
-    the end of its quaternion list."""
-    t_at = text.find("[", text.find("[", at) + 1)
-    trans = _bracket_list(text, t_at)
-    q_at = text.find("[", text.find("]", t_at) + 1)
-    quat = _bracket_list(text, q_at)
-    if len(trans) != 3 or len(quat) != 4:
-        raise DataError(
-            f"line {_line(text, at)}: expected a pose [[x, y, z], [q1, q2, q3, q4]]."
-        )
-    v = [float(text[a:b]) for a, b in trans + quat]
-    return point_pose("rapid", tuple(v)), text.find("]", q_at)
-
-
-def rapid_frames(text: str) -> tuple[dict[str, Pose | str], dict[str, Pose | str]]:
-    """tooldata and wobjdata of a RAPID text: ({tool name: the tool in the flange frame},
-    {wobj name: the object frame in the world frame}) (4, 4) [m], or why it cannot be
-    used (str)."""
-    tools: dict[str, Pose | str] = {}
-    wobjs: dict[str, Pose | str] = {}
-    pat = r"\b(tooldata|wobjdata)\s+(\w+)\s*:=\s*\[\s*(TRUE|FALSE)\s*,"
-    for m in re.finditer(pat, text, re.I):
-        kind, name, hold = m.group(1).lower(), m.group(2), m.group(3).upper()
-        if kind == "tooldata":
-            T, _ = _rapid_pose(text, m.end())
-            tools[name] = T if hold == "TRUE" else "a stationary tool (robhold FALSE)"
-            continue
-        head = re.match(
-            r"\s*(TRUE|FALSE)\s*,\s*\"([^\"]*)\"\s*,", text[m.end() :], re.I
-        )
-        if head is None:
-            raise DataError(f"line {_line(text, m.start())}: wobjdata {name}: expected "
-                            "[robhold, ufprog, \"ufmec\", [uframe], [oframe]].")  # fmt: skip
-        uf, end = _rapid_pose(text, m.end() + head.end())
-        of, _ = _rapid_pose(text, end + 1)
-        why = "held by the robot (robhold TRUE)" if hold == "TRUE" else ""
-        why = why or ("moved by a mechanical unit" if head.group(2) else "")
-        wobjs[name] = why or uf @ of
-    return tools, wobjs
-
-
-def _rapid(text: str) -> list[CartesianPoint]:
-    uses = _rapid_uses(text)
-    out = []
-    decl = r"\brobtarget\s+(\w+)\s*:=\s*\[|\b(Move(?:L|J))\s+\["
-    for m in re.finditer(decl, text, re.I):
-        open_at = m.end() - 1
-        trans = _bracket_list(text, text.find("[", open_at + 1))
-        q_at = text.find("[", text.find("]", open_at + 1) + 1)
-        quat = _bracket_list(text, q_at)
-        conf = _bracket_list(text, text.find("[", text.find("]", q_at) + 1))
-        if len(trans) != 3 or len(quat) != 4 or len(conf) != 4:
-            raise DataError(
-                f"line {_line(text, m.start())}: robtarget {m.group(1) or m.group(2)}: "
-                "expected [[x, y, z], [q1, q2, q3, q4], [cf1, cf4, cf6, cfx], [...]]."
-            )
-        config = tuple(int(float(text[a:b])) for a, b in conf)
-        name = m.group(1) or m.group(2)
-        if m.group(2):  # inline: the instruction's own tool and wobj
-            rest = text[m.start() : text.find(";", m.start())]
-            used = _rapid_uses(rest + ";").get("", {("tool0", "wobj0")})
-        else:
-            used = uses.get(name, set())
-        why = ""
-        if not used:
-            why = "no move instruction uses it (its tool and wobj are unknown)"
-        elif len(used) > 1:
-            why = "moves use it with different tools or wobjs"
-        tool, wobj = next(iter(used)) if len(used) == 1 else ("", "")
-        out.append(
-            _make(text, name, trans + quat, config=config, frame=wobj, tool=tool,
-                  config_spans=tuple(conf),
-                  why_not=why)
-        )  # fmt: skip
-    declared = set(re.findall(r"\brobtarget\s+(\w+)\s*:=", text, re.I))
-    return sorted(out + _rapid_unknown(text, declared), key=lambda c: c.spans[0][0])
-
-
-_READERS = {
-    "fanuc-ls": _fanuc,
-    "krl": _krl,
-    "rapid": _rapid,
-    "urscript": urscript_targets,
-}
-
-
-def read_cartesian(text: str, fmt: str) -> list[CartesianPoint]:
-    """The Cartesian targets of a program text (see the module docstring).
+def read_cartesian(
+    text: str, fmt: str, registers: dict | None = None
+) -> list[CartesianPoint]:
+    """The Cartesian targets of a program text (see the module docstring);
+    ``registers``: FANUC position register values ({n: Register}).
 
     Raises
     ------
     DataError
         A malformed target (naming its line).
     """
+    if fmt == "fanuc-ls":
+        return _fanuc(text, registers)
     return _READERS[fmt](text)
 
 
-def point_pose(fmt: str, values: tuple[float, ...]) -> Pose:
-    """A target's numbers as a pose (4, 4) in SI [m]."""
-    v = np.asarray(values, np.float64)
-    if fmt == "urscript":
-        return make_transform(so3_exp(v[3:6]), v[:3])
-    if fmt == "rapid":
-        return make_transform(quat_wxyz_to_matrix(v[3:7]), v[:3] * 1e-3)
-    a = np.radians(v[3:6])
-    # FANUC W, P, R about x, y, z; KRL A, B, C about z, y, x.
-    R = euler_zyx_to_matrix(a[::-1] if fmt == "fanuc-ls" else a)
-    return make_transform(R, v[:3] * 1e-3)
-
-
-def _numbers(fmt: str, T: Pose, old: tuple[float, ...]) -> Float:
+def cartesian_numbers(fmt: str, T: Pose, old: tuple[float, ...]) -> Float:
     """A pose as the format's numbers, the angle set nearest the old one."""
     if fmt == "rapid":
         q = matrix_to_quat_wxyz(T[:3, :3])
@@ -420,12 +340,17 @@ def cartesian_edits(
     ``configs`` has them); rows with NaN are kept."""
     edits = []
     for k, pt in enumerate(points):
-        if not pt.values or not np.isfinite(poses[k]).all():
-            continue
+        if (
+            not pt.values
+            or pt.register
+            or pt.follows
+            or not np.isfinite(poses[k]).all()
+        ):
+            continue  # a register's value is written to the register program
         new_cfg = None if configs is None else configs[k]
         if new_cfg is not None and pt.config_spans:
             edits += _config_edits(fmt, pt, new_cfg)
-        nums = _numbers(fmt, poses[k], pt.values)
+        nums = cartesian_numbers(fmt, poses[k], pt.values)
         for j, (a, b) in enumerate(pt.spans):
             dec = (
                 decimals

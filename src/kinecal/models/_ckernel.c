@@ -32,12 +32,6 @@
  * Only the stable ABI of Python 3.11 is used (Py_LIMITED_API; setup.py sets it too), so
  * one build (a wheel tagged abi3) serves every CPython from 3.11 on.
  */
-
-/* No fused multiply-adds with any compiler (GCC/Clang: -ffp-contract=off from setup.py;
- * MSVC contracted by default before Visual Studio 2022 17.0). */
-#ifdef _MSC_VER
-#pragma fp_contract(off)
-#endif
 #ifndef Py_LIMITED_API
 #define Py_LIMITED_API 0x030B0000
 #endif

@@ -388,13 +388,14 @@ def _figures(summary: Mapping[str, Any], poses: PoseErrors | None) -> list[str]:
     if poses is not None:
         # The histogram counts every pose (one pass); the figures that draw poses one
         # by one take a sample of a large run (:meth:`PoseErrors.sample`).
-        hist_b = np.linalg.norm(poses.before_mm, axis=1)
-        hist_a = np.linalg.norm(poses.after_mm, axis=1)
-        if poses.all_norms_mm is not None:  # a sample read from the file
-            hist_b, hist_a = poses.all_norms_mm
-        if poses.total > FIGURE_POSES:
-            total = poses.total
-            poses = poses.sample(FIGURE_POSES)
+        # A large residuals.csv is read as a sample, with every row's norms.
+        hist_b = poses.all_before
+        hist_b = np.linalg.norm(poses.before_mm, axis=1) if hist_b is None else hist_b
+        hist_a = poses.all_after
+        hist_a = np.linalg.norm(poses.after_mm, axis=1) if hist_a is None else hist_a
+        total = poses.total or poses.n
+        poses = poses.sample(FIGURE_POSES)
+        if total > poses.n:
             out.append(
                 f"<p class=muted>The figures per pose show {poses.n} of the {total} "
                 f"poses (the {FIGURE_POSES // 100} largest errors after calibration and "
@@ -520,7 +521,7 @@ def write_report(
             )
     cal = load_model(d / "model.yaml")
     res = d / RESIDUALS_CSV
-    poses = read_pose_errors(res, FIGURE_POSES) if res.is_file() else None
+    poses = read_pose_errors(res, sample=FIGURE_POSES) if res.is_file() else None
     return atomic_write_text(
         target, render_calibration_report(summary, cal, poses), force=True
     )

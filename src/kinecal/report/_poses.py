@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -76,17 +76,15 @@ class PoseErrors:
     p_mm: Float
     before_mm: Float
     after_mm: Float
-    # A sample read from a large file: the error norms of every row (for the histogram)
-    all_norms_mm: tuple[Float, Float] | None = None
+    # A sample read from a larger file (read_pose_errors(path, sample=n)): how many
+    # rows the file holds and every row's error norms before and after [mm].
+    total: int | None = None
+    all_before: Float | None = None
+    all_after: Float | None = None
 
     @property
     def n(self) -> int:
         return int(self.row.shape[0])
-
-    @property
-    def total(self) -> int:
-        """Rows of the run (more than ``n`` for a sample read from a large file)."""
-        return self.n if self.all_norms_mm is None else int(self.all_norms_mm[0].size)
 
     def sample(self, n: int = FIGURE_POSES) -> PoseErrors:
         """At most ``n`` of the poses, in their order, the same every time: the 1 % of
@@ -94,7 +92,7 @@ class PoseErrors:
         the data for the rest (all of them when there are ``n`` or fewer)."""
         if self.n <= n:
             return self
-        i = _sample_index(self.after_mm, n)
+        i = _sample_index(np.einsum("ij,ij->i", self.after_mm, self.after_mm), n)
         return PoseErrors(
             row=self.row[i],
             q=self.q[i],
@@ -156,10 +154,10 @@ def pose_errors(result, meas) -> PoseErrors:
     )
 
 
-def _sample_index(after_mm: Float, n: int) -> Int:
-    """The rows of :meth:`PoseErrors.sample` (sorted)."""
-    N = after_mm.shape[0]
-    err = np.einsum("ij,ij->i", after_mm, after_mm)
+def _sample_index(err: Float, n: int) -> Int:
+    """The rows :meth:`PoseErrors.sample` keeps of N > n rows of squared errors
+    after calibration ``err`` (N,) [mm²]."""
+    N = err.shape[0]
     top = max(n // 100, 1)
     worst = np.argpartition(err, N - top)[N - top :]
     keep = np.zeros(N, bool)
@@ -169,9 +167,66 @@ def _sample_index(after_mm: Float, n: int) -> Int:
     return np.flatnonzero(keep)
 
 
-def _header(p: Path) -> tuple[list[str], list[tuple[int, str, int]]]:
-    """The columns of a ``residuals.csv`` and its joints (number, unit, column),
-    checked."""
+# Bytes of lines parsed at once when a large file is sampled.
+_CHUNK = 1 << 22
+
+
+def _chunks(p: Path) -> Iterator[list[bytes]]:
+    with open(p, "rb") as fh:
+        fh.readline()
+        while lines := fh.readlines(_CHUNK):
+            yield lines
+
+
+def _read_sampled(p: Path, head: list[str], n: int) -> PoseErrors | None:
+    """A file of more than ``n`` rows read as :meth:`PoseErrors.sample` of it: a first
+    pass parses only the six error columns (the sample's choice, every row's norms),
+    a second the rows kept; a few MB at a time, never the whole file. None: the file
+    has ``n`` rows or fewer, or a malformed line (the whole read names it)."""
+    cols = [head.index(c) for c in _TAIL[3:9]]
+    commas = len(head) - 1
+    parts: list[Float] = []  # per chunk: norm before, norm after, squared after
+    try:
+        for lines in _chunks(p):
+            if sum(ln.count(b",") for ln in lines) != commas * len(lines):
+                return None
+            e = np.loadtxt(lines, delimiter=",", usecols=cols, ndmin=2)
+            if not np.all(np.isfinite(e)) or (np.abs(e) > 1e6).any():
+                return None
+            sq = np.einsum("ij,ij->i", e[:, 3:], e[:, 3:])
+            parts.append(np.stack([np.linalg.norm(e[:, :3], axis=1),
+                                   np.linalg.norm(e[:, 3:], axis=1), sq]))  # fmt: skip
+    except ValueError:
+        return None
+    norms = np.concatenate(parts, axis=1) if parts else np.zeros((3, 0))
+    del parts
+    if norms.shape[1] <= n:
+        return None
+    idx = _sample_index(norms[2], n)
+    rows, at = [], 0
+    for lines in _chunks(p):
+        k = idx[(idx >= at) & (idx < at + len(lines))] - at
+        rows += [lines[j] for j in k]
+        at += len(lines)
+    a = np.loadtxt(rows, delimiter=",", ndmin=2)
+    out = _table(p, a, head, idx + 2)
+    return replace(
+        out, total=int(norms.shape[1]), all_before=norms[0], all_after=norms[1]
+    )
+
+
+def read_pose_errors(path: str | Path, sample: int | None = None) -> PoseErrors:
+    """Read a ``residuals.csv`` written by :meth:`PoseErrors.to_csv`; ``sample``: at
+    most that many rows, :meth:`PoseErrors.sample` of a larger file read without
+    holding it (with ``total`` and every row's error norms).
+
+    Raises
+    ------
+    DataError
+        Missing columns or values that are not numbers (the message names the file, and
+        the column or line).
+    """
+    p = Path(path)
     try:
         with open(p, encoding="utf-8") as fh:
             first = fh.readline()
@@ -192,54 +247,24 @@ def _header(p: Path) -> tuple[list[str], list[tuple[int, str, int]]]:
         raise DataError(
             f"{p}: missing {what}; expected the columns row, j1_deg .., {', '.join(_TAIL)}."
         )
-    return head, joints
-
-
-def read_pose_errors(path: str | Path, sample: int | None = None) -> PoseErrors:
-    """Read a ``residuals.csv`` written by :meth:`PoseErrors.to_csv`; with ``sample``,
-    a file of more rows is read as :meth:`PoseErrors.sample` of it, its errors alone
-    read for every row (``all_norms_mm``): 1.8 s and 127 MB instead of 3.9 s and 334 MB
-    at 1e6 rows.
-
-    Raises
-    ------
-    DataError
-        Missing columns or values that are not numbers (the message names the file, and
-        the column or line).
-    """
-    p = Path(path)
-    head, joints = _header(p)
-    col = {c: i for i, c in enumerate(head)}
-    err_cols = [col[c] for c in _TAIL[3:9]]
-    lines, norms = None, None
+    if sample is not None and (got := _read_sampled(p, head, sample)) is not None:
+        return got
     try:
-        if sample is not None:
-            e = np.loadtxt(
-                p,
-                delimiter=",",
-                skiprows=1,
-                ndmin=2,
-                usecols=err_cols,
-                encoding="utf-8",
-            )
-            if not np.all(np.isfinite(e)):
-                r, c = np.argwhere(~np.isfinite(e))[0]
-                raise DataError(
-                    f"{p}: line {r + 2}, column '{_TAIL[3 + c]}': not a finite number."
-                )
-            if e.shape[0] > sample:
-                lines = _sample_index(e[:, 3:], sample)
-                norms = (
-                    np.linalg.norm(e[:, :3], axis=1),
-                    np.linalg.norm(e[:, 3:], axis=1),
-                )
         # From the file (numpy reads it in chunks): a 1e6-row file's text, held as a
         # str and a StringIO, took 0.7 GB.
-        src = p if lines is None else _lines(p, lines)
-        a = np.loadtxt(src, delimiter=",", skiprows=1, ndmin=2, encoding="utf-8")
+        a = np.loadtxt(p, delimiter=",", skiprows=1, ndmin=2, encoding="utf-8")
     except ValueError as exc:
         raise DataError(f"{p}: {exc}".replace("\n", " ")) from None
-    at = np.arange(a.shape[0]) if lines is None else lines  # data row of each
+    return _table(p, a, head, np.arange(a.shape[0]) + 2)
+
+
+def _table(p: Path, a: Float, head: list[str], lines: Int) -> PoseErrors:
+    """The rows ``a`` of a residuals file (their file ``lines``), checked."""
+    joints = sorted(
+        (int(m.group(1)), m.group(2), i)
+        for i, c in enumerate(head)
+        if (m := _JOINT.match(c))
+    )
     if a.shape[1] != len(head):
         raise DataError(
             f"{p}: {a.shape[1]} values per line; the header has {len(head)}."
@@ -247,22 +272,22 @@ def read_pose_errors(path: str | Path, sample: int | None = None) -> PoseErrors:
     if not np.all(np.isfinite(a)):
         r, c = np.argwhere(~np.isfinite(a))[0]
         raise DataError(
-            f"{p}: line {at[r] + 2}, column '{head[c]}': not a finite number."
+            f"{p}: line {lines[r]}, column '{head[c]}': not a finite number."
         )
-    joints.sort()
+    col = {c: i for i, c in enumerate(head)}
     huge = np.abs(a) > 1e6  # beyond 1 km or 1e6 deg: not data (and not drawable)
     huge[:, col["row"]] = False
     if huge.any():
         r, c = np.argwhere(huge)[0]
         raise DataError(
-            f"{p}: line {at[r] + 2}, column '{head[c]}': {a[r, c]:g}; expected a value "
+            f"{p}: line {lines[r]}, column '{head[c]}': {a[r, c]:g}; expected a value "
             "within 1e6 (mm or deg)."
         )
     rows = a[:, col["row"]]
     bad = np.flatnonzero((rows != np.round(rows)) | (np.abs(rows) > 2**31))
     if bad.size:
         raise DataError(
-            f"{p}: line {int(at[bad[0]]) + 2}, column 'row': expected a row number; got "
+            f"{p}: line {lines[bad[0]]}, column 'row': expected a row number; got "
             f"{rows[bad[0]]:g}."
         )
 
@@ -276,20 +301,4 @@ def read_pose_errors(path: str | Path, sample: int | None = None) -> PoseErrors:
         p_mm=take("x_mm", "y_mm", "z_mm"),
         before_mm=take("ex_before_mm", "ey_before_mm", "ez_before_mm"),
         after_mm=take("ex_mm", "ey_mm", "ez_mm"),
-        all_norms_mm=norms,
     )
-
-
-def _lines(p: Path, rows: Int) -> list[str]:
-    """The header and the data rows ``rows`` (sorted, 0-based) of a file."""
-    want = np.zeros(int(rows[-1]) + 1, bool)
-    want[rows] = True
-    out = []
-    with open(p, encoding="utf-8") as fh:
-        out.append(fh.readline())
-        for i, line in enumerate(fh):
-            if i < want.size and want[i]:
-                out.append(line)
-            elif i >= want.size:
-                break
-    return out

@@ -133,7 +133,28 @@ class ProgramCompensation(_Compensation):
     text: str = field(repr=False)
     report: str = field(repr=False)
     written_note: str | None = None
-    registers: str | None = field(default=None, repr=False)  # the PR[] program
+    registers: dict = field(default_factory=dict, repr=False)  # FANUC {n: corrected}
+
+    def register_outputs(self, out_path: str | Path) -> dict[str, str]:
+        """FANUC: {path: text} of the TP program writing the corrected position
+        registers (:func:`register_path`; none when no register was corrected)."""
+        from kinecal.io._fanuc_va import register_program
+
+        if not self.registers:
+            return {}
+        path, name = register_path(out_path)
+        return {path: register_program(name, self.registers, Path(out_path).name)}
+
+
+def register_path(out_path: str | Path) -> tuple[str, str]:
+    """(path, program name) of the register program of a corrected FANUC program
+    ``out_path``: ``<OUT>_PR.LS`` beside it (a TP name: letters, digits, '_')."""
+    import re
+
+    out = Path(out_path)
+    name = re.sub(r"\W", "_", out.stem.upper())[:33] + "_PR"
+    name = name if name[0].isalpha() else "P" + name[:35]
+    return str(out.with_name(name + (".LS" if out.suffix.isupper() else ".ls"))), name
 
 
 def compensate_targets(
@@ -208,9 +229,8 @@ def compensate_program(
     decimals: int | None = None,
     uframes: dict[str, np.ndarray] | None = None,
     utools: dict[str, np.ndarray] | None = None,
+    registers: dict | None = None,
     say: Say | None = None,
-    registers: str | Path | None = None,
-    registers_name: str = "KC_PR",
 ) -> ProgramCompensation:
     """The corrected robot program ``path`` (``fmt``: fanuc-ls, urscript, rapid, krl),
     as ``kinecal compensate PROGRAM`` writes it.
@@ -218,12 +238,12 @@ def compensate_program(
     Each joint target is moved so that the real robot takes the flange pose the
     nominal robot has at the programmed joints; each Cartesian target (in its user and
     tool frames: ``uframes``, ``utools``, {id: pose (4, 4) [m]}) becomes the pose the
-    nominal controller must be commanded for the real robot to reach it. ``decimals``:
+    nominal controller must be commanded for the real robot to reach it; FANUC
+    ``registers`` ({n: :class:`kinecal.io._fanuc_va.Register`}, the controller's
+    position registers) are corrected where the program moves to them
+    (:meth:`ProgramCompensation.register_outputs`). ``decimals``:
     of the written joints (default: the file's). ``say`` gets each message line as it
-    is found (they are also in ``messages``). ``registers``: a FANUC program's
-    ``POSREG.VA``: the position registers it moves to are corrected too and returned
-    as the TP program ``registers_name`` that sets them
-    (:mod:`kinecal.workflows._compensate_registers`).
+    is found (they are also in ``messages``).
 
     Returns
     -------
@@ -232,7 +252,11 @@ def compensate_program(
     """
     from kinecal.io import read_program, write_program, written_joints
     from kinecal.models import ModelInputs
-    from kinecal.workflows._compensate_cartesian import cartesian_run, written_errors
+    from kinecal.workflows._compensate_cartesian import (
+        cartesian_run,
+        settle_follows,
+        written_errors,
+    )
 
     lines: list[str] = []
     emit = _emitter(lines, say)
@@ -241,8 +265,9 @@ def compensate_program(
     prog = read_program(path, fmt)
     q_prog, p_t, res_j, ls = _joint_part(cal, prog, scale, tol_mm)
     run = cartesian_run(
-        cal, prog, q_prog, uframes or {}, utools or {}, scale, tol_mm, decimals
-    )
+        cal, prog, q_prog, uframes or {}, utools or {}, scale, tol_mm, decimals,
+        registers,
+    )  # fmt: skip
     q_all = np.vstack([q_prog, run.q_seed[np.all(np.isfinite(run.q_seed), axis=1)]])
     _warn_extrapolation(
         cal, q_all, range(1, q_all.shape[0] + 1), f"{path} (targets in order)", emit
@@ -261,6 +286,7 @@ def compensate_program(
         ).p_user
         err_w = np.linalg.norm(out - p_t, axis=1)
     err_c, rot_c = written_errors(cal, run, text, prog.format, scale)
+    settle_follows(run, err_c, rot_c, tol_mm)
     res = _joined(res_j, run, robot.n_joints)
     names = [pt.name for pt in prog.points] + [
         f"{pt.name}, Cartesian" for pt in run.points
@@ -279,62 +305,9 @@ def compensate_program(
             "(the joints rounded to the file's decimals)."
         )
     where = tuple(f"line {ln} ({nm})" for ln, nm in zip(lines_, names))
-    regs = None
-    if registers is not None:
-        res, where, regs = _with_registers(
-            cal, prog, registers, res, where, emit, uframes=uframes or {},
-            utools=utools or {}, tol_mm=tol_mm, payload_kg=payload_kg,
-            name=registers_name,
-        )  # fmt: skip
-    return ProgramCompensation(res, where, tuple(lines), text, report, note, regs)
-
-
-def _with_registers(
-    cal: CalibratedModel,
-    prog: Any,
-    registers: str | Path,
-    res: CompensationResult,
-    where: tuple[str, ...],
-    emit: Say,
-    **kw: Any,
-) -> tuple[CompensationResult, tuple[str, ...], str]:
-    """The program's result with its position registers' rows after it, and the TP
-    program that sets the corrected registers."""
-    from kinecal.workflows._compensate_registers import compensate_registers
-
-    if prog.format != "fanuc-ls":
-        raise DataError(
-            f"{registers}: position registers are FANUC's; {prog.path} is a "
-            f"{prog.format} program."
-        )
-    rr = compensate_registers(cal, prog, registers, solve=compensate_program, **kw)
-    for line in rr.messages:
-        emit(line)
-    for why in rr.left:
-        emit(f"{registers}: {why}: left as it is")
-    got = rr.result
-    st = np.zeros(0, str) if got is None else np.asarray(got.status, str)
-    n_ok, n_left = int((st == "ok").sum()), len(rr.left) + int((st == "left").sum())
-    emit(
-        f"{registers}: {len(rr.left) + st.size} position registers moved to: {n_ok} "
-        f"corrected, {n_left} left as they are, {st.size - n_ok - n_left + len(rr.left)}"
-        " unreachable"
+    return ProgramCompensation(
+        res, where, tuple(lines), text, report, note, run.registers_new
     )
-    if got is None:
-        return res, where, rr.text
-    fields_ = ("q_ctrl", "q_program", "error", "rotation_error", "status",
-               "limit_joint", "cond")  # fmt: skip
-    cols = {f: np.concatenate([getattr(res, f), getattr(got, f)]) for f in fields_}
-    relaxed = [
-        np.zeros(len(r.status), bool) if r.relaxed is None else r.relaxed
-        for r in (res, got)
-    ]
-    joined = CompensationResult(
-        **cols,
-        iterations=max(res.iterations, got.iterations),
-        relaxed=np.concatenate(relaxed),
-    )
-    return joined, (*where, *(f"{registers} {w}" for w in rr.where)), rr.text
 
 
 def _emitter(lines: list[str], say: Say | None) -> Say:
@@ -479,6 +452,8 @@ def _joined(res: CompensationResult | None, run: Any, n: int) -> CompensationRes
         err[run.rows], rot[run.rows], cond[run.rows] = r.error, r.rotation_error, r.cond
         lim[run.rows] = r.limit_joint
         relaxed[run.rows] = r.relaxed
+    for k, (e, r_) in run.follow_err.items():  # RAPID offsets following a robtarget
+        err[k], rot[k], cond[k] = e, r_, np.nan
     parts = [
         (np.nan_to_num(q_new), np.nan_to_num(run.q_seed), err, rot,
          np.asarray(run.status, str), lim, cond, relaxed)

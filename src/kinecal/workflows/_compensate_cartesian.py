@@ -9,6 +9,7 @@ target is the nominal pose of ``q*`` in the same frames (:mod:`kinecal.compensat
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -16,6 +17,9 @@ from typing import Any
 import numpy as np
 
 from kinecal.errors import DataError
+
+# Why a RAPID move to Offs(p10, ..) is not solved itself: p10 is corrected once.
+_FOLLOWS = "follows its robtarget"
 
 # Frame id meaning the robot base (user frames) or the flange (tools), per format.
 _BASE_IDS = {"fanuc-ls": "0", "krl": "0", "rapid": "wobj0", "urscript": ""}
@@ -70,50 +74,107 @@ def _krl_config_frames(path: str, text: str) -> tuple[dict, dict]:
     return out
 
 
-def load_frames_file(path: str, fmt: str) -> tuple[dict, dict]:
-    """A YAML file ``{uframe: {ID: [..]}, utool: {ID: [..]}}``, or for KRL the
-    controller's ``$config.dat`` (``BASE_DATA[n]``, ``TOOL_DATA[n]``) -> (uframes,
-    utools)."""
+def _read_text(path: str) -> str:
+    try:
+        return Path(path).read_bytes().decode("utf-8", errors="replace")
+    except OSError as exc:
+        raise DataError(
+            f"{path}: cannot read the frames file ({exc.strerror})."
+        ) from None
+
+
+def _yaml_registers(path: str, group: Any) -> dict:
+    """``posreg: {n: {config: 'N U T, 0, 0, 0', xyzwpr: [6 numbers]} | {joints: [..]}}``
+    -> {n: Register}."""
+    from kinecal.io._fanuc_va import Register
+
+    if not isinstance(group, dict):
+        raise DataError(f"{path}: posreg: expected n: {{xyzwpr: [..], config: '..'}} "
+                        "or n: {joints: [..]} entries.")  # fmt: skip
+    out = {}
+    for n, entry in group.items():
+        what = f"{path}: posreg {n}"
+        ok = isinstance(n, int) and n > 0 and isinstance(entry, dict)
+        keys = set(entry) if ok else set()
+        cart = keys == {"xyzwpr", "config"}
+        ok = ok and (cart or keys == {"joints"})
+        vals: Any = entry.get("xyzwpr" if cart else "joints") if ok else None
+        ok = ok and isinstance(vals, list) and len(vals) >= (6 if cart else 1)
+        ok = ok and all(isinstance(v, (int, float)) and np.isfinite(v) for v in vals)
+        if not ok or (
+            cart and (len(vals) != 6 or not isinstance(entry["config"], str))
+        ):
+            raise DataError(
+                f"{what}: expected a register number > 0 with {{xyzwpr: [x, y, z, w, "
+                "p, r] (mm, deg), config: 'N U T, 0, 0, 0'}} or {joints: [j1, .., jn] "
+                "(deg)}."
+            )
+        kind = "cartesian" if cart else "joint"
+        cfg = entry["config"] if cart else ""
+        out[n] = Register(n, "", kind, tuple(float(v) for v in vals), cfg, 0)
+    return out
+
+
+def load_frames_file(path: str, fmt: str) -> tuple[dict, dict, dict]:
+    """A YAML file ``{uframe: {ID: [..]}, utool: {ID: [..]}, posreg: {n: ..}}``, for
+    KRL the controller's ``$config.dat`` (``BASE_DATA[n]``, ``TOOL_DATA[n]``), for FANUC
+    the controller's ``SYSFRAME.VA`` or ``POSREG.VA`` -> (uframes, utools, registers)."""
     import yaml
 
     if fmt == "krl" and Path(path).suffix.lower() == ".dat":
-        try:
-            text = Path(path).read_bytes().decode("utf-8", errors="replace")
-        except OSError as exc:
-            raise DataError(
-                f"{path}: cannot read the frames file ({exc.strerror})."
-            ) from None
-        return _krl_config_frames(path, text)
+        return (*_krl_config_frames(path, _read_text(path)), {})
+    if fmt == "fanuc-ls" and Path(path).suffix.lower() == ".va":
+        from kinecal.io._fanuc_va import read_posreg, read_va_frames
 
+        text = _read_text(path)
+        if "$POSREG" in text.upper():
+            return {}, {}, read_posreg(path, text)
+        uf, ut = read_va_frames(path, text)
+        va = [tuple(f"{i}=" + ",".join(repr(v) for v in vals) for i, vals in d.items())
+              for d in (uf, ut)]  # fmt: skip
+        return (parse_frames(va[0], fmt, f"{path}: $MNUFRAME"),
+                parse_frames(va[1], fmt, f"{path}: $MNUTOOL"), {})  # fmt: skip
     try:
         doc = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
-    except (OSError, yaml.YAMLError) as exc:
+    except (OSError, yaml.YAMLError, UnicodeDecodeError) as exc:
         raise DataError(f"{path}: cannot read the frames file ({exc}).") from None
-    if not isinstance(doc, dict) or set(doc) - {"uframe", "utool"}:
-        raise DataError(f"{path}: expected the keys uframe and utool (ID: [numbers]).")
+    if not isinstance(doc, dict) or set(doc) - {"uframe", "utool", "posreg"}:
+        raise DataError(
+            f"{path}: expected the keys uframe and utool (ID: [numbers]) and, for "
+            "FANUC, posreg."
+        )
+    if "posreg" in doc and fmt != "fanuc-ls":
+        raise DataError(f"{path}: posreg: position registers are for FANUC programs.")
     out = []
     for key in ("uframe", "utool"):
         group = doc.get(key) or {}
         if not isinstance(group, dict):
             raise DataError(f"{path}: {key}: expected ID: [numbers] entries.")
-        specs = []
-        for ident, vals in group.items():
-            if not isinstance(vals, list):
+        specs: list[str] = []
+        for ident, nums in group.items():
+            if not isinstance(nums, list):
                 raise DataError(f"{path}: {key} {ident}: expected a list of numbers.")
-            specs.append(f"{ident}=" + ",".join(str(v) for v in vals))
+            specs.append(f"{ident}=" + ",".join(str(v) for v in nums))
         out.append(parse_frames(tuple(specs), fmt, f"{path}: {key}"))
-    return out[0], out[1]
+    return out[0], out[1], _yaml_registers(path, doc.get("posreg") or {})
 
 
-def frames_of(
-    fmt: str, uframes: tuple[str, ...], utools: tuple[str, ...], frames_path: str | None
-) -> tuple[dict[str, Any], dict[str, Any]]:
-    """(uframes, utools) of a program run: the ``--frames`` file's, then the
-    ``--uframe``/``--utool`` values over them."""
-    uf, ut = load_frames_file(frames_path, fmt) if frames_path else ({}, {})
+def program_frames(
+    fmt: str, uframes: tuple[str, ...], utools: tuple[str, ...], paths: tuple[str, ...]
+) -> tuple[dict, dict, dict]:
+    """(uframes, utools, registers) of a program run: the --frames files in order,
+    then --uframe/--utool over them."""
+    uf: dict = {}
+    ut: dict = {}
+    regs: dict = {}
+    for path in paths:
+        a, b, c = load_frames_file(path, fmt)
+        uf.update(a)
+        ut.update(b)
+        regs.update(c)
     uf.update(parse_frames(uframes, fmt, "--uframe"))
     ut.update(parse_frames(utools, fmt, "--utool"))
-    return uf, ut
+    return uf, ut, regs
 
 
 @dataclass
@@ -133,16 +194,26 @@ class CartesianRun:
     res: object = None
     rows: np.ndarray = field(default_factory=lambda: np.zeros(0, np.intp))
     fmt: str = ""
+    registers: dict = field(default_factory=dict)  # FANUC {n: Register} as given
+    registers_new: dict = field(default_factory=dict)  # {n: Register} corrected
+    follow_err: dict = field(default_factory=dict)  # {k: (err, rot)} of RAPID offsets
 
 
 def _frames(
     prog: Any, pts: list[Any], uframes: dict[str, Any], utools: dict[str, Any]
 ) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Per target: T_base_uframe, T_flange_tool (N, 4, 4) and why a frame is missing."""
-    from kinecal.io._cartesian_programs import point_pose, rapid_frames
+    from kinecal.io._cartesian_programs import (
+        point_pose,
+        rapid_frames,
+        urscript_features,
+    )
 
     fmt = prog.format
     known_uf, known_tool = dict(uframes), dict(utools)
+    if fmt == "urscript":  # --uframe NAME=... over the script's own value
+        for name, frame in urscript_features(prog.text).items():
+            known_uf.setdefault(name, frame)
     if fmt == "rapid":
         tools, wobjs = rapid_frames(prog.text)
         for name, frame in tools.items():
@@ -153,17 +224,27 @@ def _frames(
     T_uf, T_tool = np.tile(np.eye(4), (N, 1, 1)), np.tile(np.eye(4), (N, 1, 1))
     why = [pt.why_not for pt in pts]
     for k, pt in enumerate(pts):
-        if fmt == "urscript":  # the TCP and a feature's pose as p[..] texts
-            for text, out in ((pt.tool, T_tool), (pt.frame, T_uf)):
-                if text:
-                    vals = [float(v) for v in text[2:-1].split(",")]
-                    out[k] = point_pose("urscript", tuple(vals))
+        if fmt == "urscript" and pt.tool and not pt.tool.startswith("?"):
+            vals = [float(v) for v in pt.tool[2:-1].split(",")]
+            T_tool[k] = point_pose("urscript", tuple(vals))
+        if fmt == "urscript":
+            val: Any = known_uf.get(pt.frame)
+            if isinstance(val, str):
+                why[k] = why[k] or f"feature {pt.frame}: {val}"
+            elif val is not None:
+                T_uf[k] = val
+            elif pt.frame:
+                why[k] = why[k] or (
+                    f"feature {pt.frame}: its pose is not assigned in the script (an "
+                    f"installation feature?); give it with --uframe {pt.frame}=x,y,z,"
+                    "rx,ry,rz (m, rad)"
+                )
             continue
         for ident, base, known, out, what in (
             (pt.frame, _BASE_IDS[fmt], known_uf, T_uf, "user frame"),
             (pt.tool, _FLANGE_IDS[fmt], known_tool, T_tool, "tool"),
         ):
-            val: Any = known.get(ident)
+            val = known.get(ident)
             if isinstance(val, str):
                 why[k] = why[k] or f"{what} {ident}: {val}"
             elif val is not None:
@@ -188,10 +269,13 @@ def _near_joints(
     )
     out = np.full((len(pts), n), np.nan)
     for k, pt in enumerate(pts):
+        if pt.register == "joint" and len(pt.values) == n:
+            out[k] = register_q(robot, pt.values)
+            continue
         if len(pt.q_values) >= n:
             out[k] = pt.q_values[:n]
             continue
-        before = np.flatnonzero(starts < max(pt.spans[0][0], pt.used_at))
+        before = np.flatnonzero(starts < pt.spans[0][0])
         if before.size:
             out[k] = q_joint[before[-1]]
     return out
@@ -264,8 +348,66 @@ def _crossed_flags(cal: Any, run: CartesianRun, q_ctrl: np.ndarray) -> list[Any]
             flip = (run.q_seed[k, 4] < 0) != (q_ctrl[i, 4] < 0)
             new = ((new[0] & 3) | ((old[0] & 4) ^ (4 if flip else 0)), new[1])
         out[k] = new
+        if pts[k].register:
+            note = (f"the correction crosses a configuration boundary: set the "
+                    f"register's CONFIG to {new} (was {pts[k].config}) on the pendant "
+                    "(PR[i,j]= keeps it)")  # fmt: skip
+            run.notes.append((k, note))
+            continue
         run.notes.append((k, f"configuration written as {new} (was {pts[k].config}): "
                              "the correction crosses a configuration boundary"))  # fmt: skip
+    return out
+
+
+def register_q(robot: Any, values: Any) -> np.ndarray:
+    """A joint register's values (deg, mm for prismatic joints) [rad, m]."""
+    v = np.asarray(values, np.float64)
+    return np.where(robot.prismatic, v * 1e-3, np.radians(v))
+
+
+def _target_poses(robot: Any, fmt: str, pts: list[Any], why: list[str]) -> np.ndarray:
+    """Each target's pose in its frames (N, 4, 4) [m] (RAPID: at its offset); a joint
+    register: the nominal flange pose of its joints (in the base frame, no tool)."""
+    from kinecal.io._cartesian_programs import apply_offset, point_pose
+
+    out = np.tile(np.eye(4), (len(pts), 1, 1))
+    for k, p in enumerate(pts):
+        if p.register == "joint":
+            if len(p.values) != robot.n_joints:
+                why[k] = why[k] or (
+                    f"a joint register with {len(p.values)} joints; the robot has "
+                    f"{robot.n_joints}"
+                )
+                continue
+            out[k] = robot.fk_flange(register_q(robot, p.values)[None])[0]
+        elif p.values:
+            out[k] = apply_offset(point_pose(fmt, p.values), p.offset)
+    return out
+
+
+def _corrected_registers(
+    robot: Any, run: CartesianRun, T_new: np.ndarray, q_new: np.ndarray
+) -> dict:
+    """{n: Register} with the corrected values of the registers corrected."""
+    from dataclasses import replace
+
+    from kinecal.io._cartesian_programs import cartesian_numbers
+
+    out = {}
+    for k, pt in enumerate(run.points):
+        if not pt.register or run.status[k] != "ok":
+            continue
+        found = re.fullmatch(r"PR\[\s*(?:GP1\s*:\s*)?(\d+).*", pt.name, re.S)
+        assert found is not None  # a register with a value has a number
+        n = int(found.group(1))
+        if pt.register == "joint":
+            deg = np.where(robot.prismatic, q_new[k] * 1e3, np.degrees(q_new[k]))
+            vals = tuple(float(v) for v in deg)
+        else:
+            vals = tuple(
+                float(v) for v in cartesian_numbers("fanuc-ls", T_new[k], pt.values)
+            )
+        out[n] = replace(run.registers[n], values=vals)
     return out
 
 
@@ -278,27 +420,29 @@ def cartesian_run(
     scale: float | None,
     tol_mm: float,
     decimals: int | None,
+    registers: dict | None = None,
 ) -> CartesianRun:
     """Correct the Cartesian targets of ``prog``; joint targets ``q_joint`` (N_j, n)
-    [rad] give the starting joints of targets without flags."""
+    [rad] give the starting joints of targets without flags; ``registers``: FANUC
+    position register values ({n: Register}) the program's ``PR[n]`` moves use."""
     from kinecal.compensation._cartesian import compensate_poses
     from kinecal.geometry import transform_inv
     from kinecal.io._cartesian_programs import (
         cartesian_edits,
-        point_pose,
         read_cartesian,
+        remove_offset,
     )
 
     fmt, robot = prog.format, cal.model.robot
     try:
-        pts = read_cartesian(prog.text, fmt)
+        pts = read_cartesian(prog.text, fmt, registers)
     except DataError as exc:
         raise DataError(f"{prog.path}: {exc}") from None
     N, n = len(pts), robot.n_joints
     T_uf, T_tool, why = _frames(prog, pts, uframes, utools)
-    T_target = np.array(
-        [point_pose(fmt, p.values) if p.values else np.eye(4) for p in pts]
-    ).reshape(N, 4, 4)
+    for k, p in enumerate(pts):  # checked after the robtarget is corrected
+        why[k] = why[k] or (_FOLLOWS if p.follows else "")
+    T_target = _target_poses(robot, fmt, pts, why).reshape(N, 4, 4)
     T_tcp = T_uf @ T_target
     F_want = T_tcp @ transform_inv(T_tool) if N else T_tcp
     near = _near_joints(prog, pts, robot, q_joint)
@@ -307,7 +451,7 @@ def cartesian_run(
     q_new = np.full((N, n), np.nan)
     rows = np.array([k for k in range(N) if not why[k]], np.intp)
     run = CartesianRun(pts, status, why, seeds, q_new, T_uf, T_tool, T_tcp, rows=rows)
-    run.fmt = fmt
+    run.fmt, run.registers = fmt, dict(registers or {})
     if rows.size == 0:
         return run
     ls = None if scale is None else np.full(rows.size, scale)
@@ -324,10 +468,13 @@ def cartesian_run(
     T_corr = np.full((N, 4, 4), np.nan)
     T_corr[rows] = pc.T_corrected
     T_new[ok] = transform_inv(T_uf[ok]) @ T_corr[ok] @ T_tool[ok]
+    for k in ok:  # a robtarget corrected for its offset: the robtarget written
+        T_new[k] = remove_offset(T_new[k], pts[k].offset)
     run.edits = cartesian_edits(
         prog.text, fmt, pts, T_new, q_new, decimals=decimals, configs=new_configs
     )
     run.status = status
+    run.registers_new = _corrected_registers(robot, run, T_new, q_new)
     return run
 
 
@@ -344,21 +491,26 @@ def written_errors(
     )
     from kinecal.compensation._configs import config_accept
     from kinecal.geometry import so3_log, transform_inv
-    from kinecal.io._cartesian_programs import point_pose, read_cartesian
+    from kinecal.io._cartesian_programs import read_cartesian
 
-    pts = read_cartesian(text, fmt)
+    pts = read_cartesian(text, fmt, {**run.registers, **run.registers_new})
     N = len(pts)
     err_p, err_r = np.full(N, np.nan), np.full(N, np.nan)
-    done = np.flatnonzero(run.status == "ok")
+    ok = run.status == "ok"
+    base_ok = {p.name for k, p in enumerate(pts) if ok[k] and not p.follows}
+    done = np.flatnonzero(
+        ok | np.array([p.follows in base_ok and p.follows != "" for p in pts], bool)
+    )
     if done.size == 0:
         return err_p, err_r
-    T = np.array([point_pose(fmt, pts[k].values) for k in done])
+    T = _target_poses(cal.model.robot, fmt, [pts[k] for k in done], [""] * done.size)
     F = run.T_uf[done] @ T @ transform_inv(run.T_tool[done])
     flags: list[Any] = [pts[k].config for k in done]
     if all(c is not None for c in flags):
         q, found = branch_solutions(cal, F, config_accept(cal, fmt, flags))
     else:  # a controller without flags starts from the joints it is at
         q, found = nearest_solutions(cal, F, run.q_new[done])
+    run.q_new[done] = np.where(np.isnan(run.q_new[done]), q, run.q_new[done])
     ls = None if scale is None else np.full(done.size, scale)
     got = calibrated_flange(cal, np.nan_to_num(q), ls) @ run.T_tool[done]
     want = run.T_tcp[done]
@@ -369,3 +521,28 @@ def written_errors(
     err_p[done] = np.where(found, ep, np.inf)
     err_r[done] = np.where(found, er, np.inf)
     return err_p, err_r
+
+
+def settle_follows(
+    run: CartesianRun, err: np.ndarray, rot: np.ndarray, tol_mm: float
+) -> None:
+    """The status of RAPID moves to ``Offs(p10, ..)`` / ``RelTool(p10, ..)`` that follow
+    p10's correction: 'ok' where the calibrated robot reaches the taught pose within
+    ``tol_mm`` there, else left with how far it stays (one robtarget cannot be exact at
+    two poses); ``err`` and ``rot`` from :func:`written_errors`."""
+    for k, p in enumerate(run.points):
+        if not p.follows or run.why[k] != _FOLLOWS:
+            continue
+        run.q_seed[k] = run.q_new[k]
+        if not np.isfinite(err[k]):
+            run.why[k] = f"its robtarget {p.follows} is not corrected"
+        elif err[k] * 1e3 <= tol_mm:
+            run.status[k] = "ok"
+            run.follow_err[k] = (err[k], rot[k])
+        else:
+            run.why[k] = (
+                f"follows {p.follows}'s correction, {err[k] * 1e3:.4f} mm from the "
+                "taught pose here (one robtarget cannot be exact at both; a robtarget "
+                "of its own would be)"
+            )
+            run.notes.append((k, run.why[k]))

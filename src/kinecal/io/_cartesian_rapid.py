@@ -1,0 +1,206 @@
+"""RAPID Cartesian targets (:mod:`._cartesian_programs`): robtargets with the tool and
+wobj of the moves that use them, ``Offs`` / ``RelTool`` offsets, tooldata and wobjdata."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import replace
+
+import numpy as np
+
+from kinecal.errors import DataError
+from kinecal.geometry import euler_zyx_to_matrix, make_transform
+from kinecal.io._cartesian_base import (
+    _NUM,
+    CartesianPoint,
+    _bracket_list,
+    _line,
+    _make,
+    point_pose,
+)
+from kinecal.typing import Pose
+
+__all__ = ["apply_offset", "rapid_frames", "remove_offset"]
+
+
+def _rapid_offset(arg: str) -> tuple[str, tuple | None] | None:
+    """A move's target argument -> (robtarget name, offset): offset None for the name
+    itself, ('Offs', dx, dy, dz) [mm], ('RelTool', dx, dy, dz, rx, ry, rz) [mm, deg],
+    or ('?',) for numbers that are not literals; None: not a robtarget (inline, an
+    expression)."""
+    if re.fullmatch(r"\w+", arg):
+        return arg, None
+    m = re.fullmatch(r"(Offs|RelTool)\s*\((.*)\)", arg, re.I | re.S)
+    if m is None or not re.match(r"\s*\w+\s*,", m.group(2)):
+        return None
+    parts = [a.strip() for a in m.group(2).split(",")]
+    if len(parts) != 4 or not re.fullmatch(r"\w+", parts[0]):
+        return None
+    rot = dict.fromkeys("xyz", 0.0)
+    last = parts[3]
+    for sw in re.finditer(rf"\\R([xyz])\s*:=\s*({_NUM})\s*", parts[3], re.I):
+        rot[sw.group(1).lower()] = float(sw.group(2))
+        last = last.replace(sw.group(0), "")
+    nums = [*parts[1:3], last.strip()]
+    if not all(re.fullmatch(_NUM, v) for v in nums) or "\\" in last:
+        return parts[0], ("?",)
+    d = tuple(float(v) for v in nums)
+    if m.group(1).upper() == "OFFS":
+        return parts[0], ("Offs", *d)
+    return parts[0], ("RelTool", *d, rot["x"], rot["y"], rot["z"])
+
+
+def _rapid_uses(text: str) -> dict[str, list[tuple[str, str, tuple | None, int]]]:
+    """robtarget name ('' for an inline one) -> [(tool, wobj, offset, position of the
+    move)] of the move instructions that use it (offset: see :func:`_rapid_offset`;
+    ('?', position) for a use inside another expression)."""
+    uses: dict[str, list[tuple[str, str, tuple | None, int]]] = {}
+    for m in re.finditer(r"\b(Move(?:L|J|C|LDO|JDO))\b([^;]*);", text, re.I):
+        # Commas inside [..] (an inline target) or (..) (Offs(p10, 0, 0, 50)) do not
+        # separate arguments.
+        args = [a.strip() for a in re.split(r",(?![^\[(]*[\])])", m.group(2))]
+        n_targets = 2 if m.group(1).upper() == "MOVEC" else 1
+        if len(args) < n_targets + 3:
+            continue
+        tool = re.match(r"\s*(\w+)", args[n_targets + 2])
+        w = re.search(r"\\WObj\s*:=\s*(\w+)", m.group(2), re.I)
+        pair = (tool.group(1) if tool else "tool0", w.group(1) if w else "wobj0")
+        for a in args[:n_targets]:
+            got = _rapid_offset(a)
+            if got is None and a.startswith("["):
+                got = ("", None)
+            if got is None:  # robtargets inside an expression
+                for name in re.findall(r"\b[A-Za-z_]\w*\b", a):
+                    uses.setdefault(name, []).append((*pair, ("?",), m.start()))
+                continue
+            uses.setdefault(got[0], []).append((*pair, got[1], m.start()))
+    return uses
+
+
+def apply_offset(T: Pose, offset: tuple) -> Pose:
+    """The pose a RAPID ``Offs`` (displacement in the object frame) or ``RelTool``
+    (displacement, then rotations about x, y, z, in the tool frame) makes of ``T``
+    (4, 4) [m]."""
+    if not offset:
+        return T
+    d = np.asarray(offset[1:4], np.float64) * 1e-3
+    if offset[0] == "Offs":
+        out = T.copy()
+        out[:3, 3] += d
+        return out
+    rx, ry, rz = np.radians(offset[4:7])
+    return T @ make_transform(euler_zyx_to_matrix(np.array([rz, ry, rx])), d)
+
+
+def remove_offset(T: Pose, offset: tuple) -> Pose:
+    """The robtarget whose ``offset`` pose is ``T`` (the inverse of :func:`apply_offset`)."""
+    if not offset:
+        return T
+    if offset[0] == "Offs":
+        out = T.copy()
+        out[:3, 3] -= np.asarray(offset[1:4], np.float64) * 1e-3
+        return out
+    return T @ np.linalg.inv(apply_offset(np.eye(4), offset))
+
+
+def _rapid_pose(text: str, at: int) -> tuple[Pose, int]:
+    """The pose ``[[x, y, z], [q1..q4]]`` whose first '[' is the first after ``at``, and
+    the end of its quaternion list."""
+    t_at = text.find("[", text.find("[", at) + 1)
+    trans = _bracket_list(text, t_at)
+    q_at = text.find("[", text.find("]", t_at) + 1)
+    quat = _bracket_list(text, q_at)
+    if len(trans) != 3 or len(quat) != 4:
+        raise DataError(
+            f"line {_line(text, at)}: expected a pose [[x, y, z], [q1, q2, q3, q4]]."
+        )
+    v = [float(text[a:b]) for a, b in trans + quat]
+    return point_pose("rapid", tuple(v)), text.find("]", q_at)
+
+
+def rapid_frames(text: str) -> tuple[dict[str, Pose | str], dict[str, Pose | str]]:
+    """tooldata and wobjdata of a RAPID text: ({tool name: the tool in the flange frame},
+    {wobj name: the object frame in the world frame}) (4, 4) [m], or why it cannot be
+    used (str)."""
+    tools: dict[str, Pose | str] = {}
+    wobjs: dict[str, Pose | str] = {}
+    pat = r"\b(tooldata|wobjdata)\s+(\w+)\s*:=\s*\[\s*(TRUE|FALSE)\s*,"
+    for m in re.finditer(pat, text, re.I):
+        kind, name, hold = m.group(1).lower(), m.group(2), m.group(3).upper()
+        if kind == "tooldata":
+            T, _ = _rapid_pose(text, m.end())
+            tools[name] = T if hold == "TRUE" else "a stationary tool (robhold FALSE)"
+            continue
+        head = re.match(
+            r"\s*(TRUE|FALSE)\s*,\s*\"([^\"]*)\"\s*,", text[m.end() :], re.I
+        )
+        if head is None:
+            raise DataError(f"line {_line(text, m.start())}: wobjdata {name}: expected "
+                            "[robhold, ufprog, \"ufmec\", [uframe], [oframe]].")  # fmt: skip
+        uf, end = _rapid_pose(text, m.end() + head.end())
+        of, _ = _rapid_pose(text, end + 1)
+        why = "held by the robot (robhold TRUE)" if hold == "TRUE" else ""
+        why = why or ("moved by a mechanical unit" if head.group(2) else "")
+        wobjs[name] = why or uf @ of
+    return tools, wobjs
+
+
+def _offset_text(name: str, off: tuple) -> str:
+    if off[0] == "Offs":
+        return f"Offs({name}; {off[1]:g}; {off[2]:g}; {off[3]:g})"
+    return f"RelTool({name}; " + "; ".join(f"{v:g}" for v in off[1:]) + ")"
+
+
+def _rapid_why(text: str, ulist: list) -> str:
+    if not ulist:
+        return "no move instruction uses it (its tool and wobj are unknown)"
+    odd = [u for u in ulist if u[2] == ("?",)]
+    if odd:
+        return (f"a move uses it in an expression or with offsets that are not numbers "
+                f"(line {_line(text, odd[0][3])}): one correction cannot serve both")  # fmt: skip
+    if len({(t, w) for t, w, _, _ in ulist}) > 1:
+        return "moves use it with different tools or wobjs"
+    return ""
+
+
+def _rapid(text: str) -> list[CartesianPoint]:
+    uses = _rapid_uses(text)
+    out = []
+    decl = r"\brobtarget\s+(\w+)\s*:=\s*\[|\b(Move(?:L|J))\s+\["
+    for m in re.finditer(decl, text, re.I):
+        open_at = m.end() - 1
+        trans = _bracket_list(text, text.find("[", open_at + 1))
+        q_at = text.find("[", text.find("]", open_at + 1) + 1)
+        quat = _bracket_list(text, q_at)
+        conf = _bracket_list(text, text.find("[", text.find("]", q_at) + 1))
+        if len(trans) != 3 or len(quat) != 4 or len(conf) != 4:
+            raise DataError(
+                f"line {_line(text, m.start())}: robtarget {m.group(1) or m.group(2)}: "
+                "expected [[x, y, z], [q1, q2, q3, q4], [cf1, cf4, cf6, cfx], [...]]."
+            )
+        config = tuple(int(float(text[a:b])) for a, b in conf)
+        name = m.group(1) or m.group(2)
+        if m.group(2):  # inline: the instruction's own tool and wobj
+            rest = text[m.start() : text.find(";", m.start())]
+            found = _rapid_uses(rest + ";").get("", [])
+            pair = found[0][:2] if found else ("tool0", "wobj0")
+            ulist: list[tuple[str, str, tuple | None, int]] = [(*pair, None, 0)]
+        else:
+            ulist = uses.get(name, [])
+        why = _rapid_why(text, ulist)
+        tool, wobj = ulist[0][:2] if ulist and not why else ("", "")
+        offsets = [u[2] for u in ulist if u[2] is not None and u[2] != ("?",)]
+        # The robtarget is corrected for itself where a move goes to it, else for its
+        # first offset; every other offset follows it (checked, counted).
+        direct = any(u[2] is None for u in ulist)
+        own = offsets[0] if offsets and not direct and not why else ()
+        pt = _make(text, name, trans + quat, config=config, frame=wobj, tool=tool,
+                   config_spans=tuple(conf), why_not=why, offset=own)  # fmt: skip
+        out.append(pt)
+        for _, _, off, pos in ulist:
+            if off is None or off == ("?",) or (own and off is own):
+                continue
+            out.append(replace(pt, name=_offset_text(name, off), line=_line(text, pos),
+                               spans=((pos, pos),), config_spans=(), offset=off,
+                               follows=name))  # fmt: skip
+    return out
