@@ -104,10 +104,10 @@ def _fanuc_registers(text: str, registers: dict | None) -> list[CartesianPoint]:
     ``registers`` ({n: :class:`kinecal.io._fanuc_va.Register`}, a controller's
     POSREG.VA), else counted and left."""
     uses: dict[str, list[tuple[int, str | None, str | None, str]]] = {}
-    reg = r"(PR\[((?:[^\[\]]|\[[^\]]*\])*)\])"
-    pat = rf"^\s*\d+\s*:\s*[JLCA]\s+{reg}"
+    pr_ref = r"(PR\[((?:[^\[\]]|\[[^\]]*\])*)\])"
+    pat = rf"^\s*\d+\s*:\s*[JLCA]\s+{pr_ref}"
     # A circular move's second point is on the next line: ``3:C PR[2] \n : PR[3] ..;``
-    via = rf"^\s*\d+\s*:\s*C\s[^\n;]*\n\s*:\s*{reg}"
+    via = rf"^\s*\d+\s*:\s*C\s[^\n;]*\n\s*:\s*{pr_ref}"
     found_at = [*re.finditer(pat, text, re.M), *re.finditer(via, text, re.M)]
     for m in sorted(found_at, key=lambda m: m.start(1)):
         idx = re.fullmatch(r"\s*(?:GP1\s*:\s*)?(\d+)\s*(?::.*)?", m.group(2))
