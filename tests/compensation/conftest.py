@@ -60,3 +60,19 @@ def tracker_twin() -> Twin:
     res = calibrate(truth.robot, train, "full")
     assert res.success
     return Twin(truth, res.calibrated, train)
+
+
+@pytest.fixture
+def run_cli(run_cli_here):
+    """The commands in this process: these tests check what they compute and say."""
+    return run_cli_here
+
+
+@pytest.fixture(scope="module")
+def model_file(tracker_twin, tmp_path_factory):
+    """The tracker twin's calibration as a model.yaml (one per test module)."""
+    from kinecal.io import save_model
+
+    return save_model(
+        tmp_path_factory.mktemp("model") / "model.yaml", tracker_twin.calibrated
+    )

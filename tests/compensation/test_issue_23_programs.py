@@ -11,15 +11,8 @@ import numpy as np
 import pytest
 
 from kinecal.compensation import program_targets
-from kinecal.io import save_model
 from kinecal.io._programs import program_joints, read_program
 from tests.compensation.conftest import box_poses, stretched_poses
-
-
-@pytest.fixture
-def run_cli(run_cli_here):
-    """The commands in this process: these tests check what they compute and say."""
-    return run_cli_here
 
 
 def _fanuc(q_deg):
@@ -60,13 +53,6 @@ def _krl(q_deg):
 
 
 WRITERS = {".ls": _fanuc, ".script": _urscript, ".mod": _rapid, ".dat": _krl}
-
-
-@pytest.fixture(scope="module")
-def model_file(tracker_twin, tmp_path_factory):
-    return save_model(
-        tmp_path_factory.mktemp("prog") / "model.yaml", tracker_twin.calibrated
-    )
 
 
 def _program_poses(rng, n):

@@ -22,16 +22,9 @@ from scipy.spatial.transform import Rotation
 
 from kinecal.compensation._cartesian import calibrated_flange
 from kinecal.compensation._configs import encode_config
-from kinecal.io import save_model
 from tests.compensation.conftest import box_poses
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
-
-
-@pytest.fixture
-def run_cli(run_cli_here):
-    """The commands in this process: these tests check what they compute and say."""
-    return run_cli_here
 
 
 def _pose(xyz_m, rotvec) -> np.ndarray:
@@ -43,13 +36,6 @@ def _pose(xyz_m, rotvec) -> np.ndarray:
 
 T_UF = _pose([0.35, -0.12, 0.08], [0.02, -0.03, 0.4])  # a user frame on the table
 T_TOOL = _pose([0.01, 0.0, 0.12], [0.0, 0.25, 0.0])  # a tilted tool, 120 mm out
-
-
-@pytest.fixture(scope="module")
-def model_file(tracker_twin, tmp_path_factory):
-    return save_model(
-        tmp_path_factory.mktemp("p34") / "model.yaml", tracker_twin.calibrated
-    )
 
 
 def _taught(rng, n):

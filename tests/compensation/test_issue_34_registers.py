@@ -14,7 +14,6 @@ import pytest
 
 from kinecal.compensation._cartesian import calibrated_flange
 from kinecal.compensation._configs import encode_config
-from kinecal.io import save_model
 from tests.compensation.test_issue_34_cartesian import (
     T_TOOL,
     T_UF,
@@ -24,18 +23,6 @@ from tests.compensation.test_issue_34_cartesian import (
     _targets,
     _taught,
 )
-
-
-@pytest.fixture
-def run_cli(run_cli_here):
-    return run_cli_here
-
-
-@pytest.fixture(scope="module")
-def model_file(tracker_twin, tmp_path_factory):
-    return save_model(
-        tmp_path_factory.mktemp("p34r") / "model.yaml", tracker_twin.calibrated
-    )
 
 
 def _va_number(x: float) -> str:

@@ -16,7 +16,6 @@ import pytest
 
 from kinecal.compensation._cartesian import calibrated_flange
 from kinecal.compensation._configs import encode_config
-from kinecal.io import save_model
 from tests.compensation.test_issue_34_cartesian import (
     FRAME_ARGS,
     T_TOOL,
@@ -30,19 +29,6 @@ from tests.compensation.test_issue_34_cartesian import (
     _taught,
     _written_targets,
 )
-
-
-@pytest.fixture
-def run_cli(run_cli_here):
-    """The commands in this process: these tests check what they compute and say."""
-    return run_cli_here
-
-
-@pytest.fixture(scope="module")
-def model_file(tracker_twin, tmp_path_factory):
-    return save_model(
-        tmp_path_factory.mktemp("p34s") / "model.yaml", tracker_twin.calibrated
-    )
 
 
 def _krl_joints(q_deg):

@@ -10,12 +10,10 @@ import json
 import re
 
 import numpy as np
-import pytest
 from scipy.spatial.transform import Rotation
 
 from kinecal.compensation._cartesian import calibrated_flange
 from kinecal.compensation._configs import encode_config
-from kinecal.io import save_model
 from tests.compensation.test_issue_34_cartesian import (
     T_TOOL,
     T_UF,
@@ -26,18 +24,6 @@ from tests.compensation.test_issue_34_cartesian import (
 )
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
-
-
-@pytest.fixture
-def run_cli(run_cli_here):
-    return run_cli_here
-
-
-@pytest.fixture(scope="module")
-def model_file(tracker_twin, tmp_path_factory):
-    return save_model(
-        tmp_path_factory.mktemp("p34u") / "model.yaml", tracker_twin.calibrated
-    )
 
 
 def _ur(T):
