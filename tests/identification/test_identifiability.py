@@ -129,7 +129,7 @@ def test_robot_file_priors_reach_the_identification():
     pr2 = build_prior(
         cm,
         cm.nominal,
-        CalibrationOptions(prior_sigma={"joint2.a": 1e-4}, prior_scale=2),
+        CalibrationOptions().tuned(prior_sigma={"joint2.a": 1e-4}, prior_scale=2),
     )
     assert pr2.sigma[names.index("joint2.a")] == pytest.approx(1e-4)
     assert pr2.sigma[names.index("joint3.a")] == pytest.approx(14e-3)

@@ -174,6 +174,6 @@ def test_issue_26_the_chosen_largest_candidate_is_its_shared_calibration(poses_3
     np.testing.assert_array_equal(got.std, ref.std)
     assert got.calibrated.status == ref.calibrated.status
     assert [d.code for d in got.diagnostics] == [d.code for d in ref.diagnostics]
-    assert sel.calibration(dc_replace(opts, prior_scale=2.0)) is None
+    assert sel.calibration(opts.tuned(prior_scale=2.0)) is None
     small = dc_replace(sel, spec=candidate_specs(ROBOT, poses_300)[0][1])
     assert small.calibration(opts) is None

@@ -33,7 +33,7 @@ REAL = ROOT / "tests" / "data" / "real"
 
 def _auto(robot, train):
     sel = select_model(robot, train)
-    opts = CalibrationOptions(prior_scale=sel.prior_scale)
+    opts = CalibrationOptions().tuned(prior_scale=sel.prior_scale)
     return sel.calibration(opts) or calibrate(robot, train, sel.spec, opts)
 
 

@@ -25,17 +25,11 @@ from kinecal.models import pass_counts
 
 def test_default_stages_carry_the_settings_of_the_options():
     opts = CalibrationOptions(
-        loss="soft_l1",
-        f_scale_mm=0.2,
-        max_iter=40,
-        drop_tol=1e-7,
-        priors="compliance",
-        prior_scale=2.0,
-        adapt_priors=False,
-        reject="off",
-        outlier_p=1e-4,
-        stage2="project",
-    )
+        loss="soft_l1", priors="compliance", reject="off", stage2="project"
+    ).tuned(
+        f_scale_mm=0.2, max_iter=40, drop_tol=1e-7, prior_scale=2.0,
+        adapt_priors=False, outlier_p=1e-4,
+    )  # fmt: skip
     stages = {type(s): s for s in default_stages(opts)}
     assert stages[KinematicStage].settings == FitSettings("soft_l1", 0.2, 40)
     assert stages[Identify].settings == IdentifySettings(1e-7, 1e-3)
@@ -71,7 +65,7 @@ def test_a_stage_runs_with_its_own_settings_not_the_problems(exp2_exact):
     )
     default = Identify()(problem, start)
     assert own.free.sum() < default.free.sum()
-    loose = problem.with_options(CalibrationOptions(drop_tol=0.5, weak_tol=0.9))
+    loose = problem.with_options(CalibrationOptions().tuned(drop_tol=0.5, weak_tol=0.9))
     np.testing.assert_array_equal(Identify()(loose, start).free, own.free)
 
 
@@ -79,6 +73,8 @@ def test_the_problem_is_constant_and_its_caches_are_in_the_workspace(exp2_exact)
     e = exp2_exact
     problem = Problem.make(e.truth.robot, e.train, "full", CalibrationOptions())
     assert isinstance(problem.workspace, Workspace)
+    tuned = problem.with_options(CalibrationOptions().tuned(max_iter=7))
+    assert tuned.start().lm.max_iter == 7 and problem.start().lm.max_iter == 100
     with pytest.raises(dataclasses.FrozenInstanceError):
         problem.options = CalibrationOptions()  # type: ignore[misc]
     for a in (problem.groups, problem.kinematic, problem.frames):
@@ -122,3 +118,42 @@ def test_the_nominal_check_reuses_the_calibrations_workspace(exp2_exact):
     without = pass_counts()["jacobian"] - before
     assert [d.message for d in found] == [d.message for d in again]
     assert with_ws < without
+
+
+def test_the_options_are_what_the_command_line_maps_and_the_rest_is_tuning():
+    """Issue 32 point 3: CalibrationOptions holds the options ``kinecal calibrate``
+    maps (one option each), the stages' other settings are its Tuning."""
+    import click
+
+    from kinecal.cli import cli
+    from kinecal.identification import Tuning
+
+    top = [f.name for f in dataclasses.fields(CalibrationOptions)]
+    assert top[-1] == "tuning"
+    command = cli.get_command(click.Context(cli), "calibrate")
+    assert command is not None
+    names = {p.name for p in command.params}
+    assert set(top[:-1]) <= names, set(top[:-1]) - names
+    # Every setting a stage reads comes from the options or their tuning.
+    tuning = {f.name for f in dataclasses.fields(Tuning)}
+    for cls in (FitSettings, IdentifySettings, PriorSettings, RejectSettings):
+        own = {f.name for f in dataclasses.fields(cls)}
+        assert own <= tuning | set(top), (cls.__name__, own - tuning - set(top))
+    opts = CalibrationOptions(loss="huber").tuned(max_iter=7, prior_scale=0.5)
+    assert opts.loss == "huber" and opts.tuning.max_iter == 7
+    assert FitSettings.of(opts) == FitSettings("huber", None, 7)
+    assert PriorSettings.of(opts).prior_scale == 0.5
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [{"max_iter": 0}, {"drop_tol": 2.0}, {"outlier_p": 0.0}, {"prior_scale": -1.0},
+     {"f_scale_mm": 0.0}],
+)  # fmt: skip
+def test_tuning_refuses_values_that_cannot_be_right(bad):
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        CalibrationOptions().tuned(**bad)
+    with pytest.raises(TypeError):
+        CalibrationOptions().tuned(no_such_setting=1)
+    with pytest.raises(TypeError, match="Tuning"):
+        CalibrationOptions(tuning={"max_iter": 3})  # type: ignore[arg-type]

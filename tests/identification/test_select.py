@@ -18,7 +18,9 @@ ROBOT = load_robot("fanuc-lrmate200id")
 
 
 def _held_out(train, test, spec_or_name, scale=1.0):
-    res = calibrate(ROBOT, train, spec_or_name, CalibrationOptions(prior_scale=scale))
+    res = calibrate(
+        ROBOT, train, spec_or_name, CalibrationOptions().tuned(prior_scale=scale)
+    )
     return evaluate(res.calibrated, test).metrics.rms_mm
 
 

@@ -138,16 +138,7 @@ def compensate(
         Wrong shapes or non-finite values.
     """
     model = calibrated.model
-    n = model.n_joints
-    p = np.asarray(p_target, dtype=np.float64)
-    q0 = np.asarray(q_seed, dtype=np.float64)
-    if p.ndim != 2 or p.shape[1] != 3:
-        raise DataError(f"p_target must have shape (N, 3); got {p.shape}.")
-    if q0.shape != (p.shape[0], n):
-        raise DataError(f"q_seed must have shape ({p.shape[0]}, {n}); got {q0.shape}.")
-    if not (np.isfinite(p).all() and np.isfinite(q0).all()):
-        raise DataError("p_target and q_seed must be finite.")
-    ls = None if load_scale is None else np.asarray(load_scale, np.float64).reshape(-1)
+    p, q0, ls = _checked_targets(model.n_joints, p_target, q_seed, load_scale)
     if p.shape[0] > CHUNK:  # large programs by chunks of targets: memory stays small
         kw = dict(
             R_target=R_target, set_index=set_index, marker_index=marker_index,
@@ -172,7 +163,6 @@ def compensate(
         max_iter=max_iter,
         p_cam=p_cam,
     )
-    assert res.cond is not None
     pose = R_target is not None
     relaxed = np.zeros(p.shape[0], bool)
     if pose and least_motion_deg is not None:
@@ -181,14 +171,13 @@ def compensate(
             set_index, marker_index, ls, tol, tol_rotation, max_iter,
             np.radians(least_motion_deg), p_cam,
         )  # fmt: skip
-        assert res.cond is not None
     ok = (res.position_error <= tol) & res.within_limits
     if pose:
         ok &= (res.rotation_error <= tol_rotation) | relaxed
     status = np.where(ok, "ok", "unreachable").astype(object)
     limit_joint = np.full(ok.shape, -1)
     bad = np.flatnonzero(~ok)
-    if bad.size:
+    if bad.size:  # which of the missed targets a joint limit stops
         blamed, joint = _blame_limits(
             model, calibrated.params, res, p, bad, R_target, set_index,
             marker_index, ls, p_cam, tol, tol_rotation, max_iter,
@@ -207,6 +196,28 @@ def compensate(
         res.iterations,
         relaxed,
     )
+
+
+def _checked_targets(
+    n: int, p_target: ArrayLike, q_seed: ArrayLike, load_scale: ArrayLike | None
+) -> tuple[Float, Float, Float | None]:
+    """The targets [m], seeds [rad; m] and payload scales as float arrays, checked.
+
+    Raises
+    ------
+    DataError
+        Wrong shapes or non-finite values.
+    """
+    p = np.asarray(p_target, dtype=np.float64)
+    q0 = np.asarray(q_seed, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise DataError(f"p_target must have shape (N, 3); got {p.shape}.")
+    if q0.shape != (p.shape[0], n):
+        raise DataError(f"q_seed must have shape ({p.shape[0]}, {n}); got {q0.shape}.")
+    if not (np.isfinite(p).all() and np.isfinite(q0).all()):
+        raise DataError("p_target and q_seed must be finite.")
+    ls = None if load_scale is None else np.asarray(load_scale, np.float64).reshape(-1)
+    return p, q0, ls
 
 
 def _by_chunks(

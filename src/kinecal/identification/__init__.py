@@ -40,7 +40,15 @@ if TYPE_CHECKING:
     )
     from kinecal.identification._noise import NoiseModel
     from kinecal.identification._nominal_check import nominal_check
-    from kinecal.identification._options import PRIOR_SIGMA, CalibrationOptions
+    from kinecal.identification._options import (
+        PRIOR_SIGMA,
+        CalibrationOptions,
+        FitSettings,
+        IdentifySettings,
+        PriorSettings,
+        RejectSettings,
+        Tuning,
+    )
     from kinecal.identification._priors import EvidencePriors, Priors, build_prior
     from kinecal.identification._problem import (
         EvaluationCache,
@@ -112,12 +120,14 @@ __all__ = [
     "Evaluation",
     "EvaluationCache",
     "EvidencePriors",
+    "FitSettings",
     "Folds",
     "FullStage",
     "HeldOutAccuracy",
     "HeldOutFigure",
     "Identifiability",
     "Identify",
+    "IdentifySettings",
     "KinematicStage",
     "LMOptions",
     "LMResult",
@@ -125,10 +135,12 @@ __all__ = [
     "Metrics",
     "NoiseModel",
     "Outlier",
+    "PriorSettings",
     "Priors",
     "Problem",
     "Register",
     "Registration",
+    "RejectSettings",
     "ResidualBlock",
     "RobustRejection",
     "Selection",
@@ -136,6 +148,7 @@ __all__ = [
     "StageLog",
     "State",
     "TransmissionStage",
+    "Tuning",
     "Uncertainty",
     "Weights",
     "analyse_identifiability",
@@ -245,6 +258,11 @@ __getattr__, __dir__ = _lazy.exports(
         "_options": (
             "PRIOR_SIGMA",
             "CalibrationOptions",
+            "FitSettings",
+            "IdentifySettings",
+            "PriorSettings",
+            "RejectSettings",
+            "Tuning",
         ),
         "_priors": (
             "EvidencePriors",

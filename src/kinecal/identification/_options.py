@@ -7,7 +7,7 @@ transmission and compliance terms), with the standard deviations of :data:`PRIOR
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -21,6 +21,7 @@ __all__ = [
     "IdentifySettings",
     "PriorSettings",
     "RejectSettings",
+    "Tuning",
 ]
 
 # Prior standard deviations (SI) by parameter group and kind: physical scales of the
@@ -58,19 +59,19 @@ STOL_PRE = 1e-2
 
 
 @dataclass(frozen=True)
-class CalibrationOptions:
-    """Settings of :func:`~kinecal.identification.calibrate`.
+class Tuning:
+    """What the stages read beyond the command line's options (issue 32): each stage's
+    settings (:class:`FitSettings`, :class:`IdentifySettings`, :class:`PriorSettings`,
+    :class:`RejectSettings`) take theirs from here. Defaults are what ``kinecal
+    calibrate`` runs.
 
     Attributes
     ----------
-    stage2 : {'direct', 'project', 'none'}
-        How stage 2 fits the transmission terms: directly on the position residuals, by
-        the paper's projection to joint space (Eq. 29), or not at all.
-    loss : {'linear', 'huber', 'soft_l1'}
     f_scale_mm : float or None
         Where the robust loss bends (in mm of position error); default three times a
         robust estimate of the noise.
     max_iter : int
+        Iterations of each Levenberg-Marquardt run.
     drop_tol, weak_tol : float
         Identifiability tolerances (see :func:`analyse_identifiability`).
     outlier_p : float
@@ -80,24 +81,11 @@ class CalibrationOptions:
         Without per-row sigmas in the data, estimate the noise from the residuals (for pose
         data separately for position and orientation) and weight by it, so priors and data
         are balanced.
-    priors : {'none', 'compliance', 'all'}
-        Gaussian priors with physical scales (:data:`PRIOR_SIGMA`), making the estimate a
-        maximum a posteriori one: 'all' (default) on the joint geometry, the transmission
-        terms, the payload compliance and the link moments; 'compliance' on the payload
-        and link-weight terms only (their product lambda* s is otherwise only weakly split);
-        'none' is the paper's plain least squares.
     prior_sigma : dict, optional
         Per-parameter overrides ``{name: sigma (SI)}``; ``inf`` removes a prior.
     prior_scale : float
-        Multiplies every prior sigma (``--model auto`` tries several).
-    reject : {'auto', 'off'}
-        Gross-error rejection (:class:`~kinecal.identification.RobustRejection`): rows far
-        beyond the noise of the others, standing apart from them and not following the
-        pose, are left out and the fit repeated ('auto'); 'off' only reports them.
-    reject_z : float or None
-        Reject every row whose error exceeds this many robust noise sigmas (whitened row
-        norm over the robust per-component sigma), without the test that it stands
-        apart; default: automatic (chi quantile of ``outlier_p``, standing apart).
+        Multiplies every prior sigma (``--model auto`` tries several when the priors are
+        not adapted).
     adapt_priors : bool
         Empirical Bayes. Widen the joint-geometry priors when an unconstrained kinematic
         fit shows larger deviations from nominal than they allow (method of moments on
@@ -107,20 +95,70 @@ class CalibrationOptions:
         support are shrunk instead of fitted to noise.
     """
 
-    stage2: str = "direct"
-    loss: str = "linear"
     f_scale_mm: float | None = None
     max_iter: int = 100
     drop_tol: float = 1e-6
     weak_tol: float = 1e-3
     outlier_p: float = 1e-5
     variance_components: bool = True
-    priors: str = "all"
     prior_sigma: dict[str, float] | None = None
     prior_scale: float = 1.0
     adapt_priors: bool = True
+
+    def __post_init__(self) -> None:
+        if self.f_scale_mm is not None and not self.f_scale_mm > 0:
+            raise ValueError(f"f_scale_mm must be positive; got {self.f_scale_mm!r}.")
+        if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
+            raise ValueError(
+                f"max_iter must be an integer >= 1; got {self.max_iter!r}."
+            )
+        for name in ("drop_tol", "weak_tol", "outlier_p"):
+            v = getattr(self, name)
+            if not 0 < v < 1:
+                raise ValueError(f"{name} must be between 0 and 1; got {v!r}.")
+        if not self.prior_scale > 0:
+            raise ValueError(f"prior_scale must be positive; got {self.prior_scale!r}.")
+
+
+@dataclass(frozen=True)
+class CalibrationOptions:
+    """Settings of :func:`~kinecal.identification.calibrate`: what ``kinecal calibrate``
+    maps from its command line, and the stages' :class:`Tuning` beyond it.
+
+    Attributes
+    ----------
+    stage2 : {'direct', 'project', 'none'}
+        How stage 2 fits the transmission terms: directly on the position residuals, by
+        the paper's projection to joint space (Eq. 29), or not at all (``--stage2``).
+    loss : {'linear', 'huber', 'soft_l1'}
+        The data term's loss (``--loss``).
+    priors : {'none', 'compliance', 'all'}
+        Gaussian priors with physical scales (:data:`PRIOR_SIGMA`), making the estimate a
+        maximum a posteriori one: 'all' (default) on the joint geometry, the transmission
+        terms, the payload compliance and the link moments; 'compliance' on the payload
+        and link-weight terms only (their product lambda* s is otherwise only weakly split);
+        'none' is the paper's plain least squares (``--priors``).
+    reject : {'auto', 'off'}
+        Gross-error rejection (:class:`~kinecal.identification.RobustRejection`): rows far
+        beyond the noise of the others, standing apart from them and not following the
+        pose, are left out and the fit repeated ('auto'); 'off' only reports them
+        (``--reject``).
+    reject_z : float or None
+        Reject every row whose error exceeds this many robust noise sigmas (whitened row
+        norm over the robust per-component sigma), without the test that it stands
+        apart; default: automatic (chi quantile of ``outlier_p``, standing apart)
+        (``--reject-z``).
+    tuning : Tuning
+        What the stages read beyond these (iteration limits, tolerances, prior scales);
+        :meth:`tuned` gives a copy with some of them changed.
+    """
+
+    stage2: str = "direct"
+    loss: str = "linear"
+    priors: str = "all"
     reject: str = "auto"
     reject_z: float | None = None
+    tuning: Tuning = field(default_factory=Tuning)
 
     def __post_init__(self) -> None:
         if self.reject not in ("auto", "off"):
@@ -135,7 +173,16 @@ class CalibrationOptions:
             raise ValueError(
                 f"stage2 must be 'direct', 'project' or 'none'; got {self.stage2!r}."
             )
+        if not isinstance(self.tuning, Tuning):
+            raise TypeError(
+                f"tuning must be a Tuning; got {type(self.tuning).__name__}."
+            )
         LMOptions(loss=self.loss)  # validates the loss name
+
+    def tuned(self, **changes: object) -> CalibrationOptions:
+        """A copy with the :class:`Tuning` fields ``changes`` changed, e.g.
+        ``options.tuned(max_iter=40, prior_scale=2.0)``."""
+        return replace(self, tuning=replace(self.tuning, **changes))  # type: ignore[arg-type]
 
 
 # The settings each stage owns (issue 32, point 3a): a stage is constructed with its own
@@ -154,7 +201,8 @@ class FitSettings:
 
     @classmethod
     def of(cls, options: CalibrationOptions) -> FitSettings:
-        return cls(options.loss, options.f_scale_mm, options.max_iter)
+        t = options.tuning
+        return cls(options.loss, t.f_scale_mm, t.max_iter)
 
 
 @dataclass(frozen=True)
@@ -166,7 +214,7 @@ class IdentifySettings:
 
     @classmethod
     def of(cls, options: CalibrationOptions) -> IdentifySettings:
-        return cls(options.drop_tol, options.weak_tol)
+        return cls(options.tuning.drop_tol, options.tuning.weak_tol)
 
 
 @dataclass(frozen=True)
@@ -181,12 +229,8 @@ class PriorSettings:
 
     @classmethod
     def of(cls, options: CalibrationOptions) -> PriorSettings:
-        return cls(
-            options.priors,
-            options.prior_sigma,
-            options.prior_scale,
-            options.adapt_priors,
-        )
+        t = options.tuning
+        return cls(options.priors, t.prior_sigma, t.prior_scale, t.adapt_priors)
 
 
 @dataclass(frozen=True)
@@ -201,4 +245,5 @@ class RejectSettings:
 
     @classmethod
     def of(cls, options: CalibrationOptions) -> RejectSettings:
-        return cls(options.reject, options.reject_z, options.outlier_p, options.loss)
+        t = options.tuning
+        return cls(options.reject, options.reject_z, t.outlier_p, options.loss)

@@ -47,10 +47,12 @@ def build_prior(
 ) -> Prior:
     """Priors of :data:`PRIOR_SIGMA` (or the robot file's ``priors``; the joint
     compliances of a robot with link masses: :func:`kinecal.robot.compliance_priors`)
-    for the groups chosen in ``options.priors``, centred on ``start``;
-    ``options.prior_sigma`` overrides single parameters (Eq. (T-6))."""
+    for the groups chosen in ``options.priors``, centred on ``start``, times the prior
+    scale; the per-parameter ``prior_sigma`` overrides single parameters (Eq. (T-6))."""
     from kinecal.robot import compliance_priors
 
+    if isinstance(options, CalibrationOptions):
+        options = PriorSettings.of(options)
     sigma = np.full(model.size, np.inf)
     groups = PRIOR_GROUPS[options.priors]
     table = {**PRIOR_SIGMA, **model.robot.prior_sigma}  # the robot file may override

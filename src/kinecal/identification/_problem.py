@@ -453,7 +453,7 @@ class Problem:
     @property
     def estimate_noise(self) -> bool:
         """Whether the noise comes from the residuals (no sigmas in the data)."""
-        return self.options.variance_components and self.meas.sigma is None
+        return self.options.tuning.variance_components and self.meas.sigma is None
 
     def start(self, active: np.ndarray | None = None) -> State:
         """The state before any stage: nominal parameters, default weights, on the rows
@@ -463,7 +463,7 @@ class Problem:
             model=root.model,
             x=root.model.nominal.copy(),
             weights=Weights.default(root.meas),
-            lm=LMOptions(max_iter=root.options.max_iter, stol=STOL),
+            lm=LMOptions(max_iter=root.options.tuning.max_iter, stol=STOL),
             free=np.ones(root.model.size, bool),
         )
         if active is None:

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -141,7 +141,7 @@ def calibrate_measurements(
             k=k,
         )
         spec = sel.spec
-        opts = replace(opts, prior_scale=sel.prior_scale)
+        opts = opts.tuned(prior_scale=sel.prior_scale)
         for w in sel.warnings:
             say("auto", w)
     else:

@@ -276,7 +276,7 @@ def fit_candidate(
     # Priors: those of the largest candidate (adapted to the data) before their
     # evidence scaling, the candidate's own physical ones for terms it lacks (another
     # link model); the candidate's own evidence scales them after its fit.
-    base = build_prior(cm, x_reg, replace(options, prior_scale=1.0))
+    base = build_prior(cm, x_reg, options.tuned(prior_scale=1.0))
     mean, sigma = base.mean.copy(), base.sigma.copy()
     for i, sp in enumerate(lay.specs):
         if sp.name in shared.layout:

@@ -501,7 +501,7 @@ def select_model(
         )
     best = min(cands, key=lambda c: c.cv_rms_mm)
     if prior_scales is None:
-        prior_scales = (1.0,) if opts.adapt_priors else (0.3, 1.0, 3.0)
+        prior_scales = (1.0,) if opts.tuning.adapt_priors else (0.3, 1.0, 3.0)
     if opts.priors != "none":  # the best layout with other prior strengths
         run([(best.label, best.spec, s) for s in prior_scales if s != 1.0])
     chosen = choose_candidate(cands)
