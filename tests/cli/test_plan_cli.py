@@ -213,3 +213,27 @@ def test_sequential_plan_checks_the_measurements_of_its_data(
     )
     res = run_cli(*base, "--data", str(joints), "--out", str(tmp_path / "b.csv"))
     assert res.returncode == 0, res.stderr
+
+
+@pytest.mark.parametrize(
+    "args, says",
+    [
+        (("--poses", "14"), "42 residuals for the 50 parameters of the 'full' model"),
+        (("--poses", "5", "--model", "kinematic"), "expected at least"),
+        (("--poses", "50", "--tool", "1e9,0,0"), "1e+09 mm away; expected mm"),
+        (("--poses", "50", "--user-frame", "2e6,0,0,0,0,0"), "at most 100 m"),
+    ],
+)
+def test_a_plan_that_cannot_be_right_is_refused_and_writes_nothing(
+    run_cli, tmp_path, args, says
+):
+    """Too few poses for any calibration of the model (a first plan, nothing measured
+    before), or a tool or frame given in the wrong units: exit 2 with what is expected,
+    no plan written (it ended in an unclear "no acceptable candidate" or exited 0)."""
+    out = tmp_path / "plan.csv"
+    res = run_cli(
+        "plan", "--robot", ROBOT, "--n-candidates", "300", *args, "--out", out
+    )
+    assert res.returncode == 2, res.stderr
+    assert says in res.stderr
+    assert list(tmp_path.iterdir()) == []

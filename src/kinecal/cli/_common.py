@@ -220,6 +220,12 @@ def parse_pose(text: str | None, name: str, sizes: tuple[int, ...] = (6,)) -> An
     if n not in sizes:
         raise click.BadParameter("expected X,Y,Z or X,Y,Z,R,W,P", param_hint=name)
     vals += [0.0] * (6 - n)
+    far = 5e3 if "tool" in name else 1e5  # mm: a tool within 5 m, a frame within 100 m
+    if float(np.linalg.norm(vals[:3])) > far:
+        raise click.BadParameter(
+            f"{text!r} puts it {np.linalg.norm(vals[:3]):.4g} mm away; expected mm and "
+            f"at most {far / 1e3:g} m", param_hint=name,
+        )  # fmt: skip
     return euler_transform([*np.array(vals[:3]) * 1e-3, *np.radians(vals[3:])])
 
 

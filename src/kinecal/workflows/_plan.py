@@ -434,6 +434,8 @@ def plan_measurements(
 
     say = progress or _quiet
     _check_distinct(candidates, n, option)
+    if measured is None and setup.cal is None:
+        _check_enough(setup, n, option)
     say("plan", f"{n} of {candidates.q.shape[0]} poses, {criterion}-optimal")
     cal = setup.cal
     pl = plan_poses(
@@ -463,6 +465,20 @@ def plan_measurements(
     settings = {"criterion": criterion, "exchange": exchange, "priors": priors}
     doc = _report(pl, setup, candidates, rows, settings, data_path)
     return PlanRun(pl, rows, lines, doc)
+
+
+def _check_enough(setup: PlanSetup, n: int, option: str) -> None:
+    """Refuse a first plan whose poses give no more residuals than the model has
+    parameters: no calibration can be run on it (it would refuse the data)."""
+    rows = 6 if setup.instrument.name == "pose" else 3
+    size = setup.model.size
+    if n * rows <= size:
+        raise DataError(
+            f"{option} {n}: {n} poses give {n * rows} residuals for the "
+            f"{size} parameters of the '{setup.model.spec.name}' model, too few for "
+            f"any calibration; expected at least {size // rows + 1} poses (plan at "
+            f"least {-(-2 * size // rows)}, several times more for a reliable result)."
+        )
 
 
 def _check_distinct(cand: PoseCandidates, n: int, option: str) -> None:
