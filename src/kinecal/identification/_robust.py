@@ -35,10 +35,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from kinecal._stats import present
-from kinecal.identification._options import MU0_WARM, RejectSettings
+from kinecal.identification._options import RejectSettings
 from kinecal.identification._press import loo_position_errors, rms_mm
 from kinecal.identification._problem import Problem, Stage, State, run_stages
-from kinecal.identification._solve import run_lm
+from kinecal.identification._solve import run_lm, warm_options
 from kinecal.identification._stages import robust_sigma, run_shared
 from kinecal.identification._structure import (
     Structure,
@@ -205,7 +205,7 @@ def _test_fit(root: Problem, current: State, rows: np.ndarray) -> State:
         active=None if rows.all() else rows.copy(),
         weights=Weights(s, s_rot).subset(rows),
     )
-    lm = replace(current.lm, max_iter=max(current.lm.max_iter, 200), mu0=MU0_WARM)
+    lm = warm_options(current.lm)
     state, res = run_lm(
         root.on(state),
         state,
