@@ -63,8 +63,9 @@ def test_default_within_5_percent_of_the_best_fixed_model_in_a_new_region(
     robot, train, test = _new_region(name, truth_kind)
     refit = ("user", "tool")
     fixed = {
-        m: evaluate(calibrate(robot, train, m).calibrated, test, refit=refit)
-        .metrics.rms_mm
+        m: evaluate(
+            calibrate(robot, train, m).calibrated, test, refit=refit
+        ).metrics.rms_mm
         for m in ("kinematic", "ntm", "rfcm", "full")
     }
     sel = select_model(robot, train)
