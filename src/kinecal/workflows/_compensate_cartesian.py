@@ -25,6 +25,25 @@ _FOLLOWS = "follows its robtarget"
 _BASE_IDS = {"fanuc-ls": "0", "krl": "0", "rapid": "wobj0", "urscript": ""}
 _FLANGE_IDS = {"fanuc-ls": "0", "krl": "0", "rapid": "tool0", "urscript": ""}
 _FRAME_NUMBERS = {"fanuc-ls": 6, "krl": 6, "rapid": 7, "urscript": 6}
+# The farthest a user frame or a taught target may lie from its origin, and a tool from
+# the flange [m]: beyond them a value is in the wrong units or damaged (1e308 mm ended in
+# an overflow inside the inverse kinematics).
+_FAR_FRAME, _FAR_TOOL = 100.0, 5.0
+
+
+def _far(T: np.ndarray, limit: float) -> bool:
+    """Whether a pose is not finite or its origin lies beyond ``limit`` [m]."""
+    return not (np.isfinite(T).all() and np.linalg.norm(T[:3, 3]) <= limit)
+
+
+def _how_far(T: np.ndarray) -> str:
+    """How far a pose's origin is, for a message (no overflow for 1e308)."""
+    d = float(np.max(np.abs(T[:3, 3])))
+    return f"{d:.4g} m" if np.isfinite(d) else "at infinity (a value is not finite)"
+
+
+def _unit_words(fmt: str) -> str:
+    return "m (URScript)" if fmt == "urscript" else "mm"
 
 
 def parse_frames(
@@ -47,7 +66,16 @@ def parse_frames(
                 f"{option} {spec!r}: expected ID={','.join(['v'] * k)} ({k} finite "
                 f"numbers in the {fmt} program's units)."
             )
-        out[key.strip()] = point_pose(fmt, tuple(vals))
+        T = point_pose(fmt, tuple(vals))
+        tool = option.rsplit(" ", 1)[-1].lower().endswith("tool")  # not the path's
+        limit = _FAR_TOOL if tool else _FAR_FRAME
+        if _far(T, limit):
+            raise DataError(
+                f"{option} {spec!r}: its origin lies {_how_far(T)} away;"
+                f" expected {_unit_words(fmt)} and a "
+                f"{'tool' if limit == _FAR_TOOL else 'frame'} within {limit:g} m."
+            )
+        out[key.strip()] = T
     return out
 
 
@@ -70,7 +98,14 @@ def _krl_config_frames(path: str, text: str) -> tuple[dict, dict]:
                 raise DataError(f"{path}: line {line}: {m.group(1)}_DATA[{m.group(2)}] "
                                 f"has no {key}; expected X, Y, Z [mm], A, B, C [deg].")  # fmt: skip
             vals.append(float(k.group(1)))
-        out[m.group(1).upper() == "TOOL"][m.group(2)] = point_pose("krl", tuple(vals))
+        tool = m.group(1).upper() == "TOOL"
+        T = point_pose("krl", tuple(vals))
+        if _far(T, _FAR_TOOL if tool else _FAR_FRAME):
+            line = text.count("\n", 0, m.start()) + 1
+            raise DataError(f"{path}: line {line}: {m.group(1)}_DATA[{m.group(2)}] lies "
+                            f"{_how_far(T)} away; expected mm and a "
+                            f"{'tool within 5' if tool else 'frame within 100'} m.")  # fmt: skip
+        out[tool][m.group(2)] = T
     return out
 
 
@@ -225,7 +260,14 @@ def _frames(
     why = [pt.why_not for pt in pts]
     for k, pt in enumerate(pts):
         if fmt == "urscript" and pt.tool and not pt.tool.startswith("?"):
-            vals = [float(v) for v in pt.tool[2:-1].split(",")]
+            try:
+                vals = [float(v) for v in pt.tool[2:-1].split(",")]
+            except ValueError:
+                vals = []
+            if len(vals) != 6 or not np.isfinite(vals).all():
+                raise DataError(f"{prog.path}: line {pt.line} ({pt.name}): its tool "
+                                f"{pt.tool} is no pose; expected set_tcp(p[x, y, z, "
+                                "rx, ry, rz]) with 6 numbers (m, rad).")  # fmt: skip
             T_tool[k] = point_pose("urscript", tuple(vals))
         if fmt == "urscript":
             val: Any = known_uf.get(pt.frame)
@@ -385,6 +427,25 @@ def _target_poses(robot: Any, fmt: str, pts: list[Any], why: list[str]) -> np.nd
     return out
 
 
+def _refuse_far(
+    prog: Any, pts: list[Any], T: np.ndarray, T_uf: np.ndarray, T_tool: np.ndarray
+) -> None:
+    """A target, or a frame the program itself defines (RAPID wobj/tooldata, a
+    URScript feature), beyond any robot's reach is in the wrong units or damaged."""
+    for k, pt in enumerate(pts):
+        for M, limit, what in (
+            (T[k], _FAR_FRAME, "the target"),
+            (T_uf[k], _FAR_FRAME, f"its user frame {pt.frame}"),
+            (T_tool[k], _FAR_TOOL, f"its tool {pt.tool}"),
+        ):
+            if _far(M, limit):
+                raise DataError(
+                    f"{prog.path}: line {pt.line} ({pt.name}): {what} lies "
+                    f"{_how_far(M)} from its origin; expected "
+                    f"{_unit_words(prog.format)} and at most {limit:g} m."
+                )
+
+
 def _corrected_registers(
     robot: Any, run: CartesianRun, T_new: np.ndarray, q_new: np.ndarray
 ) -> dict:
@@ -442,7 +503,12 @@ def cartesian_run(
     T_uf, T_tool, why = _frames(prog, pts, uframes, utools)
     for k, p in enumerate(pts):  # checked after the robtarget is corrected
         why[k] = why[k] or (_FOLLOWS if p.follows else "")
+    for p in pts:  # a damaged value (1e400 reads as inf) is no pose
+        if not np.isfinite(np.asarray(p.values, np.float64)).all():
+            raise DataError(f"{prog.path}: line {p.line} ({p.name}): a value is not a "
+                            "finite number; expected the pose's numbers.")  # fmt: skip
     T_target = _target_poses(robot, fmt, pts, why).reshape(N, 4, 4)
+    _refuse_far(prog, pts, T_target, T_uf, T_tool)
     T_tcp = T_uf @ T_target
     F_want = T_tcp @ transform_inv(T_tool) if N else T_tcp
     near = _near_joints(prog, pts, robot, q_joint)
