@@ -169,7 +169,7 @@ def compensate(
         files: dict[str, bytes | str] = {}
     else:
         from kinecal.io import program_bytes
-        from kinecal.workflows._compensate_cartesian import program_frames
+        from kinecal.workflows._frames import program_frames
 
         uf, ut, regs = program_frames(fmt, uframes, utools, frames_path)
         run = compensate_program(

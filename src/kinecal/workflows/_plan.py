@@ -433,9 +433,7 @@ def plan_measurements(
     from kinecal.planning import plan_poses
 
     say = progress or _quiet
-    _check_distinct(candidates, n, option)
-    if measured is None and setup.cal is None:
-        _check_enough(setup, n, option)
+    _check_poses(setup, candidates, n, option, measured is None and setup.cal is None)
     say("plan", f"{n} of {candidates.q.shape[0]} poses, {criterion}-optimal")
     cal = setup.cal
     pl = plan_poses(
@@ -467,24 +465,22 @@ def plan_measurements(
     return PlanRun(pl, rows, lines, doc)
 
 
-def _check_enough(setup: PlanSetup, n: int, option: str) -> None:
-    """Refuse a first plan whose poses give no more residuals than the model has
-    parameters: no calibration can be run on it (it would refuse the data)."""
-    rows = 6 if setup.instrument.name == "pose" else 3
-    size = setup.model.size
-    if n * rows <= size:
+def _check_poses(
+    setup: PlanSetup, cand: PoseCandidates, n: int, option: str, first: bool
+) -> None:
+    """Refuse a ``first`` plan (nothing measured before) whose poses give no more
+    residuals than the model has parameters (no calibration would accept it), and a
+    plan from fewer distinct candidates (copies of one pose would be chosen again)."""
+    from kinecal._stats import distinct_rows
+
+    rows, size = (6 if setup.instrument.name == "pose" else 3), setup.model.size
+    if first and n * rows <= size:
         raise DataError(
             f"{option} {n}: {n} poses give {n * rows} residuals for the "
             f"{size} parameters of the '{setup.model.spec.name}' model, too few for "
             f"any calibration; expected at least {size // rows + 1} poses (plan at "
             f"least {-(-2 * size // rows)}, several times more for a reliable result)."
         )
-
-
-def _check_distinct(cand: PoseCandidates, n: int, option: str) -> None:
-    """Refuse a plan of ``n`` poses from fewer distinct candidates (copies of one pose
-    would be chosen again and again)."""
-    from kinecal._stats import distinct_rows
 
     ti = cand.target_index
     key = cand.q if ti is None else np.column_stack([cand.q, ti])
