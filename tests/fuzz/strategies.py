@@ -148,8 +148,9 @@ def mutated_csv(draw: st.DrawFn, text: str) -> bytes:
         elif kind == "semicolons":
             return _csv_text(rows).replace(",", ";").encode()
         elif kind == "swap_cols" and rows[0] and len(rows[0]) > 1:
+            c1 = min(c, len(rows[0]) - 1)  # c counts the cells of row r (longer)
             c2 = draw(st.integers(0, len(rows[0]) - 1))
-            rows[0][c], rows[0][c2] = rows[0][c2], rows[0][c]
+            rows[0][c1], rows[0][c2] = rows[0][c2], rows[0][c1]
         elif kind == "bytes":
             raw_tail = draw(st.binary(min_size=1, max_size=8))
     return _csv_text(rows).encode() + raw_tail
