@@ -44,14 +44,11 @@ from kinecal.io._cartesian_base import (
     _decimals,
     _line,
     _make,
-    point_pose,
-)
-from kinecal.io._cartesian_rapid import (
-    _rapid,
     apply_offset,
-    rapid_frames,
+    point_pose,
     remove_offset,
 )
+from kinecal.io._cartesian_rapid import _rapid, rapid_frames
 from kinecal.io._cartesian_urscript import _urscript, urscript_features
 from kinecal.typing import Float, Pose
 
