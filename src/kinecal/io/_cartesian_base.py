@@ -5,7 +5,6 @@ a move takes its target at (RAPID ``Offs``/``RelTool``, FANUC ``Offset``/``Tool_
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -184,23 +183,23 @@ def remove_offset(T: Pose, offset: tuple) -> Pose:
     if not offset:
         return T
     M, left = _offset_matrix(offset)
-    return np.linalg.solve(M, T) if left else T @ np.linalg.inv(M)
+    return np.linalg.inv(M) @ T if left else T @ np.linalg.inv(M)
 
 
-Use = tuple  # (offset | None | ('?', why), position of the move, label of the offset)
+Use = tuple  # (offset | None | ('?', why), position of the move, its name)
 
 
 def offset_targets(
-    text: str, pt: CartesianPoint, uses: list[Use], label: Callable[[Use], str]
+    text: str, pt: CartesianPoint, uses: list[Use]
 ) -> list[CartesianPoint]:
     """``pt`` and the moves that take it with an offset, each counted.
 
-    ``uses``: (offset, position of the move, label) per move to ``pt``: offset None for
+    ``uses``: (offset, position of the move, its name) per move to ``pt``: offset None for
     the target itself, a tuple (:func:`apply_offset`), or ``('?', why)`` for one whose
     value is not known. ``pt`` is corrected for itself where a move goes to it, else for
     its first known offset; every other known offset follows that correction (checked,
     counted); an unknown one is left with its reason (``pt`` itself too when it has no
-    other use). ``label(use)`` names a following move."""
+    other use)."""
     direct = not uses or any(u[0] is None for u in uses)
     known = [u for u in uses if u[0] is not None and u[0][0] != "?"]
     unknown = [u for u in uses if u[0] is not None and u[0][0] == "?"]
@@ -212,7 +211,7 @@ def offset_targets(
         if u[0] is None or u is own or u is first:
             continue
         bad = u[0][0] == "?"
-        out.append(replace(pt, name=label(u), line=_line(text, u[1]), spans=((u[1], u[1]),),
+        out.append(replace(pt, name=u[2], line=_line(text, u[1]), spans=((u[1], u[1]),),
                            config_spans=(), offset=() if bad else u[0], follows=pt.name,
                            why_not=u[0][1] if bad else pt.why_not))  # fmt: skip
     return out

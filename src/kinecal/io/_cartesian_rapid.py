@@ -164,7 +164,7 @@ def _rapid(text: str) -> list[CartesianPoint]:
                    config_spans=tuple(conf), why_not=why)  # fmt: skip
         # Corrected for itself where a move goes to it, else for its first offset; every
         # other offset follows it (checked, counted).
-        moves = [(u[2], u[3], "") for u in ulist if u[2] != ("?",)]
-        out += offset_targets(text, pt, moves or [(None, 0, "")],
-                              lambda u, n=name: _offset_text(n, u[0]))  # fmt: skip
+        moves = [(u[2], u[3], _offset_text(name, u[2]) if u[2] else "")
+                 for u in ulist if u[2] != ("?",)]  # fmt: skip
+        out += offset_targets(text, pt, moves or [(None, 0, "")])
     return out
