@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 
 from kinecal.compensation._cartesian import calibrated_flange
 from kinecal.compensation._configs import encode_config
-from kinecal.io._cartesian_programs import apply_offset, remove_offset
+from kinecal.io._cartesian_programs import apply_offset, read_cartesian, remove_offset
 from tests.compensation.test_issue_34_cartesian import (
     _NUM,
     T_TOOL,
@@ -28,6 +28,7 @@ from tests.compensation.test_issue_34_cartesian import (
     _taught,
 )
 from tests.compensation.test_issue_34_registers import _apply
+from tests.compensation.test_issue_34_urscript_rapid import _rapid_numbers, _robtarget
 
 # Offset registers: X, Y, Z [mm], W, P, R [deg].
 PR_VALUES = {
@@ -218,3 +219,107 @@ def test_issue_34_fanuc_offset_is_the_registers_pose(kind):
     got = apply_offset(P, (kind, *PR_VALUES[5]))
     np.testing.assert_allclose(got, want, atol=1e-12)
     np.testing.assert_allclose(remove_offset(got, (kind, *PR_VALUES[5])), P, atol=1e-12)
+
+
+def _reltool_M(d_mm, rxyz_deg):
+    """RelTool's pose by ABB's words, with scipy: intrinsic rotations x, y', z''."""
+    M = np.eye(4)
+    M[:3, :3] = Rotation.from_euler("XYZ", rxyz_deg, degrees=True).as_matrix()
+    M[:3, 3] = np.asarray(d_mm) * 1e-3
+    return M
+
+
+def test_issue_34_rapid_reltool_with_three_rotations_reached(
+    tracker_twin, model_file, run_cli, tmp_path
+):
+    """A robtarget reached only through RelTool(p, dx, dy, dz \\Rx \\Ry \\Rz) is
+    corrected for that pose: the stand-in controller, reading the corrected robtarget
+    through scipy's RelTool, puts the calibrated robot on the taught pose."""
+    cal = tracker_twin.calibrated
+    robot = cal.model.robot
+    q = _taught(np.random.default_rng(3435), 2)
+    flags = encode_config(cal, "rapid", q)
+    T_goal = _targets(cal, q)
+    rel = [([5, -4, -25], [12, -8, 30]), ([0, 10, 0], [-20, 15, -40])]
+    base = [T_goal[i] @ np.linalg.inv(_reltool_M(*rel[i])) for i in range(2)]
+    tool, uf = _rapid_numbers(T_TOOL), _rapid_numbers(T_UF)
+    lines = [
+        "MODULE Rel",
+        "PERS tooldata tGrip:=[TRUE,[[" + ",".join(f"{x:.9f}" for x in tool[:3]) + "],["
+        + ",".join(f"{x:.9f}" for x in tool[3:]) + "]],[1,[0,0,1],[1,0,0,0],0,0,0]];",
+        "PERS wobjdata wTable:=[FALSE,TRUE,\"\",[[" + ",".join(f"{x:.9f}" for x in uf[:3])
+        + "],[" + ",".join(f"{x:.9f}" for x in uf[3:]) + "]],[[0,0,0],[1,0,0,0]]];",
+        *(_robtarget(f"p{i}", base[i], flags[i]) for i in range(2)),
+        "PROC main()",
+        "  MoveJ RelTool(p0, 5, -4, -25 \\Rx:=12 \\Ry:=-8 \\Rz:=30), v200, fine, "
+        "tGrip\\WObj:=wTable;",
+        "  MoveL RelTool(p1, 0, 10, 0 \\Rz:=-40 \\Rx:=-20 \\Ry:=15), v200, fine, "
+        "tGrip\\WObj:=wTable;",
+        "ENDPROC",
+        "ENDMODULE",
+        "",
+    ]  # fmt: skip
+    src, out = tmp_path / "r.mod", tmp_path / "c.mod"
+    src.write_text("\n".join(lines))
+    res = run_cli(
+        "compensate", str(src), "--model", str(model_file), "--out", str(out), "--json",
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    summary = json.loads(res.stdout.strip().splitlines()[-1])
+    assert summary["n"] == 2 and summary["ok"] == 2, res.stderr
+    recs = re.findall(r"robtarget (p\d):=\[\[([^\]]*)\],\[([^\]]*)\]", out.read_text())
+    new = {n: _read_pose("rapid", [float(x) for x in (a + "," + b).split(",")])
+           for n, a, b in recs}  # fmt: skip
+    for i in range(2):
+        F = T_UF @ new[f"p{i}"] @ _reltool_M(*rel[i]) @ np.linalg.inv(T_TOOL)
+        q_ctrl = _controller(robot, F, q[i])
+        got = calibrated_flange(cal, q_ctrl[None])[0] @ T_TOOL
+        err = np.linalg.norm(got[:3, 3] - (T_UF @ T_goal[i])[:3, 3]) * 1e3
+        assert err < 0.01, (i, err)
+
+
+_READ = """/PROG  EDGE
+/MN
+   1:  UFRAME_NUM=1 ;
+   2:  UTOOL_NUM=1 ;
+   3:  OFFSET CONDITION PR[5],UFRAME[2] ;
+   4:L P[1] 100mm/sec FINE Offset ;
+   5:L P[2] 100mm/sec FINE Tool_Offset ;
+   6:C P[3]
+    :  P[4] 100mm/sec FINE Offset,PR[6] ;
+   7:L P[5] 100mm/sec FINE Offset,PR[7] ;
+   8:J PR[20] 100% FINE Offset,PR[6] ;
+/POS
+{pos}/END
+"""
+
+
+def test_issue_34_fanuc_offset_cases_read():
+    """A condition in another user frame, a bare Tool_Offset without its condition, a
+    circular move's two points, an uninitialized register, a joint register target with
+    an offset: each counted, with its reason where it is left."""
+    from kinecal.io._fanuc_va import Register
+
+    rec = (
+        "P[{n}]{{\n   GP1:\n\tUF : 1, UT : 1,\t\tCONFIG : 'N U T, 0, 0, 0',\n"
+        "\tX = 500.000  mm,\tY = 0.000  mm,\tZ = 300.000  mm,\n"
+        "\tW = 180.000 deg,\tP = 0.000 deg,\tR = 0.000 deg\n}};\n"
+    )
+    text = _READ.format(pos="".join(rec.format(n=n) for n in range(1, 6)))
+    regs = {
+        5: Register(5, "", "cartesian", (1.0, 2, 3, 0, 0, 0), "N U T, 0, 0, 0", 0),
+        6: Register(6, "", "cartesian", (0.0, 0, 20, 0, 0, 0), "N U T, 0, 0, 0", 0),
+        7: Register(7, "", "uninitialized", (), "", 0),
+        20: Register(20, "", "joint", (0.0, 0, 0, 0, -90, 0), "", 0),
+    }
+    pts = {p.name: p for p in read_cartesian(text, "fanuc-ls", regs)}
+    assert set(pts) == {"PR[20]", "P[1]", "P[2]", "P[3]", "P[4]", "P[5]"}
+    assert (
+        "its condition's UFRAME[2] is not the target's frame 1" in pts["P[1]"].why_not
+    )
+    assert "no TOOL_OFFSET CONDITION before it" in pts["P[2]"].why_not
+    for n in ("P[3]", "P[4]"):  # both points of the circular move take the offset
+        assert pts[n].offset == ("Offset", 0.0, 0.0, 20.0, 0.0, 0.0, 0.0)
+        assert pts[n].why_not == ""
+    assert "uninitialized" in pts["P[5]"].why_not
+    assert "a joint register moved to with an offset" in pts["PR[20]"].why_not

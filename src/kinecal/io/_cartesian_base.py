@@ -197,13 +197,13 @@ def offset_targets(
     ``uses``: (offset, position of the move, its name) per move to ``pt``: offset None for
     the target itself, a tuple (:func:`apply_offset`), or ``('?', why)`` for one whose
     value is not known. ``pt`` is corrected for itself where a move goes to it, else for
-    its first known offset; every other known offset follows that correction (checked,
-    counted); an unknown one is left with its reason (``pt`` itself too when it has no
-    other use)."""
+    its first known offset (a ``pt`` left stands for that move); every other known offset
+    follows that correction (checked, counted); an unknown one is left with its reason
+    (``pt`` itself too when it has no other use)."""
     direct = not uses or any(u[0] is None for u in uses)
     known = [u for u in uses if u[0] is not None and u[0][0] != "?"]
     unknown = [u for u in uses if u[0] is not None and u[0][0] == "?"]
-    own = known[0] if known and not direct and not pt.why_not else None
+    own = known[0] if known and not direct else None
     first = unknown[0] if unknown and not direct and not known else None
     why = pt.why_not or (first[0][1] if first else "")
     out = [replace(pt, offset=own[0] if own else (), why_not=why)]
