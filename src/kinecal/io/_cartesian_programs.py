@@ -19,9 +19,11 @@ urscript    ``movel/movej/movep(p[x, y, z, rx, ry, rz]``    rotation vector ``se
 
 Also: FANUC motions to position registers ``PR[n]`` (one target per register, in the
 ``UFRAME_NUM``/``UTOOL_NUM`` active at its moves; its value from the controller's
-POSREG.VA, :mod:`._fanuc_va`); RAPID moves to ``Offs(p, dx, dy, dz)`` /
+POSREG.VA, :mod:`._fanuc_va`); FANUC moves with ``Offset,PR[k]`` / ``Tool_Offset,PR[k]``
+(:mod:`._fanuc_offsets`); RAPID moves to ``Offs(p, dx, dy, dz)`` /
 ``RelTool(p, dx, dy, dz \\Rx \\Ry \\Rz)`` (the robtarget corrected for its own move,
-else for its first offset; other offsets follow it and are checked, :mod:`._cartesian_rapid`);
+else for its first offset; other offsets follow it and are checked, :mod:`._cartesian_rapid`,
+:func:`._cartesian_base.offset_targets`);
 URScript pose variables assigned anywhere and ``pose_trans(FEATURE, target)``
 (:mod:`._cartesian_urscript`).
 
