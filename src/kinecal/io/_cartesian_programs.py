@@ -185,6 +185,10 @@ def _fanuc(text: str, values: dict | None = None) -> list[CartesianPoint]:
     registers = _fanuc_registers(text, values, offsets)
     if pos is None:
         return registers
+    by_index: dict[int, list[int]] = {}  # n -> the motion references to P[n]
+    for a, u in offsets.items():
+        if u[0] == "P" and u[1] is not None:
+            by_index.setdefault(u[1], []).append(a)
     end = re.search(r"^/END\b", text[pos.end() :], re.M)
     stop = pos.end() + end.start() if end else len(text)
     out = []
@@ -216,11 +220,7 @@ def _fanuc(text: str, values: dict | None = None) -> list[CartesianPoint]:
                    tool=frames.group(2),
                    config_spans=((at + cfg.start(1), at + cfg.end(1)),))  # fmt: skip
         n = re.match(r"P\[\s*(\d+)", name)
-        found = [
-            a
-            for a, u in offsets.items()
-            if u[0] == "P" and n and u[1] == int(n.group(1))
-        ]
+        found = by_index.get(int(n.group(1)), []) if n else []
         out += offset_targets(
             text, pt, _moves(text, name, found, offsets, (pt.frame, pt.tool))
         )

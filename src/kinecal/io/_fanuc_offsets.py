@@ -13,6 +13,7 @@ counted and left with that reason (:func:`._cartesian_base.offset_targets`).
 
 from __future__ import annotations
 
+import bisect
 import re
 
 __all__ = ["motion_offsets"]
@@ -63,8 +64,10 @@ def motion_offsets(
     ``('?', why)``), its label (``'Offset,PR[5]'``), the frame number a condition names
     ('' for the target's own))."""
     regs = registers or {}
-    conds = [(m.start(), m.group(1).upper(), m.group(2), m.group(3) or "")
-             for m in _COND.finditer(text)]  # fmt: skip
+    conds: dict[str, list] = {"OFFSET": [], "TOOL_OFFSET": []}
+    for c in _COND.finditer(text):  # in order: positions sorted
+        conds[c.group(1).upper()].append((c.start(), c.group(2), c.group(3) or ""))
+    starts = {k: [c[0] for c in v] for k, v in conds.items()}
     out: dict[int, tuple[str, int | None, tuple | None, str, str]] = {}
     for m in _MOVE.finditer(text):
         refs = [(m.start(1), m.group(1).upper(), m.group(2))]
@@ -84,11 +87,11 @@ def motion_offsets(
                 label = f"{kind},PR[{opt.group(2)}]"
                 offset = _value(kind, opt.group(2), regs, label)
             else:
-                before = [c for c in conds if c[0] < m.start() and c[1] == kind.upper()]
+                last = bisect.bisect_left(starts[kind.upper()], m.start()) - 1
                 label = f"{kind} (no {kind.upper()} CONDITION before it)"
                 offset = ("?", f"{label}: the register it uses is not known")
-                if before:
-                    _, _, ref, frame = before[-1]
+                if last >= 0:
+                    _, ref, frame = conds[kind.upper()][last]
                     label = f"{kind} (CONDITION PR[{ref}])"
                     offset = _value(kind, ref, regs, label)
         for at, what, ref in refs:
