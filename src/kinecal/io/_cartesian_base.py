@@ -1,10 +1,11 @@
 """Shared parts of the Cartesian program readers (:mod:`._cartesian_programs`): the target
-record, spans of numbers, bracket matching, and a target's numbers as a pose."""
+record, spans of numbers, bracket matching, a target's numbers as a pose, and the offsets
+a move takes its target at (RAPID ``Offs``/``RelTool``, FANUC ``Offset``/``Tool_Offset``)."""
 
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -16,7 +17,7 @@ from kinecal.geometry import (
 )
 from kinecal.typing import Pose
 
-__all__ = ["CartesianPoint", "point_pose"]
+__all__ = ["CartesianPoint", "apply_offset", "point_pose", "remove_offset"]
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
@@ -43,10 +44,12 @@ class CartesianPoint:
         given (its span: where the first move names it; the value is written to a
         register program, not the text), else ''.
     why_not : why it cannot be corrected ('' when it can).
-    offset : RAPID: the ``Offs``/``RelTool`` offset (see :func:`apply_offset`) the
-        target is taken at (the robtarget's pose is ``apply_offset(values, offset)``).
-    follows : RAPID: for a move to ``Offs(p10, ..)`` that is not the one ``p10`` is
-        corrected for, 'p10' (no text of its own: it follows p10's correction).
+    offset : the offset (see :func:`apply_offset`) the target is corrected at (the pose
+        the robot goes to is ``apply_offset(values, offset)``): RAPID ``Offs``/``RelTool``,
+        FANUC ``Offset,PR[k]``/``Tool_Offset,PR[k]``.
+    follows : for a move with an offset (RAPID ``Offs(p10, ..)``, FANUC ``L P[4] ..
+        Offset,PR[5]``) that is not the one the target is corrected for, the target's
+        name (no text of its own: it follows that correction).
     """
 
     name: str
@@ -136,3 +139,79 @@ def point_pose(fmt: str, values: tuple[float, ...]) -> Pose:
     # FANUC W, P, R about x, y, z; KRL A, B, C about z, y, x.
     R = euler_zyx_to_matrix(a[::-1] if fmt == "fanuc-ls" else a)
     return make_transform(R, v[:3] * 1e-3)
+
+
+def _offset_matrix(offset: tuple) -> tuple[Pose, bool]:
+    """(M, left): the offset as a pose M [m], multiplied from the left (a displacement in
+    the user / object frame) or from the right (in the tool frame) of the target."""
+    kind, v = offset[0], np.asarray(offset[1:], np.float64)
+    if kind == "Offs":
+        return make_transform(np.eye(3), v[:3] * 1e-3), True
+    if kind == "RelTool":
+        # ABB: "first around the x-axis, then around the new y-axis and then around the
+        # new z-axis" of the tool: Rx · Ry · Rz, after the displacement in the tool frame.
+        rx, ry, rz = np.radians(v[3:6])
+        R = _rot("x", rx) @ _rot("y", ry) @ _rot("z", rz)
+        return make_transform(R, v[:3] * 1e-3), False
+    # FANUC: the register's X, Y, Z, W, P, R as a pose: Offset in the user frame (T' = M ·
+    # T), Tool_Offset in the tool frame (T' = T · M).
+    return point_pose("fanuc-ls", tuple(v[:6])), kind == "Offset"
+
+
+def _rot(axis: str, a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    i, j = {"x": (1, 2), "y": (2, 0), "z": (0, 1)}[axis]
+    R = np.eye(3)
+    R[i, i], R[i, j], R[j, i], R[j, j] = c, -s, s, c
+    return R
+
+
+def apply_offset(T: Pose, offset: tuple) -> Pose:
+    """The pose a move with ``offset`` goes to for the target ``T`` (4, 4) [m]: RAPID
+    ``('Offs', dx, dy, dz)`` (displacement in the object frame), ``('RelTool', dx, dy,
+    dz, rx, ry, rz)`` (displacement, then rotations about x, the new y, the new z, in the
+    tool frame) [mm, deg]; FANUC ``('Offset', x, y, z, w, p, r)`` (the register's pose
+    applied in the user frame), ``('Tool_Offset', ..)`` (in the tool frame); () none."""
+    if not offset:
+        return T
+    M, left = _offset_matrix(offset)
+    return M @ T if left else T @ M
+
+
+def remove_offset(T: Pose, offset: tuple) -> Pose:
+    """The target whose ``offset`` pose is ``T`` (the inverse of :func:`apply_offset`)."""
+    if not offset:
+        return T
+    M, left = _offset_matrix(offset)
+    return np.linalg.inv(M) @ T if left else T @ np.linalg.inv(M)
+
+
+Use = tuple  # (offset | None | ('?', why), position of the move, its name)
+
+
+def offset_targets(
+    text: str, pt: CartesianPoint, uses: list[Use]
+) -> list[CartesianPoint]:
+    """``pt`` and the moves that take it with an offset, each counted.
+
+    ``uses``: (offset, position of the move, its name) per move to ``pt``: offset None for
+    the target itself, a tuple (:func:`apply_offset`), or ``('?', why)`` for one whose
+    value is not known. ``pt`` is corrected for itself where a move goes to it, else for
+    its first known offset (a ``pt`` left stands for that move); every other known offset
+    follows that correction (checked, counted); an unknown one is left with its reason
+    (``pt`` itself too when it has no other use)."""
+    direct = not uses or any(u[0] is None for u in uses)
+    known = [u for u in uses if u[0] is not None and u[0][0] != "?"]
+    unknown = [u for u in uses if u[0] is not None and u[0][0] == "?"]
+    own = known[0] if known and not direct else None
+    first = unknown[0] if unknown and not direct and not known else None
+    why = pt.why_not or (first[0][1] if first else "")
+    out = [replace(pt, offset=own[0] if own else (), why_not=why)]
+    for u in uses:
+        if u[0] is None or u is own or u is first:
+            continue
+        bad = u[0][0] == "?"
+        out.append(replace(pt, name=u[2], line=_line(text, u[1]), spans=((u[1], u[1]),),
+                           config_spans=(), offset=() if bad else u[0], follows=pt.name,
+                           why_not=u[0][1] if bad else pt.why_not))  # fmt: skip
+    return out

@@ -19,9 +19,11 @@ urscript    ``movel/movej/movep(p[x, y, z, rx, ry, rz]``    rotation vector ``se
 
 Also: FANUC motions to position registers ``PR[n]`` (one target per register, in the
 ``UFRAME_NUM``/``UTOOL_NUM`` active at its moves; its value from the controller's
-POSREG.VA, :mod:`._fanuc_va`); RAPID moves to ``Offs(p, dx, dy, dz)`` /
+POSREG.VA, :mod:`._fanuc_va`); FANUC moves with ``Offset,PR[k]`` / ``Tool_Offset,PR[k]``
+(:mod:`._fanuc_offsets`); RAPID moves to ``Offs(p, dx, dy, dz)`` /
 ``RelTool(p, dx, dy, dz \\Rx \\Ry \\Rz)`` (the robtarget corrected for its own move,
-else for its first offset; other offsets follow it and are checked, :mod:`._cartesian_rapid`);
+else for its first offset; other offsets follow it and are checked, :mod:`._cartesian_rapid`,
+:func:`._cartesian_base.offset_targets`);
 URScript pose variables assigned anywhere and ``pose_trans(FEATURE, target)``
 (:mod:`._cartesian_urscript`).
 
@@ -44,15 +46,14 @@ from kinecal.io._cartesian_base import (
     _decimals,
     _line,
     _make,
-    point_pose,
-)
-from kinecal.io._cartesian_rapid import (
-    _rapid,
     apply_offset,
-    rapid_frames,
+    offset_targets,
+    point_pose,
     remove_offset,
 )
+from kinecal.io._cartesian_rapid import _rapid, rapid_frames
 from kinecal.io._cartesian_urscript import _urscript, urscript_features
+from kinecal.io._fanuc_offsets import motion_offsets
 from kinecal.typing import Float, Pose
 
 __all__ = [
@@ -98,7 +99,9 @@ def _active(text: str, pos: int, what: str) -> str | None:
     return last if last == "" or last.isdigit() else None
 
 
-def _fanuc_registers(text: str, registers: dict | None) -> list[CartesianPoint]:
+def _fanuc_registers(
+    text: str, registers: dict | None, offsets: dict
+) -> list[CartesianPoint]:
     """The position registers ``PR[n]`` motion instructions move to, one target per
     register (at its first use), with the frames active at its uses; its value from
     ``registers`` ({n: :class:`kinecal.io._fanuc_va.Register`}, a controller's
@@ -145,21 +148,47 @@ def _fanuc_registers(text: str, registers: dict | None) -> list[CartesianPoint]:
             except DataError:
                 why = f"its CONFIG {reg.config!r} is not 'N|F U|D T|B, t1, t4, t6'"
         vals = reg.values if reg is not None else ()
+        moves = _moves(text, name, [f[0] for f in found if f[0] in offsets], offsets,
+                       (uf or "0", ut or "0"))  # fmt: skip
         if kind == "joint":  # joints: no frame
             uf = ut = "0"
-        out.append(
-            CartesianPoint(name, _line(text, at), ((at, at),), tuple(vals), (3,) * len(vals),
-                           config, uf or "0", ut or "0", why_not=why,
-                           register=kind if not why else "")
-        )  # fmt: skip
+            if any(u[0] is not None for u in moves):
+                why = why or "a joint register moved to with an offset is not handled"
+        pt = CartesianPoint(name, _line(text, at), ((at, at),), tuple(vals),
+                            (3,) * len(vals), config, uf or "0", ut or "0", why_not=why,
+                            register=kind if not why else "")  # fmt: skip
+        out += offset_targets(text, pt, moves)
+    return out
+
+
+def _moves(
+    text: str, name: str, found: list[int], offsets: dict, frames: tuple[str, str]
+) -> list[tuple]:
+    """The uses (offset, position, name) of ``name`` by the motion references at ``found``
+    (:func:`._cartesian_base.offset_targets`), an offset whose condition names another
+    frame than ``frames`` (UF, UT) unknown."""
+    out = []
+    for at in found:
+        _, _, off, label, frame = offsets[at]
+        own = frames[label.startswith("Tool")]
+        if off is not None and frame and frame != own:
+            kind = "UTOOL" if label.startswith("Tool") else "UFRAME"
+            off = ("?", f"{label}: its condition's {kind}[{frame}] is not the target's "
+                        f"frame {own}: not handled")  # fmt: skip
+        out.append((off, at, f"{name} {label}"))
     return out
 
 
 def _fanuc(text: str, values: dict | None = None) -> list[CartesianPoint]:
     pos = re.search(r"^/POS\b", text, re.M)
-    registers = _fanuc_registers(text, values)
+    offsets = motion_offsets(text, values)
+    registers = _fanuc_registers(text, values, offsets)
     if pos is None:
         return registers
+    by_index: dict[int, list[int]] = {}  # n -> the motion references to P[n]
+    for a, u in offsets.items():
+        if u[0] == "P" and u[1] is not None:
+            by_index.setdefault(u[1], []).append(a)
     end = re.search(r"^/END\b", text[pos.end() :], re.M)
     stop = pos.end() + end.start() if end else len(text)
     out = []
@@ -187,11 +216,14 @@ def _fanuc(text: str, values: dict | None = None) -> list[CartesianPoint]:
                 "CONFIG : '...'; expected both in a Cartesian position."
             )
         config = _fanuc_config(text, at + cfg.start(), name, cfg.group(1))
-        out.append(
-            _make(text, name, spans, config=config, frame=frames.group(1),
-                  tool=frames.group(2),
-                  config_spans=((at + cfg.start(1), at + cfg.end(1)),))
-        )  # fmt: skip
+        pt = _make(text, name, spans, config=config, frame=frames.group(1),
+                   tool=frames.group(2),
+                   config_spans=((at + cfg.start(1), at + cfg.end(1)),))  # fmt: skip
+        n = re.match(r"P\[\s*(\d+)", name)
+        found = by_index.get(int(n.group(1)), []) if n else []
+        out += offset_targets(
+            text, pt, _moves(text, name, found, offsets, (pt.frame, pt.tool))
+        )
     return registers + out
 
 

@@ -4,23 +4,20 @@ wobj of the moves that use them, ``Offs`` / ``RelTool`` offsets, tooldata and wo
 from __future__ import annotations
 
 import re
-from dataclasses import replace
-
-import numpy as np
 
 from kinecal.errors import DataError
-from kinecal.geometry import euler_zyx_to_matrix, make_transform
 from kinecal.io._cartesian_base import (
     _NUM,
     CartesianPoint,
     _bracket_list,
     _line,
     _make,
+    offset_targets,
     point_pose,
 )
 from kinecal.typing import Pose
 
-__all__ = ["apply_offset", "rapid_frames", "remove_offset"]
+__all__ = ["rapid_frames"]
 
 
 def _rapid_offset(arg: str) -> tuple[str, tuple | None] | None:
@@ -75,32 +72,6 @@ def _rapid_uses(text: str) -> dict[str, list[tuple[str, str, tuple | None, int]]
                 continue
             uses.setdefault(got[0], []).append((*pair, got[1], m.start()))
     return uses
-
-
-def apply_offset(T: Pose, offset: tuple) -> Pose:
-    """The pose a RAPID ``Offs`` (displacement in the object frame) or ``RelTool``
-    (displacement, then rotations about x, y, z, in the tool frame) makes of ``T``
-    (4, 4) [m]."""
-    if not offset:
-        return T
-    d = np.asarray(offset[1:4], np.float64) * 1e-3
-    if offset[0] == "Offs":
-        out = T.copy()
-        out[:3, 3] += d
-        return out
-    rx, ry, rz = np.radians(offset[4:7])
-    return T @ make_transform(euler_zyx_to_matrix(np.array([rz, ry, rx])), d)
-
-
-def remove_offset(T: Pose, offset: tuple) -> Pose:
-    """The robtarget whose ``offset`` pose is ``T`` (the inverse of :func:`apply_offset`)."""
-    if not offset:
-        return T
-    if offset[0] == "Offs":
-        out = T.copy()
-        out[:3, 3] -= np.asarray(offset[1:4], np.float64) * 1e-3
-        return out
-    return T @ np.linalg.inv(apply_offset(np.eye(4), offset))
 
 
 def _rapid_pose(text: str, at: int) -> tuple[Pose, int]:
@@ -189,18 +160,11 @@ def _rapid(text: str) -> list[CartesianPoint]:
             ulist = uses.get(name, [])
         why = _rapid_why(text, ulist)
         tool, wobj = ulist[0][:2] if ulist and not why else ("", "")
-        offsets = [u[2] for u in ulist if u[2] is not None and u[2] != ("?",)]
-        # The robtarget is corrected for itself where a move goes to it, else for its
-        # first offset; every other offset follows it (checked, counted).
-        direct = any(u[2] is None for u in ulist)
-        own = offsets[0] if offsets and not direct and not why else ()
         pt = _make(text, name, trans + quat, config=config, frame=wobj, tool=tool,
-                   config_spans=tuple(conf), why_not=why, offset=own)  # fmt: skip
-        out.append(pt)
-        for _, _, off, pos in ulist:
-            if off is None or off == ("?",) or (own and off is own):
-                continue
-            out.append(replace(pt, name=_offset_text(name, off), line=_line(text, pos),
-                               spans=((pos, pos),), config_spans=(), offset=off,
-                               follows=name))  # fmt: skip
+                   config_spans=tuple(conf), why_not=why)  # fmt: skip
+        # Corrected for itself where a move goes to it, else for its first offset; every
+        # other offset follows it (checked, counted).
+        moves = [(u[2], u[3], _offset_text(name, u[2]) if u[2] else "")
+                 for u in ulist if u[2] != ("?",)]  # fmt: skip
+        out += offset_targets(text, pt, moves or [(None, 0, "")])
     return out

@@ -24,8 +24,9 @@ from kinecal.workflows._frames import (
     unit_words,
 )
 
-# Why a RAPID move to Offs(p10, ..) is not solved itself: p10 is corrected once.
-_FOLLOWS = "follows its robtarget"
+# Why a move with an offset (RAPID Offs(p10, ..), FANUC Offset,PR[5]) is not solved
+# itself: its target is corrected once.
+_FOLLOWS = "follows its target"
 
 # Frame id meaning the robot base (user frames) or the flange (tools), per format.
 _BASE_IDS = {"fanuc-ls": "0", "krl": "0", "rapid": "wobj0", "urscript": ""}
@@ -385,7 +386,7 @@ def written_errors(
     ok = run.status == "ok"
     base_ok = {p.name for k, p in enumerate(pts) if ok[k] and not p.follows}
     done = np.flatnonzero(
-        ok | np.array([p.follows in base_ok and p.follows != "" for p in pts], bool)
+        ok | np.array([p.follows in base_ok and not p.why_not for p in pts], bool)
     )
     if done.size == 0:
         return err_p, err_r
@@ -412,23 +413,24 @@ def written_errors(
 def settle_follows(
     run: CartesianRun, err: np.ndarray, rot: np.ndarray, tol_mm: float
 ) -> None:
-    """The status of RAPID moves to ``Offs(p10, ..)`` / ``RelTool(p10, ..)`` that follow
-    p10's correction: 'ok' where the calibrated robot reaches the taught pose within
-    ``tol_mm`` there, else left with how far it stays (one robtarget cannot be exact at
-    two poses); ``err`` and ``rot`` from :func:`written_errors`."""
+    """The status of moves with an offset that follow their target's correction (RAPID
+    ``Offs(p10, ..)`` / ``RelTool(p10, ..)``, FANUC ``L P[4] .. Offset,PR[5]``): 'ok'
+    where the calibrated robot reaches the taught pose within ``tol_mm`` there, else
+    left with how far it stays (one target cannot be exact at two poses); ``err`` and
+    ``rot`` from :func:`written_errors`."""
     for k, p in enumerate(run.points):
         if not p.follows or run.why[k] != _FOLLOWS:
             continue
         run.q_seed[k] = run.q_new[k]
         if not np.isfinite(err[k]):
-            run.why[k] = f"its robtarget {p.follows} is not corrected"
+            run.why[k] = f"its target {p.follows} is not corrected"
         elif err[k] * 1e3 <= tol_mm:
             run.status[k] = "ok"
             run.follow_err[k] = (err[k], rot[k])
         else:
             run.why[k] = (
                 f"follows {p.follows}'s correction, {err[k] * 1e3:.4f} mm from the "
-                "taught pose here (one robtarget cannot be exact at both; a robtarget "
-                "of its own would be)"
+                "taught pose here (one target cannot be exact at both; a target of its "
+                "own would be)"
             )
             run.notes.append((k, run.why[k]))
