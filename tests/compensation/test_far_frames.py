@@ -30,13 +30,15 @@ def _program(tracker_twin, tmp_path):
 @pytest.mark.parametrize(
     ("change", "says"),
     [
-        (("--uframe", "1=1e308,0,0,0,0,0"), "expected mm and a frame within 100 m"),
+        (("--uframe", "1=1e308,0,0,0,0,0"), "is no pose; expected X, Y, Z [mm]"),
+        (("--uframe", "1=2e5,0,0,0,0,0"), "expected mm and a frame within 100 m"),
         (
             ("--utool", "1=0,0,9000,0,0,0"),
             "9 m away; expected mm and a tool within 5 m",
         ),
-        (("X", "1e308"), "(P[1]): the target lies 1e+305 m from its origin"),
-        (("X", "1e400"), "(P[1]): a value is not a finite number"),
+        (("X", "5e5"), "(P[1]): the target lies 500 m from its origin"),
+        (("X", "1e308"), "(P[1]): [1e+308, "),
+        (("X", "1e400"), "(P[1]): [inf, "),
     ],
 )
 def test_far_or_infinite_frames_and_targets_refused(

@@ -129,3 +129,35 @@ def test_fuzz_controller_frame_files(point_data, capsys, tmp_path):
         assert not leftovers(d)
 
     check()
+
+
+def test_fuzz_cartesian_programs(point_data, capsys, tmp_path):
+    """Programs with Cartesian targets in the four formats (FANUC P[] with UF/UT and
+    CONFIG, KRL E6POS, RAPID robtargets with tooldata/wobjdata, URScript poses),
+    damaged line by line or number by number."""
+    from tests.compensation.test_issue_34_cartesian import FRAME_ARGS, WRITERS
+
+    cal = load_model(point_data["model"])
+    q = _taught(np.random.default_rng(11), 3)
+    texts = {}
+    for fmt, (writer, ext) in WRITERS.items():
+        T_uf = np.eye(4) if fmt == "urscript" else T_UF
+        texts[fmt] = (writer(cal, q, _targets(cal, q, T_uf=T_uf)), ext)
+
+    @FUZZ
+    @given(fmt=st.sampled_from(sorted(texts)), data=st.data())
+    def check(fmt: str, data: st.DataObject) -> None:
+        text, ext = texts[fmt]
+        d = Path(tempfile.mkdtemp(dir=tmp_path))
+        src = d / f"prog{ext}"
+        src.write_text(data.draw(_damaged(text)))
+        out = d / f"out{ext}"
+        res = run_kinecal(
+            capsys, "compensate", src, "--model", point_data["model"], "--out", out,
+            *FRAME_ARGS[fmt](), "--allow-unreachable",
+        )  # fmt: skip
+        check_contract(res)
+        assert out.exists() == (res.code == 0), str(res)
+        assert not leftovers(d)
+
+    check()

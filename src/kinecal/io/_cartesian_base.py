@@ -9,6 +9,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal.errors import DataError
 from kinecal.geometry import (
     euler_zyx_to_matrix,
     make_transform,
@@ -17,7 +18,13 @@ from kinecal.geometry import (
 )
 from kinecal.typing import Pose
 
-__all__ = ["CartesianPoint", "apply_offset", "point_pose", "remove_offset"]
+__all__ = [
+    "CartesianPoint",
+    "apply_offset",
+    "check_pose_numbers",
+    "point_pose",
+    "remove_offset",
+]
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
@@ -128,9 +135,38 @@ def _args(text: str, open_at: int) -> list[tuple[int, int]]:
     return out
 
 
-def point_pose(fmt: str, values: tuple[float, ...]) -> Pose:
-    """A target's numbers as a pose (4, 4) in SI [m]."""
+# What each format's pose numbers are, for a message.
+_POSE_WORDS = {
+    "urscript": "x, y, z [m] and a rotation vector rx, ry, rz [rad]",
+    "rapid": "x, y, z [mm] and a unit quaternion q1..q4",
+    "fanuc-ls": "X, Y, Z [mm] and W, P, R [deg]",
+    "krl": "X, Y, Z [mm] and A, B, C [deg]",
+}
+
+
+def check_pose_numbers(fmt: str, values: tuple[float, ...] | np.ndarray) -> None:
+    """Refuse numbers that are no pose of ``fmt``: not finite, a position beyond 1 km,
+    a rotation vector over 100 rad or angles over 1e5 deg, a quaternion far from unit
+    length (a damaged or hand-edited value; 1e308 overflowed in the rotation)."""
     v = np.asarray(values, np.float64)
+    ok = v.size >= 6 and bool(np.isfinite(v).all())
+    if ok:
+        ok = float(np.abs(v[:3]).max()) <= (1e3 if fmt == "urscript" else 1e6)
+        if fmt == "urscript":
+            ok = ok and float(np.linalg.norm(v[3:6])) <= 100.0
+        elif fmt == "rapid":
+            ok = ok and v.size >= 7 and 0.5 <= float(np.linalg.norm(v[3:7])) <= 2.0
+        else:
+            ok = ok and float(np.abs(v[3:6]).max()) <= 1e5
+    if not ok:
+        shown = ", ".join(f"{x:.6g}" for x in v)
+        raise DataError(f"[{shown}] is no pose; expected {_POSE_WORDS[fmt]}.")
+
+
+def point_pose(fmt: str, values: tuple[float, ...]) -> Pose:
+    """A target's numbers as a pose (4, 4) in SI [m] (DataError: :func:`check_pose_numbers`)."""
+    v = np.asarray(values, np.float64)
+    check_pose_numbers(fmt, v)
     if fmt == "urscript":
         return make_transform(so3_exp(v[3:6]), v[:3])
     if fmt == "rapid":
@@ -174,6 +210,8 @@ def apply_offset(T: Pose, offset: tuple) -> Pose:
     applied in the user frame), ``('Tool_Offset', ..)`` (in the tool frame); () none."""
     if not offset:
         return T
+    if not np.isfinite(np.asarray(offset[1:], np.float64)).all():
+        raise DataError(f"the offset {offset[0]}{tuple(offset[1:])} is not finite.")
     M, left = _offset_matrix(offset)
     return M @ T if left else T @ M
 
@@ -182,6 +220,8 @@ def remove_offset(T: Pose, offset: tuple) -> Pose:
     """The target whose ``offset`` pose is ``T`` (the inverse of :func:`apply_offset`)."""
     if not offset:
         return T
+    if not np.isfinite(np.asarray(offset[1:], np.float64)).all():
+        raise DataError(f"the offset {offset[0]}{tuple(offset[1:])} is not finite.")
     M, left = _offset_matrix(offset)
     return np.linalg.inv(M) @ T if left else T @ np.linalg.inv(M)
 

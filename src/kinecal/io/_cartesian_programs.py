@@ -272,7 +272,7 @@ def _krl(text: str) -> list[CartesianPoint]:
             spans.append((at + k.start(1), at + k.end(1)))
         s = re.search(rf"(?<!\w)S\s+({_NUM})", body)
         t = re.search(rf"(?<!\w)T\s+({_NUM})", body)
-        config = (int(float(s.group(1))), int(float(t.group(1)))) if s and t else None
+        config = _krl_flags(s, t, text, at)
         head = text[text.rfind("\n", 0, m.start()) + 1 : m.start()]
         if re.search(
             r"(BASE_DATA|TOOL_DATA|\$\w+)\s*(\[[^\]]*\])?\s*=\s*$", head, re.I
@@ -404,3 +404,17 @@ def cartesian_edits(
                 dec = max(_decimals(text[a:b]), _MIN_DECIMALS["urscript"])
                 edits.append((a, b, _fmt(float(q_new[k, j]), dec, "")))
     return edits
+
+
+def _krl_flags(
+    s: re.Match | None, t: re.Match | None, text: str, at: int
+) -> tuple | None:
+    """An E6POS/POS's (S, T) as integers (None without them); a value that is no small
+    whole number (1e400, -3, 2.5) is refused with its line."""
+    if s is None or t is None:
+        return None
+    vals = (float(s.group(1)), float(t.group(1)))
+    if not all(np.isfinite(v) and v == int(v) and 0 <= v < 1 << 16 for v in vals):
+        raise DataError(f"line {_line(text, at)}: S {s.group(1)}, T {t.group(1)}: "
+                        "expected whole numbers (status and turn bits).")  # fmt: skip
+    return int(vals[0]), int(vals[1])

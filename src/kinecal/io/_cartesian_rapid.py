@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
+
 from kinecal.errors import DataError
 from kinecal.io._cartesian_base import (
     _NUM,
@@ -86,7 +88,10 @@ def _rapid_pose(text: str, at: int) -> tuple[Pose, int]:
             f"line {_line(text, at)}: expected a pose [[x, y, z], [q1, q2, q3, q4]]."
         )
     v = [float(text[a:b]) for a, b in trans + quat]
-    return point_pose("rapid", tuple(v)), text.find("]", q_at)
+    try:
+        return point_pose("rapid", tuple(v)), text.find("]", q_at)
+    except DataError as exc:
+        raise DataError(f"line {_line(text, at)}: {exc}") from None
 
 
 def rapid_frames(text: str) -> tuple[dict[str, Pose | str], dict[str, Pose | str]]:
@@ -149,7 +154,12 @@ def _rapid(text: str) -> list[CartesianPoint]:
                 f"line {_line(text, m.start())}: robtarget {m.group(1) or m.group(2)}: "
                 "expected [[x, y, z], [q1, q2, q3, q4], [cf1, cf4, cf6, cfx], [...]]."
             )
-        config = tuple(int(float(text[a:b])) for a, b in conf)
+        cf = [float(text[a:b]) for a, b in conf]
+        if not all(np.isfinite(v) and v == int(v) and abs(v) < 1 << 16 for v in cf):
+            raise DataError(f"line {_line(text, m.start())}: robtarget "
+                            f"{m.group(1) or m.group(2)}: confdata {cf}: expected "
+                            "whole numbers [cf1, cf4, cf6, cfx].")  # fmt: skip
+        config = tuple(int(v) for v in cf)
         name = m.group(1) or m.group(2)
         if m.group(2):  # inline: the instruction's own tool and wobj
             rest = text[m.start() : text.find(";", m.start())]

@@ -7,6 +7,7 @@ from __future__ import annotations
 import re
 from dataclasses import replace
 
+from kinecal.errors import DataError
 from kinecal.io._cartesian_base import (
     CartesianPoint,
     _args,
@@ -85,7 +86,12 @@ def urscript_features(text: str) -> dict[str, Pose | str]:
         if len(spans) != 6:
             out[frame] = "not a pose p[x, y, z, rx, ry, rz]"
             continue
-        out[frame] = point_pose("urscript", tuple(float(text[a:b]) for a, b in spans))
+        try:
+            out[frame] = point_pose(
+                "urscript", tuple(float(text[a:b]) for a, b in spans)
+            )
+        except DataError as exc:
+            raise DataError(f"line {_line(text, got[0][1])}: {frame}: {exc}") from None
     return out
 
 

@@ -244,7 +244,10 @@ def _target_poses(robot: Any, fmt: str, pts: list[Any], why: list[str]) -> np.nd
                 continue
             out[k] = robot.fk_flange(register_q(robot, p.values)[None])[0]
         elif p.values:
-            out[k] = apply_offset(point_pose(fmt, p.values), p.offset)
+            try:
+                out[k] = apply_offset(point_pose(fmt, p.values), p.offset)
+            except DataError as exc:
+                raise DataError(f"line {p.line} ({p.name}): {exc}") from None
     return out
 
 
@@ -321,14 +324,15 @@ def cartesian_run(
     except DataError as exc:
         raise DataError(f"{prog.path}: {exc}") from None
     N, n = len(pts), robot.n_joints
-    T_uf, T_tool, why = _frames(prog, pts, uframes, utools)
-    for k, p in enumerate(pts):  # checked after the robtarget is corrected
-        why[k] = why[k] or (_FOLLOWS if p.follows else "")
-    for p in pts:  # a damaged value (1e400 reads as inf) is no pose
-        if not np.isfinite(np.asarray(p.values, np.float64)).all():
-            raise DataError(f"{prog.path}: line {p.line} ({p.name}): a value is not a "
-                            "finite number; expected the pose's numbers.")  # fmt: skip
-    T_target = _target_poses(robot, fmt, pts, why).reshape(N, 4, 4)
+    try:  # frames the program defines and the targets' numbers: no pose is refused
+        T_uf, T_tool, why = _frames(prog, pts, uframes, utools)
+        for k, p in enumerate(pts):  # checked after the robtarget is corrected
+            why[k] = why[k] or (_FOLLOWS if p.follows else "")
+        T_target = _target_poses(robot, fmt, pts, why).reshape(N, 4, 4)
+    except DataError as exc:
+        text = str(exc)
+        raise DataError(text if text.startswith(str(prog.path)) else f"{prog.path}: "
+                        f"{text}") from None  # fmt: skip
     _refuse_far(prog, pts, T_target, T_uf, T_tool)
     T_tcp = T_uf @ T_target
     F_want = T_tcp @ transform_inv(T_tool) if N else T_tcp

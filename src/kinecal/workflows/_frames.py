@@ -65,7 +65,10 @@ def parse_frames(
                 f"{option} {spec!r}: expected ID={','.join(['v'] * k)} ({k} finite "
                 f"numbers in the {fmt} program's units)."
             )
-        T = point_pose(fmt, tuple(vals))
+        try:
+            T = point_pose(fmt, tuple(vals))
+        except DataError as exc:
+            raise DataError(f"{option} {spec!r}: {exc}") from None
         tool = option.rsplit(" ", 1)[-1].lower().endswith("tool")  # not the path's
         limit = FAR_TOOL if tool else FAR_FRAME
         if far_from_origin(T, limit):
@@ -98,7 +101,11 @@ def _krl_config_frames(path: str, text: str) -> tuple[dict, dict]:
                                 f"has no {key}; expected X, Y, Z [mm], A, B, C [deg].")  # fmt: skip
             vals.append(float(k.group(1)))
         tool = m.group(1).upper() == "TOOL"
-        T = point_pose("krl", tuple(vals))
+        try:
+            T = point_pose("krl", tuple(vals))
+        except DataError as exc:
+            line = text.count("\n", 0, m.start()) + 1
+            raise DataError(f"{path}: line {line}: {exc}") from None
         if far_from_origin(T, FAR_TOOL if tool else FAR_FRAME):
             line = text.count("\n", 0, m.start()) + 1
             raise DataError(f"{path}: line {line}: {m.group(1)}_DATA[{m.group(2)}] lies "
