@@ -468,19 +468,10 @@ def plan_measurements(
 def _check_poses(
     setup: PlanSetup, cand: PoseCandidates, n: int, option: str, first: bool
 ) -> None:
-    """Refuse a ``first`` plan (nothing measured before) whose poses give no more
-    residuals than the model has parameters (no calibration would accept it), and a
-    plan from fewer distinct candidates (copies of one pose would be chosen again)."""
+    """Refuse a plan from fewer distinct candidates (copies of one pose would be chosen
+    again), and a ``first`` plan (nothing measured before) whose poses give no more
+    residuals than the model has parameters (no calibration would accept it)."""
     from kinecal._stats import distinct_rows
-
-    rows, size = (6 if setup.instrument.name == "pose" else 3), setup.model.size
-    if first and n * rows <= size:
-        raise DataError(
-            f"{option} {n}: {n} poses give {n * rows} residuals for the "
-            f"{size} parameters of the '{setup.model.spec.name}' model, too few for "
-            f"any calibration; expected at least {size // rows + 1} poses (plan at "
-            f"least {-(-2 * size // rows)}, several times more for a reliable result)."
-        )
 
     ti = cand.target_index
     key = cand.q if ti is None else np.column_stack([cand.q, ti])
@@ -495,6 +486,14 @@ def _check_poses(
         raise DataError(
             f"{where} only {distinct} distinct pose{'s' if distinct != 1 else ''}, but "
             f"{option} {n} asks for {n}; expected at least {n} different candidate poses."
+        )
+    rows, size = (6 if setup.instrument.name == "pose" else 3), setup.model.size
+    if first and n * rows <= size:
+        raise DataError(
+            f"{option} {n}: {n} poses give {n * rows} residuals for the "
+            f"{size} parameters of the '{setup.model.spec.name}' model, too few for "
+            f"any calibration; expected at least {size // rows + 1} poses (plan at "
+            f"least {-(-2 * size // rows)}, several times more for a reliable result)."
         )
 
 
