@@ -21,12 +21,22 @@ __all__ = ["motion_offsets"]
 _REF = r"\[((?:[^\[\]]|\[[^\]]*\])*)\]"
 _MOVE = re.compile(rf"^\s*\d+\s*:\s*[JLCA]\s+(P|PR){_REF}[^;]*;", re.M)
 _VIA = re.compile(rf"\n\s*:\s*(P|PR){_REF}")
-_OPTION = re.compile(rf"(?<!\w)(Tool_Offset|Offset)\b(?:\s*,\s*PR{_REF})?", re.I)
+_OPTION = re.compile(rf"(?<!\w)(Tool_Offset|Offset)\b(?:\s*,\s*(PR|VR){_REF})?", re.I)
 _COND = re.compile(
-    rf"^\s*\d+\s*:\s*(TOOL_OFFSET|OFFSET)\s+CONDITION\s+PR{_REF}"
+    rf"^\s*\d+\s*:\s*(TOOL_OFFSET|OFFSET)\s+CONDITION\s+(PR|VR){_REF}"
     r"(?:\s*,\s*(?:UFRAME|UTOOL)\s*\[\s*(\d+)\s*\])?",
     re.I | re.M,
 )
+# Motion options whose target is no pose the reader can know: an incremental move's P[]
+# is a displacement from where the robot is; a vision offset is measured as it runs.
+_UNKNOWN = (
+    (re.compile(r"(?<!\w)INC\b", re.I), "INC",
+     "an incremental move (INC): its target is a displacement from where the robot "
+     "is, not a pose"),
+    (re.compile(r"(?<!\w)VOFFSET\b", re.I), "VOFFSET",
+     "a vision offset (VOFFSET): its value is measured when the program runs"),
+)  # fmt: skip
+_VISION = "a vision register (VR[]): its value is measured when the program runs"
 
 
 def register_index(ref: str) -> int | None:
@@ -66,7 +76,8 @@ def motion_offsets(
     regs = registers or {}
     conds: dict[str, list] = {"OFFSET": [], "TOOL_OFFSET": []}
     for c in _COND.finditer(text):  # in order: positions sorted
-        conds[c.group(1).upper()].append((c.start(), c.group(2), c.group(3) or ""))
+        ref = c.group(3) if c.group(2).upper() == "PR" else None  # VR: at run time
+        conds[c.group(1).upper()].append((c.start(), ref, c.group(4) or ""))
     starts = {k: [c[0] for c in v] for k, v in conds.items()}
     out: dict[int, tuple[str, int | None, tuple | None, str, str]] = {}
     for m in _MOVE.finditer(text):
@@ -79,21 +90,35 @@ def motion_offsets(
         opt = _OPTION.search(text, end, m.end())
         offset: tuple | None = None
         label, frame = "", ""
-        if opt:
+        unknown = [
+            (w, why) for pat, w, why in _UNKNOWN if pat.search(text, end, m.end())
+        ]
+        if unknown:
+            label, why = unknown[0]
+            offset = ("?", why)
+        elif opt:
             kind = (
                 "Tool_Offset" if opt.group(1).lower().startswith("tool") else "Offset"
             )
             if opt.group(2) is not None:
-                label = f"{kind},PR[{opt.group(2)}]"
-                offset = _value(kind, opt.group(2), regs, label)
+                label = f"{kind},{opt.group(2).upper()}[{opt.group(3)}]"
+                offset = (
+                    _value(kind, opt.group(3), regs, label)
+                    if opt.group(2).upper() == "PR"
+                    else ("?", f"{label}: {_VISION}")
+                )
             else:
                 last = bisect.bisect_left(starts[kind.upper()], m.start()) - 1
                 label = f"{kind} (no {kind.upper()} CONDITION before it)"
                 offset = ("?", f"{label}: the register it uses is not known")
                 if last >= 0:
                     _, ref, frame = conds[kind.upper()][last]
-                    label = f"{kind} (CONDITION PR[{ref}])"
-                    offset = _value(kind, ref, regs, label)
+                    label = f"{kind} (CONDITION {'PR' if ref else 'VR'}[{ref or ''}])"
+                    offset = (
+                        _value(kind, ref, regs, label)
+                        if ref is not None
+                        else ("?", f"{kind} (CONDITION VR[]): {_VISION}")
+                    )
         for at, what, ref in refs:
             out[at] = (what, register_index(ref), offset, label, frame)
     return out

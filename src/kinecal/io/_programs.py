@@ -28,7 +28,7 @@ frames) are read by :mod:`kinecal.io._cartesian_programs`; here they are only co
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -77,6 +77,8 @@ class ProgramPoint:
         FANUC the span holds the blanks before the number (its column width).
     values : the values as written [deg or rad; mm or m].
     decimals : decimals of each value as written.
+    why_not : why it is not corrected ('' when it is): a FANUC P[] an incremental move
+        (INC) uses holds a displacement, not joints to reach.
     """
 
     name: str
@@ -84,6 +86,7 @@ class ProgramPoint:
     spans: tuple[tuple[int, int], ...]
     values: tuple[float, ...]
     decimals: tuple[int, ...]
+    why_not: str = ""
 
 
 @dataclass(frozen=True)
@@ -144,6 +147,7 @@ def _fanuc(text: str) -> tuple[list[ProgramPoint], int]:
     end = re.search(r"^/END\b", text[pos.end() :], re.M)
     stop = pos.end() + end.start() if end else len(text)
     points, skipped = [], 0
+    incremental = _incremental(text[: pos.start()])
     for rec in re.finditer(r"(P\[[^\]]*\])\s*\{(.*?)\};", text[pos.end() : stop], re.S):
         body_at = pos.end() + rec.start(2)
         body = rec.group(2)
@@ -170,8 +174,30 @@ def _fanuc(text: str) -> tuple[list[ProgramPoint], int]:
                 "expected J1, J2, ... in order."
             )
         spans = [(seg_at + m.start(2), seg_at + m.end(2)) for m in joints]
-        points.append(_point(text, rec.group(1), spans))
+        pt = _point(text, rec.group(1), spans)
+        if _index(rec.group(1)) in incremental:
+            pt = replace(pt, why_not=_INC)
+        points.append(pt)
     return points, skipped
+
+
+_INC = "an incremental move (INC) uses it: its joints are a displacement, not a pose"
+
+
+def _index(name: str) -> int | None:
+    """n of ``P[n]`` / ``P[n:comment]``."""
+    m = re.match(r"P\[\s*(\d+)", name)
+    return int(m.group(1)) if m else None
+
+
+def _incremental(text: str) -> set[int]:
+    """The P[n] that incremental motions (``J P[2] 100% FINE INC``) move by."""
+    moves = re.finditer(
+        r"^\s*\d+\s*:\s*[JLCA]\s+P\[\s*(\d+)[^\]]*\]([^;]*);", text, re.M
+    )
+    return {
+        int(m.group(1)) for m in moves if re.search(r"(?<!\w)INC\b", m.group(2), re.I)
+    }
 
 
 def _bracket_numbers(text: str, start: int) -> list[tuple[int, int]] | None:

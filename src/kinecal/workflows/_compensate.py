@@ -6,7 +6,7 @@ Cartesian targets in their user and tool frames; the rest of the program byte fo
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -294,13 +294,18 @@ def compensate_program(
     lines_ = [pt.line for pt in prog.points] + [pt.line for pt in run.points]
     q_w_all = np.vstack([q_w, np.nan_to_num(run.q_new)])
     err_all = np.concatenate([err_w, err_c])
+    for pt in prog.points:
+        if pt.why_not:
+            emit(f"{path}: line {pt.line} ({pt.name}): left as written: {pt.why_not}")
     _echo_cartesian(str(path), run, err_c, rot_c, emit)
     report = _report_text(res, names, lines_, q_w_all, err_all, robot)
     n_j = int((~keep).sum())
+    n_left = sum(bool(pt.why_not) for pt in prog.points)
     note = None
     if keep.size:
         note = (
-            f"{path}: {n_j} joint targets corrected; largest error as "
+            f"{path}: {n_j} joint targets corrected"
+            f"{f', {n_left} left as written' if n_left else ''}; largest error as "
             f"written {err_w[~keep].max() * 1e3 if n_j else 0:.4f} mm "
             "(the joints rounded to the file's decimals)."
         )
@@ -410,6 +415,14 @@ def _joint_part(
     res = run_compensation(
         cal, p_t, q_prog, R_target=R_t, load_scale=ls, tol=tol_mm * 1e-3
     )
+    left = np.array([bool(pt.why_not) for pt in prog.points])
+    if left.any():  # kept as written (an incremental move's displacement)
+        status = res.status.astype(object)
+        status[left] = "left"
+        res = replace(
+            res, status=status.astype(str), q_ctrl=np.where(left[:, None], q_prog,
+            res.q_ctrl), error=np.where(left, np.nan, res.error),
+        )  # fmt: skip
     return q_prog, p_t, res, ls
 
 
