@@ -254,11 +254,54 @@ def _krl_active(text: str, pos: int, which: str) -> str:
     return last or "0"
 
 
+# A KRL motion whose aggregate is a displacement from where the robot is.
+_KRL_REL = re.compile(r"\b(S?(?:PTP|LIN|CIRC)_REL)\s*$", re.I)
+
+
+def _krl_left(text: str, m: re.Match, body: str) -> CartesianPoint | None:
+    """A target of a KRL motion that is no pose to correct, counted and left: the
+    aggregate of a relative motion (``LIN_REL {Z -20}``: a displacement), or a partial
+    one in a motion (``PTP {A1 45}``, ``LIN {Z 300}``: the components it leaves out are
+    the robot's current ones); None for any other aggregate."""
+    head = text[text.rfind("\n", 0, m.start()) + 1 : m.start()]
+    if re.search(r"(BASE_DATA|TOOL_DATA|\$\w+)\s*(\[[^\]]*\])?\s*=\s*$", head, re.I):
+        return None  # a frame of the controller
+    rel = _KRL_REL.search(head)
+    keys = {
+        k.upper() for k in re.findall(rf"(?<![\w$])([XYZABC]|A[1-6])\s+{_NUM}", body)
+    }
+    if rel is None and (  # partial: in a motion only (a declaration must be whole)
+        not keys
+        or keys >= set("XYZABC")
+        or not re.search(r"\bS?(?:PTP|LIN|CIRC)\s*$", head, re.I)
+    ):
+        return None
+    axes = {f"A{i}" for i in range(1, 7)}
+    if rel is None and (keys >= axes or not (keys & set("XYZ") or keys <= axes)):
+        return None  # a full joint aggregate (the joint reader's), or no target
+    why = (
+        f"a relative motion ({rel.group(1).upper()}): its aggregate is a displacement "
+        "from where the robot is, not a pose"
+        if rel
+        else "a partial aggregate: the components it leaves out are the robot's "
+        "current ones"
+    )
+    at = m.start(1)
+    decl = re.search(r"(\w+)\s*=\s*$", head)
+    name = rel.group(1).upper() if rel else (decl.group(1) if decl else "POS")
+    return CartesianPoint(name, _line(text, at),
+                          ((at, at),), (), (), None, "", "", why_not=why)  # fmt: skip
+
+
 def _krl(text: str) -> list[CartesianPoint]:
     fdat = _krl_fdat(text)
     out = []
     for m in re.finditer(r"\{([^{}]*)\}", text):
         body, at = m.group(1), m.start(1)
+        left = _krl_left(text, m, body)
+        if left is not None:
+            out.append(left)
+            continue
         if not re.search(r"\bX\s+" + _NUM, body):
             continue
         spans = []

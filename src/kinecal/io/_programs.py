@@ -270,8 +270,11 @@ def _krl(text: str) -> tuple[list[ProgramPoint], int]:
         if not axes:
             continue
         order = [int(a.group(1)) for a in axes]
-        if order != list(range(1, len(order) + 1)):
-            continue
+        head = text[text.rfind("\n", 0, m.start()) + 1 : m.start()]
+        if order != list(range(1, len(order) + 1)) or len(order) < 6 or re.search(
+            r"_REL\s*$", head, re.I
+        ):  # fmt: skip
+            continue  # relative or partial: counted and left by the Cartesian reader
         decl = re.search(r"(\w+)\s*=\s*$", text[max(0, m.start() - 80) : m.start()])
         name = decl.group(1) if decl else "AXIS"
         at = m.start(1)

@@ -1,4 +1,4 @@
-"""FANUC motion options whose target is no pose to correct: an incremental move (INC)
+"""Motion options whose target is no pose to correct (FANUC, KRL): an incremental move (INC)
 moves by its P[] (a displacement from where the robot is, in joints or XYZWPR), a
 vision offset (VOFFSET, or an OFFSET CONDITION on a vision register VR[]) is measured
 as the program runs. Such targets were corrected as absolute poses (an INC P[] of J3 =
@@ -83,3 +83,34 @@ def test_an_incremental_joint_target_is_left(model_file, run_cli, tmp_path):
     assert (summary["n"], summary["ok"], summary["left"]) == (2, 1, 1)
     new = out.read_text()
     assert inc in new and joints not in new
+
+
+def test_krl_relative_and_partial_motions_are_left(model_file, run_cli, tmp_path):
+    """KRL: ``PTP_REL``/``LIN_REL`` move by their aggregate; ``PTP {A1 45}`` and ``LIN
+    {Z 300}`` keep the robot's current values for what they leave out. A valid program
+    with them was refused ("a Cartesian aggregate without Y") or read a one-axis
+    aggregate as a joint target; now they are counted and left, the full targets
+    corrected."""
+    text = "\n".join([
+        "DEF rel()",
+        "  PTP {A1 10, A2 -80, A3 90, A4 0, A5 30, A6 0}",
+        "  PTP_REL {A3 -5}",
+        "  LIN_REL {X 10, Z -20}",
+        "  PTP {A1 45}",
+        "  LIN {Z 300}",
+        "  PTP {A1 20, A2 -70, A3 80, A4 10, A5 40, A6 5}",
+        "END", "",
+    ])  # fmt: skip
+    src, out = tmp_path / "rel.src", tmp_path / "out.src"
+    src.write_text(text)
+    res = run_cli("compensate", src, "--model", model_file, "--out", out, "--json")
+    assert res.returncode == 0, res.stderr
+    err = res.stderr
+    assert "line 3 (PTP_REL): left as written: a relative motion (PTP_REL)" in err
+    assert "line 4 (LIN_REL): left as written: a relative motion (LIN_REL)" in err
+    assert err.count("left as written: a partial aggregate") == 2
+    summary = json.loads(res.stdout.strip().splitlines()[-1])
+    assert (summary["n"], summary["ok"], summary["left"]) == (6, 2, 4)
+    new = out.read_text().splitlines()
+    old = text.splitlines()
+    assert new[2:6] == old[2:6] and new[1] != old[1] and new[6] != old[6]
