@@ -114,3 +114,33 @@ def test_krl_relative_and_partial_motions_are_left(model_file, run_cli, tmp_path
     new = out.read_text().splitlines()
     old = text.splitlines()
     assert new[2:6] == old[2:6] and new[1] != old[1] and new[6] != old[6]
+
+
+def test_rapid_trigger_search_and_process_moves_use_their_robtargets(
+    tracker_twin, model_file, run_cli, tmp_path
+):
+    """RAPID targets moved to by TriggL, SearchL (ToPoint after the signal and the
+    search point), ArcL or MoveLSync, with optional arguments anywhere, are corrected
+    in their tool and wobj like MoveL's (they were left: "no move instruction uses
+    it")."""
+    cal = tracker_twin.calibrated
+    q = _taught(np.random.default_rng(21), 4)
+    text = WRITERS["rapid"][0](cal, q, _targets(cal, q))
+    moves = [
+        "  TriggL p0, v200, gunon, \\T2:=gunoff, z10, tGrip\\WObj:=wTable;",
+        "  SearchL \\Stop, di1, sp1, p1, v100, tGrip\\WObj:=wTable;",
+        "  ArcL p2, v100, seam1, weld1, weave1, fine, tGrip\\WObj:=wTable;",
+        "  MoveLSync p3, v200, fine, tGrip\\WObj:=wTable, \\ID:=10, \"proc\";",
+    ]
+    lines = [ln for ln in text.splitlines() if not ln.lstrip().startswith("MoveL ")]
+    at = lines.index("PROC main()") + 1
+    src, out = tmp_path / "trig.mod", tmp_path / "out.mod"
+    src.write_text("\n".join([*lines[:at], *moves, *lines[at:]]) + "\n")
+    res = run_cli(
+        "compensate", src, "--model", model_file, "--out", out, "--json",
+        *FRAME_ARGS["rapid"](),
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    summary = json.loads(res.stdout.strip().splitlines()[-1])
+    assert (summary["n"], summary["ok"], summary["left"]) == (4, 4, 0), res.stderr
+    assert "largest error of the calibrated robot" in res.stderr

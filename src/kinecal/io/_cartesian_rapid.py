@@ -49,22 +49,56 @@ def _rapid_offset(arg: str) -> tuple[str, tuple | None] | None:
     return parts[0], ("RelTool", *d, rot["x"], rot["y"], rot["z"])
 
 
+# Motion instructions -> places of their robtargets among the positional arguments (a
+# circular move's CirPoint, then ToPoint; a search's ToPoint after Signal, SearchPoint).
+_MOVES = {
+    **dict.fromkeys(("MOVEL", "MOVEJ", "MOVELDO", "MOVEJDO", "MOVELSYNC", "MOVEJSYNC",
+                     "MOVELAO", "MOVEJAO", "MOVELGO", "MOVEJGO", "TRIGGL", "TRIGGJ",
+                     "TRIGGLIOS", "TRIGGJIOS", "ARCL", "ARCLSTART", "ARCLEND", "SPOTL",
+                     "SPOTJ"), (0,)),
+    **dict.fromkeys(("MOVEC", "MOVECDO", "MOVECSYNC", "MOVECAO", "MOVECGO", "TRIGGC",
+                     "ARCC", "ARCCSTART", "ARCCEND"), (0, 1)),
+    "SEARCHL": (2,),
+    "SEARCHC": (2, 3),
+}  # fmt: skip
+_MOVES_RE = re.compile(r"\b(" + "|".join(_MOVES) + r")\b([^;]*);", re.I)
+
+
+def _positional(arg: str) -> str:
+    """An argument without the optional ones written after it (``tool1\\WObj:=w``,
+    ``v100 \\T:=5``, ``\\Conc``); a backslash inside (..) or [..] (``RelTool(p, 0, 0,
+    0 \\Rz:=90)``) belongs to the argument."""
+    depth = 0
+    for i, ch in enumerate(arg):
+        depth += ch in "(["
+        depth -= ch in ")]"
+        if ch == "\\" and depth == 0:
+            return arg[:i].strip()
+    return arg.strip()
+
+
 def _rapid_uses(text: str) -> dict[str, list[tuple[str, str, tuple | None, int]]]:
     """robtarget name ('' for an inline one) -> [(tool, wobj, offset, position of the
     move)] of the move instructions that use it (offset: see :func:`_rapid_offset`;
     ('?', position) for a use inside another expression)."""
     uses: dict[str, list[tuple[str, str, tuple | None, int]]] = {}
-    for m in re.finditer(r"\b(Move(?:L|J|C|LDO|JDO))\b([^;]*);", text, re.I):
+    for m in _MOVES_RE.finditer(text):
         # Commas inside [..] (an inline target) or (..) (Offs(p10, 0, 0, 50)) do not
-        # separate arguments.
+        # separate arguments; optional arguments (\WObj:=w, \Conc, \T:=5) are dropped,
+        # the positional ones kept: the targets at their places, the tool last.
         args = [a.strip() for a in re.split(r",(?![^\[(]*[\])])", m.group(2))]
-        n_targets = 2 if m.group(1).upper() == "MOVEC" else 1
-        if len(args) < n_targets + 3:
+        pos = [p for p in (_positional(a) for a in args) if p]
+        where = _MOVES[m.group(1).upper()]
+        if len(pos) < where[-1] + 3:
             continue
-        tool = re.match(r"\s*(\w+)", args[n_targets + 2])
+        # The tool is the last positional argument; a ...Sync move names a procedure
+        # after it.
+        tool = re.match(
+            r"\s*(\w+)", pos[-2 if m.group(1).upper().endswith("SYNC") else -1]
+        )
         w = re.search(r"\\WObj\s*:=\s*(\w+)", m.group(2), re.I)
         pair = (tool.group(1) if tool else "tool0", w.group(1) if w else "wobj0")
-        for a in args[:n_targets]:
+        for a in (pos[i] for i in where):
             got = _rapid_offset(a)
             if got is None and a.startswith("["):
                 got = ("", None)
