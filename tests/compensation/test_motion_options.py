@@ -130,7 +130,7 @@ def test_rapid_trigger_search_and_process_moves_use_their_robtargets(
         "  TriggL p0, v200, gunon, \\T2:=gunoff, z10, tGrip\\WObj:=wTable;",
         "  SearchL \\Stop, di1, sp1, p1, v100, tGrip\\WObj:=wTable;",
         "  ArcL p2, v100, seam1, weld1, weave1, fine, tGrip\\WObj:=wTable;",
-        "  MoveLSync p3, v200, fine, tGrip\\WObj:=wTable, \\ID:=10, \"proc\";",
+        '  MoveLSync p3, v200, fine, tGrip\\WObj:=wTable, \\ID:=10, "proc";',
     ]
     lines = [ln for ln in text.splitlines() if not ln.lstrip().startswith("MoveL ")]
     at = lines.index("PROC main()") + 1
