@@ -7,6 +7,7 @@ transmission and compliance terms), with the standard deviations of :data:`PRIOR
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -108,7 +109,7 @@ class Tuning:
     def __post_init__(self) -> None:
         if self.f_scale_mm is not None and not self.f_scale_mm > 0:
             raise ValueError(f"f_scale_mm must be positive; got {self.f_scale_mm!r}.")
-        if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
+        if not (isinstance(self.max_iter, numbers.Integral) and self.max_iter >= 1):
             raise ValueError(
                 f"max_iter must be an integer >= 1; got {self.max_iter!r}."
             )
