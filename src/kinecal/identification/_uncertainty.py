@@ -21,9 +21,12 @@ __all__ = ["Uncertainty"]
 class Uncertainty:
     """Covariance ``s0^2 (J^T W J + P)^-1`` of the free parameters at the solution
     (``W``: robust row weights, ``P``: prior precision; Eq. (T-3)), their standard
-    deviations and the a-posteriori standard deviation of unit weight ``s0``."""
+    deviations and the a-posteriori standard deviation of unit weight ``s0``.
+    ``jackknife=False``: without the widening to the jackknife over left-out poses
+    (for a fit whose standard deviations nobody reads: the nominal check's screen)."""
 
     name: str = "uncertainty"
+    jackknife: bool = True
 
     def __call__(self, problem: Problem, state: State) -> State:
         cm, lm = state.model, state.lm
@@ -55,7 +58,11 @@ class Uncertainty:
                 data = Ai @ _meat(blk, fidx, scales, state) @ Ai
                 held = (Ai * prec) @ Ai
             cov_f = data + held
-            jack = _jackknife(problem, blk, fidx, scales, wr, Ai)
+            jack = (
+                _jackknife(problem, blk, fidx, scales, wr, Ai)
+                if self.jackknife
+                else None
+            )
             if jack is not None:  # never below the jackknife where it is clearly above
                 cov_f = _widen(cov_f, *jack)
             cov[np.ix_(fidx, fidx)] = cov_f * np.outer(scales, scales)
