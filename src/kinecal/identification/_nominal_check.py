@@ -158,9 +158,9 @@ def _without_geometry_priors(
     if from_fit:
         # The screen answers alone only below SCREEN_RATIO < HELD_RATIO, where the
         # findings read its s0 and its parameters, never its standard deviations: no
-        # jackknife (a third of its cost).
+        # covariance (its jackknife alone was a third of the screen's cost).
         rest = [
-            Uncertainty(jackknife=False) if isinstance(s, Uncertainty) else s
+            Uncertainty(covariance=False) if isinstance(s, Uncertainty) else s
             for s in rest
             if not isinstance(s, (KinematicStage, TransmissionStage))
         ]

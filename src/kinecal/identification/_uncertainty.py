@@ -22,20 +22,28 @@ class Uncertainty:
     """Covariance ``s0^2 (J^T W J + P)^-1`` of the free parameters at the solution
     (``W``: robust row weights, ``P``: prior precision; Eq. (T-3)), their standard
     deviations and the a-posteriori standard deviation of unit weight ``s0``.
-    ``jackknife=False``: without the widening to the jackknife over left-out poses
-    (for a fit whose standard deviations nobody reads: the nominal check's screen)."""
+    ``covariance=False``: ``s0`` alone, from the residuals (no Jacobian pass; the
+    standard deviations NaN), for a fit whose standard deviations nobody reads (the
+    nominal check's screen)."""
 
     name: str = "uncertainty"
-    jackknife: bool = True
+    covariance: bool = True
 
     def __call__(self, problem: Problem, state: State) -> State:
         cm, lm = state.model, state.lm
         fidx = np.flatnonzero(state.free)
         scales = cm.layout.scales[fidx]
-        blk = problem.evaluations(cm, state.x, state.weights, jacobian=True)
+        want = self.covariance
+        blk = problem.evaluations(cm, state.x, state.weights, jacobian=want)
         wr = loss_weights(np.sum(blk.r**2, axis=1) / lm.f_scale**2, lm.loss)[1]
         dof = problem.n_residuals - fidx.size
         sigma0 = float(np.sqrt(np.sum(wr[:, None] * blk.r**2) / max(dof, 1)))
+        if not want:
+            return state.but(
+                covariance=np.zeros((cm.size, cm.size)),
+                std=np.full(cm.size, np.nan),
+                sigma0=sigma0,
+            )
         sw = None if lm.loss == "linear" else np.sqrt(wr)
         A, _ = blk.normal(fidx, scales, sw)
         prior = state.active_prior()
@@ -58,11 +66,7 @@ class Uncertainty:
                 data = Ai @ _meat(blk, fidx, scales, state) @ Ai
                 held = (Ai * prec) @ Ai
             cov_f = data + held
-            jack = (
-                _jackknife(problem, blk, fidx, scales, wr, Ai)
-                if self.jackknife
-                else None
-            )
+            jack = _jackknife(problem, blk, fidx, scales, wr, Ai)
             if jack is not None:  # never below the jackknife where it is clearly above
                 cov_f = _widen(cov_f, *jack)
             cov[np.ix_(fidx, fidx)] = cov_f * np.outer(scales, scales)
