@@ -17,7 +17,9 @@ VM is shared, and CPU time is what an idle core would take.
 * Model passes (:func:`kinecal.models.pass_counts`) of each command, run in-process.
 * One pass (the compiled kernel's FK + Jacobian on one thread, then ``JᵀJ``) at 2000
   poses x 50 parameters against a floor: the FLOPs of the symmetric product ``JᵀJ``
-  (m P (P + 1), m = 3 N rows) at this core's measured one-thread matrix-product rate.
+  (m P (P + 1), m = 3 N rows) at this core's measured one-thread matrix-product rate;
+  beside it the bare product ``X @ X.T`` (numpy calls BLAS dsyrk for it) and scipy's
+  ``dsyrk`` on the same memory.
 * A library user's ``calibrate()`` in a process whose BLAS keeps its default threads,
   against the same with one thread: CPU time of each.
 * Start-up: ``python -X importtime`` of the command, kinecal's modules and the rest.
@@ -309,7 +311,12 @@ def per_pass(record: Callable[..., None], train: Path) -> None:
     cols = np.arange(model.size)
     r = out.p_user
     rate = matmul_rate()
-    times: dict[str, list[float]] = {"kernel": [], "jtj": []}
+    times: dict[str, list[float]] = {"kernel": [], "jtj": [], "product": [], "syrk": []}
+    # The bare product numpy's matmul forms (it calls BLAS dsyrk for X @ X.T) and
+    # scipy's dsyrk on the same memory (Fortran order, one triangle): the same work.
+    from scipy.linalg.blas import dsyrk
+
+    X = out.J_p.transpose(2, 1, 0).reshape(model.size, -1)
     set_kernel_threads(1)
     try:
         with one_blas_thread():
@@ -320,9 +327,15 @@ def per_pass(record: Callable[..., None], train: Path) -> None:
                 t = time.perf_counter()
                 normal_equations(r, out.J_p, cols, np.ones(model.size))
                 times["jtj"].append(time.perf_counter() - t)
+                t = time.perf_counter()
+                X @ X.T
+                times["product"].append(time.perf_counter() - t)
+                t = time.perf_counter()
+                dsyrk(1.0, X.T, trans=1)
+                times["syrk"].append(time.perf_counter() - t)
     finally:
         set_kernel_threads(None)
-    kernel, jtj = (statistics.median(v) for v in times.values())
+    kernel, jtj, product, syrk = (statistics.median(v) for v in times.values())
     floor = jtj_floor_seconds(3 * meas.n, model.size, rate)
     record(
         "pass_2000x50_one_thread",
@@ -330,6 +343,8 @@ def per_pass(record: Callable[..., None], train: Path) -> None:
         "within 2x of the floor (kernel and JᵀJ)",
         kernel_seconds=kernel,
         jtj_seconds=jtj,
+        jtj_product_seconds=product,
+        jtj_scipy_dsyrk_seconds=syrk,
         floor_seconds=floor,
         floor_flops=3 * meas.n * model.size * (model.size + 1),
         matmul_gflops=rate / 1e9,

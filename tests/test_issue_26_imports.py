@@ -144,3 +144,26 @@ def test_issue_36_calibrate_without_the_report_imports_no_figures(tmp_path):
         }
         & loaded
     )
+
+
+def test_issue_36_a_full_fit_with_sigmas_and_no_cv_imports_no_selection(tmp_path):
+    """``--model full --cv off`` on tracker poses with their sigma column (the twin as
+    ``kinecal simulate`` writes it): the sigma check's median does not load numpy.ma,
+    and neither the model selection nor the cross-validation is imported (they run
+    only for ``--model auto`` and ``--cv K``)."""
+    from kinecal.io import measurements_to_csv
+    from kinecal.simulation import LaserTracker, experiment2
+
+    e = experiment2(5, n_train=60, n_side=4, tracker=LaserTracker(5e-6, 0.0))
+    csv = tmp_path / "poses.csv"
+    text = measurements_to_csv(e.train, e.truth.robot)
+    if "sigma_mm" not in text.splitlines()[0]:  # the column the check reads
+        lines = text.splitlines()
+        text = "\n".join([lines[0] + ",sigma_mm"] + [ln + ",0.005" for ln in lines[1:]])
+    csv.write_text(text + "\n")
+    argv = ["calibrate", str(csv), "--robot", e.truth.robot.name, "--model", "full"]
+    argv += ["--cv", "off", "--out", str(tmp_path / "o"), "-q", "--no-report"]
+    loaded = _modules_after(f"from kinecal.cli import main\nassert main({argv!r}) == 0")
+    assert "kinecal.identification._calibrate" in loaded
+    assert "numpy.ma" not in loaded
+    assert not [m for m in loaded if m.startswith("kinecal.identification.selection")]

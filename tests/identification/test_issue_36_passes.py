@@ -64,6 +64,8 @@ def test_the_nominal_check_fit_from_the_shared_state_is_the_same(exp2_exact):
     )
     assert screen is not None and n_screen <= 2
     assert abs(screen.sigma0 / fresh.sigma0 - 1) < 1e-4
+    # s0 alone: the screen's standard deviations are never read (no covariance formed)
+    assert np.isnan(screen.std).all() and not np.isnan(fresh.std).all()
     bare = dataclasses.replace(res, workspace=None)
     again, n_again = _jacobians(
         lambda: _without_geometry_priors(bare, robot, meas, opts, from_fit=True)

@@ -63,3 +63,23 @@ def test_sampled_read_names_a_malformed_line(tmp_path, line, message):
     path.write_text("\n".join(lines))
     with pytest.raises(DataError, match=message):
         read_pose_errors(path, sample=300)
+
+
+@pytest.mark.parametrize("trailing", [True, False])
+def test_a_file_of_at_most_the_sample_is_parsed_once(tmp_path, monkeypatch, trailing):
+    """Issue 36: a file of no more rows than the sample is read whole at once (its line
+    ends counted first; the sampling pass parsed it for nothing); one row more, with or
+    without a final line end, is sampled as before."""
+    path = _file(tmp_path, n=301)
+    if not trailing:
+        path.write_text(path.read_text().rstrip("\n"))
+    monkeypatch.setattr(_poses, "_CHUNK", 1000)  # the count stops across chunks
+    full = read_pose_errors(path)
+    got = read_pose_errors(path, sample=300)
+    assert got.n == 300 and got.total == 301
+    np.testing.assert_array_equal(got.row, full.sample(300).row)
+    calls = []
+    real = np.loadtxt
+    monkeypatch.setattr(np, "loadtxt", lambda *a, **k: calls.append(1) or real(*a, **k))
+    whole = read_pose_errors(path, sample=301)
+    assert whole.n == 301 and whole.total is None and len(calls) == 1

@@ -54,6 +54,7 @@ from kinecal.identification._stages import (
     Register,
     TransmissionStage,
 )
+from kinecal.identification._uncertainty import Uncertainty
 from kinecal.measurement._diagnostics import Diagnostic
 from kinecal.measurement._measurements import Measurements
 from kinecal.models import KINDS
@@ -155,8 +156,13 @@ def _without_geometry_priors(
         )
     rest = stages[2:]
     if from_fit:
+        # The screen answers alone only below SCREEN_RATIO < HELD_RATIO, where the
+        # findings read its s0 and its parameters, never its standard deviations: no
+        # covariance (its jackknife alone was a third of the screen's cost).
         rest = [
-            s for s in rest if not isinstance(s, (KinematicStage, TransmissionStage))
+            Uncertainty(covariance=False) if isinstance(s, Uncertainty) else s
+            for s in rest
+            if not isinstance(s, (KinematicStage, TransmissionStage))
         ]
         at = rest.index(next(s for s in rest if isinstance(s, FullStage)))
         rest.insert(at, _FromFit(result.params))

@@ -21,18 +21,29 @@ __all__ = ["Uncertainty"]
 class Uncertainty:
     """Covariance ``s0^2 (J^T W J + P)^-1`` of the free parameters at the solution
     (``W``: robust row weights, ``P``: prior precision; Eq. (T-3)), their standard
-    deviations and the a-posteriori standard deviation of unit weight ``s0``."""
+    deviations and the a-posteriori standard deviation of unit weight ``s0``.
+    ``covariance=False``: ``s0`` alone, from the residuals (no Jacobian pass; the
+    standard deviations NaN), for a fit whose standard deviations nobody reads (the
+    nominal check's screen)."""
 
     name: str = "uncertainty"
+    covariance: bool = True
 
     def __call__(self, problem: Problem, state: State) -> State:
         cm, lm = state.model, state.lm
         fidx = np.flatnonzero(state.free)
         scales = cm.layout.scales[fidx]
-        blk = problem.evaluations(cm, state.x, state.weights, jacobian=True)
+        want = self.covariance
+        blk = problem.evaluations(cm, state.x, state.weights, jacobian=want)
         wr = loss_weights(np.sum(blk.r**2, axis=1) / lm.f_scale**2, lm.loss)[1]
         dof = problem.n_residuals - fidx.size
         sigma0 = float(np.sqrt(np.sum(wr[:, None] * blk.r**2) / max(dof, 1)))
+        if not want:
+            return state.but(
+                covariance=np.zeros((cm.size, cm.size)),
+                std=np.full(cm.size, np.nan),
+                sigma0=sigma0,
+            )
         sw = None if lm.loss == "linear" else np.sqrt(wr)
         A, _ = blk.normal(fidx, scales, sw)
         prior = state.active_prior()

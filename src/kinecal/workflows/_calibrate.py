@@ -18,12 +18,8 @@ from kinecal.errors import CalibError, IdentifiabilityError
 from kinecal.identification import (
     CalibrationOptions,
     CalibrationResult,
-    HeldOutAccuracy,
-    Selection,
     calibrate,
-    held_out_accuracy,
     nominal_check,
-    select_model,
     spec_for,
 )
 from kinecal.io._manifest import manifest
@@ -32,6 +28,7 @@ from kinecal.models import CalibrationModel, ModelSpec, parallel_pairs
 from kinecal.robot import RobotDescription
 
 if TYPE_CHECKING:
+    from kinecal.identification import HeldOutAccuracy, Selection
     from kinecal.report import PoseErrors
 
 __all__ = [
@@ -127,6 +124,8 @@ def calibrate_measurements(
         smallest = spec_for(robot, meas, "kinematic")
         check_distinct_poses(meas, robot, smallest)
         check_auto_folds(meas, robot, smallest, k)
+        from kinecal.identification import select_model  # (cv: only when it runs)
+
         say("auto", "cross-validating candidate models")
         sel = select_model(
             robot,
@@ -159,6 +158,8 @@ def calibrate_measurements(
     if cv_folds:
         say("cv", f"{cv_folds}-fold cross-validation: nominal and model, random poses "
             "and regions")  # fmt: skip
+        from kinecal.identification import held_out_accuracy
+
         try:
             held = held_out_accuracy(
                 robot,
