@@ -37,8 +37,12 @@ def far_from_origin(T: np.ndarray, limit: float) -> bool:
 
 def how_far(T: np.ndarray) -> str:
     """How far a pose's origin is, for a message (no overflow for 1e308)."""
-    d = float(np.max(np.abs(T[:3, 3])))
-    return f"{d:.4g} m" if np.isfinite(d) else "at infinity (a value is not finite)"
+    t = T[:3, 3]
+    big = float(np.max(np.abs(t)))
+    if not np.isfinite(big):
+        return "at infinity (a value is not finite)"
+    d = big * float(np.linalg.norm(t / big)) if big > 0 else 0.0  # no overflow
+    return f"{d:.4g} m"
 
 
 def unit_words(fmt: str) -> str:
