@@ -32,7 +32,9 @@ FAR_FRAME, FAR_TOOL = 100.0, 5.0
 
 def far_from_origin(T: np.ndarray, limit: float) -> bool:
     """Whether a pose is not finite or its origin lies beyond ``limit`` [m]."""
-    return not (np.isfinite(T).all() and np.linalg.norm(T[:3, 3]) <= limit)
+    if not np.isfinite(T).all() or np.abs(T[:3, 3]).max() > limit:
+        return True  # (no norm of huge numbers: it would overflow)
+    return bool(np.linalg.norm(T[:3, 3]) > limit)
 
 
 def how_far(T: np.ndarray) -> str:
