@@ -55,11 +55,29 @@ def _floats(text: str | None, n: int, where: str) -> np.ndarray:
     return v
 
 
-def _origin(joint: ET.Element, where: str) -> np.ndarray:
+def _exact_quarters(text: str, rpy: np.ndarray) -> np.ndarray:
+    """``rpy`` with the angles written as a multiple of pi/2 rounded to their printed
+    decimals (4 to 9 of them: 1.5708, 3.1416, -1.570796327, as CAD exporters write) read
+    as that exact multiple: a rounded pi/2 tilts an axis by up to 5e-5 rad, which turns
+    two parallel axes into axes meeting kilometres away."""
+    out = rpy.copy()
+    for i, tok in enumerate(text.split()):
+        m = re.fullmatch(r"[+-]?\d*\.(\d{4,9})", tok)
+        k = round(rpy[i] / (np.pi / 2))
+        if m and k and float(f"{k * np.pi / 2:.{len(m.group(1))}f}") == rpy[i]:
+            out[i] = k * np.pi / 2
+    return out
+
+
+def _origin(joint: ET.Element, where: str, *, quarters: bool = False) -> np.ndarray:
+    """The joint's origin; ``quarters``: rounded multiples of pi/2 made exact (import,
+    :func:`_exact_quarters`)."""
     T = np.eye(4)
     el = joint.find("origin")
     if el is not None:
-        T[:3, :3] = rpy_to_matrix(_floats(el.get("rpy", "0 0 0"), 3, f"{where} rpy"))
+        text = el.get("rpy", "0 0 0")
+        rpy = _floats(text, 3, f"{where} rpy")
+        T[:3, :3] = rpy_to_matrix(_exact_quarters(text, rpy) if quarters else rpy)
         T[:3, 3] = _floats(el.get("xyz", "0 0 0"), 3, f"{where} xyz")
     return T
 
@@ -288,7 +306,8 @@ def _link_masses(
             j = by_child[c]
             if c in on_chain or j.get("type", "") != "fixed":
                 continue  # the chain's next link, or a gripper's moving finger
-            todo.append((c, T @ _origin(j, f"{src}: joint {j.get('name')!r}"), body))
+            where = f"{src}: joint {j.get('name')!r}"
+            todo.append((c, T @ _origin(j, where, quarters=True), body))
     out = []
     for k in sorted(acc):
         m = sum(mi for mi, _ in acc[k])
@@ -350,7 +369,7 @@ def _walk(chain: list[ET.Element], base: str, src: str) -> _Walk:
     T = np.eye(4)
     for j in chain:
         jn = j.get("name", "?")
-        T = T @ _origin(j, f"{src}: joint {jn!r} origin")
+        T = T @ _origin(j, f"{src}: joint {jn!r} origin", quarters=True)
         kind = j.get("type", "")
         child = j.find("child").get("link", "")  # type: ignore[union-attr]
         if kind not in _MOVABLE:
@@ -510,6 +529,47 @@ def _base_on_first_axis(w: _Walk) -> str | None:
     return None
 
 
+def _onto_first_axis(w: _Walk, base: str, src: str) -> np.ndarray:
+    """When the first joint axis is not the base link's z axis (a vendor's base_link on
+    the floor with the axis a few mm off, a first axis along -z): the robot base (DH
+    frame 0) is the base link turned so that its z axis is the first axis and moved onto
+    it (to the axis point nearest its origin); ``w`` re-expressed in that frame, which
+    is returned (in the base link), with a warning."""
+    p1, u1 = w.lines[0]
+    if w.specs[0][1] == "prismatic" or _on_z(p1, u1):
+        return np.eye(4)
+    z = np.array([0.0, 0.0, 1.0])
+    c, d = np.cross(z, u1), float(z @ u1)
+    if d < -1.0 + 1e-12:  # antiparallel: half a turn about x
+        R = np.diag([1.0, -1.0, -1.0])
+    else:
+        K = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
+        R = np.eye(3) + K + K @ K / (1.0 + d)
+    F0 = np.eye(4)
+    F0[:3, :3], F0[:3, 3] = R, p1 - (p1 @ u1) * u1
+    Fi = np.linalg.inv(F0)
+    w.lines = [(Fi[:3, :3] @ p + Fi[:3, 3], Fi[:3, :3] @ u) for p, u in w.lines]
+    w.placed = [(nm, Fi @ T, b) for nm, T, b in w.placed]
+    w.fixed_above = [(nm, Fi @ T) for nm, T in w.fixed_above]
+    w.T_tip = Fi @ w.T_tip
+    warnings.warn(
+        f"{src}: the first joint axis is not the z axis of link {base!r}; the robot "
+        f"base (DH frame 0) is {_moved(F0, base)[8:]} (robot poses are given in that "
+        "frame; export-urdf --like writes the vendor's frames).",
+        stacklevel=3,
+    )
+    return F0
+
+
+def _moved(F0: np.ndarray, base: str) -> str:
+    """'; base: <base> moved by ... mm and turned by ... deg' (empty when not moved)."""
+    if np.array_equal(F0, np.eye(4)):
+        return ""
+    ang = np.degrees(np.arccos(np.clip((np.trace(F0[:3, :3]) - 1) / 2, -1, 1)))
+    xyz = ", ".join(f"{v * 1e3 + 0.0:.6g}" for v in np.round(F0[:3, 3], 12))
+    return f"; base: {base} moved by ({xyz}) mm and turned by {ang:.6g} deg"
+
+
 def robot_from_urdf(
     path: str | Path,
     *,
@@ -562,15 +622,18 @@ def robot_from_urdf(
         link = _base_on_first_axis(w)
         if link is not None:
             return robot_from_urdf(path, base=link, tip=tip, name=name)
+    F0 = _onto_first_axis(w, base, src) if len(w.lines) > 1 else np.eye(4)
     _check_first_axis(w, base, tip, src)
     joints, frames, T_n_flange = _dh_joints(w, offsets, src)
+    g = F0[:3, :3].T @ np.array([0.0, 0.0, -9.80665])
     return RobotDescription(
         name=name or root.get("name") or Path(path).stem,
         convention="dh",
         joints=tuple(joints),
         coupling=C,
         T_n_flange=T_n_flange,
+        gravity=np.where(np.abs(g) < 1e-12, 0.0, g),
         self_weight=None,
-        source=f"{src} (URDF {base} -> {tip})",
+        source=f"{src} (URDF {base} -> {tip}{_moved(F0, base)})",
         link_masses=_link_masses(root, src, w.placed, frames),
     )
