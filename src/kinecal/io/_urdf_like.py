@@ -35,7 +35,14 @@ import numpy as np
 
 from kinecal.errors import ConfigError
 from kinecal.geometry import matrix_to_rpy
-from kinecal.robot._urdf import _MOVABLE, _floats, _origin, _tree
+from kinecal.robot._urdf import (
+    _MOVABLE,
+    _chain_kids,
+    _floats,
+    _movable_below,
+    _origin,
+    _tree,
+)
 from kinecal.typing import Float, Pose
 
 __all__ = ["LikeExport", "like_urdf"]
@@ -114,13 +121,9 @@ def _vendor_path(
     roots = sorted(lk for lk in links if lk not in by_child)
 
     def movable_below(link: str) -> int:
-        count, todo = 0, [link]
-        while todo:
-            lk = todo.pop()
-            for c in children.get(lk, []):
-                count += by_child[c].get("type", "") in _MOVABLE
-                todo.append(c)
-        return count
+        """Driven joints below ``link`` (a mimic joint off the chain is a passive
+        linkage, a balancer's cylinder, or a gripper's finger)."""
+        return len(_movable_below(link, children, by_child, driven=True))
 
     with_joints = [lk for lk in roots if movable_below(lk)]
     if len(with_joints) != 1:
@@ -132,9 +135,9 @@ def _vendor_path(
     path: list[ET.Element] = []
     link = root
     while movable_below(link):
-        kids = [
-            c for c in children.get(link, []) if movable_below(c) or _moves(by_child[c])
-        ]
+        kids = _chain_kids(link, children, by_child, sum(map(_moves, path)))
+        if kids is None or (len(kids) > 1 and sum(map(_moves, path)) == n):
+            break  # a gripper's fingers (or a hand's) below the robot's n joints
         if len(kids) > 1:
             raise ConfigError(
                 f"{src}: the chain branches at link {link!r} into "

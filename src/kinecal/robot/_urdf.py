@@ -151,16 +151,46 @@ def _tree(
     return links, by_child, children
 
 
-def _movable_below(link: str, children: dict[str, list[str]], by_child) -> list[str]:
-    """Names of the movable joints in the tree below ``link``."""
+def _movable_below(
+    link: str, children: dict[str, list[str]], by_child, *, driven: bool = False
+) -> list[str]:
+    """Names of the movable joints in the tree below ``link`` (``driven``: only those
+    without ``<mimic>``, the joints a controller drives)."""
     out, todo = [], [link]
     while todo:
         lk = todo.pop()
         for c in children.get(lk, []):
-            if by_child[c].get("type", "") in _MOVABLE:
-                out.append(by_child[c].get("name", "?"))
+            j = by_child[c]
+            if j.get("type", "") in _MOVABLE and not (
+                driven and j.find("mimic") is not None
+            ):
+                out.append(j.get("name", "?"))
             todo.append(c)
     return out
+
+
+def _chain_kids(link, children, by_child, so_far: int) -> list[str] | None:
+    """The children of ``link`` the chain may go on to: those with driven joints at or
+    below them. Side branches whose joints all mimic others (a balancer's cylinder and
+    piston) are passive linkages and left, as fixed frames are. None when the chain ends
+    at ``link`` on a gripper: after ``so_far`` >= 2 joints, several moving branches with
+    at most two driven joints in all (fingers, most of them mimic joints)."""
+
+    def driven(c: str) -> int:
+        j = by_child[c]
+        own = j.get("type", "") in _MOVABLE and j.find("mimic") is None
+        return own + len(_movable_below(c, children, by_child, driven=True))
+
+    kids = children.get(link, [])
+    moving = [
+        c
+        for c in kids
+        if by_child[c].get("type", "") in _MOVABLE
+        or _movable_below(c, children, by_child)
+    ]
+    if len(moving) > 1 and so_far >= 2 and sum(map(driven, kids)) <= 2:
+        return None
+    return [c for c in kids if driven(c)]
 
 
 def _chain(
@@ -186,16 +216,13 @@ def _chain(
             )
         base = trees[0]
     if tip is None:
-        link = base
+        link, so_far = base, 0
         while children.get(link):
             kids = children[link]
             if len(kids) > 1:
-                moving = [
-                    c
-                    for c in kids
-                    if by_child[c].get("type", "") in _MOVABLE
-                    or _movable_below(c, children, by_child)
-                ]
+                moving = _chain_kids(link, children, by_child, so_far)
+                if moving is None:  # a gripper's fingers: the arm ends here
+                    break
                 if len(moving) == 1:  # the others are fixed frames: follow the chain
                     kids = moving
                 elif not moving:  # fixed frames only (tools, markers): the chain ends
@@ -206,6 +233,7 @@ def _chain(
                         f"({', '.join(kids)}); name the tip link ({_HOW})."
                     )
             link = kids[0]
+            so_far += by_child[link].get("type", "") in _MOVABLE
         tip = link
     for name, what in ((base, "base"), (tip, "tip")):
         if name not in links:
