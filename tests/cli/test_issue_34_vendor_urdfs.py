@@ -44,7 +44,9 @@ def _import(path: Path, **kw):
 
 def _poses(robot, n=4, seed=2):
     lim = np.where(np.isfinite(robot.limits), robot.limits, [-np.pi, np.pi])
-    return np.random.default_rng(seed).uniform(lim[:, 0], lim[:, 1], (n, robot.n_joints))
+    return np.random.default_rng(seed).uniform(
+        lim[:, 0], lim[:, 1], (n, robot.n_joints)
+    )
 
 
 @pytest.mark.parametrize("name", sorted(CHAINS))
@@ -69,7 +71,11 @@ def test_issue_34_vendor_urdf_imports_with_its_forward_kinematics(name):
 
 @pytest.mark.parametrize("name", sorted(CHAINS))
 def test_issue_34_vendor_urdf_like_export_equals_the_model(name, tmp_path, capsys):
-    path = VENDOR / name
+    _like(VENDOR / name, tmp_path, capsys)
+
+
+def _like(path: Path, tmp_path: Path, capsys) -> Path:
+    """export-urdf --like ``path`` of a perturbed model of it, checked; the copy."""
     robot = _import(path)
     model = CalibrationModel(robot, ModelSpec.preset("kinematic"))
     x = model.nominal + np.random.default_rng(5).normal(0.0, 5e-4, model.size)
@@ -96,6 +102,10 @@ def test_issue_34_vendor_urdf_like_export_equals_the_model(name, tmp_path, capsy
             assert (o0 is None and o1 is None) or o0.attrib == o1.attrib, jn
     q = _poses(robot, n=3)
     theta = q @ robot.coupling.T
+    written = out
+    if 'xmlns="' in text1:  # the evaluators read plain tags: read it without
+        out = tmp_path / "cal_plain.urdf"
+        out.write_text(re.sub(r' xmlns="[^"]*"', "", text1, count=1))
     for qk, th in zip(q, theta):
         m = run_kinecal(
             capsys, "fk", "--model", f, "--json", "--", *map(str, np.degrees(qk))
@@ -104,12 +114,62 @@ def test_issue_34_vendor_urdf_like_export_equals_the_model(name, tmp_path, capsy
         want = np.array(json.loads(m.out)["kinematic"]["tool_mm"])
         got = urdf_chain_fk(out, "user", "calibrated_tool", th)[:3, 3] * 1e3
         assert np.abs(got - want).max() < 1e-4
-    yourdfpy = pytest.importorskip("yourdfpy", reason="yourdfpy absent (optional)")
-    u = yourdfpy.URDF.load(str(out), load_meshes=False, build_scene_graph=True)
+    lib = pytest.importorskip("yourdfpy", reason="yourdfpy absent (optional)")
+    u = lib.URDF.load(str(out), load_meshes=False, build_scene_graph=True)
     for th in theta:
         u.update_cfg(dict(zip(names, th)))
         want = urdf_chain_fk(out, "user", "calibrated_tool", th)
         assert np.abs(u.get_transform("calibrated_tool", "user") - want).max() < 1e-9
+    return written
+
+
+def _crlf(t: str) -> str:
+    return t.replace("\n", "\r\n")
+
+
+def _no_origin(t: str) -> str:
+    return re.sub(
+        r'(<joint name="joint_r" type="revolute">\s*)<origin[^>]*/>', r"\1", t
+    )
+
+
+def _cdata(t: str) -> str:
+    plugin = '<joint name="joint_s" type="revolute"><origin xyz="0 0 0"/></joint>'
+    return t.replace("</robot>", f"<gazebo><![CDATA[{plugin}]]></gazebo>\n</robot>")
+
+
+def _xmlns(t: str) -> str:
+    return t.replace("<robot ", '<robot xmlns="http://www.ros.org" ', 1)
+
+
+@pytest.mark.parametrize(
+    ("change", "encoding"),
+    [
+        (_crlf, "utf-8"),
+        (str, "utf-8-sig"),
+        (_no_origin, "utf-8"),
+        (_cdata, "utf-8"),
+        (_xmlns, "utf-8"),
+    ],
+    ids=["crlf", "bom", "no-origin", "cdata", "xmlns"],
+)
+def test_issue_34_like_keeps_the_vendor_text_as_written(
+    change, encoding, tmp_path, capsys
+):
+    """CRLF line ends, a byte order mark, a movable joint without <origin>, a gazebo
+    plugin's CDATA naming a joint, a default XML namespace: read, and the copy keeps
+    them (the byte order mark, the line ends)."""
+    path = tmp_path / "vendor.urdf"
+    text = change((VENDOR / "motoman_sia10d.urdf").read_text())
+    path.write_bytes(text.encode(encoding))
+    out = _like(path, tmp_path, capsys)
+    data = out.read_bytes()
+    assert data.startswith(b"\xef\xbb\xbf") == (encoding == "utf-8-sig")
+    if change is _crlf:
+        assert data.count(b"\n") == data.count(b"\r\n")
+    if change is _cdata:
+        cdata = text[text.index("<gazebo><![CDATA[") : text.index("</gazebo>")]
+        assert cdata in out.read_text()
 
 
 def test_issue_34_vendor_urdf_warnings_and_refusals(tmp_path, capsys):

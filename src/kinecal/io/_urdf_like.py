@@ -41,6 +41,7 @@ from kinecal.robot._urdf import (
     _floats,
     _movable_below,
     _origin,
+    _plain,
     _tree,
 )
 from kinecal.typing import Float, Pose
@@ -237,11 +238,12 @@ def like_urdf(
     src = str(vendor)
     p = Path(vendor)
     try:
-        raw = p.read_text(encoding="utf-8") if text is None else text
-        root_el = ET.fromstring(raw)
+        # bytes decoded: CRLF line ends and a byte order mark stay as they were
+        raw = p.read_bytes().decode("utf-8") if text is None else text
+        root_el = ET.fromstring(raw.lstrip("\ufeff"))
     except (OSError, UnicodeDecodeError, ET.ParseError) as exc:
         raise ConfigError(f"{src}: cannot read URDF ({exc}).") from exc
-    if root_el.tag != "robot":
+    if root_el.tag.rpartition("}")[2] != "robot":
         raise ConfigError(f"{src}: expected a <robot> document; got <{root_el.tag}>.")
     if any(
         "xacro" in (el.tag or "") for el in root_el.iter() if isinstance(el.tag, str)
@@ -250,6 +252,7 @@ def like_urdf(
             f"{src}: holds xacro elements; expected a plain URDF (expand it first: "
             "xacro FILE.xacro > FILE.urdf)."
         )
+    root_el = _plain(root_el)
     model = cal.model
     robot = model.robot
     n = model.n_joints
@@ -415,14 +418,15 @@ def like_urdf(
     end = raw.rfind("</robot>")
     if end < 0:
         raise ConfigError(f"{src}: no closing </robot> tag.")
-    text = raw[:end] + "".join(extra) + raw[end:]
+    eol = "\r\n" if "\r\n" in raw else "\n"  # the vendor's line ends
+    text = raw[:end] + "".join(extra).replace("\n", eol) + raw[end:]
     if tip_note:
         comments = [
             *(comments or []),
             f"kinecal tip link: {tip} (the robot's flange, for import-urdf and --robot).",
         ]
     if comments:
-        text = _with_comment(text, comments)
+        text = _with_comment(text, comments, eol)
     # Read back: FK of the written file against the model's kinematic part.
     T_top_user = np.eye(4) if user_link is not None else T_root_user
     check = _check(text, src, cal, set_label, tips, top, T_top_user, rng)
@@ -440,14 +444,15 @@ def like_urdf(
     )
 
 
-def _with_comment(text: str, lines: list[str]) -> str:
-    """``text`` with a comment of ``lines`` after the XML declaration (if any)."""
-    body = "\n".join(f"  {ln}".rstrip().replace("--", "- -") for ln in lines)
-    at = 0
-    m = re.match(r"\s*<\?xml[^>]*\?>[ \t]*\n?", text)
+def _with_comment(text: str, lines: list[str], eol: str = "\n") -> str:
+    """``text`` with a comment of ``lines`` after the XML declaration (if any; after a
+    byte order mark), its lines ended by ``eol``."""
+    body = eol.join(f"  {ln}".rstrip().replace("--", "- -") for ln in lines)
+    at = 1 if text.startswith("\ufeff") else 0
+    m = re.compile(r"\s*<\?xml[^>]*\?>[ \t]*(\r?\n)?").match(text, at)
     if m:
         at = m.end()
-    return text[:at] + f"<!--\n{body}\n-->\n" + text[at:]
+    return text[:at] + f"<!--{eol}{body}{eol}-->{eol}" + text[at:]
 
 
 def _set_origin(raw: str, name: str, O: Pose, src: str) -> str:
@@ -461,7 +466,9 @@ def _set_origin(raw: str, name: str, O: Pose, src: str) -> str:
         + r"\2([^>]*)>(.*?)</joint\s*>",
         re.S,
     )
-    comments = [c.span() for c in re.finditer(r"<!--.*?-->", raw, re.S)]
+    comments = [  # and CDATA sections (a gazebo plugin's text)
+        c.span() for c in re.finditer(r"<!--.*?-->|<!\[CDATA\[.*?\]\]>", raw, re.S)
+    ]
     hits = [
         m
         for m in pat.finditer(raw)
@@ -484,7 +491,7 @@ def _set_origin(raw: str, name: str, O: Pose, src: str) -> str:
     if o is not None:
         body = body[: o.start()] + new + body[o.end() :]
     else:
-        body = f"\n    {new}" + body
+        body = ("\r\n" if "\r\n" in raw else "\n") + f"    {new}" + body
     a, b = m.span(4)
     return raw[:a] + body + raw[b:]
 
@@ -511,7 +518,7 @@ def _check(text, src, cal, set_label, tips, top, T_top_user, rng) -> float:
     model = cal.model
     robot = model.robot
     n = model.n_joints
-    _, by_child, _ = _tree(ET.fromstring(text), src)
+    _, by_child, _ = _tree(_plain(ET.fromstring(text.lstrip("\ufeff"))), src)
     lim = np.where(np.isfinite(robot.limits), robot.limits, [-np.pi, np.pi])
     q = rng.uniform(lim[:, 0], lim[:, 1], (16, n))
     theta = q @ robot.coupling.T

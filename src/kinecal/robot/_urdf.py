@@ -507,12 +507,21 @@ def _dh_joints(
     return joints, frames, np.linalg.inv(frames[-1]) @ w.T_tip
 
 
+def _plain(root: ET.Element) -> ET.Element:
+    """``root`` with XML namespaces dropped from the tags (``<robot xmlns="...">``, as
+    urdfdom reads them: by local name)."""
+    for el in root.iter():
+        if isinstance(el.tag, str) and el.tag.startswith("{"):
+            el.tag = el.tag.split("}", 1)[1]
+    return root
+
+
 def _read(path: str | Path, tip: str | None) -> tuple[ET.Element, str, str | None]:
     """The URDF's root element, its text and the tip link (kinecal's own export names
     its tip: the tool links hang below it)."""
     p = Path(path)
     try:
-        root = ET.parse(p).getroot()
+        root = _plain(ET.parse(p).getroot())
     except (OSError, ET.ParseError) as exc:
         raise ConfigError(f"{p}: cannot read URDF ({exc}).") from exc
     text = p.read_text(errors="replace")
