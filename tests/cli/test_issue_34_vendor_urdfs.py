@@ -71,7 +71,17 @@ def test_issue_34_vendor_urdf_imports_with_its_forward_kinematics(name):
 
 @pytest.mark.parametrize("name", sorted(CHAINS))
 def test_issue_34_vendor_urdf_like_export_equals_the_model(name, tmp_path, capsys):
-    _like(VENDOR / name, tmp_path, capsys)
+    out = _like(VENDOR / name, tmp_path, capsys)
+    # The copy reads back as a robot (--robot CAL.urdf): the same joints, base and tip
+    # (below the user link, the base link moved onto a calibrated first axis).
+    base, tip, n = CHAINS[name]
+    again = _import(out)
+    assert [j.name for j in again.joints] == [
+        j.name for j in _import(VENDOR / name).joints
+    ]
+    assert again.n_joints == n and f" -> {tip}" in again.source
+    if base != "world":
+        assert f"URDF {base} -> " in again.source
 
 
 def _like(path: Path, tmp_path: Path, capsys) -> Path:

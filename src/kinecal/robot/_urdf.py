@@ -575,13 +575,13 @@ def _onto_first_axis(w: _Walk, base: str, src: str) -> np.ndarray:
     p1, u1 = w.lines[0]
     if w.specs[0][1] == "prismatic" or _on_z(p1, u1):
         return np.eye(4)
-    z = np.array([0.0, 0.0, 1.0])
+    # The shortest turn from z (or, for an axis pointing down, from -z after half a
+    # turn about x: well conditioned both ways) to u1.
+    flip = np.diag([1.0, 1.0, 1.0] if u1[2] >= 0 else [1.0, -1.0, -1.0])
+    z = flip @ np.array([0.0, 0.0, 1.0])
     c, d = np.cross(z, u1), float(z @ u1)
-    if d < -1.0 + 1e-12:  # antiparallel: half a turn about x
-        R = np.diag([1.0, -1.0, -1.0])
-    else:
-        K = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
-        R = np.eye(3) + K + K @ K / (1.0 + d)
+    K = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
+    R = (np.eye(3) + K + K @ K / (1.0 + d)) @ flip
     F0 = np.eye(4)
     F0[:3, :3], F0[:3, 3] = R, p1 - (p1 @ u1) * u1
     Fi = np.linalg.inv(F0)
@@ -657,6 +657,9 @@ def robot_from_urdf(
         w.lines[0] = (np.zeros(3), w.lines[0][1])
     if auto_base and w.fixed_above:
         link = _base_on_first_axis(w)
+        if link is None and w.specs[0][1] != "prismatic" and not _on_z(*w.lines[0]):
+            # no link on the first axis: the one the arm stands on, moved onto it
+            link = w.fixed_above[-1][0]
         if link is not None:
             return robot_from_urdf(path, base=link, tip=tip, name=name)
     F0 = _onto_first_axis(w, base, src) if len(w.lines) > 1 else np.eye(4)
