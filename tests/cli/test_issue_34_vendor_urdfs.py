@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from kinecal.errors import ConfigError
 from kinecal.io import save_model
 from kinecal.measurement import CalibratedModel
 from kinecal.models import CalibrationModel, ModelSpec
@@ -84,9 +85,10 @@ def test_issue_34_vendor_urdf_like_export_equals_the_model(name, tmp_path, capsy
         assert f"URDF {base} -> " in again.source
 
 
-def _like(path: Path, tmp_path: Path, capsys) -> Path:
-    """export-urdf --like ``path`` of a perturbed model of it, checked; the copy."""
-    robot = _import(path)
+def _like(path: Path, tmp_path: Path, capsys, **chain) -> Path:
+    """export-urdf --like ``path`` of a perturbed model of it (its chain: ``chain``,
+    base and tip), checked; the copy."""
+    robot = _import(path, **chain)
     model = CalibrationModel(robot, ModelSpec.preset("kinematic"))
     x = model.nominal + np.random.default_rng(5).normal(0.0, 5e-4, model.size)
     cal = CalibratedModel(model, x, np.zeros(model.size), ["estimated"] * model.size)
@@ -195,3 +197,21 @@ def test_issue_34_vendor_urdf_warnings_and_refusals(tmp_path, capsys):
     assert res.code == 2
     assert "abb_irb5400.urdf" in res.err and "'joint5b'" in res.err
     assert "Traceback" not in res.err
+
+
+def test_issue_34_like_picks_the_arm_of_a_two_arm_file_by_its_joint_names(
+    tmp_path, capsys
+):
+    """Two DENSO arms on a frame: found alone the chain branches (refused, naming both
+    arms); the second arm imported by name is exported --like the whole file, its
+    joints found by name (the first arm's origins untouched)."""
+    dual = VENDOR / "denso_dual.urdf"
+    with pytest.raises(ConfigError, match=r"branches at link 'frame' \(base_link_1"):
+        robot_from_urdf(dual)
+    out = _like(dual, tmp_path, capsys, base="base_link_2", tip="handtip2")
+    j0 = {j.get("name"): j for j in ET.parse(dual).getroot().iter("joint")}
+    j1 = {j.get("name"): j for j in ET.parse(out).getroot().iter("joint")}
+    moved = {
+        n for n in j0 if j0[n].find("origin").attrib != j1[n].find("origin").attrib
+    }
+    assert moved == {f"joint_{k}" for k in range(7, 13)}

@@ -114,10 +114,12 @@ def _motion(kind: str, axis: Float, v: float) -> Pose:
 
 
 def _vendor_path(
-    root_el: ET.Element, src: str, n: int
+    root_el: ET.Element, src: str, n: int, names: tuple[str, ...] = ()
 ) -> tuple[str, list[ET.Element], list[int]]:
     """Root link, the joints from it down to the last movable joint of the one movable
-    chain, and the positions of the movable ones in that list."""
+    chain, and the positions of the movable ones in that list. Where the tree branches
+    (two arms on a frame), the branch holding the model's next joint by name (``names``,
+    as import-urdf keeps them)."""
     links, by_child, children = _tree(root_el, src)
     roots = sorted(lk for lk in links if lk not in by_child)
 
@@ -126,7 +128,19 @@ def _vendor_path(
         linkage, a balancer's cylinder, or a gripper's finger)."""
         return len(_movable_below(link, children, by_child, driven=True))
 
-    with_joints = [lk for lk in roots if movable_below(lk)]
+    def by_name(kids: list[str], k: int) -> list[str]:
+        """``kids`` narrowed to the one holding the model's joint ``k`` by name."""
+        if k >= len(names):
+            return kids
+        hit = [
+            c
+            for c in kids
+            if (c in by_child and names[k] == by_child[c].get("name"))
+            or names[k] in _movable_below(c, children, by_child)
+        ]
+        return hit if len(hit) == 1 else kids
+
+    with_joints = by_name([lk for lk in roots if movable_below(lk)], 0)
     if len(with_joints) != 1:
         raise ConfigError(
             f"{src}: expected one tree with movable joints; found "
@@ -139,6 +153,7 @@ def _vendor_path(
         kids = _chain_kids(link, children, by_child, sum(map(_moves, path)))
         if kids is None or (len(kids) > 1 and sum(map(_moves, path)) == n):
             break  # a gripper's fingers (or a hand's) below the robot's n joints
+        kids = by_name(kids, sum(map(_moves, path)))
         if len(kids) > 1:
             raise ConfigError(
                 f"{src}: the chain branches at link {link!r} into "
@@ -257,7 +272,9 @@ def like_urdf(
     robot = model.robot
     n = model.n_joints
     C = robot.coupling
-    root, path, movable = _vendor_path(root_el, src, n)
+    root, path, movable = _vendor_path(
+        root_el, src, n, tuple(j.name for j in robot.joints)
+    )
     names = tuple(path[k].get("name", "?") for k in movable)
     kinds = [path[k].get("type", "") for k in movable]
     for i, (kind, pris) in enumerate(zip(kinds, robot.prismatic)):
