@@ -105,8 +105,8 @@ def _like(path: Path, tmp_path: Path, capsys, **chain) -> Path:
     body1 = re.sub(r"<!--\n  Kinematic part.*?-->\n", "", body1, count=1, flags=re.S)
     strip = re.compile(r"<origin\b[^>]*/>")
     assert strip.sub("", body1) == strip.sub("", text0[: text0.rindex("</robot>")])
-    j0 = {j.get("name"): j for j in ET.parse(path).getroot().iter("joint")}
-    j1 = {j.get("name"): j for j in ET.parse(out).getroot().iter("joint")}
+    j0 = {j.get("name"): j for j in ET.parse(path).getroot().findall("joint")}
+    j1 = {j.get("name"): j for j in ET.parse(out).getroot().findall("joint")}
     names = [j.name for j in robot.joints]
     for jn, j in j0.items():
         if j.get("type") and jn not in names:
@@ -209,9 +209,12 @@ def test_issue_34_like_picks_the_arm_of_a_two_arm_file_by_its_joint_names(
     with pytest.raises(ConfigError, match=r"branches at link 'frame' \(base_link_1"):
         robot_from_urdf(dual)
     out = _like(dual, tmp_path, capsys, base="base_link_2", tip="handtip2")
-    j0 = {j.get("name"): j for j in ET.parse(dual).getroot().iter("joint")}
-    j1 = {j.get("name"): j for j in ET.parse(out).getroot().iter("joint")}
-    moved = {
-        n for n in j0 if j0[n].find("origin").attrib != j1[n].find("origin").attrib
-    }
+    j0 = {j.get("name"): j for j in ET.parse(dual).getroot().findall("joint")}
+    j1 = {j.get("name"): j for j in ET.parse(out).getroot().findall("joint")}
+
+    def origin(j: ET.Element) -> dict | None:
+        el = j.find("origin")
+        return None if el is None else el.attrib
+
+    moved = {n for n in j0 if origin(j0[n]) != origin(j1[n])}
     assert moved == {f"joint_{k}" for k in range(7, 13)}
