@@ -120,7 +120,7 @@ def _like(path: Path, tmp_path: Path, capsys, **chain) -> Path:
         out.write_text(re.sub(r' xmlns="[^"]*"', "", text1, count=1))
     for qk, th in zip(q, theta):
         m = run_kinecal(
-            capsys, "fk", "--model", f, "--json", "--", *map(str, np.degrees(qk))
+            capsys, "fk", "--model", f, "--json", "--", *map(str, _ctrl(robot, qk))
         )
         assert m.code == 0, str(m)
         want = np.array(json.loads(m.out)["kinematic"]["tool_mm"])
@@ -133,6 +133,20 @@ def _like(path: Path, tmp_path: Path, capsys, **chain) -> Path:
         want = urdf_chain_fk(out, "user", "calibrated_tool", th)
         assert np.abs(u.get_transform("calibrated_tool", "user") - want).max() < 1e-9
     return written
+
+
+def _ctrl(robot, q: np.ndarray) -> np.ndarray:
+    """Controller values as `kinecal fk` takes them: deg, mm for a slide."""
+    return np.where(robot.prismatic, q * 1e3, np.degrees(q))
+
+
+def _track(t: str) -> str:
+    """The arm on a horizontal track (a slide along -y under its base)."""
+    return t.replace(
+        '<joint name="world-base" type="fixed">',
+        '<joint name="world-base" type="prismatic"><axis xyz="0 -1 0"/>'
+        '<limit lower="-1" upper="2" effort="1000" velocity="1"/>',
+    )
 
 
 def _crlf(t: str) -> str:
@@ -162,15 +176,16 @@ def _xmlns(t: str) -> str:
         (_no_origin, "utf-8"),
         (_cdata, "utf-8"),
         (_xmlns, "utf-8"),
+        (_track, "utf-8"),
     ],
-    ids=["crlf", "bom", "no-origin", "cdata", "xmlns"],
+    ids=["crlf", "bom", "no-origin", "cdata", "xmlns", "track"],
 )
 def test_issue_34_like_keeps_the_vendor_text_as_written(
     change, encoding, tmp_path, capsys
 ):
     """CRLF line ends, a byte order mark, a movable joint without <origin>, a gazebo
-    plugin's CDATA naming a joint, a default XML namespace: read, and the copy keeps
-    them (the byte order mark, the line ends)."""
+    plugin's CDATA naming a joint, a default XML namespace, a horizontal track under
+    the arm: read, and the copy keeps them (the byte order mark, the line ends)."""
     path = tmp_path / "vendor.urdf"
     text = change((VENDOR / "motoman_sia10d.urdf").read_text())
     path.write_bytes(text.encode(encoding))

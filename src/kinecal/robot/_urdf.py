@@ -573,7 +573,7 @@ def _onto_first_axis(w: _Walk, base: str, src: str) -> np.ndarray:
     it (to the axis point nearest its origin); ``w`` re-expressed in that frame, which
     is returned (in the base link), with a warning."""
     p1, u1 = w.lines[0]
-    if w.specs[0][1] == "prismatic" or _on_z(p1, u1):
+    if _on_z(p1, u1):  # (a slide's line was put through the origin)
         return np.eye(4)
     # The shortest turn from z (or, for an axis pointing down, from -z after half a
     # turn about x: well conditioned both ways) to u1.
@@ -657,7 +657,7 @@ def robot_from_urdf(
         w.lines[0] = (np.zeros(3), w.lines[0][1])
     if auto_base and w.fixed_above:
         link = _base_on_first_axis(w)
-        if link is None and w.specs[0][1] != "prismatic" and not _on_z(*w.lines[0]):
+        if link is None and not _on_z(*w.lines[0]):
             # no link on the first axis: the one the arm stands on, moved onto it
             link = w.fixed_above[-1][0]
         if link is not None:
