@@ -35,7 +35,7 @@ import numpy as np
 
 from kinecal.errors import ConfigError
 from kinecal.geometry import matrix_to_rpy
-from kinecal.robot._urdf import (
+from kinecal.robot._urdf_tree import (
     _MOVABLE,
     _chain_kids,
     _floats,
@@ -177,10 +177,10 @@ def _vendor_path(
             )
     movable = [k for k, j in enumerate(path) if _moves(j)]
     if len(movable) != n:
-        names = ", ".join(repr(path[k].get("name")) for k in movable)
+        found = ", ".join(repr(path[k].get("name")) for k in movable)
         raise ConfigError(
             f"{src}: the chain {root} -> {link} has {len(movable)} movable joints "
-            f"({names}); the model's robot has {n}. Expected the URDF of the calibrated "
+            f"({found}); the model's robot has {n}. Expected the URDF of the calibrated "
             "robot."
         )
     return root, path, movable
