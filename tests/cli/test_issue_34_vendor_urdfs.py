@@ -233,3 +233,23 @@ def test_issue_34_like_picks_the_arm_of_a_two_arm_file_by_its_joint_names(
 
     moved = {n for n in j0 if origin(j0[n]) != origin(j1[n])}
     assert moved == {f"joint_{k}" for k in range(7, 13)}
+
+
+def test_issue_34_xacro_is_refused_with_what_to_do(tmp_path, capsys):
+    """An unexpanded xacro (import-urdf, --robot) names its first xacro element and how
+    to expand it (it was "no joints; expected a serial chain", and --robot FILE.xacro
+    "not valid YAML")."""
+    macro = tmp_path / "arm_macro.xacro"
+    macro.write_text(
+        '<robot xmlns:xacro="http://www.ros.org/wiki/xacro">'
+        '<xacro:macro name="arm" params="prefix"><link name="${prefix}base"/>'
+        "</xacro:macro></robot>"
+    )
+    for argv in (
+        ("import-urdf", macro, "--out", tmp_path / "r.yaml"),
+        ("simulate", "--robot", macro, "--out", tmp_path / "sim"),
+    ):
+        res = run_kinecal(capsys, *argv)
+        assert res.code == 2 and "Traceback" not in res.err
+        assert "arm_macro.xacro: holds xacro elements (<xacro:macro 'arm'>)" in res.err
+        assert "xacro FILE.xacro > FILE.urdf" in res.err

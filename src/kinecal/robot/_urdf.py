@@ -297,9 +297,18 @@ def _read(path: str | Path, tip: str | None) -> tuple[ET.Element, str, str | Non
     its tip: the tool links hang below it)."""
     p = Path(path)
     try:
-        root = _plain(ET.parse(p).getroot())
+        root = ET.parse(p).getroot()
     except (OSError, ET.ParseError) as exc:
         raise ConfigError(f"{p}: cannot read URDF ({exc}).") from exc
+    macro = next((el for el in root.iter() if "xacro" in str(el.tag)), None)
+    if macro is not None:
+        name = macro.get("name") or macro.get("filename")
+        raise ConfigError(
+            f"{p}: holds xacro elements (<xacro:{str(macro.tag).split('}')[-1]}"
+            f"{f' {name!r}' if name else ''}>); expected a plain URDF (expand it "
+            "first: xacro FILE.xacro > FILE.urdf)."
+        )
+    root = _plain(root)
     text = p.read_text(errors="replace")
     if tip is None:
         m = re.search(r"kinecal tip link: (\S+)", text)
