@@ -1,13 +1,15 @@
 """Issue 34 on real vendor URDFs (tests/data/vendor_urdf, sources in its README): each is
 imported (`import-urdf`, the chain found alone and named), a calibrated model of it is
 written as `export-urdf --like` the vendor's file, and the copy's forward kinematics are
-checked against `kinecal fk --model` by the suite's own evaluator and yourdfpy (optional),
-never by kinecal. The files hold what real URDFs hold: CAD-exported origins, rounded pi/2
-(1.5708), a first axis along -z or a few mm off the base link's z axis, balancer linkages
-of mimic joints, grippers with mimic fingers, transmissions and gazebo tags."""
+checked against `kinecal fk --model` by the suite's own evaluator, yourdfpy and
+pinocchio (optional), never by kinecal. The files hold what real URDFs hold:
+CAD-exported origins, rounded pi/2 (1.5708), a first axis along -z or a few mm off the
+base link's z axis, balancer linkages of mimic joints, grippers with mimic fingers,
+transmissions and gazebo tags."""
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import re
 import warnings
@@ -126,13 +128,48 @@ def _like(path: Path, tmp_path: Path, capsys, **chain) -> Path:
         want = np.array(json.loads(m.out)["kinematic"]["tool_mm"])
         got = urdf_chain_fk(out, "user", "calibrated_tool", th)[:3, 3] * 1e3
         assert np.abs(got - want).max() < 1e-4
-    lib = pytest.importorskip("yourdfpy", reason="yourdfpy absent (optional)")
-    u = lib.URDF.load(str(out), load_meshes=False, build_scene_graph=True)
+    for lib, fk in (("yourdfpy", _yourdfpy_fk), ("pinocchio", _pinocchio_fk)):
+        if importlib.util.find_spec(lib) is None:
+            continue  # optional libraries (the dev venv has both)
+        got_all = fk(out, names, theta)
+        for th, got in zip(theta, got_all):
+            want = urdf_chain_fk(out, "user", "calibrated_tool", th)
+            assert np.abs(got - want).max() < 1e-9, lib
+    return written
+
+
+def _yourdfpy_fk(path: Path, names: list[str], theta: np.ndarray) -> list[np.ndarray]:
+    import yourdfpy
+
+    u = yourdfpy.URDF.load(str(path), load_meshes=False, build_scene_graph=True)
+    out = []
     for th in theta:
         u.update_cfg(dict(zip(names, th)))
-        want = urdf_chain_fk(out, "user", "calibrated_tool", th)
-        assert np.abs(u.get_transform("calibrated_tool", "user") - want).max() < 1e-9
-    return written
+        out.append(u.get_transform("calibrated_tool", "user"))
+    return out
+
+
+def _pinocchio_fk(path: Path, names: list[str], theta: np.ndarray) -> list[np.ndarray]:
+    """pinocchio (root link ``user`` is its universe): the chain's joints set, the
+    others (fingers, linkages) at their neutral values; a continuous joint is (cos,
+    sin)."""
+    import pinocchio as pin
+
+    model = pin.buildModelFromXML(path.read_text())
+    data = model.createData()
+    fid = model.getFrameId("calibrated_tool")
+    out = []
+    for th in theta:
+        q = pin.neutral(model)
+        for name, t in zip(names, th):
+            jm = model.joints[model.getJointId(name)]
+            if jm.nq == 2:
+                q[jm.idx_q : jm.idx_q + 2] = [np.cos(t), np.sin(t)]
+            else:
+                q[jm.idx_q] = t
+        pin.framesForwardKinematics(model, data, q)
+        out.append(data.oMf[fid].homogeneous)
+    return out
 
 
 def _ctrl(robot, q: np.ndarray) -> np.ndarray:
