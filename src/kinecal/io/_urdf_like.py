@@ -284,6 +284,12 @@ def like_urdf(
                 f"{robot.name} is {'prismatic' if pris else 'revolute'}."
             )
     origins = [_origin(j, f"{src}: joint {j.get('name')!r} origin") for j in path]
+    # The vendor's frames as import-urdf reads them (a rounded pi/2 exact): the link
+    # motion compared with the model's; the written file keeps its fixed origins.
+    exact = [
+        _origin(j, f"{src}: joint {j.get('name')!r} origin", quarters=True)
+        for j in path
+    ]
     axes = {
         k: _axis_of(path[k], f"{src}: joint {path[k].get('name')!r}") for k in movable
     }
@@ -320,7 +326,7 @@ def like_urdf(
     ch_cal = export_chain(cal, set_label=set_label)
     zero = np.zeros(n)
     J0 = model_frames(ch_nom, zero)
-    U0 = vendor_frames(zero, origins)
+    U0 = vendor_frames(zero, exact)
     # The robot base in the vendor root: axis lines of the zero pose.
     dirs_m = np.array([J[:3, 2] for J in J0])
     dirs_v = np.array([U[:3, :3] @ axes[k] for U, k in zip(U0, movable)])
@@ -363,7 +369,7 @@ def like_urdf(
     lim = np.where(np.isfinite(robot.limits), robot.limits, [-np.pi, np.pi])
     for theta in rng.uniform(lim[:, 0], lim[:, 1], (8, n)) @ C.T:
         for i, (J, U) in enumerate(
-            zip(model_frames(ch_nom, theta), vendor_frames(theta, origins))
+            zip(model_frames(ch_nom, theta), vendor_frames(theta, exact))
         ):
             err = float(np.abs(np.linalg.inv(B @ J) @ U - H[i]).max())
             resid = max(resid, err)
