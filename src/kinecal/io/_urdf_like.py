@@ -35,7 +35,15 @@ import numpy as np
 
 from kinecal.errors import ConfigError
 from kinecal.geometry import matrix_to_rpy
-from kinecal.robot._urdf import _MOVABLE, _floats, _origin, _tree
+from kinecal.robot._urdf_tree import (
+    _MOVABLE,
+    _chain_kids,
+    _floats,
+    _movable_below,
+    _origin,
+    _plain,
+    _tree,
+)
 from kinecal.typing import Float, Pose
 
 __all__ = ["LikeExport", "like_urdf"]
@@ -106,23 +114,33 @@ def _motion(kind: str, axis: Float, v: float) -> Pose:
 
 
 def _vendor_path(
-    root_el: ET.Element, src: str, n: int
+    root_el: ET.Element, src: str, n: int, names: tuple[str, ...] = ()
 ) -> tuple[str, list[ET.Element], list[int]]:
     """Root link, the joints from it down to the last movable joint of the one movable
-    chain, and the positions of the movable ones in that list."""
+    chain, and the positions of the movable ones in that list. Where the tree branches
+    (two arms on a frame), the branch holding the model's next joint by name (``names``,
+    as import-urdf keeps them)."""
     links, by_child, children = _tree(root_el, src)
     roots = sorted(lk for lk in links if lk not in by_child)
 
     def movable_below(link: str) -> int:
-        count, todo = 0, [link]
-        while todo:
-            lk = todo.pop()
-            for c in children.get(lk, []):
-                count += by_child[c].get("type", "") in _MOVABLE
-                todo.append(c)
-        return count
+        """Driven joints below ``link`` (a mimic joint off the chain is a passive
+        linkage, a balancer's cylinder, or a gripper's finger)."""
+        return len(_movable_below(link, children, by_child, driven=True))
 
-    with_joints = [lk for lk in roots if movable_below(lk)]
+    def by_name(kids: list[str], k: int) -> list[str]:
+        """``kids`` narrowed to the one holding the model's joint ``k`` by name."""
+        if k >= len(names):
+            return kids
+        hit = [
+            c
+            for c in kids
+            if (c in by_child and names[k] == by_child[c].get("name"))
+            or names[k] in _movable_below(c, children, by_child)
+        ]
+        return hit if len(hit) == 1 else kids
+
+    with_joints = by_name([lk for lk in roots if movable_below(lk)], 0)
     if len(with_joints) != 1:
         raise ConfigError(
             f"{src}: expected one tree with movable joints; found "
@@ -132,9 +150,10 @@ def _vendor_path(
     path: list[ET.Element] = []
     link = root
     while movable_below(link):
-        kids = [
-            c for c in children.get(link, []) if movable_below(c) or _moves(by_child[c])
-        ]
+        kids = _chain_kids(link, children, by_child, sum(map(_moves, path)))
+        if kids is None or (len(kids) > 1 and sum(map(_moves, path)) == n):
+            break  # a gripper's fingers (or a hand's) below the robot's n joints
+        kids = by_name(kids, sum(map(_moves, path)))
         if len(kids) > 1:
             raise ConfigError(
                 f"{src}: the chain branches at link {link!r} into "
@@ -158,10 +177,10 @@ def _vendor_path(
             )
     movable = [k for k, j in enumerate(path) if _moves(j)]
     if len(movable) != n:
-        names = ", ".join(repr(path[k].get("name")) for k in movable)
+        found = ", ".join(repr(path[k].get("name")) for k in movable)
         raise ConfigError(
             f"{src}: the chain {root} -> {link} has {len(movable)} movable joints "
-            f"({names}); the model's robot has {n}. Expected the URDF of the calibrated "
+            f"({found}); the model's robot has {n}. Expected the URDF of the calibrated "
             "robot."
         )
     return root, path, movable
@@ -234,11 +253,12 @@ def like_urdf(
     src = str(vendor)
     p = Path(vendor)
     try:
-        raw = p.read_text(encoding="utf-8") if text is None else text
-        root_el = ET.fromstring(raw)
+        # bytes decoded: CRLF line ends and a byte order mark stay as they were
+        raw = p.read_bytes().decode("utf-8") if text is None else text
+        root_el = ET.fromstring(raw.lstrip("\ufeff"))
     except (OSError, UnicodeDecodeError, ET.ParseError) as exc:
         raise ConfigError(f"{src}: cannot read URDF ({exc}).") from exc
-    if root_el.tag != "robot":
+    if root_el.tag.rpartition("}")[2] != "robot":
         raise ConfigError(f"{src}: expected a <robot> document; got <{root_el.tag}>.")
     if any(
         "xacro" in (el.tag or "") for el in root_el.iter() if isinstance(el.tag, str)
@@ -247,11 +267,14 @@ def like_urdf(
             f"{src}: holds xacro elements; expected a plain URDF (expand it first: "
             "xacro FILE.xacro > FILE.urdf)."
         )
+    root_el = _plain(root_el)
     model = cal.model
     robot = model.robot
     n = model.n_joints
     C = robot.coupling
-    root, path, movable = _vendor_path(root_el, src, n)
+    root, path, movable = _vendor_path(
+        root_el, src, n, tuple(j.name for j in robot.joints)
+    )
     names = tuple(path[k].get("name", "?") for k in movable)
     kinds = [path[k].get("type", "") for k in movable]
     for i, (kind, pris) in enumerate(zip(kinds, robot.prismatic)):
@@ -261,6 +284,12 @@ def like_urdf(
                 f"{robot.name} is {'prismatic' if pris else 'revolute'}."
             )
     origins = [_origin(j, f"{src}: joint {j.get('name')!r} origin") for j in path]
+    # The vendor's frames as import-urdf reads them (a rounded pi/2 exact): the link
+    # motion compared with the model's; the written file keeps its fixed origins.
+    exact = [
+        _origin(j, f"{src}: joint {j.get('name')!r} origin", quarters=True)
+        for j in path
+    ]
     axes = {
         k: _axis_of(path[k], f"{src}: joint {path[k].get('name')!r}") for k in movable
     }
@@ -297,7 +326,7 @@ def like_urdf(
     ch_cal = export_chain(cal, set_label=set_label)
     zero = np.zeros(n)
     J0 = model_frames(ch_nom, zero)
-    U0 = vendor_frames(zero, origins)
+    U0 = vendor_frames(zero, exact)
     # The robot base in the vendor root: axis lines of the zero pose.
     dirs_m = np.array([J[:3, 2] for J in J0])
     dirs_v = np.array([U[:3, :3] @ axes[k] for U, k in zip(U0, movable)])
@@ -340,7 +369,7 @@ def like_urdf(
     lim = np.where(np.isfinite(robot.limits), robot.limits, [-np.pi, np.pi])
     for theta in rng.uniform(lim[:, 0], lim[:, 1], (8, n)) @ C.T:
         for i, (J, U) in enumerate(
-            zip(model_frames(ch_nom, theta), vendor_frames(theta, origins))
+            zip(model_frames(ch_nom, theta), vendor_frames(theta, exact))
         ):
             err = float(np.abs(np.linalg.inv(B @ J) @ U - H[i]).max())
             resid = max(resid, err)
@@ -412,14 +441,15 @@ def like_urdf(
     end = raw.rfind("</robot>")
     if end < 0:
         raise ConfigError(f"{src}: no closing </robot> tag.")
-    text = raw[:end] + "".join(extra) + raw[end:]
+    eol = "\r\n" if "\r\n" in raw else "\n"  # the vendor's line ends
+    text = raw[:end] + "".join(extra).replace("\n", eol) + raw[end:]
     if tip_note:
         comments = [
             *(comments or []),
             f"kinecal tip link: {tip} (the robot's flange, for import-urdf and --robot).",
         ]
     if comments:
-        text = _with_comment(text, comments)
+        text = _with_comment(text, comments, eol)
     # Read back: FK of the written file against the model's kinematic part.
     T_top_user = np.eye(4) if user_link is not None else T_root_user
     check = _check(text, src, cal, set_label, tips, top, T_top_user, rng)
@@ -437,14 +467,15 @@ def like_urdf(
     )
 
 
-def _with_comment(text: str, lines: list[str]) -> str:
-    """``text`` with a comment of ``lines`` after the XML declaration (if any)."""
-    body = "\n".join(f"  {ln}".rstrip().replace("--", "- -") for ln in lines)
-    at = 0
-    m = re.match(r"\s*<\?xml[^>]*\?>[ \t]*\n?", text)
+def _with_comment(text: str, lines: list[str], eol: str = "\n") -> str:
+    """``text`` with a comment of ``lines`` after the XML declaration (if any; after a
+    byte order mark), its lines ended by ``eol``."""
+    body = eol.join(f"  {ln}".rstrip().replace("--", "- -") for ln in lines)
+    at = 1 if text.startswith("\ufeff") else 0
+    m = re.compile(r"\s*<\?xml[^>]*\?>[ \t]*(\r?\n)?").match(text, at)
     if m:
         at = m.end()
-    return text[:at] + f"<!--\n{body}\n-->\n" + text[at:]
+    return text[:at] + f"<!--{eol}{body}{eol}-->{eol}" + text[at:]
 
 
 def _set_origin(raw: str, name: str, O: Pose, src: str) -> str:
@@ -458,7 +489,9 @@ def _set_origin(raw: str, name: str, O: Pose, src: str) -> str:
         + r"\2([^>]*)>(.*?)</joint\s*>",
         re.S,
     )
-    comments = [c.span() for c in re.finditer(r"<!--.*?-->", raw, re.S)]
+    comments = [  # and CDATA sections (a gazebo plugin's text)
+        c.span() for c in re.finditer(r"<!--.*?-->|<!\[CDATA\[.*?\]\]>", raw, re.S)
+    ]
     hits = [
         m
         for m in pat.finditer(raw)
@@ -481,7 +514,7 @@ def _set_origin(raw: str, name: str, O: Pose, src: str) -> str:
     if o is not None:
         body = body[: o.start()] + new + body[o.end() :]
     else:
-        body = f"\n    {new}" + body
+        body = ("\r\n" if "\r\n" in raw else "\n") + f"    {new}" + body
     a, b = m.span(4)
     return raw[:a] + body + raw[b:]
 
@@ -508,7 +541,7 @@ def _check(text, src, cal, set_label, tips, top, T_top_user, rng) -> float:
     model = cal.model
     robot = model.robot
     n = model.n_joints
-    _, by_child, _ = _tree(ET.fromstring(text), src)
+    _, by_child, _ = _tree(_plain(ET.fromstring(text.lstrip("\ufeff"))), src)
     lim = np.where(np.isfinite(robot.limits), robot.limits, [-np.pi, np.pi])
     q = rng.uniform(lim[:, 0], lim[:, 1], (16, n))
     theta = q @ robot.coupling.T

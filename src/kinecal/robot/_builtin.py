@@ -84,7 +84,7 @@ def load_robot(name_or_path: str | Path) -> RobotDescription:
     if s in builtin_robot_names():
         return _load_builtin(s)
     p = Path(s)
-    if p.suffix.lower() == ".urdf":
+    if p.suffix.lower() in (".urdf", ".xacro"):  # a xacro file: refused as one
         if not p.exists():
             raise ConfigError(f"{p}: URDF file not found.")
         from kinecal.robot._urdf import robot_from_urdf

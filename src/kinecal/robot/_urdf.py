@@ -26,7 +26,6 @@ from pathlib import Path
 import numpy as np
 
 from kinecal.errors import ConfigError
-from kinecal.geometry import rpy_to_matrix
 from kinecal.robot._description import JointSpec, LinkMass, RobotDescription
 from kinecal.robot._urdf_joints import (
     declared_coupling,
@@ -34,188 +33,20 @@ from kinecal.robot._urdf_joints import (
     mimic_of,
     rates_of,
 )
+from kinecal.robot._urdf_tree import (
+    _HOW,
+    _MOVABLE,
+    _chain,
+    _floats,
+    _origin,
+    _plain,
+    _tree,
+)
 
 __all__ = ["robot_from_urdf"]
 
-_MOVABLE = ("revolute", "continuous", "prismatic")
-_HOW = (
-    "import-urdf FILE --base LINK --tip LINK --out robot.yaml, then --robot robot.yaml"
-)
 _PARALLEL = 1e-9  # |sin| below which two axes count as parallel
 _ON_AXIS = 1e-9  # [m]
-
-
-def _floats(text: str | None, n: int, where: str) -> np.ndarray:
-    try:
-        v = np.array([float(t) for t in (text or "").split()])
-    except ValueError:
-        raise ConfigError(f"{where}: expected {n} numbers; got {text!r}.") from None
-    if v.shape != (n,) or not np.all(np.isfinite(v)):
-        raise ConfigError(f"{where}: expected {n} finite numbers; got {text!r}.")
-    return v
-
-
-def _origin(joint: ET.Element, where: str) -> np.ndarray:
-    T = np.eye(4)
-    el = joint.find("origin")
-    if el is not None:
-        T[:3, :3] = rpy_to_matrix(_floats(el.get("rpy", "0 0 0"), 3, f"{where} rpy"))
-        T[:3, 3] = _floats(el.get("xyz", "0 0 0"), 3, f"{where} xyz")
-    return T
-
-
-def _tree(
-    root: ET.Element, src: str
-) -> tuple[set[str], dict[str, ET.Element], dict[str, list[str]]]:
-    """Links, the joint above each link and the children of each link, checked to form
-    trees: every joint's links defined, no link below two joints (a closed loop), no
-    cycle."""
-    links: set[str] = set()
-    for el in root.findall("link"):
-        name = el.get("name", "")
-        if name in links:
-            raise ConfigError(
-                f"{src}: link {name!r} is defined twice; expected unique names."
-            )
-        links.add(name)
-    by_child: dict[str, ET.Element] = {}
-    children: dict[str, list[str]] = {}
-    joint_names: set[str] = set()
-    for k, j in enumerate(root.findall("joint")):
-        jn = j.get("name", "")
-        if not jn:
-            raise ConfigError(
-                f"{src}: joint {k + 1} (in file order) has no name; expected "
-                '<joint name="..." type="...">.'
-            )
-        if jn in joint_names:
-            raise ConfigError(
-                f"{src}: joint {jn!r} is defined twice; expected unique names."
-            )
-        joint_names.add(jn)
-        parent, child = j.find("parent"), j.find("child")
-        if parent is None or child is None:
-            raise ConfigError(f"{src}: joint {jn!r} lacks parent or child.")
-        p, c = parent.get("link", ""), child.get("link", "")
-        for role, name in (("parent", p), ("child", c)):
-            if name not in links:
-                raise ConfigError(
-                    f"{src}: joint {jn!r}: {role} link {name!r} is not defined; expected "
-                    "the name of one of the file's <link> elements (misspelt?)."
-                )
-        if p == c:
-            raise ConfigError(
-                f"{src}: joint {jn!r} connects link {p!r} to itself; expected a joint "
-                "between two links."
-            )
-        if c in by_child:
-            raise ConfigError(
-                f"{src}: link {c!r} is the child of joints {by_child[c].get('name')!r} and "
-                f"{jn!r}: a closed kinematic loop; expected a tree (kinecal calibrates "
-                "serial chains: remove the joint that closes the loop)."
-            )
-        by_child[c] = j
-        children.setdefault(p, []).append(c)
-    # Each link has at most one parent now; links no root reaches lie on a cycle.
-    seen: set[str] = set()
-    todo = [name for name in links if name not in by_child]
-    while todo:
-        name = todo.pop()
-        seen.add(name)
-        todo.extend(children.get(name, []))
-    if len(seen) < len(links):
-        cyc = sorted(links - seen)
-        raise ConfigError(
-            f"{src}: the joints form a cycle through links {', '.join(map(repr, cyc[:6]))}"
-            f"{' ...' if len(cyc) > 6 else ''}; expected a tree (each link reached from "
-            "a root link by one path)."
-        )
-    return links, by_child, children
-
-
-def _movable_below(link: str, children: dict[str, list[str]], by_child) -> list[str]:
-    """Names of the movable joints in the tree below ``link``."""
-    out, todo = [], [link]
-    while todo:
-        lk = todo.pop()
-        for c in children.get(lk, []):
-            if by_child[c].get("type", "") in _MOVABLE:
-                out.append(by_child[c].get("name", "?"))
-            todo.append(c)
-    return out
-
-
-def _chain(
-    root: ET.Element, base: str | None, tip: str | None, src: str
-) -> tuple[str, str, list[ET.Element]]:
-    links, by_child, children = _tree(root, src)
-    if base is None:
-        roots = sorted(lk for lk in links if lk not in by_child)
-        trees = [lk for lk in roots if children.get(lk)]  # a lone link is no tree
-        if not trees:
-            raise ConfigError(f"{src}: no joints; expected a serial chain.")
-        if len(trees) > 1:
-            desc = ", ".join(
-                f"{lk!r} ({len(_movable_below(lk, children, by_child))} movable joints)"
-                for lk in trees
-            )
-            raise ConfigError(
-                f"{src}: the joints form {len(trees)} separate trees, rooted at {desc}; "
-                "expected one chain (a joint whose parent should be the end of the other "
-                "tree names another link?), or name the base link of one tree ("
-                + _HOW
-                + ")."
-            )
-        base = trees[0]
-    if tip is None:
-        link = base
-        while children.get(link):
-            kids = children[link]
-            if len(kids) > 1:
-                moving = [
-                    c
-                    for c in kids
-                    if by_child[c].get("type", "") in _MOVABLE
-                    or _movable_below(c, children, by_child)
-                ]
-                if len(moving) == 1:  # the others are fixed frames: follow the chain
-                    kids = moving
-                elif not moving:  # fixed frames only (tools, markers): the chain ends
-                    break
-                else:
-                    raise ConfigError(
-                        f"{src}: the chain branches at link {link!r} "
-                        f"({', '.join(kids)}); name the tip link ({_HOW})."
-                    )
-            link = kids[0]
-        tip = link
-    for name, what in ((base, "base"), (tip, "tip")):
-        if name not in links:
-            raise ConfigError(f"{src}: no link {name!r} ({what}).")
-    chain = []
-    link = tip
-    while link != base:
-        if link not in by_child:
-            raise ConfigError(f"{src}: link {tip!r} is not below link {base!r}.")
-        j = by_child[link]
-        chain.append(j)
-        link = j.find("parent").get("link", "")  # type: ignore[union-attr]
-    chain.reverse()
-    used = {j.get("name", "?") for j in chain if j.get("type", "") in _MOVABLE}
-    others = [
-        j.get("name", "?")
-        for j in root.findall("joint")
-        if j.get("type", "") in _MOVABLE and j.get("name", "?") not in used
-    ]
-    if others and used:
-        warnings.warn(
-            f"{src}: the chain {base} -> {tip} has {len(used)} of the file's "
-            f"{len(used) + len(others)} movable joints; not in the robot: "
-            f"{', '.join(others[:6])}{' ...' if len(others) > 6 else ''} (check --base "
-            "and --tip).",
-            stacklevel=3,
-        )
-    return base, tip, chain
 
 
 def _limits(lim: ET.Element, where: str) -> tuple[float, float]:
@@ -288,7 +119,8 @@ def _link_masses(
             j = by_child[c]
             if c in on_chain or j.get("type", "") != "fixed":
                 continue  # the chain's next link, or a gripper's moving finger
-            todo.append((c, T @ _origin(j, f"{src}: joint {j.get('name')!r}"), body))
+            where = f"{src}: joint {j.get('name')!r}"
+            todo.append((c, T @ _origin(j, where, quarters=True), body))
     out = []
     for k in sorted(acc):
         m = sum(mi for mi, _ in acc[k])
@@ -350,7 +182,7 @@ def _walk(chain: list[ET.Element], base: str, src: str) -> _Walk:
     T = np.eye(4)
     for j in chain:
         jn = j.get("name", "?")
-        T = T @ _origin(j, f"{src}: joint {jn!r} origin")
+        T = T @ _origin(j, f"{src}: joint {jn!r} origin", quarters=True)
         kind = j.get("type", "")
         child = j.find("child").get("link", "")  # type: ignore[union-attr]
         if kind not in _MOVABLE:
@@ -468,6 +300,15 @@ def _read(path: str | Path, tip: str | None) -> tuple[ET.Element, str, str | Non
         root = ET.parse(p).getroot()
     except (OSError, ET.ParseError) as exc:
         raise ConfigError(f"{p}: cannot read URDF ({exc}).") from exc
+    macro = next((el for el in root.iter() if "xacro" in str(el.tag)), None)
+    if macro is not None:
+        name = macro.get("name") or macro.get("filename")
+        raise ConfigError(
+            f"{p}: holds xacro elements (<xacro:{str(macro.tag).split('}')[-1]}"
+            f"{f' {name!r}' if name else ''}>); expected a plain URDF (expand it "
+            "first: xacro FILE.xacro > FILE.urdf)."
+        )
+    root = _plain(root)
     text = p.read_text(errors="replace")
     if tip is None:
         m = re.search(r"kinecal tip link: (\S+)", text)
@@ -508,6 +349,47 @@ def _base_on_first_axis(w: _Walk) -> str | None:
         if _on_z(p_, Ti[:3, :3] @ u1):
             return link
     return None
+
+
+def _onto_first_axis(w: _Walk, base: str, src: str) -> np.ndarray:
+    """When the first joint axis is not the base link's z axis (a vendor's base_link on
+    the floor with the axis a few mm off, a first axis along -z): the robot base (DH
+    frame 0) is the base link turned so that its z axis is the first axis and moved onto
+    it (to the axis point nearest its origin); ``w`` re-expressed in that frame, which
+    is returned (in the base link), with a warning."""
+    p1, u1 = w.lines[0]
+    if _on_z(p1, u1):  # (a slide's line was put through the origin)
+        return np.eye(4)
+    # The shortest turn from z (or, for an axis pointing down, from -z after half a
+    # turn about x: well conditioned both ways) to u1.
+    flip = np.diag([1.0, 1.0, 1.0] if u1[2] >= 0 else [1.0, -1.0, -1.0])
+    z = flip @ np.array([0.0, 0.0, 1.0])
+    c, d = np.cross(z, u1), float(z @ u1)
+    K = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
+    R = (np.eye(3) + K + K @ K / (1.0 + d)) @ flip
+    F0 = np.eye(4)
+    F0[:3, :3], F0[:3, 3] = R, p1 - (p1 @ u1) * u1
+    Fi = np.linalg.inv(F0)
+    w.lines = [(Fi[:3, :3] @ p + Fi[:3, 3], Fi[:3, :3] @ u) for p, u in w.lines]
+    w.placed = [(nm, Fi @ T, b) for nm, T, b in w.placed]
+    w.fixed_above = [(nm, Fi @ T) for nm, T in w.fixed_above]
+    w.T_tip = Fi @ w.T_tip
+    warnings.warn(
+        f"{src}: the first joint axis is not the z axis of link {base!r}; the robot "
+        f"base (DH frame 0) is {_moved(F0, base)[8:]} (robot poses are given in that "
+        "frame; export-urdf --like writes the vendor's frames).",
+        stacklevel=3,
+    )
+    return F0
+
+
+def _moved(F0: np.ndarray, base: str) -> str:
+    """'; base: <base> moved by ... mm and turned by ... deg' (empty when not moved)."""
+    if np.array_equal(F0, np.eye(4)):
+        return ""
+    ang = np.degrees(np.arccos(np.clip((np.trace(F0[:3, :3]) - 1) / 2, -1, 1)))
+    xyz = ", ".join(f"{v * 1e3 + 0.0:.6g}" for v in np.round(F0[:3, 3], 12))
+    return f"; base: {base} moved by ({xyz}) mm and turned by {ang:.6g} deg"
 
 
 def robot_from_urdf(
@@ -560,17 +442,23 @@ def robot_from_urdf(
         w.lines[0] = (np.zeros(3), w.lines[0][1])
     if auto_base and w.fixed_above:
         link = _base_on_first_axis(w)
+        if link is None and not _on_z(*w.lines[0]):
+            # no link on the first axis: the one the arm stands on, moved onto it
+            link = w.fixed_above[-1][0]
         if link is not None:
             return robot_from_urdf(path, base=link, tip=tip, name=name)
+    F0 = _onto_first_axis(w, base, src) if len(w.lines) > 1 else np.eye(4)
     _check_first_axis(w, base, tip, src)
     joints, frames, T_n_flange = _dh_joints(w, offsets, src)
+    g = F0[:3, :3].T @ np.array([0.0, 0.0, -9.80665])
     return RobotDescription(
         name=name or root.get("name") or Path(path).stem,
         convention="dh",
         joints=tuple(joints),
         coupling=C,
         T_n_flange=T_n_flange,
+        gravity=np.where(np.abs(g) < 1e-12, 0.0, g),
         self_weight=None,
-        source=f"{src} (URDF {base} -> {tip})",
+        source=f"{src} (URDF {base} -> {tip}{_moved(F0, base)})",
         link_masses=_link_masses(root, src, w.placed, frames),
     )
