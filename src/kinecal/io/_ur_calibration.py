@@ -14,7 +14,8 @@ import numpy as np
 
 from kinecal.errors import ConfigError
 from kinecal.geometry import matrix_to_rpy
-from kinecal.io._urdf_like import _num, like_urdf
+from kinecal.io._urdf_like import like_urdf
+from kinecal.io._urdf_like_steps import num as _num
 
 __all__ = ["ur_calibration_text"]
 

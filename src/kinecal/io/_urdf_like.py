@@ -29,16 +29,26 @@ import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
 from kinecal.errors import ConfigError
 from kinecal.geometry import matrix_to_rpy
+from kinecal.io._urdf_like_steps import (
+    axis_of,
+    check_link_names,
+    exact_link,
+    fixed_xml,
+    motion,
+    new_origins,
+    num,
+    place_base,
+    read_vendor,
+    with_comment,
+)
 from kinecal.robot._urdf_tree import (
     _MOVABLE,
     _chain_kids,
-    _floats,
     _movable_below,
     _origin,
     _plain,
@@ -84,33 +94,6 @@ class LikeExport:
     mismatch_mm: float
     check_m: float
     origins: dict[str, Pose]
-
-
-def _num(v: float) -> str:
-    """17 significant digits; rounding noise below 1e-15 (m or rad) written as 0."""
-    v = float(v)
-    return repr(0.0 if abs(v) < 1e-15 else v + 0.0)
-
-
-def _axis_of(j: ET.Element, where: str) -> Float:
-    el = j.find("axis")
-    a = _floats(el.get("xyz") if el is not None else "1 0 0", 3, f"{where} axis")
-    n = float(np.linalg.norm(a))
-    if not n > 1e-9:
-        raise ConfigError(f"{where} axis: expected a non-zero direction; got {a}.")
-    return a / n
-
-
-def _motion(kind: str, axis: Float, v: float) -> Pose:
-    M = np.eye(4)
-    if kind == "prismatic":
-        M[:3, 3] = v * axis
-    else:
-        K = np.array(
-            [[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]]
-        )
-        M[:3, :3] = np.eye(3) + np.sin(v) * K + (1 - np.cos(v)) * K @ K
-    return M
 
 
 def _vendor_path(
@@ -186,30 +169,85 @@ def _vendor_path(
     return root, path, movable
 
 
+@dataclass(frozen=True)
+class _VendorChain:
+    """The vendor's joints from the root to the last movable one: ``path`` (joint
+    elements), ``movable`` (indices into it), their names, types and axes (in the child
+    frame), the fixed origins as written and as import-urdf reads them (``exact``: a
+    rounded pi/2 exact; the link motion is compared with the model's through them, the
+    written file keeps its own)."""
+
+    root: str
+    path: list
+    movable: list
+    names: tuple
+    kinds: list
+    axes: dict
+    origins: list
+    exact: list
+
+    @classmethod
+    def of(cls, root_el: ET.Element, src: str, robot, added: tuple) -> _VendorChain:
+        """The chain of ``robot``'s joints in the vendor's tree (``added``: the link
+        names export-urdf adds, which must be new)."""
+        n = robot.n_joints
+        root, path, movable = _vendor_path(
+            root_el, src, n, tuple(j.name for j in robot.joints)
+        )
+        names = tuple(path[k].get("name", "?") for k in movable)
+        kinds = [path[k].get("type", "") for k in movable]
+        for i, (kind, pris) in enumerate(zip(kinds, robot.prismatic)):
+            if (kind == "prismatic") != bool(pris):
+                raise ConfigError(
+                    f"{src}: joint {names[i]!r} is {kind}; joint {i + 1} of "
+                    f"{robot.name} is {'prismatic' if pris else 'revolute'}."
+                )
+        where = [f"{src}: joint {j.get('name')!r} origin" for j in path]
+        origins = [_origin(j, w) for j, w in zip(path, where)]
+        exact = [_origin(j, w, quarters=True) for j, w in zip(path, where)]
+        axes = {k: axis_of(path[k], f"{src}: joint {names[i]!r}")
+                for i, k in enumerate(movable)}  # fmt: skip
+        for existing in {el.get("name") for el in root_el.findall("link")}:
+            if existing is not None and existing in added:
+                raise ConfigError(
+                    f"{src}: already has a link {existing!r}; choose another name "
+                    "(--tool-link / --user-link)."
+                )
+        return cls(root, path, movable, names, kinds, axes, origins, exact)
+
+    def frames(self, theta: Float, org: list[Pose]) -> list[Pose]:
+        """Child link frames of the movable joints at ``theta``, in the root frame."""
+        T, out, i = np.eye(4), [], 0
+        for k in range(len(self.path)):
+            T = T @ org[k]
+            if k in self.axes:
+                T = T @ motion(self.kinds[i], self.axes[k], float(theta[i]))
+                out.append(T)
+                i += 1
+        return out
+
+
+def _refuse_motion(errs: list[float], names: tuple, robot, src: str) -> None:
+    """Refuse a vendor file whose links move otherwise than the model's joints (the
+    link transforms ``errs`` [m] of one random pose)."""
+    for i, err in enumerate(errs):
+        if err > _REFUSE:
+            n = robot.n_joints
+            raise ConfigError(
+                f"{src}: link of joint {names[i]!r} moves differently from joint "
+                f"{i + 1} of {robot.name} ({err * 1e3:.3f} mm apart on a random "
+                "pose); expected the URDF of the same robot"
+                + (
+                    ", its joints taking the kinematic angles (theta = C q_ctrl, "
+                    "FANUC joint_3 = J3 + J2)."
+                    if not np.array_equal(robot.coupling, np.eye(n))
+                    else "."
+                )
+            )
+
+
 def _moves(j: ET.Element) -> bool:
     return j.get("type", "") in _MOVABLE
-
-
-def _exact(H: Pose, axis: Float, kind: str) -> Pose:
-    """``H`` turned (by rounding-sized angles) so that the model's joint axis, seen from
-    the vendor's link frame, is exactly the vendor's ``axis`` through its origin (the
-    vendor's numbers such as 1.570796327 for pi/2 are otherwise a 1e-10 rad tilt)."""
-    R = H[:3, :3]
-    b = R.T @ np.array([0.0, 0.0, 1.0])
-    c, d = np.cross(b, axis), float(b @ axis)
-    K = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
-    Q = np.eye(3) + K + K @ K / (1.0 + d)  # the rotation taking b to axis
-    out = np.eye(4)
-    out[:3, :3] = R @ Q.T
-    out[:3, 3] = H[:3, 3] if kind == "prismatic" else [0.0, 0.0, H[2, 3]]
-    return out
-
-
-def _kabsch(a: Float, b: Float) -> Float:
-    """Rotation R minimising sum |R a_k - b_k|^2 (rows are vectors)."""
-    U, _, Vt = np.linalg.svd(b.T @ a)
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-    return np.asarray(U @ D @ Vt)
 
 
 def like_urdf(
@@ -241,215 +279,45 @@ def like_urdf(
     """
     from kinecal.compensation import export_chain
 
-    for what, given in (("--tool-link", tool_link), ("--user-link", user_link)):
-        if given is not None and not re.fullmatch(
-            r"[A-Za-z0-9_][A-Za-z0-9_.\-]*", given
-        ):
-            raise ConfigError(
-                f"{what} {given!r}: expected a link name (letters, digits, '_', '-', '.')."
-            )
-    if tool_link == user_link:
-        raise ConfigError(f"--tool-link and --user-link are both {tool_link!r}.")
+    check_link_names(tool_link, user_link)
     src = str(vendor)
-    p = Path(vendor)
-    try:
-        # bytes decoded: CRLF line ends and a byte order mark stay as they were
-        raw = p.read_bytes().decode("utf-8") if text is None else text
-        root_el = ET.fromstring(raw.lstrip("\ufeff"))
-    except (OSError, UnicodeDecodeError, ET.ParseError) as exc:
-        raise ConfigError(f"{src}: cannot read URDF ({exc}).") from exc
-    if root_el.tag.rpartition("}")[2] != "robot":
-        raise ConfigError(f"{src}: expected a <robot> document; got <{root_el.tag}>.")
-    if any(
-        "xacro" in (el.tag or "") for el in root_el.iter() if isinstance(el.tag, str)
-    ):
-        raise ConfigError(
-            f"{src}: holds xacro elements; expected a plain URDF (expand it first: "
-            "xacro FILE.xacro > FILE.urdf)."
-        )
-    root_el = _plain(root_el)
+    raw, root_el = read_vendor(vendor, text)
     model = cal.model
     robot = model.robot
     n = model.n_joints
     C = robot.coupling
-    root, path, movable = _vendor_path(
-        root_el, src, n, tuple(j.name for j in robot.joints)
-    )
-    names = tuple(path[k].get("name", "?") for k in movable)
-    kinds = [path[k].get("type", "") for k in movable]
-    for i, (kind, pris) in enumerate(zip(kinds, robot.prismatic)):
-        if (kind == "prismatic") != bool(pris):
-            raise ConfigError(
-                f"{src}: joint {names[i]!r} is {kind}; joint {i + 1} of "
-                f"{robot.name} is {'prismatic' if pris else 'revolute'}."
-            )
-    origins = [_origin(j, f"{src}: joint {j.get('name')!r} origin") for j in path]
-    # The vendor's frames as import-urdf reads them (a rounded pi/2 exact): the link
-    # motion compared with the model's; the written file keeps its fixed origins.
-    exact = [
-        _origin(j, f"{src}: joint {j.get('name')!r} origin", quarters=True)
-        for j in path
-    ]
-    axes = {
-        k: _axis_of(path[k], f"{src}: joint {path[k].get('name')!r}") for k in movable
-    }
-    for existing in {el.get("name") for el in root_el.findall("link")}:
-        if existing == tool_link or existing == user_link:
-            raise ConfigError(
-                f"{src}: already has a link {existing!r}; choose another name "
-                "(--tool-link / --user-link)."
-            )
-
-    def vendor_frames(theta: Float, org: list[Pose]) -> list[Pose]:
-        """Child link frames of the movable joints, in the root frame."""
-        T, out, i = np.eye(4), [], 0
-        for k in range(len(path)):
-            T = T @ org[k]
-            if k in axes:
-                T = T @ _motion(kinds[i], axes[k], float(theta[i]))
-                out.append(T)
-                i += 1
-        return out
-
-    Cinv = np.linalg.inv(C)
-
-    def model_frames(ch, theta: Float) -> list[Pose]:
-        """Joint frames link1..linkN of an exported chain, in the robot base frame."""
-        q = (Cinv @ theta)[None]
-        Tb = np.linalg.inv(ch.T_user_base)
-        return [Tb @ ch.fk(q, f"link{i + 1}")[0] for i in range(n)]
-
+    vc = _VendorChain.of(root_el, src, robot, (tool_link, user_link))
+    path, movable, names, axes = vc.path, vc.movable, vc.names, vc.axes
     nominal = type(cal)(
         model, model.nominal.copy(), np.full(model.size, np.nan), ["fixed"] * model.size
     )
     ch_nom = export_chain(nominal, set_label=set_label)
     ch_cal = export_chain(cal, set_label=set_label)
-    zero = np.zeros(n)
-    J0 = model_frames(ch_nom, zero)
-    U0 = vendor_frames(zero, exact)
-    # The robot base in the vendor root: axis lines of the zero pose.
-    dirs_m = np.array([J[:3, 2] for J in J0])
-    dirs_v = np.array([U[:3, :3] @ axes[k] for U, k in zip(U0, movable)])
-    if np.linalg.matrix_rank(dirs_m, tol=1e-6) < 2:
-        raise ConfigError(
-            f"{src}: all joint axes are parallel; --like cannot place the robot base in "
-            "the vendor's root frame (use export-urdf without --like)."
-        )
-    R = _kabsch(dirs_m, dirs_v)
-    rows, rhs = [], []
-    for J, U, u, kind in zip(J0, U0, dirs_v, kinds):
-        if kind == "prismatic":
-            continue
-        P = np.eye(3) - np.outer(u, u)
-        rows.append(P)
-        rhs.append(P @ (U[:3, 3] - R @ J[:3, 3]))
-    t = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
-    B = np.eye(4)
-    B[:3, :3], B[:3, 3] = R, t
-    resid = 0.0
-    for J, U, u in zip(J0, U0, dirs_v):
-        w = U[:3, 3] - (B @ J)[:3, 3]
-        resid = max(
-            resid,
-            float(np.linalg.norm(w - (w @ u) * u)),
-            float(np.linalg.norm(R @ J[:3, 2] - u)),
-        )
-    if resid > _REFUSE:
-        raise ConfigError(
-            f"{src}: the joint axes of this URDF are {resid * 1e3:.3f} mm (or "
-            f"{np.degrees(resid):.3f} deg) from the nominal axes of {robot.name}, the "
-            "model's robot; expected the URDF of the same robot (joints in the same "
-            "order, turning the same way)."
-        )
-    H = [
-        _exact(np.linalg.inv(B @ J) @ U, axes[k], kind)
-        for J, U, k, kind in zip(J0, U0, movable, kinds)
-    ]
     rng = np.random.default_rng(1)
-    lim = np.where(np.isfinite(robot.limits), robot.limits, [-np.pi, np.pi])
-    for theta in rng.uniform(lim[:, 0], lim[:, 1], (8, n)) @ C.T:
-        for i, (J, U) in enumerate(
-            zip(model_frames(ch_nom, theta), vendor_frames(theta, exact))
-        ):
-            err = float(np.abs(np.linalg.inv(B @ J) @ U - H[i]).max())
-            resid = max(resid, err)
-            if err > _REFUSE:
-                raise ConfigError(
-                    f"{src}: link of joint {names[i]!r} moves differently from joint "
-                    f"{i + 1} of {robot.name} ({err * 1e3:.3f} mm apart on a random "
-                    "pose); expected the URDF of the same robot"
-                    + (
-                        ", its joints taking the kinematic angles (theta = C q_ctrl, "
-                        "FANUC joint_3 = J3 + J2)."
-                        if not np.array_equal(C, np.eye(n))
-                        else "."
-                    )
-                )
+    B, H, resid = _match(vc, ch_nom, robot, src, rng)
     # Calibrated frames in the vendor root; new origins along the path.
     T_root_user = B @ np.linalg.inv(ch_cal.T_user_base)
-    U_cal = [B @ J @ h for J, h in zip(model_frames(ch_cal, zero), H)]
-    new = list(origins)
-    T = np.eye(4)
-    i = 0
-    for k in range(len(path)):
-        if k in axes:
-            new[k] = np.linalg.inv(T) @ U_cal[i]
-            T = U_cal[i]
-            i += 1
-        else:
-            T = T @ origins[k]
-    moved = max(float(np.linalg.norm(new[k][:3, 3] - origins[k][:3, 3])) for k in axes)
-    turned = max(
-        float(
-            np.arccos(
-                np.clip(
-                    (np.trace(new[k][:3, :3].T @ origins[k][:3, :3]) - 1) / 2, -1, 1
-                )
-            )
-        )
-        for k in axes
-    )
+    U_cal = [B @ J @ h for J, h in zip(_model_frames(ch_cal, np.zeros(n), C), H)]
+    new, moved, turned = new_origins(vc.origins, U_cal, axes)
     for k in movable:
         raw = _set_origin(raw, path[k].get("name", ""), new[k], src)
     # The calibrated tool frame(s) and the user frame.
     # The tip: down from the last moving link while the chain does not branch.
-    tip = path[movable[-1]].find("child").get("link", "")  # type: ignore[union-attr]
-    _, by_child, children = _tree(root_el, src)
-    T_last_tip = np.eye(4)
-    while len(children.get(tip, [])) == 1:
-        child = children[tip][0]
-        j = by_child[child]
-        if _moves(j):  # pragma: no cover - _vendor_path stops at the last movable
-            break
-        T_last_tip = T_last_tip @ _origin(j, f"{src}: joint {j.get('name')!r} origin")
-        tip = child
-    q0 = np.zeros((1, n))
-    tips: dict[str, str] = {}
-    extra: list[str] = []
-    markers = model.spec.markers
-    for label in markers:
-        name = tool_link if len(markers) == 1 else f"{tool_link}_{label or 'default'}"
-        name = "".join(ch if ch.isalnum() or ch in "_-" else "_" for ch in name)
-        T_user_cam = ch_cal.fk(q0, ch_cal.tips[label])[0]
-        O = np.linalg.inv(U_cal[-1] @ T_last_tip) @ T_root_user @ T_user_cam
-        extra += _fixed_xml(name, tip, name, O)
-        tips[label] = name
-    top = root
+    tip, T_last_tip = _tip_link(root_el, path[movable[-1]], src)
+    tips, extra = _tool_links(
+        ch_cal, model.spec.markers, tool_link, tip,
+        np.asarray(np.linalg.inv(U_cal[-1] @ T_last_tip) @ T_root_user, np.float64), n,
+    )  # fmt: skip
+    top = vc.root
     if user_link is not None:
-        extra += _fixed_xml(user_link, user_link, root, np.linalg.inv(T_root_user))
+        extra += fixed_xml(user_link, user_link, vc.root, np.linalg.inv(T_root_user))
         top = user_link
-    end = raw.rfind("</robot>")
-    if end < 0:
-        raise ConfigError(f"{src}: no closing </robot> tag.")
-    eol = "\r\n" if "\r\n" in raw else "\n"  # the vendor's line ends
-    text = raw[:end] + "".join(extra).replace("\n", eol) + raw[end:]
     if tip_note:
         comments = [
             *(comments or []),
             f"kinecal tip link: {tip} (the robot's flange, for import-urdf and --robot).",
         ]
-    if comments:
-        text = _with_comment(text, comments, eol)
+    text = _with_additions(raw, extra, comments, src)
     # Read back: FK of the written file against the model's kinematic part.
     T_top_user = np.eye(4) if user_link is not None else T_root_user
     check = _check(text, src, cal, set_label, tips, top, T_top_user, rng)
@@ -467,15 +335,93 @@ def like_urdf(
     )
 
 
-def _with_comment(text: str, lines: list[str], eol: str = "\n") -> str:
-    """``text`` with a comment of ``lines`` after the XML declaration (if any; after a
-    byte order mark), its lines ended by ``eol``."""
-    body = eol.join(f"  {ln}".rstrip().replace("--", "- -") for ln in lines)
-    at = 1 if text.startswith("\ufeff") else 0
-    m = re.compile(r"\s*<\?xml[^>]*\?>[ \t]*(\r?\n)?").match(text, at)
-    if m:
-        at = m.end()
-    return text[:at] + f"<!--{eol}{body}{eol}-->{eol}" + text[at:]
+def _model_frames(ch, theta: Float, C: Float) -> list[Pose]:
+    """Joint frames link1..linkN of an exported chain at kinematic angles ``theta``, in
+    the robot base frame (``C`` the robot's coupling: the chain takes q_ctrl)."""
+    q = (np.linalg.inv(C) @ theta)[None]
+    Tb = np.linalg.inv(ch.T_user_base)
+    return [Tb @ ch.fk(q, f"link{i + 1}")[0] for i in range(C.shape[0])]
+
+
+def _match(
+    vc: _VendorChain, ch_nom, robot, src: str, rng: np.random.Generator
+) -> tuple[Pose, list[Pose], float]:
+    """(B, H, resid): the model's robot base in the vendor's root (by the axis lines of
+    the zero pose), the constant transform H_i from each nominal joint frame to the
+    vendor's link frame, and the largest mismatch [m, rad] over the zero pose and 8
+    random ones; a vendor file of another robot is refused."""
+    n, C = robot.n_joints, robot.coupling
+    zero = np.zeros(n)
+    J0 = _model_frames(ch_nom, zero, C)
+    U0 = vc.frames(zero, vc.exact)
+    dirs_v = np.array([U[:3, :3] @ vc.axes[k] for U, k in zip(U0, vc.movable)])
+    B, resid = place_base(J0, U0, dirs_v, vc.kinds, src)
+    if resid > _REFUSE:
+        raise ConfigError(
+            f"{src}: the joint axes of this URDF are {resid * 1e3:.3f} mm (or "
+            f"{np.degrees(resid):.3f} deg) from the nominal axes of {robot.name}, the "
+            "model's robot; expected the URDF of the same robot (joints in the same "
+            "order, turning the same way)."
+        )
+    H = [
+        exact_link(np.linalg.inv(B @ J) @ U, vc.axes[k], kind)
+        for J, U, k, kind in zip(J0, U0, vc.movable, vc.kinds)
+    ]
+    lim = np.where(np.isfinite(robot.limits), robot.limits, [-np.pi, np.pi])
+    for theta in rng.uniform(lim[:, 0], lim[:, 1], (8, n)) @ C.T:
+        pairs = zip(_model_frames(ch_nom, theta, C), vc.frames(theta, vc.exact))
+        errs = [float(np.abs(np.linalg.inv(B @ J) @ U - h).max()) for (J, U), h
+                in zip(pairs, H)]  # fmt: skip
+        resid = max(resid, *errs)
+        _refuse_motion(errs, vc.names, robot, src)
+    return B, H, resid
+
+
+def _with_additions(
+    raw: str, extra: list[str], comments: list[str] | None, src: str
+) -> str:
+    """The vendor's text with the added links before ``</robot>`` and the comment,
+    both in the file's own line ends."""
+    end = raw.rfind("</robot>")
+    if end < 0:
+        raise ConfigError(f"{src}: no closing </robot> tag.")
+    eol = "\r\n" if "\r\n" in raw else "\n"  # the vendor's line ends
+    text = raw[:end] + "".join(extra).replace("\n", eol) + raw[end:]
+    return with_comment(text, comments, eol) if comments else text
+
+
+def _tip_link(root_el: ET.Element, last: ET.Element, src: str) -> tuple[str, Pose]:
+    """(tip, T_last_tip): down from the last moving joint's child link while the chain
+    does not branch, and the fixed transform from that child to the tip."""
+    tip = last.find("child").get("link", "")  # type: ignore[union-attr]
+    _, by_child, children = _tree(root_el, src)
+    T_last_tip = np.eye(4)
+    while len(children.get(tip, [])) == 1:
+        child = children[tip][0]
+        j = by_child[child]
+        if _moves(j):  # pragma: no cover - _vendor_path stops at the last movable
+            break
+        T_last_tip = T_last_tip @ _origin(j, f"{src}: joint {j.get('name')!r} origin")
+        tip = child
+    return tip, T_last_tip
+
+
+def _tool_links(
+    ch_cal, markers: tuple, tool_link: str, tip: str, T_tip_user: Pose, n: int
+) -> tuple[dict[str, str], list[str]]:
+    """({marker: link name}, XML lines) of the calibrated tool links: fixed children of
+    the tip at the model's tool pose (``T_tip_user`` the user frame in the tip's at the
+    zero pose)."""
+    q0 = np.zeros((1, n))
+    tips: dict[str, str] = {}
+    extra: list[str] = []
+    for label in markers:
+        name = tool_link if len(markers) == 1 else f"{tool_link}_{label or 'default'}"
+        name = "".join(ch if ch.isalnum() or ch in "_-" else "_" for ch in name)
+        O = T_tip_user @ ch_cal.fk(q0, ch_cal.tips[label])[0]
+        extra += fixed_xml(name, tip, name, O)
+        tips[label] = name
+    return tips, extra
 
 
 def _set_origin(raw: str, name: str, O: Pose, src: str) -> str:
@@ -506,8 +452,8 @@ def _set_origin(raw: str, name: str, O: Pose, src: str) -> str:
         )
     m = hits[0]
     new = (
-        f'<origin xyz="{" ".join(_num(v) for v in O[:3, 3])}" '
-        f'rpy="{" ".join(_num(v) for v in matrix_to_rpy(O[:3, :3]))}"/>'
+        f'<origin xyz="{" ".join(num(v) for v in O[:3, 3])}" '
+        f'rpy="{" ".join(num(v) for v in matrix_to_rpy(O[:3, :3]))}"/>'
     )
     body = m.group(4)
     o = re.search(r"<origin\b[^>]*?/>|<origin\b[^>]*>.*?</origin\s*>", body, re.S)
@@ -517,19 +463,6 @@ def _set_origin(raw: str, name: str, O: Pose, src: str) -> str:
         body = ("\r\n" if "\r\n" in raw else "\n") + f"    {new}" + body
     a, b = m.span(4)
     return raw[:a] + body + raw[b:]
-
-
-def _fixed_xml(name: str, parent: str, child: str, O: Pose) -> list[str]:
-    """A new link ``name`` and the fixed joint ``<name>_joint`` parent -> child."""
-    return [
-        f"  <link name={quoteattr(name)}/>\n",
-        f'  <joint name={quoteattr(name + "_joint")} type="fixed">\n',
-        f"    <parent link={quoteattr(parent)}/>\n",
-        f"    <child link={quoteattr(child)}/>\n",
-        f'    <origin xyz="{" ".join(_num(v) for v in O[:3, 3])}" '
-        f'rpy="{" ".join(_num(v) for v in matrix_to_rpy(O[:3, :3]))}"/>\n',
-        "  </joint>\n",
-    ]
 
 
 def _check(text, src, cal, set_label, tips, top, T_top_user, rng) -> float:
@@ -565,7 +498,7 @@ def _check(text, src, cal, set_label, tips, top, T_top_user, rng) -> float:
             for j in chain:
                 T = T @ _origin(j, src)
                 if _moves(j):
-                    T = T @ _motion(j.get("type", ""), _axis_of(j, src), theta[r, i])
+                    T = T @ motion(j.get("type", ""), axis_of(j, src), theta[r, i])
                     i += 1
             want = np.eye(4)
             want[:3, :3], want[:3, 3] = out.R_user_cam[r], out.p_user[r]
