@@ -268,9 +268,15 @@ def compensate_program(
         cal, prog, q_prog, uframes or {}, utools or {}, scale, tol_mm, decimals,
         registers,
     )  # fmt: skip
+    # (an incremental move's joints are a displacement: not a pose to warn about)
     q_all = np.vstack([q_prog, run.q_seed[np.all(np.isfinite(run.q_seed), axis=1)]])
+    rows = [
+        i + 1
+        for i in range(q_all.shape[0])
+        if i >= len(prog.points) or not prog.points[i].why_not
+    ]
     _warn_extrapolation(
-        cal, q_all, range(1, q_all.shape[0] + 1), f"{path} (targets in order)", emit
+        cal, q_all[np.array(rows, int) - 1], rows, f"{path} (targets in order)", emit
     )
     keep = (res_j.status != "ok") if res_j is not None else np.zeros(0, bool)
     q_w_in = res_j.q_ctrl if res_j is not None else q_prog
