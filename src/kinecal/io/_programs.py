@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from kinecal.errors import DataError
+from kinecal.io._cartesian_base import code_only
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float
 
@@ -310,7 +311,7 @@ def read_program(path: str | Path, fmt: str | None = None) -> Program:
     except OSError as exc:
         raise DataError(f"{p}: cannot read program ({exc.strerror}).") from exc
     try:
-        points, skipped = _READERS[fmt](text)
+        points, skipped = _READERS[fmt](code_only(text, fmt))
     except DataError as exc:
         raise DataError(f"{p}: {exc}") from None
     if not points:
@@ -417,7 +418,7 @@ def write_program(
 
 def written_joints(prog: Program, text: str, robot: RobotDescription) -> Float:
     """The joint targets (N, n) [rad, m] a written program holds (read back)."""
-    points, _ = _READERS[prog.format](text)
+    points, _ = _READERS[prog.format](code_only(text, prog.format))
     if not points:
         return np.zeros((0, robot.n_joints))
     return program_joints(
