@@ -76,6 +76,9 @@ def test_fanuc_untaught_other_kinds_coord_rail_comments_and_german(
         "\tRX =   172.722  mm,\tRY = -1615.912  mm,\tRZ =  -927.308  mm,\r\n"
         "\tRW =   154.724 deg,\tRP =    71.404 deg,\tRR =   175.445 deg\r\n};\r\n"
     ) + rail
+    p4 = re.search(r"P\[4\]\{.*?\r\n\};", text, re.S).group(0)
+    gp2 = p4.split("GP1:")[1].replace("\r\n};", "")
+    text = text.replace(p4, p4.replace("\r\n};", "\r\n   GP2:" + gp2 + "\r\n};"))
     text = text.replace("/END", extra + "/END")
     moves = [
         "   2:  !L P[2] 100mm/sec FINE COORD ;",  # a comment: not P[2]'s move
@@ -96,9 +99,10 @@ def test_fanuc_untaught_other_kinds_coord_rail_comments_and_german(
     assert "(P[11]): left as written: its values are written as RX, RY" in err
     assert "(P[12]): left as written: extended axes (E1..)" in err
     assert "(P[3]): left as written: a coordinated move (COORD, line 7)" in err
+    assert "(P[4] GP2): left as written: motion group 2" in err
     assert "P[1]" not in err and "P[2])" not in err, err
-    # P[1], P[2] corrected; P[3] (COORD), P[4] (UF 3), P[10..12], PR[5] left.
-    assert (summary["ok"], summary["left"], summary["unreachable"]) == (2, 6, 0)
+    # P[1], P[2] corrected; P[3] (COORD), P[4] (UF 3) and its GP2, P[10..12], PR[5] left.
+    assert (summary["ok"], summary["left"], summary["unreachable"]) == (2, 7, 0)
     new = out.read_bytes().decode()
     lines = text.splitlines()
     rec = [k + 1 for k, ln in enumerate(lines) if ln.startswith(("P[1]", "P[2]"))]
@@ -109,11 +113,10 @@ def test_krl_comments_and_external_axes(tracker_twin, model_file, run_cli, tmp_p
     cal = tracker_twin.calibrated
     q = _taught(np.random.default_rng(4), 3)
     text = WRITERS["krl"][0](cal, q, _targets(cal, q))
+    xp3 = re.search(r"XP3=\{[^}]*E1 0.0", text).group(0)
+    text = text.replace(xp3, xp3[:-3] + "350.0")  # a rail at 350 mm
     text = text.replace(
         "DECL E6POS XP3=", ";DECL E6POS XP9={X 1,Y 2,Z 3,A 0,B 0,C 0}\nDECL E6POS XP3="
-    ).replace(  # fmt: skip
-        re.search(r"XP3=\{[^}]*E1 0.0", text).group(0),
-        re.search(r"XP3=\{[^}]*E1 0.0", text).group(0)[:-3] + "350.0",
     )
     res, out = _run(run_cli, model_file, tmp_path, "krl", text, "real.dat")
     summary = _summary(res)
@@ -135,6 +138,35 @@ def test_krl_comments_and_external_axes(tracker_twin, model_file, run_cli, tmp_p
     _same_outside(src, out.read_text(), [5])
     new5 = out.read_text().splitlines()[4]
     assert new5.endswith("; was {A1 5, A2 5, A3 5, A4 5, A5 5, A6 5}")
+
+
+def test_krl_geometric_operator_operands_are_left(
+    tracker_twin, model_file, run_cli, tmp_path
+):
+    """``LIN XP1:{X 0,..,Z 50,..}`` / ``LIN OFS:XP1`` go to a combination: neither the
+    offset aggregate (a displacement) nor XP1 is corrected as a pose to reach (XP1 was,
+    and the offset would have been with a joint target before it)."""
+    cal = tracker_twin.calibrated
+    q = _taught(np.random.default_rng(7), 2)
+    dat = WRITERS["krl"][0](cal, q, _targets(cal, q))
+    xp1 = re.search(r"DECL E6POS XP1=.*", dat).group(0)
+    deg = ", ".join(f"A{i + 1} {v:.3f}" for i, v in enumerate(np.degrees(q[0])))
+    src = "\n".join([
+        "DEF geo( )", xp1.replace("XP1", "XP9"), xp1, "DECL FRAME OFS",
+        "OFS={X 0,Y 0,Z 50,A 0,B 0,C 0}", f"PTP {{{deg}}}", "LIN XP9",
+        "LIN XP1:{X 0,Y 0,Z 100,A 0,B 0,C 0} C_DIS", "LIN OFS:XP1", "END", "",
+    ])  # fmt: skip
+    src = src.replace(
+        "DEF geo( )\n", "DEF geo( )\n$BASE=BASE_DATA[1]\n$TOOL=TOOL_DATA[2]\n"
+    )
+    res, _ = _run(run_cli, model_file, tmp_path, "krl", src, "geo.src")
+    err = res.stderr
+    assert res.returncode == 0, err
+    for name, line in (("XP1", 10), ("OFS", 11), ("POS", 10)):
+        why = f"({name}): left as written: an operand of the geometric operator ':' "
+        assert why + f"(line {line})" in err, err
+    assert "(XP9)" not in err and "1 joint targets corrected" in err, err
+    assert "4 Cartesian targets: 1 corrected, 3 left as written" in err, err
 
 
 def test_rapid_arrays_runtime_targets_do_moves_track_and_comments(

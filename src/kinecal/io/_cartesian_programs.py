@@ -231,6 +231,13 @@ def _fanuc(text: str, values: dict | None = None) -> list[CartesianPoint]:
     stop = pos.end() + end.start() if end else len(text)
     out = []
     for rec in re.finditer(r"(P\[[^\]]*\])\s*\{(.*?)\};", text[pos.end() : stop], re.S):
+        for g in re.finditer(r"GP([2-9])\s*:(.*?)(?=GP\d+\s*:|\Z)", rec.group(2), re.S):
+            if re.search(r"\bX\s*=", g.group(2)):  # another robot's pose
+                a = pos.end() + rec.start(2) + g.start()
+                out.append(CartesianPoint(
+                    f"{rec.group(1)} GP{g.group(1)}", _line(text, a), ((a, a),), (), (),
+                    None, "", "", why_not=f"motion group {g.group(1)} (another robot): "
+                    "only group 1 is corrected"))  # fmt: skip
         g1 = re.search(r"GP1\s*:(.*?)(?=GP\d+\s*:|\Z)", rec.group(2), re.S)
         if g1 is None or re.search(r"\bJ\d+\s*=", g1.group(1)):
             continue  # no group 1, or joints (the joint reader's)
@@ -345,6 +352,23 @@ _EXT_AXES = ("external axes set (a rail or turntable may carry the robot: its ba
              "would move with them): not handled")  # fmt: skip
 
 
+_KRL_GEO = re.compile(r"^[ \t]*S?(?:PTP|LIN|CIRC)\b[^\n]*:[^\n]*$", re.I | re.M)
+
+
+def _krl_geo(text: str, m: re.Match, name: str) -> str:
+    """Why the aggregate ``m`` (named ``name``) is no pose to reach on its own: an
+    operand of the geometric operator of a motion (``LIN XP1:{X 0,..,Z 50,..}``,
+    ``LIN OFS:XP1``: the motion goes to the combination), else ''."""
+    for g in _KRL_GEO.finditer(text):
+        if g.start() <= m.start() < g.end() or re.search(
+            rf"(?<![\w$]){re.escape(name)}(?!\w)", g.group(0)
+        ):
+            return ("an operand of the geometric operator ':' (line "
+                    f"{_line(text, g.start())}): the motion goes to the combination, "
+                    "not handled")  # fmt: skip
+    return ""
+
+
 def _krl(text: str) -> list[CartesianPoint]:
     fdat = _krl_fdat(text)
     out = []
@@ -385,6 +409,7 @@ def _krl(text: str) -> list[CartesianPoint]:
             if ipo == "BASE"
             else f"IPO_FRAME #{ipo} (an external TCP) is not handled"
         )
+        why = why or _krl_geo(text, m, name)
         ext = re.findall(rf"(?<![\w$])E[1-6]\s+({_NUM})", body)
         if not why and any(float(v) != 0.0 for v in ext):
             why = _EXT_AXES
