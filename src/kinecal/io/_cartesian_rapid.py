@@ -239,6 +239,12 @@ def _rapid(text: str) -> list[CartesianPoint]:
         else:
             ulist = uses.get(name, [])
         why = _rapid_why(text, ulist)
+        assigned = m.group(1) and re.search(
+            rf"^[ \t]*{re.escape(name)}\b(?:\.\w+)*\s*:=", text, re.M | re.I
+        )
+        if assigned and not why:
+            why = (f"the program assigns it (line {_line(text, assigned.start())}): the "
+                   "value moved to is not the one declared")  # fmt: skip
         e_at = text.find("[", text.find("]", conf[-1][1]) + 1)
         if e_at < _close(text, open_at) and not why:
             ext = [float(text[a:b]) for a, b in _bracket_list(text, e_at)]
