@@ -218,3 +218,17 @@ def test_urscript_commented_moves_are_no_targets(
     res, _ = _run(run_cli, model_file, tmp_path, "urscript", text, "real.script")
     summary = _summary(res)
     assert (summary["n"], summary["ok"], summary["left"]) == (2, 2, 0), res.stderr
+
+
+def test_utf16_program_is_refused_with_a_clear_error(model_file, run_cli, tmp_path):
+    """A module saved as UTF-16 (RobotStudio, a Windows editor) said "no joint or
+    Cartesian target found"; now it names the encoding (exit 2)."""
+    text = "MODULE M\n  PROC main()\n    MoveAbsJ [[0,0,0,0,30,0],[9E9,9E9,9E9,9E9,9E9,9E9]],"
+    src, out = tmp_path / "u16.mod", tmp_path / "out.mod"
+    src.write_bytes(
+        (text + " v100, fine, tool0;\n  ENDPROC\nENDMODULE\n").encode("utf-16")
+    )
+    res = run_cli("compensate", src, "--model", model_file, "--out", out)
+    assert res.returncode == 2, res.stderr
+    assert "u16.mod: line 1: a NUL byte: the file is UTF-16 encoded" in res.stderr
+    assert "Traceback" not in res.stderr and not out.exists()

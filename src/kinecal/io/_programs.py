@@ -307,9 +307,17 @@ def read_program(path: str | Path, fmt: str | None = None) -> Program:
         )
     try:
         # Bytes that are not UTF-8 (Shift-JIS comments, Latin-1) survive as surrogates.
-        text = p.read_bytes().decode("utf-8", errors="surrogateescape")
+        raw = p.read_bytes()
     except OSError as exc:
         raise DataError(f"{p}: cannot read program ({exc.strerror}).") from exc
+    if b"\0" in raw:  # UTF-16 (a RobotStudio or Windows editor save) or binary
+        line = raw[: raw.index(b"\0")].count(b"\n") + 1
+        raise DataError(
+            f"{p}: line {line}: a NUL byte: the "
+            "file is UTF-16 encoded or binary; expected a text program (UTF-8, ASCII or "
+            "the controller's 8-bit encoding): save it as UTF-8."
+        )
+    text = raw.decode("utf-8", errors="surrogateescape")
     try:
         points, skipped = _READERS[fmt](code_only(text, fmt))
     except DataError as exc:
