@@ -13,7 +13,8 @@ through `compensate` in the audit of issue 34), rebuilt here as small synthetic 
   (``CRobT()``, another module) were not counted; ``MoveLDO`` read the signal's value
   as the tool; a robtarget with external axes set (a track) or that the program assigns
   (``p.trans.z := ..``, ``p := Offs(..)``) was corrected;
-- KRL: an E6POS with E1..E6 set likewise.
+- KRL: an E6POS with E1..E6 set likewise; a motion to a point declared elsewhere
+  (``PTP XP1`` in the .src, ``PTP XHOME``) was not counted.
 Each is now counted and left with its reason, or not a target at all (a comment); the
 other targets are corrected as before and the file is kept byte for byte elsewhere."""
 
@@ -131,11 +132,18 @@ def test_krl_comments_and_external_axes(tracker_twin, model_file, run_cli, tmp_p
     src = (
         "DEF real( )\n;FOLD ---- GO HOME ----\n"
         "; PTP {A1 0.000, A2 -90.000, A3 90.000, A4 0.000, A5 0.000, A6 0.000}\n"
-        f";ENDFOLD\nPTP {{{agg}}} ; was {{A1 5, A2 5, A3 5, A4 5, A5 5, A6 5}}\nEND\n"
+        f";ENDFOLD\nPTP {{{agg}}} ; was {{A1 5, A2 5, A3 5, A4 5, A5 5, A6 5}}\n"
+        "PTP XHOME\nLIN XP1 C_DIS\nEND\n"
     )
     res, out = _run(run_cli, model_file, tmp_path, "krl", src, "real.src")
     assert res.returncode == 0, res.stderr
     assert "1 joint targets corrected" in res.stderr, res.stderr
+    # Targets whose value is elsewhere (the .dat, $config.dat): counted and left.
+    for name, line in (("XHOME", 6), ("XP1", 7)):
+        assert (
+            f"line {line} ({name}): left as written: its value is not in this file"
+            in res.stderr
+        ), res.stderr
     _same_outside(src, out.read_text(), [5])
     new5 = out.read_text().splitlines()[4]
     assert new5.endswith("; was {A1 5, A2 5, A3 5, A4 5, A5 5, A6 5}")

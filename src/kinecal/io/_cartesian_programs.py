@@ -369,9 +369,31 @@ def _krl_geo(text: str, m: re.Match, name: str) -> str:
     return ""
 
 
+def _krl_unseen(text: str) -> list[CartesianPoint]:
+    """The targets motions go to by name whose value this file does not hold (``PTP
+    XP1`` in a ``.src``: XP1 is in the ``.dat``; ``PTP XHOME``: in ``$config.dat``),
+    counted and left once each."""
+    out, seen = [], set()
+    for m in re.finditer(r"^[ \t]*S?(?:PTP|LIN|CIRC)[ \t]+(\w+)(?:[ \t]*,[ \t]*(\w+))?",
+                         text, re.I | re.M):  # fmt: skip
+        for k in (1, 2):
+            name = m.group(k)
+            if not name or name.upper() in seen or re.match(r"C_\w+$", name, re.I):
+                continue
+            seen.add(name.upper())
+            if re.search(rf"(?<![\w$]){re.escape(name)}\s*=\s*\{{", text, re.I):
+                continue  # its aggregate is here
+            at = m.start(k)
+            out.append(CartesianPoint(
+                name, _line(text, at), ((at, at),), (), (), None, "", "",
+                why_not="its value is not in this file (compensate the .dat that "
+                "declares it; a HOME in $config.dat; or set at run time)"))  # fmt: skip
+    return out
+
+
 def _krl(text: str) -> list[CartesianPoint]:
     fdat = _krl_fdat(text)
-    out = []
+    out = _krl_unseen(text)
     for m in re.finditer(r"\{([^{}]*)\}", text):
         body, at = m.group(1), m.start(1)
         left = _krl_left(text, m, body)
