@@ -88,7 +88,7 @@ def code_only(text: str, fmt: str) -> str:
     if fmt == "fanuc-ls":
         head = re.search(r"^/POS\b", text, re.M)
         stop = head.start() if head else len(text)
-        blank = re.compile(r"^(\s*\d*\s*:\s*)((?:!|//).*)$", re.M)
+        blank = re.compile(r"^([ \t]*\d*[ \t]*:[ \t]*)((?:!|//)[^\r\n]*)", re.M)
         return blank.sub(lambda m: m.group(1) + " " * len(m.group(2)),
                          text[:stop]) + text[stop:]  # fmt: skip
     mark = _COMMENT.get(fmt)
