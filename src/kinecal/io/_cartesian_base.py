@@ -22,6 +22,7 @@ __all__ = [
     "CartesianPoint",
     "apply_offset",
     "check_pose_numbers",
+    "code_only",
     "point_pose",
     "remove_offset",
 ]
@@ -74,6 +75,36 @@ class CartesianPoint:
     register: str = ""
     offset: tuple = ()
     follows: str = ""
+
+
+_COMMENT = {"rapid": "!", "krl": ";", "urscript": "#"}
+
+
+def code_only(text: str, fmt: str) -> str:
+    """``text`` with its comments blanked (each character a space, the line ends kept,
+    so positions stay those of ``text``): RAPID ``!``, KRL ``;`` (``;FOLD`` lines too),
+    URScript ``#`` to the end of the line outside strings; FANUC ``!comment`` and
+    ``//``-commented instruction lines. A target written in a comment is no target."""
+    if fmt == "fanuc-ls":
+        head = re.search(r"^/POS\b", text, re.M)
+        stop = head.start() if head else len(text)
+        blank = re.compile(r"^([ \t]*\d*[ \t]*:[ \t]*)((?:!|//)[^\r\n]*)", re.M)
+        return blank.sub(lambda m: m.group(1) + " " * len(m.group(2)),
+                         text[:stop]) + text[stop:]  # fmt: skip
+    mark = _COMMENT.get(fmt)
+    if mark is None or mark not in text:
+        return text
+    lines = text.split("\n")
+    for k, line in enumerate(lines):
+        if mark not in line:
+            continue
+        quoted = False
+        for i, ch in enumerate(line):
+            quoted ^= ch == '"'
+            if ch == mark and not quoted:
+                lines[k] = line[:i] + re.sub(r"[^\r]", " ", line[i:])
+                break
+    return "\n".join(lines)
 
 
 def _line(text: str, pos: int) -> int:

@@ -35,6 +35,7 @@ is for the caller (:mod:`kinecal.workflows._compensate`).
 from __future__ import annotations
 
 import re
+from dataclasses import replace
 
 import numpy as np
 
@@ -47,6 +48,7 @@ from kinecal.io._cartesian_base import (
     _line,
     _make,
     apply_offset,
+    code_only,
     offset_targets,
     point_pose,
     remove_offset,
@@ -90,6 +92,10 @@ def _fanuc_config(text: str, at: int, name: str, cfg: str) -> tuple:
     return (*letters, *t)
 
 
+# UFRAME_NUM / UTOOL_NUM, as a German-language controller writes them too
+_UF, _UT = "(?:UFRAME_NUM|BENUTZER_NUM)", "(?:UTOOL_NUM|WKZ_NUM)"
+
+
 def _active(text: str, pos: int, what: str) -> str | None:
     """The ``UFRAME_NUM`` / ``UTOOL_NUM`` set last before ``pos`` ('' for none, None for
     one set from a register or expression)."""
@@ -117,8 +123,7 @@ def _fanuc_registers(
         key = idx.group(1) if idx else m.group(1)
         at = m.start(1)
         uses.setdefault(key, []).append(
-            (at, _active(text, at, "UFRAME_NUM"), _active(text, at, "UTOOL_NUM"),
-             m.group(1))
+            (at, _active(text, at, _UF), _active(text, at, _UT), m.group(1))
         )  # fmt: skip
     out = []
     for key, found in uses.items():
@@ -161,6 +166,39 @@ def _fanuc_registers(
     return out
 
 
+def _fanuc_moving_base(text: str, seg: str, found: list[int]) -> str:
+    """Why a pose cannot be corrected for a fixed robot base: extended axes in its group
+    (``E1 = .. mm``: an integrated rail or turntable carries the robot), or a
+    coordinated move (``COORD``: the pose is relative to the leader group's moving
+    frame) at one of the motion references ``found``; '' when neither."""
+    if re.search(r"\bE\d+\s*=", seg):
+        return ("extended axes (E1..) in its group: the robot base moves with them, not "
+                "handled")  # fmt: skip
+    for at in found:
+        line = text[text.rfind("\n", 0, at) + 1 : text.find("\n", at) % (len(text) + 1)]
+        if re.search(r"\bCOORD\b", line):
+            return ("a coordinated move (COORD, line "
+                    f"{_line(text, at)}) uses it: its pose is relative to the leader "
+                    "group's moving frame, not handled")  # fmt: skip
+    return ""
+
+
+def _fanuc_not_pose(seg: str) -> str:
+    """Why the group 1 text ``seg`` of a position holds no X..R pose to correct: not
+    taught (``X = ********``), written in another representation (``RX = ..``: a
+    position of another kind than the world XYZWPR one), or no value at all; '' when it
+    holds one (a malformed one is refused by the reader)."""
+    if re.search(r"\bX\s*=\s*\*", seg):
+        return "not taught: its values are '*' (an uninitialised position)"
+    if re.search(r"\bX\s*=", seg):
+        return ""
+    keys = re.findall(r"\b([A-Z]\w*)\s*=", seg)
+    if keys:
+        return (f"its values are written as {', '.join(keys[:6])}, not X, Y, Z, W, P, R "
+                "or J1..: not handled")  # fmt: skip
+    return "no position values in its group 1"
+
+
 def _moves(
     text: str, name: str, found: list[int], offsets: dict, frames: tuple[str, str]
 ) -> list[tuple]:
@@ -193,11 +231,24 @@ def _fanuc(text: str, values: dict | None = None) -> list[CartesianPoint]:
     stop = pos.end() + end.start() if end else len(text)
     out = []
     for rec in re.finditer(r"(P\[[^\]]*\])\s*\{(.*?)\};", text[pos.end() : stop], re.S):
+        for g in re.finditer(r"GP([2-9])\s*:(.*?)(?=GP\d+\s*:|\Z)", rec.group(2), re.S):
+            if re.search(r"\bX\s*=", g.group(2)):  # another robot's pose
+                a = pos.end() + rec.start(2) + g.start()
+                out.append(CartesianPoint(
+                    f"{rec.group(1)} GP{g.group(1)}", _line(text, a), ((a, a),), (), (),
+                    None, "", "", why_not=f"motion group {g.group(1)} (another robot): "
+                    "only group 1 is corrected"))  # fmt: skip
         g1 = re.search(r"GP1\s*:(.*?)(?=GP\d+\s*:|\Z)", rec.group(2), re.S)
-        if g1 is None or not re.search(r"\bX\s*=", g1.group(1)):
-            continue
+        if g1 is None or re.search(r"\bJ\d+\s*=", g1.group(1)):
+            continue  # no group 1, or joints (the joint reader's)
         seg, at = g1.group(1), pos.end() + rec.start(2) + g1.start(1)
         name = rec.group(1)
+        why = _fanuc_not_pose(seg)
+        if why:
+            at = pos.end() + rec.start(1)
+            out.append(CartesianPoint(name, _line(text, at), ((at, at),), (), (), None,
+                                      "", "", why_not=why))  # fmt: skip
+            continue
         spans = []
         for key, unit in zip("XYZWPR", ("mm",) * 3 + ("deg",) * 3):
             m = re.search(rf"\b{key}\s*=(\s*{_NUM})\s*{unit}", seg)
@@ -209,7 +260,7 @@ def _fanuc(text: str, values: dict | None = None) -> list[CartesianPoint]:
                 )
             spans.append((at + m.start(1), at + m.end(1)))
         frames = re.search(r"\bUF\s*:\s*(\d+)\s*,\s*UT\s*:\s*(\d+)", seg)
-        cfg = re.search(r"\bCONFIG\s*:\s*'([^']*)'", seg)
+        cfg = re.search(r"\b(?:CONFIG|KONFIG)\s*:\s*'([^']*)'", seg)
         if frames is None or cfg is None:
             raise DataError(
                 f"line {_line(text, at)}: {name} lacks 'UF : u, UT : t' or "
@@ -221,6 +272,10 @@ def _fanuc(text: str, values: dict | None = None) -> list[CartesianPoint]:
                    config_spans=((at + cfg.start(1), at + cfg.end(1)),))  # fmt: skip
         n = re.match(r"P\[\s*(\d+)", name)
         found = by_index.get(int(n.group(1)), []) if n else []
+        why = _fanuc_moving_base(text, seg, found)
+        if why:
+            out.append(replace(pt, why_not=why))
+            continue
         out += offset_targets(
             text, pt, _moves(text, name, found, offsets, (pt.frame, pt.tool))
         )
@@ -293,9 +348,52 @@ def _krl_left(text: str, m: re.Match, body: str) -> CartesianPoint | None:
                           ((at, at),), (), (), None, "", "", why_not=why)  # fmt: skip
 
 
+_EXT_AXES = ("external axes set (a rail or turntable may carry the robot: its base "
+             "would move with them): not handled")  # fmt: skip
+
+
+_KRL_GEO = re.compile(r"^[ \t]*S?(?:PTP|LIN|CIRC)\b[^\n]*:[^\n]*$", re.I | re.M)
+
+
+def _krl_geo(text: str, m: re.Match, name: str) -> str:
+    """Why the aggregate ``m`` (named ``name``) is no pose to reach on its own: an
+    operand of the geometric operator of a motion (``LIN XP1:{X 0,..,Z 50,..}``,
+    ``LIN OFS:XP1``: the motion goes to the combination), else ''."""
+    for g in _KRL_GEO.finditer(text):
+        if g.start() <= m.start() < g.end() or re.search(
+            rf"(?<![\w$]){re.escape(name)}(?!\w)", g.group(0)
+        ):
+            return ("an operand of the geometric operator ':' (line "
+                    f"{_line(text, g.start())}): the motion goes to the combination, "
+                    "not handled")  # fmt: skip
+    return ""
+
+
+def _krl_unseen(text: str) -> list[CartesianPoint]:
+    """The targets motions go to by name whose value this file does not hold (``PTP
+    XP1`` in a ``.src``: XP1 is in the ``.dat``; ``PTP XHOME``: in ``$config.dat``),
+    counted and left once each."""
+    out, seen = [], set()
+    for m in re.finditer(r"^[ \t]*S?(?:PTP|LIN|CIRC)[ \t]+(\w+)(?:[ \t]*,[ \t]*(\w+))?",
+                         text, re.I | re.M):  # fmt: skip
+        for k in (1, 2):
+            name = m.group(k)
+            if not name or name.upper() in seen or re.match(r"C_\w+$", name, re.I):
+                continue
+            seen.add(name.upper())
+            if re.search(rf"(?<![\w$]){re.escape(name)}\s*=\s*\{{", text, re.I):
+                continue  # its aggregate is here
+            at = m.start(k)
+            out.append(CartesianPoint(
+                name, _line(text, at), ((at, at),), (), (), None, "", "",
+                why_not="its value is not in this file (compensate the .dat that "
+                "declares it; a HOME in $config.dat; or set at run time)"))  # fmt: skip
+    return out
+
+
 def _krl(text: str) -> list[CartesianPoint]:
     fdat = _krl_fdat(text)
-    out = []
+    out = _krl_unseen(text)
     for m in re.finditer(r"\{([^{}]*)\}", text):
         body, at = m.group(1), m.start(1)
         left = _krl_left(text, m, body)
@@ -333,6 +431,10 @@ def _krl(text: str) -> list[CartesianPoint]:
             if ipo == "BASE"
             else f"IPO_FRAME #{ipo} (an external TCP) is not handled"
         )
+        why = why or _krl_geo(text, m, name)
+        ext = re.findall(rf"(?<![\w$])E[1-6]\s+({_NUM})", body)
+        if not why and any(float(v) != 0.0 for v in ext):
+            why = _EXT_AXES
         cfg_spans: tuple[tuple[int, int], ...] = ()
         if s and t:
             cfg_spans = (
@@ -360,6 +462,7 @@ def read_cartesian(
     DataError
         A malformed target (naming its line).
     """
+    text = code_only(text, fmt)
     if fmt == "fanuc-ls":
         return _fanuc(text, registers)
     return _READERS[fmt](text)

@@ -12,8 +12,10 @@ from kinecal.io._cartesian_base import (
     _NUM,
     CartesianPoint,
     _bracket_list,
+    _close,
     _line,
     _make,
+    code_only,
     offset_targets,
     point_pose,
 )
@@ -61,6 +63,7 @@ _MOVES = {
     "SEARCHL": (2,),
     "SEARCHC": (2, 3),
 }  # fmt: skip
+_SET = ("DO", "AO", "GO")  # MoveLDO p, v, z, tool \\WObj:=w, signal, value
 _MOVES_RE = re.compile(r"\b(" + "|".join(_MOVES) + r")\b([^;]*);", re.I)
 
 
@@ -89,13 +92,13 @@ def _rapid_uses(text: str) -> dict[str, list[tuple[str, str, tuple | None, int]]
         args = [a.strip() for a in re.split(r",(?![^\[(]*[\])])", m.group(2))]
         pos = [p for p in (_positional(a) for a in args) if p]
         where = _MOVES[m.group(1).upper()]
-        if len(pos) < where[-1] + 3:
+        if len(pos) < where[-1] + (5 if m.group(1).upper()[-2:] in _SET else 3):
             continue
         # The tool is the last positional argument; a ...Sync move names a procedure
-        # after it.
-        tool = re.match(
-            r"\s*(\w+)", pos[-2 if m.group(1).upper().endswith("SYNC") else -1]
-        )
+        # after it, a ...DO/AO/GO move a signal and its value.
+        kind = m.group(1).upper()
+        last = -2 if kind.endswith("SYNC") else -3 if kind[-2:] in _SET else -1
+        tool = re.match(r"\s*(\w+)", pos[last])
         w = re.search(r"\\WObj\s*:=\s*(\w+)", m.group(2), re.I)
         pair = (tool.group(1) if tool else "tool0", w.group(1) if w else "wobj0")
         for a in (pos[i] for i in where):
@@ -132,6 +135,7 @@ def rapid_frames(text: str) -> tuple[dict[str, Pose | str], dict[str, Pose | str
     """tooldata and wobjdata of a RAPID text: ({tool name: the tool in the flange frame},
     {wobj name: the object frame in the world frame}) (4, 4) [m], or why it cannot be
     used (str)."""
+    text = code_only(text, "rapid")
     tools: dict[str, Pose | str] = {}
     wobjs: dict[str, Pose | str] = {}
     pat = r"\b(tooldata|wobjdata)\s+(\w+)\s*:=\s*\[\s*(TRUE|FALSE)\s*,"
@@ -173,9 +177,41 @@ def _rapid_why(text: str, ulist: list) -> str:
     return ""
 
 
+def _rapid_unseen(text: str, uses: dict, declared: set[str]) -> list[CartesianPoint]:
+    """Targets counted and left: the elements of robtarget arrays (``CONST robtarget
+    p{3} := [[..], ..]``: the moves index them), and robtargets that moves go to whose
+    value this file does not hold (``VAR robtarget p;`` set by ``CRobT()`` or another
+    instruction at run time, or declared in another module)."""
+    out = []
+    arr = r"\brobtarget\s+(\w+)\s*(\{[^}]*\})\s*:=\s*\["
+    for m in re.finditer(arr, text, re.I):
+        declared.add(m.group(1))
+        end = _close(text, m.end() - 1)
+        depth, n = 0, 0
+        for i in range(m.end() - 1, end):
+            depth += text[i] == "["
+            depth -= text[i] == "]"
+            if text[i] == "[" and depth == 2:  # an element
+                n += 1
+                out.append(CartesianPoint(
+                    f"{m.group(1)}{{{n}}}", _line(text, i), ((i, i),), (), (), None, "",
+                    "", why_not=f"an element of the robtarget array {m.group(1)}"
+                    f"{m.group(2)}: its moves index it, not handled"))  # fmt: skip
+    for name, ulist in uses.items():
+        found = [u for u in ulist if u[2] != ("?",)]
+        if name and name not in declared and found:
+            at = found[0][3]
+            out.append(CartesianPoint(
+                name, _line(text, at), ((at, at),), (), (), None, "", "",
+                why_not="its value is not in this file (set at run time, e.g. by "
+                "CRobT(), or declared in another module)"))  # fmt: skip
+    return out
+
+
 def _rapid(text: str) -> list[CartesianPoint]:
     uses = _rapid_uses(text)
     out = []
+    declared: set[str] = set()
     decl = r"\brobtarget\s+(\w+)\s*:=\s*\[|\b(Move(?:L|J))\s+\["
     for m in re.finditer(decl, text, re.I):
         open_at = m.end() - 1
@@ -203,6 +239,18 @@ def _rapid(text: str) -> list[CartesianPoint]:
         else:
             ulist = uses.get(name, [])
         why = _rapid_why(text, ulist)
+        assigned = m.group(1) and re.search(
+            rf"^[ \t]*{re.escape(name)}\b(?:\.\w+)*\s*:=", text, re.M | re.I
+        )
+        if assigned and not why:
+            why = (f"the program assigns it (line {_line(text, assigned.start())}): the "
+                   "value moved to is not the one declared")  # fmt: skip
+        e_at = text.find("[", text.find("]", conf[-1][1]) + 1)
+        if e_at < _close(text, open_at) and not why:
+            ext = [float(text[a:b]) for a, b in _bracket_list(text, e_at)]
+            if any(abs(v) < 8.9e9 for v in ext):
+                why = ("external axes set in its extax (a track may carry the robot: "
+                       "its base would move with them): not handled")  # fmt: skip
         tool, wobj = ulist[0][:2] if ulist and not why else ("", "")
         pt = _make(text, name, trans + quat, config=config, frame=wobj, tool=tool,
                    config_spans=tuple(conf), why_not=why)  # fmt: skip
@@ -211,4 +259,5 @@ def _rapid(text: str) -> list[CartesianPoint]:
         moves = [(u[2], u[3], _offset_text(name, u[2]) if u[2] else "")
                  for u in ulist if u[2] != ("?",)]  # fmt: skip
         out += offset_targets(text, pt, moves or [(None, 0, "")])
-    return out
+        declared.add(name)
+    return out + _rapid_unseen(text, uses, declared)

@@ -15,6 +15,7 @@ from kinecal.io._cartesian_base import (
     _close,
     _line,
     _make,
+    code_only,
     point_pose,
 )
 from kinecal.typing import Pose
@@ -73,6 +74,7 @@ def urscript_features(text: str) -> dict[str, Pose | str]:
     """Variables used as the frame of ``pose_trans(FEATURE, target)`` in moves: their
     pose in the base frame (4, 4) [m] where the script assigns one literal pose, else
     why it cannot be used."""
+    text = code_only(text, "urscript")
     assigned = _ur_assignments(text)
     out: dict[str, Pose | str] = {}
     for frame in {u[0] for u in _ur_uses(text)[0] if u[0]}:

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from kinecal.errors import DataError
+from kinecal.io._cartesian_base import code_only
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float
 
@@ -306,11 +307,19 @@ def read_program(path: str | Path, fmt: str | None = None) -> Program:
         )
     try:
         # Bytes that are not UTF-8 (Shift-JIS comments, Latin-1) survive as surrogates.
-        text = p.read_bytes().decode("utf-8", errors="surrogateescape")
+        raw = p.read_bytes()
     except OSError as exc:
         raise DataError(f"{p}: cannot read program ({exc.strerror}).") from exc
+    if b"\0" in raw:  # UTF-16 (a RobotStudio or Windows editor save) or binary
+        line = raw[: raw.index(b"\0")].count(b"\n") + 1
+        raise DataError(
+            f"{p}: line {line}: a NUL byte: the "
+            "file is UTF-16 encoded or binary; expected a text program (UTF-8, ASCII or "
+            "the controller's 8-bit encoding): save it as UTF-8."
+        )
+    text = raw.decode("utf-8", errors="surrogateescape")
     try:
-        points, skipped = _READERS[fmt](text)
+        points, skipped = _READERS[fmt](code_only(text, fmt))
     except DataError as exc:
         raise DataError(f"{p}: {exc}") from None
     if not points:
@@ -417,7 +426,7 @@ def write_program(
 
 def written_joints(prog: Program, text: str, robot: RobotDescription) -> Float:
     """The joint targets (N, n) [rad, m] a written program holds (read back)."""
-    points, _ = _READERS[prog.format](text)
+    points, _ = _READERS[prog.format](code_only(text, prog.format))
     if not points:
         return np.zeros((0, robot.n_joints))
     return program_joints(
