@@ -31,7 +31,8 @@ ROOT = Path(__file__).resolve().parents[2]
 REAL = ROOT / "tests" / "data" / "real"
 
 
-def _auto(robot, train):
+def auto_calibration(robot, train):
+    """The default's calibration (``--model auto``) of ``train``."""
     sel = select_model(robot, train)
     opts = CalibrationOptions().tuned(prior_scale=sel.prior_scale)
     return sel.calibration(opts) or calibrate(robot, train, sel.spec, opts)
@@ -42,7 +43,13 @@ def _region_shift(seed: int):
     seen by a moved tracker (10 um noise); the truth has self-weight compliance and
     transmission errors (the paper's full model)."""
     e = experiment2(seed, tracker=LaserTracker(10e-6, 5e-6))
-    robot, pool = e.truth.robot, e.test
+    return (e.truth.robot, *new_region(e.truth.robot, e.test, seed))
+
+
+def new_region(robot, pool, seed: int):
+    """(train, test) of ``pool``: 150 poses from one end of the workspace (along the
+    direction the poses' joint-frame positions spread most), 800 from the other, the
+    test ones seen by a tracker moved 25 deg and 0.4 m."""
     f = pose_features(pool.q_ctrl, robot)
     c = f - f.mean(axis=0)
     along = c @ np.linalg.svd(c, full_matrices=False)[2][0]
@@ -51,7 +58,18 @@ def _region_shift(seed: int):
     train = pool.subset(np.sort(rng.choice(np.flatnonzero(along < lo), 150, False)))
     test = pool.subset(np.sort(rng.choice(np.flatnonzero(along > hi), 800, False)))
     R = euler_zyx_to_matrix(np.radians([25.0, 1.0, -2.0]))
-    return robot, train, replace(test, p=test.p @ R.T + [0.2, -0.3, 0.05])
+    return train, replace(test, p=test.p @ R.T + [0.2, -0.3, 0.05])
+
+
+def robot_new_region(name: str, seed: int, **truth):
+    """(robot, train, test): a twin of a built-in robot (``robot_truth(**truth)``)
+    measured in one region and scored in another after the tracker moved."""
+    robot = load_robot(name)
+    e = robot_experiment(
+        robot_truth(robot, seed=seed, **truth), seed, n_train=10, n_test=3000,
+        tracker=LaserTracker(10e-6, 0.0),
+    )  # fmt: skip
+    return (robot, *new_region(robot, e.test, seed))
 
 
 @pytest.mark.parametrize(
@@ -67,7 +85,9 @@ def test_default_transfers_to_another_region_and_set_up(seed):
         for m in ("kinematic", "ntm", "rfcm", "full")
     }
     best = min(v.metrics.rms_mm for v in fixed.values())
-    got = evaluate(_auto(robot, train).calibrated, test, refit=refit).metrics.rms_mm
+    got = evaluate(
+        auto_calibration(robot, train).calibrated, test, refit=refit
+    ).metrics.rms_mm
     assert got <= 1.1 * best, (got, {k: v.metrics.rms_mm for k, v in fixed.items()})
 
 
@@ -76,21 +96,7 @@ def _gravity_shift(name: str, seed: int):
     layout or link masses, a payload) and geometric errors but no transmission errors,
     as the real UR10 of issue 31 behaved: 150 training poses from one end of the
     workspace, 800 test poses from the other seen by a moved tracker."""
-    robot = load_robot(name)
-    truth = robot_truth(robot, seed=seed, ntm_amplitude=0.0)
-    e = robot_experiment(
-        truth, seed, n_train=10, n_test=3000, tracker=LaserTracker(10e-6, 0.0)
-    )
-    f = pose_features(e.test.q_ctrl, robot)
-    c = f - f.mean(axis=0)
-    along = c @ np.linalg.svd(c, full_matrices=False)[2][0]
-    lo, hi = np.quantile(along, [0.4, 0.6])
-    rng = np.random.default_rng(seed)
-    pool = e.test
-    train = pool.subset(np.sort(rng.choice(np.flatnonzero(along < lo), 150, False)))
-    test = pool.subset(np.sort(rng.choice(np.flatnonzero(along > hi), 800, False)))
-    R = euler_zyx_to_matrix(np.radians([25.0, 1.0, -2.0]))
-    return robot, train, replace(test, p=test.p @ R.T + [0.2, -0.3, 0.05])
+    return robot_new_region(name, seed, ntm_amplitude=0.0)
 
 
 @pytest.mark.parametrize(
@@ -122,7 +128,9 @@ def test_gravity_is_chosen_over_fourier_terms_where_the_truth_has_no_transmissio
         for m in models
     }
     best = min(v.metrics.rms_mm for v in fixed.values())
-    got = evaluate(_auto(robot, train).calibrated, test, refit=refit).metrics.rms_mm
+    got = evaluate(
+        auto_calibration(robot, train).calibrated, test, refit=refit
+    ).metrics.rms_mm
     assert got <= 1.05 * best, (got, {k: v.metrics.rms_mm for k, v in fixed.items()})
 
 
@@ -132,7 +140,7 @@ def _nested(robot, meas, k):
     for t in make_folds(meas, k).test:
         mask = np.zeros(meas.n, bool)
         mask[t] = True
-        res = _auto(robot, meas.subset(~mask))
+        res = auto_calibration(robot, meas.subset(~mask))
         m = evaluate(res.calibrated, meas.subset(mask)).metrics
         num, den = num + m.rms_mm**2 * m.n, den + m.n
     return float(np.sqrt(num / den))
