@@ -28,7 +28,10 @@ from tests.compensation.test_issue_34_cartesian import (
     _taught,
 )
 from tests.compensation.test_issue_34_registers import _apply
-from tests.compensation.test_issue_34_urscript_rapid import _rapid_numbers, _robtarget
+from tests.compensation.test_issue_34_urscript_rapid import (
+    _robtarget,
+    rapid_frame_lines,
+)
 
 # Offset registers: X, Y, Z [mm], W, P, R [deg].
 PR_VALUES = {
@@ -242,13 +245,9 @@ def test_issue_34_rapid_reltool_with_three_rotations_reached(
     T_goal = _targets(cal, q)
     rel = [([5, -4, -25], [12, -8, 30]), ([0, 10, 0], [-20, 15, -40])]
     base = [T_goal[i] @ np.linalg.inv(_reltool_M(*rel[i])) for i in range(2)]
-    tool, uf = _rapid_numbers(T_TOOL), _rapid_numbers(T_UF)
     lines = [
         "MODULE Rel",
-        "PERS tooldata tGrip:=[TRUE,[[" + ",".join(f"{x:.9f}" for x in tool[:3]) + "],["
-        + ",".join(f"{x:.9f}" for x in tool[3:]) + "]],[1,[0,0,1],[1,0,0,0],0,0,0]];",
-        "PERS wobjdata wTable:=[FALSE,TRUE,\"\",[[" + ",".join(f"{x:.9f}" for x in uf[:3])
-        + "],[" + ",".join(f"{x:.9f}" for x in uf[3:]) + "]],[[0,0,0],[1,0,0,0]]];",
+        *rapid_frame_lines(),
         *(_robtarget(f"p{i}", base[i], flags[i]) for i in range(2)),
         "PROC main()",
         "  MoveJ RelTool(p0, 5, -4, -25 \\Rx:=12 \\Ry:=-8 \\Rz:=30), v200, fine, "

@@ -137,6 +137,22 @@ def _reltool(T, d_mm, rz_deg):
     return T @ M
 
 
+def rapid_frame_lines():
+    """The tooldata tGrip (T_TOOL) and wobjdata wTable (T_UF) declarations."""
+    tool, uf = _rapid_numbers(T_TOOL), _rapid_numbers(T_UF)
+
+    def pose(v):
+        return (
+            "[[" + ",".join(f"{x:.9f}" for x in v[:3]) + "],["
+            + ",".join(f"{x:.9f}" for x in v[3:]) + "]]"
+        )  # fmt: skip
+
+    return [
+        f"PERS tooldata tGrip:=[TRUE,{pose(tool)},[1,[0,0,1],[1,0,0,0],0,0,0]];",
+        f'PERS wobjdata wTable:=[FALSE,TRUE,"",{pose(uf)},[[0,0,0],[1,0,0,0]]];',
+    ]
+
+
 def _robtarget(name, T, flags):
     v = _rapid_numbers(T)
     return (
@@ -167,14 +183,9 @@ def test_issue_34_rapid_offs_and_reltool(tracker_twin, model_file, run_cli, tmp_
     M[:3, :3] = Rotation.from_euler("z", 30, degrees=True).as_matrix()
     M[:3, 3] = [0, 0, -0.025]
     base[3] = T_obj[3] @ np.linalg.inv(M)  # p3: only RelTool(p3, 0, 0, -25 \Rz:=30)
-    tool = _rapid_numbers(T_TOOL)
-    uf = _rapid_numbers(T_UF)
     lines = [
         "MODULE Offsets",
-        "PERS tooldata tGrip:=[TRUE,[[" + ",".join(f"{x:.9f}" for x in tool[:3]) + "],["
-        + ",".join(f"{x:.9f}" for x in tool[3:]) + "]],[1,[0,0,1],[1,0,0,0],0,0,0]];",
-        "PERS wobjdata wTable:=[FALSE,TRUE,\"\",[[" + ",".join(f"{x:.9f}" for x in uf[:3])
-        + "],[" + ",".join(f"{x:.9f}" for x in uf[3:]) + "]],[[0,0,0],[1,0,0,0]]];",
+        *rapid_frame_lines(),
         *(_robtarget(f"p{i}", base[i], flags[i]) for i in range(5)),
         "PROC main()",
         "  MoveL p0, v200, fine, tGrip\\WObj:=wTable;",
