@@ -23,25 +23,13 @@ from tests.compensation.test_issue_34_cartesian import (
     _targets,
     _taught,
 )
+from tests.compensation.test_issue_34_registers import _sysframe
 from tests.fuzz.strategies import FUZZ, ODD_CELLS, mutated_text
 
 # Half the suite's examples each (two targets of a kind; KINECAL_FUZZ_EXAMPLES scales
 # them as the others).
 HALF = settings(FUZZ, max_examples=max(FUZZ.max_examples // 2, 1))
 NUMBER = re.compile(r"-?\d*\.\d+|-?\d+")
-
-
-def _va_block(name: str, T: np.ndarray) -> list[str]:
-    x, y, z, w, p, r = (f"{v:9.3f}" for v in _numbers("fanuc-ls", T))
-    return [
-        f"[*SYSTEM*]${name}  Storage: CMOS  Access: RW  : ARRAY[1,9] OF POSITION",
-        "    [1,1] = ",
-        "  Group: 1   Config: N U T, 0, 0, 0",
-        f"  X: {x}   Y: {y}   Z: {z}",
-        f"  W: {w}   P: {p}   R: {r}",
-        "    [1,2] = Uninitialized",
-        "",
-    ]
 
 
 def _files(model: Path) -> dict[str, str]:
@@ -75,9 +63,7 @@ def _files(model: Path) -> dict[str, str]:
     ]  # fmt: skip
     return {
         "prog.ls": "\n".join(prog) + "\n",
-        "SYSFRAME.VA": "\r\n".join(
-            [*_va_block("MNUFRAME", T_UF), *_va_block("MNUTOOL", T_TOOL)]
-        ),
+        "SYSFRAME.VA": _sysframe(),
         "POSREG.VA": "\r\n".join([*regs, ""]),
         "frames.yaml": f"uframe:\n  1: [{row(T_UF)}]\nutool:\n  1: [{row(T_TOOL)}]\n",
     }
