@@ -206,12 +206,18 @@ def test_issue_34_malformed_register_files_name_file_and_line(
         message = message.replace("POSREG.VA", "x.va")
         va.write_text(text.replace("NUMREG", "MNUFRAME").replace("$MNUFRAME ", "$X "))
         message = r"x.va: no '\$MNUFRAME' or '\$MNUTOOL' variable"
+    _refused(run_cli, prog, model_file, va, message)
+
+
+def _refused(run_cli, prog, model_file, frames, message):
+    """compensate PROG --frames FRAMES fails with ``message``, writing nothing."""
+    out = prog.parent / "o.ls"
     res = run_cli(
-        "compensate", str(prog), "--model", str(model_file), "--out",
-        str(tmp_path / "o.ls"), "--frames", str(va),
+        "compensate", str(prog), "--model", str(model_file), "--out", str(out),
+        "--frames", str(frames),
     )  # fmt: skip
     assert res.returncode != 0 and re.search(message, res.stderr), res.stderr
-    assert "Traceback" not in res.stderr and not (tmp_path / "o.ls").exists()
+    assert "Traceback" not in res.stderr and not out.exists()
 
 
 @pytest.mark.parametrize(
@@ -232,11 +238,7 @@ def test_issue_34_bad_posreg_yaml(
     prog = tmp_path / "prs.ls"
     prog.write_bytes(_program(1).encode())
     (tmp_path / "f.yaml").write_text(yaml_text)
-    res = run_cli(
-        "compensate", str(prog), "--model", str(model_file), "--out",
-        str(tmp_path / "o.ls"), "--frames", str(tmp_path / "f.yaml"),
-    )  # fmt: skip
-    assert res.returncode != 0 and re.search(message, res.stderr), res.stderr
+    _refused(run_cli, prog, model_file, tmp_path / "f.yaml", message)
 
 
 def test_issue_34_register_program_is_an_output(
