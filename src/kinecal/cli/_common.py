@@ -214,19 +214,21 @@ def parse_pose(text: str | None, name: str, sizes: tuple[int, ...] = (6,)) -> An
     import numpy as np
 
     from kinecal.geometry import euler_transform
+    from kinecal.workflows._frames import FAR_FRAME, FAR_TOOL, far_from_origin
 
     n = len(text.split(",")) if len(sizes) > 1 else sizes[0]
     vals = parse_floats(text, n, name)
     if n not in sizes:
         raise click.BadParameter("expected X,Y,Z or X,Y,Z,R,W,P", param_hint=name)
     vals += [0.0] * (6 - n)
-    far = 5e3 if "tool" in name else 1e5  # mm: a tool within 5 m, a frame within 100 m
-    if float(np.linalg.norm(vals[:3])) > far:
+    T = euler_transform([*np.array(vals[:3]) * 1e-3, *np.radians(vals[3:])])
+    far = FAR_TOOL if "tool" in name else FAR_FRAME
+    if far_from_origin(T, far):  # wrong units (a tool within 5 m, a frame 100 m)
         raise click.BadParameter(
-            f"{text!r} puts it {np.linalg.norm(vals[:3]):.4g} mm away; expected mm and "
-            f"at most {far / 1e3:g} m", param_hint=name,
+            f"{text!r} puts it {np.linalg.norm(vals[:3]):.4g} mm away; expected mm "
+            f"and at most {far:g} m", param_hint=name,
         )  # fmt: skip
-    return euler_transform([*np.array(vals[:3]) * 1e-3, *np.radians(vals[3:])])
+    return T
 
 
 def parse_int_list(
