@@ -1,7 +1,5 @@
 """``python -m kinecal`` runs the command-line interface."""
 
-import sys
+from kinecal._entry import run
 
-from kinecal.cli import main
-
-sys.exit(main())
+run()
