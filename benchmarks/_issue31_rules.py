@@ -1,0 +1,489 @@
+"""Issue 31 study: choice rules for ``--model auto`` scored on new sessions (not run by
+``make test``; ``python -m benchmarks._issue31_rules [--quick] [--out FILE]``; with
+``--real`` the shipped real sets, the selection inside every fold). Results of a run:
+``benchmarks/issue31-rules.json``; the table: docs/theory.md, "Accuracy on a new
+session".
+
+Per case (the FR3 real halves a -> b; the region-shift twins of the tests, 6 seeds; the
+gravity-shift twins, 9; the matrix of twins: four robots x four truths x region-shift
+and random splits x 40 and 150 poses x 2 seeds), one selection is run and every
+candidate is calibrated on the training poses as ``calibrate`` does; each rule picks or
+builds a model from what the selection saw (the candidates' region-fold scores and
+their per-row held-out errors), and the model is scored on the new session (user and
+tool frames refitted). The ratio is to the best of the fixed models ``kinematic``,
+``ntm``, ``full`` (and ``rfcm`` where the robot has it).
+
+Rules:
+- ``current``: :func:`choose_candidate` (1.75 paired SE of log fold ratios, 1 %), the
+  choice calibrated as the command does (what ships).
+- ``worst``: the smallest candidate whose worst-region RMS is within 1 % of the best
+  worst-region RMS.
+- ``se1``/``se2.5``: the current rule with another factor.
+- ``physical``: the current eligible set, fewest Fourier terms first, then size.
+- ``stack``: stacking weights (non-negative, summing to 1) that minimise the pooled
+  held-out squared error of the weighted prediction over the candidates that nest in
+  the largest (rfcm's link model does not); the model is the weighted average of their
+  parameter vectors in the largest layout (absent terms 0), the link self-weight terms
+  averaged as their products with the compliances (``stack_plain``: plainly);
+  ``stack_pred``: the weighted average of the candidates' predictions (each with its
+  own refitted frames; not one model file: the bound of what averaging could give).
+- ``pbma``, ``pbma_plain``, ``pbma_pred``: the same with pseudo-BMA weights (Gaussian
+  held-out log density per candidate).
+- ``stack_el``, ``stack_el_pred``: stacking among the candidates the current rule
+  finds eligible only.
+- ``shrink``: the current choice with its Fourier terms multiplied by c in [0, 1], c the
+  held-out optimal blend of the choice and its nest without Fourier terms.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import nnls
+
+from kinecal.geometry import euler_zyx_to_matrix
+from kinecal.identification import (
+    CalibrationOptions,
+    calibrate,
+    evaluate,
+    pose_features,
+    select_model,
+)
+from kinecal.identification.selection import _foldfit, _select
+from kinecal.io import read_measurements
+from kinecal.measurement._calibrated import CalibratedModel
+from kinecal.robot import load_robot
+from kinecal.simulation import LaserTracker, robot_experiment, robot_truth
+
+ROOT = Path(__file__).resolve().parents[1]
+REAL = ROOT / "tests" / "data" / "real"
+REFIT = ("user", "tool")
+TRUTHS = {
+    "geometry": {"ntm_amplitude": 0.0, "deflection": 1e-9},
+    "gravity": {"ntm_amplitude": 0.0},
+    "transmission": {"deflection": 1e-9},
+    "both": {},
+}
+ROBOTS = ("ur5e", "generic-6r", "franka-fr3", "fanuc-lrmate200id-7l")
+
+
+# --- the held-out errors the selection's folds saw --------------------------------
+_REC: dict[str, list[np.ndarray]] = {}
+_CUR: list[list[np.ndarray]] = []
+
+
+@contextmanager
+def recording() -> Iterator[None]:
+    """Within it, every candidate's per-row held-out position errors of the selection's
+    folds are kept in ``_REC`` (by ``repr`` of the layout); the selection's own
+    functions are put back after."""
+    mfe, folds_of = _foldfit.metrics_from_errors, _select._folds_of
+
+    def record(e_p, e_r=None):
+        if _CUR:
+            _CUR[-1].append(np.asarray(e_p))
+        return mfe(e_p, e_r)
+
+    def folds(task):
+        _CUR.append([])
+        out = folds_of(task)
+        _REC[repr(task[0].spec)] = _CUR.pop()[1::2]  # (training, held-out) per fold
+        return out
+
+    _REC.clear()
+    _foldfit.metrics_from_errors, _select._folds_of = record, folds
+    try:
+        yield
+    finally:
+        _foldfit.metrics_from_errors, _select._folds_of = mfe, folds_of
+
+
+# --- cases ------------------------------------------------------------------------
+def _moved(test):
+    R = euler_zyx_to_matrix(np.radians([25.0, 1.0, -2.0]))
+    return replace(test, p=test.p @ R.T + [0.2, -0.3, 0.05])
+
+
+def twin(name: str, truth: str, split: str, n: int, seed: int):
+    robot = load_robot(name)
+    e = robot_experiment(
+        robot_truth(robot, seed=seed, **TRUTHS[truth]), seed, n_train=10, n_test=3000,
+        tracker=LaserTracker(10e-6, 0.0),
+    )  # fmt: skip
+    pool, rng = e.test, np.random.default_rng(seed)
+    if split == "region":
+        f = pose_features(pool.q_ctrl, robot)
+        c = f - f.mean(axis=0)
+        along = c @ np.linalg.svd(c, full_matrices=False)[2][0]
+        lo, hi = np.quantile(along, [0.4, 0.6])
+        tr = np.sort(rng.choice(np.flatnonzero(along < lo), n, False))
+        te = np.sort(rng.choice(np.flatnonzero(along > hi), 800, False))
+    else:
+        perm = rng.permutation(pool.n)
+        tr, te = np.sort(perm[:n]), np.sort(perm[n : n + 800])
+    return robot, pool.subset(tr), _moved(pool.subset(te))
+
+
+def exp2(seed: int):
+    """The region-shift twin of tests/identification/test_issue_31_transfer.py: the
+    paper's experiment 2 truth (self-weight and transmission), 150 poses at one end,
+    800 at the other after the tracker moved."""
+    from kinecal.simulation import experiment2
+
+    e = experiment2(seed, tracker=LaserTracker(10e-6, 5e-6))
+    robot, pool = e.truth.robot, e.test
+    f = pose_features(pool.q_ctrl, robot)
+    c = f - f.mean(axis=0)
+    along = c @ np.linalg.svd(c, full_matrices=False)[2][0]
+    lo, hi = np.quantile(along, [0.4, 0.6])
+    rng = np.random.default_rng(seed)
+    tr = np.sort(rng.choice(np.flatnonzero(along < lo), 150, False))
+    te = np.sort(rng.choice(np.flatnonzero(along > hi), 800, False))
+    return robot, pool.subset(tr), _moved(pool.subset(te))
+
+
+def fr3():
+    robot = load_robot("franka-fr3")
+    a = read_measurements(REAL / "fr3_session_a.csv", robot, check=False)
+    b = read_measurements(REAL / "fr3_session_b_board_moved.csv", robot, check=False)
+    return robot, a, b
+
+
+# --- rules ------------------------------------------------------------------------
+def _fourier(c) -> int:
+    s = c.spec
+    return len(s.ntm_joints or ()) * 2 * (s.ntm_order or 0)
+
+
+def _eligible(cands, factor):
+    old = _select._SE_FACTOR
+    _select._SE_FACTOR = factor
+    try:
+        best = min(cands, key=lambda c: c.cv_rms_mm)
+        return [c for c in cands if _select._within_one_se(c, best)]
+    finally:
+        _select._SE_FACTOR = old
+
+
+def _smallest(cs):
+    return min(cs, key=lambda c: (c.size, -1.0 / c.prior_scale, c.cv_rms_mm))
+
+
+def stack_weights(E: list[np.ndarray]) -> np.ndarray:
+    """Non-negative weights summing to 1 minimising ||sum w_k e_k||^2."""
+    A = np.column_stack([e.ravel() for e in E])
+    scale = np.sqrt(np.mean(A**2))
+    big = 1e3 * np.sqrt(A.shape[0])
+    A = np.vstack([A / scale, big * np.ones((1, A.shape[1]))])
+    b = np.zeros(A.shape[0])
+    b[-1] = big
+    w, _ = nnls(A, b)
+    return w / w.sum()
+
+
+def pbma_weights(E: list[np.ndarray]) -> np.ndarray:
+    elpd = []
+    for e in E:
+        s2 = np.mean(e**2)
+        elpd.append(-0.5 * e.size * np.log(s2) - 0.5 * np.sum(e**2) / s2)
+    elpd = np.asarray(elpd)
+    w = np.exp(elpd - elpd.max())
+    return w / w.sum()
+
+
+class Case:
+    """One selection, every candidate calibrated on the training poses (as ``calibrate``
+    does for that layout) and scored on the new session."""
+
+    def __init__(self, robot, train, test, refit=REFIT):
+        self.robot, self.train, self.test, self.refit = robot, train, test, refit
+        with recording():  # one worker (jobs=1): the folds run in this process
+            self.sel = sel = select_model(robot, train)
+        self.cands = [c for c in sel.candidates if c.prior_scale == 1.0]
+        fitted = sel.scorer.fitted
+        self.errors = {
+            c.label: np.vstack(_REC[repr(fitted[(c.label, 1.0)].spec)])
+            for c in self.cands
+        }
+        self.cal = {
+            c.label: calibrate(robot, train, c.spec).calibrated for c in self.cands
+        }
+        ev = {lb: evaluate(c, test, refit=refit) for lb, c in self.cal.items()}
+        self.new = {lb: e.metrics.rms_mm for lb, e in ev.items()}
+        self.refit_errors = {lb: e.error_xyz_mm for lb, e in ev.items()}
+        self.big = max(self.cal.values(), key=lambda c: c.model.size)
+        # the candidates whose parameters, laid out in the largest model, predict alike
+        # (nested: another link model, rfcm's, does not)
+        own = {lb: c.predict(test).raw_position for lb, c in self.cal.items()}
+        self.nested = [
+            c
+            for c in self.cands
+            if np.max(
+                np.abs(
+                    self._big(self.in_big(c.label)).predict(test).raw_position
+                    - own[c.label]
+                )
+            )
+            < 1e-7
+        ]
+        self.own = own
+
+    def in_big(self, label) -> np.ndarray:
+        c = self.cal[label]
+        return self.big.layout.transfer(c.params, c.layout)
+
+    def _big(self, x) -> CalibratedModel:
+        P = self.big.model.size
+        return CalibratedModel(
+            self.big.model,
+            x,
+            np.full(P, np.nan),
+            ["estimated"] * P,
+            self.big.reference_payload_kg,
+        )
+
+    def average(self, w: np.ndarray, cands, bilinear: bool = True) -> CalibratedModel:
+        """The weighted average of the candidates' parameters in the largest layout.
+        With ``bilinear`` the link self-weight terms s (whose deflection is lambda_j s_k,
+        Eq. 24-26) are averaged as the products: s = sum_m w_m (lam . lam_m) s_m /
+        |lam|^2, lam the averaged compliances."""
+        xs = [self.in_big(c.label) for c in cands]
+        x = sum(wk * xk for wk, xk in zip(w, xs, strict=True))
+        specs = self.big.layout.specs
+        link = np.array([sp.group == "link" for sp in specs])
+        lam = np.array([sp.group == "load" for sp in specs])
+        if bilinear and link.any() and lam.any():
+            la = x[lam]
+            den = la @ la
+            num = sum(
+                wk * (la @ xk[lam]) * xk[link] for wk, xk in zip(w, xs, strict=True)
+            )
+            x[link] = num / den if den > 0 else 0.0
+        return self._big(x)
+
+    def score(self, cal: CalibratedModel) -> float:
+        return evaluate(cal, self.test, refit=self.refit).metrics.rms_mm
+
+    def nonlinearity(self, w: np.ndarray, cands) -> tuple[float, float]:
+        """RMS (mm) of the averaged parameters' prediction less the averaged predictions,
+        and of the candidates' predictions about that average (test joints, training
+        frames)."""
+        preds = [self.own[c.label] for c in cands]
+        mean = sum(wk * p for wk, p in zip(w, preds, strict=True))
+        avg = self.average(w, cands).predict(self.test).raw_position
+        spread = np.sqrt(
+            sum(
+                wk * np.mean(np.sum((p - mean) ** 2, 1))
+                for wk, p in zip(w, preds, strict=True)
+            )
+        )
+        return float(1e3 * np.sqrt(np.mean(np.sum((avg - mean) ** 2, 1)))), float(
+            1e3 * spread
+        )
+
+
+def rules(case: Case) -> dict[str, object]:
+    cands = case.cands
+    cur = next(c for c in case.sel.candidates if c.chosen)
+    out: dict[str, object] = {}
+    opts = CalibrationOptions().tuned(prior_scale=cur.prior_scale)
+    res = case.sel.calibration(opts) or calibrate(
+        case.robot, case.train, case.sel.spec, opts
+    )
+    out["current"] = case.score(res.calibrated)
+    worst = {c.label: max(c.fold_rms_mm) for c in cands}
+    wbest = min(worst.values())
+    out["worst"] = case.new[
+        _smallest([c for c in cands if worst[c.label] <= 1.01 * wbest]).label
+    ]
+    for f in (1.0, 2.5):
+        out[f"se{f:g}"] = case.new[_smallest(_eligible(cands, f)).label]
+    el = _eligible(cands, _select._SE_FACTOR)
+    out["physical"] = case.new[min(el, key=lambda c: (_fourier(c), c.size)).label]
+    nest = case.nested
+    E = [case.errors[c.label] for c in nest]
+    for name, w in (("stack", stack_weights(E)), ("pbma", pbma_weights(E))):
+        out[name] = case.score(case.average(w, nest))
+        out[name + "_plain"] = case.score(case.average(w, nest, bilinear=False))
+        errs = [case.refit_errors[c.label] for c in nest]
+        pred = sum(wk * e for wk, e in zip(w, errs, strict=True))
+        out[name + "_pred"] = float(np.sqrt(np.mean(np.sum(pred**2, 1))))
+        out[name + "_w"] = {
+            c.label: round(float(x), 3)
+            for c, x in zip(nest, w, strict=True)
+            if x > 1e-3
+        }
+        if name == "stack":
+            out["nonlin_mm"], out["spread_mm"] = case.nonlinearity(w, nest)
+    out["not_nested"] = [c.label for c in cands if c not in nest]
+    # stacking among the candidates the current rule finds eligible only
+    el = [c for c in nest if c in _eligible(cands, _select._SE_FACTOR)]
+    w = stack_weights([case.errors[c.label] for c in el])
+    out["stack_el"] = case.score(case.average(w, el, bilinear=False))
+    pred = sum(wk * case.refit_errors[c.label] for wk, c in zip(w, el, strict=True))
+    out["stack_el_pred"] = float(np.sqrt(np.mean(np.sum(pred**2, 1))))
+    # shrink the choice's Fourier terms toward its nest without them
+    nest = _nest(cur, cands)
+    if nest is None:
+        out["shrink"], out["shrink_c"] = out["current"], 1.0
+    else:
+        e1, e0 = case.errors[cur.label].ravel(), case.errors[nest.label].ravel()
+        d = e1 - e0
+        c = float(np.clip(-(e0 @ d) / (d @ d), 0.0, 1.0)) if d @ d > 0 else 1.0
+        cal = case.cal[cur.label]
+        x = cal.params.copy()
+        ntm = np.array([s.group == "ntm" for s in cal.layout.specs])
+        x[ntm] *= c
+        out["shrink"] = case.score(replace(cal, params=x))
+        out["shrink_c"] = round(c, 3)
+    out["chosen"] = cur.label
+    out["new"] = {k: round(v, 5) for k, v in case.new.items()}
+    return out
+
+
+def _nest(cur, cands):
+    if _fourier(cur) == 0:
+        return None
+    s = cur.spec
+    for c in cands:
+        t = c.spec
+        if _fourier(c) == 0 and (t.load, t.link) == (s.load, s.link):
+            return c
+    return None
+
+
+def fixed(robot, train, test) -> dict[str, float]:
+    models = ["kinematic", "ntm", "full"] + (["rfcm"] if robot.self_weight else [])
+    out = {}
+    for m in models:
+        try:
+            out[m] = evaluate(
+                calibrate(robot, train, m).calibrated, test, refit=REFIT
+            ).metrics.rms_mm
+        except ValueError:
+            pass
+    return out
+
+
+def run_case(key):
+    if key == ("fr3", "a->b"):
+        robot, train, test = fr3()
+    elif key[0] == "exp2":
+        robot, train, test = exp2(key[1])
+    else:
+        robot, train, test = twin(*key)
+    fx = fixed(robot, train, test)
+    best = min(fx.values())
+    got = rules(Case(robot, train, test))
+    ratios = {
+        k: round(v / best, 4)
+        for k, v in got.items()
+        if isinstance(v, float)
+        and k not in ("nonlin_mm", "spread_mm", "shrink_c", "not_nested")
+    }
+    return {
+        "case": list(key),
+        "best_fixed_mm": best,
+        "fixed": fx,
+        "ratio": ratios,
+        **{k: v for k, v in got.items() if k not in ratios},
+    }
+
+
+def cases(quick: bool):
+    out = [("fr3", "a->b")]
+    out += [("exp2", s) for s in range(6)]  # the region-shift twin tests
+    out += [
+        (r, "gravity", "region", 150, s)
+        for r in ("ur10e", "franka-fr3", "fanuc-lrmate200id")
+        for s in range(3)
+    ]  # the gravity-shift tests
+    seeds = (0,) if quick else (0, 1)
+    for n in (40, 150):
+        for split in ("region", "random"):
+            for s in seeds:
+                for r in ROBOTS:
+                    for t in TRUTHS:
+                        out.append((r, t, split, n, s))
+    return out
+
+
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser()
+    p.add_argument("--quick", action="store_true")
+    p.add_argument("--out", default="issue31-rules.jsonl")
+    p.add_argument("--only", default="")
+    p.add_argument("--part", default="0/1")
+    p.add_argument("--real", action="store_true", help="the shipped real sets, nested")
+    a = p.parse_args(argv)
+    if a.real:
+        real_main(a.out)
+        return
+    i, m = map(int, a.part.split("/"))
+    todo = [c for c in cases(a.quick) if a.only in " ".join(map(str, c))][i::m]
+    with open(a.out, "a") as f:
+        for key in todo:
+            row = run_case(key)
+            f.write(json.dumps(row) + "\n")
+            f.flush()
+            print(row["case"], row["ratio"], file=sys.stderr)
+
+
+# --- the shipped real sets, the selection inside every fold -----------------------
+REAL_SETS = {
+    "ur10e": ("ur10_mocap.csv", "ur10e"),
+    "fr3": ("fr3_session_a.csv", "franka-fr3"),
+    "tiago": (
+        "tiago_mocap.csv",
+        str(ROOT / "examples" / "data" / "tiago_figaroh_qualisys" / "tiago.yaml"),
+    ),
+}
+
+
+def nested(name: str, k: int | None) -> dict[str, float]:
+    """Pooled held-out RMS (mm) of every rule with the selection inside every fold
+    (``k`` None: leave one pose out), as tests/identification/test_issue_31_transfer.py
+    does for the default; also the fixed kinematic and full models on the same folds."""
+    from kinecal.identification import make_folds
+
+    f, rb = REAL_SETS[name]
+    robot = load_robot(rb)
+    meas = read_measurements(REAL / f, robot, check=False)
+    if k is None:
+        k = len({tuple(np.round(q, 9)) for q in meas.q_ctrl})
+    num: dict[str, float] = {}
+    den = 0
+    for t in make_folds(meas, k).test:
+        mask = np.zeros(meas.n, bool)
+        mask[t] = True
+        case = Case(robot, meas.subset(~mask), meas.subset(mask), refit=())
+        got = {k_: v for k_, v in rules(case).items() if isinstance(v, float)}
+        got |= {m: case.new[m] for m in ("kinematic", "full") if m in case.new}
+        n = int(mask.sum())
+        for key, v in got.items():
+            if key in ("nonlin_mm", "spread_mm", "shrink_c"):
+                continue
+            num[key] = num.get(key, 0.0) + v**2 * n
+        den += n
+    return {key: round(float(np.sqrt(v / den)), 4) for key, v in num.items()}
+
+
+def real_main(out: str) -> None:
+    with open(out, "a") as f:
+        for name in REAL_SETS:
+            for k in (5, None):
+                row = {"set": name, "k": k or "loo", "rms_mm": nested(name, k)}
+                f.write(json.dumps(row) + "\n")
+                f.flush()
+                print(row, file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
