@@ -29,6 +29,9 @@
  * The function releases the interpreter lock, so callers may run disjoint pose ranges
  * [k0, k1) on several threads.
  *
+ * gram() forms the products of the normal equations (J^T J, J^T r) of such a Jacobian
+ * for kinecal/identification/_normal.py, where the CPU has AVX (see there).
+ *
  * Only the stable ABI of Python 3.11 is used (Py_LIMITED_API; setup.py sets it too), so
  * one build (a wheel tagged abi3) serves every CPython from 3.11 on.
  */

@@ -495,7 +495,7 @@ def gram(
     Jt = J.transpose(2, 1, 0)  # (P', c, N)
     if Jt.dtype != np.float64 or not Jt.flags.c_contiguous or hi <= lo:
         return None
-    _, c, N = Jt.shape
+    c = Jt.shape[1]
     w = np.empty(0) if row_weights is None else row_weights
     out = np.zeros((hi - lo + 1, hi - lo + 1))
     _ckernel.gram(
