@@ -2,7 +2,7 @@
 Jacobian, or those a Jacobian evaluated by blocks of poses gives.
 
 The products of a held Jacobian in the model's memory are the compiled kernel's
-(:func:`kinecal.models._kernel.gram`: 0.76x BLAS dsyrk's time at 2000 poses x 50
+(:func:`kinecal.models._kernel.gram`: 0.76-0.85x the time of BLAS's at 2000 poses x 50
 parameters) where it serves, BLAS's otherwise; the two agree to rounding."""
 
 from __future__ import annotations

@@ -1028,8 +1028,8 @@ done:
    in cache), whose products are summed four columns a vector in tiles of 2 x 4 outputs,
    multiplies and adds apart (no fused multiply-adds, as the kernel). For the tall, narrow
    products of a calibration this beats BLAS dsyrk on the same Jacobian (2000 poses x 50
-   parameters, one AVX core: 0.44 against 0.58 ms): dsyrk reads the 48 kB-strided rows
-   of the Jacobian in place. AVX only (GCC and Clang on x86), chosen at run time; GRAM
+   parameters, one AVX core: 0.49-0.51 against 0.58-0.60 ms): dsyrk reads the 48
+   kB-strided rows of the Jacobian in place. AVX only (GCC and Clang on x86), chosen at run time; GRAM
    says whether it serves, and the caller uses BLAS otherwise. The sums are in a fixed
    order: the same numbers on every run and thread count. */
 #if (defined(__GNUC__) || defined(__clang__)) && (defined(__x86_64__) || defined(__i386__))

@@ -488,7 +488,8 @@ def gram(
     Returns ``G`` (k + 1, k + 1), k = hi - lo, its upper triangle filled: ``G[:k, :k]``
     the upper triangle of ``Xᵀ X`` and ``G[:k, k]`` ``Xᵀ r``, X the columns with the
     rows of pose i multiplied by ``row_weights[i]``, as r. The same numbers as the BLAS
-    products to rounding (other sums), at 0.76x their time (2000 poses x 50 parameters).
+    products to rounding (other sums), at 0.76-0.85x their time (2000 poses x 50
+    parameters, one core).
     """
     if _ckernel is None or not getattr(_ckernel, "GRAM", 0) or _mode() == "numpy":
         return None
