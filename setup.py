@@ -24,14 +24,21 @@ NOTE = Path("kinecal", "models", "_ckernel_build.txt")
 class BuildExt(build_ext):
     """GCC, Clang and MSVC: no fused multiply-adds, so that every build rounds alike
     (ARM64 compilers contract a * b + c by default, MSVC before 17.0 under its default
-    /fp:precise). A failed build of the kernel is reported in a banner and a note
-    installed with the package."""
+    /fp:precise). GCC and Clang optimise with -O3 whatever the Python was built with
+    (Debian's and Ubuntu's own Pythons pass -O2: the kernel ran 1.3x slower, 0.95
+    against 0.71 ms for the full model's Jacobian of 2000 poses, with the same numbers).
+    A failed build of the kernel is reported in a banner and a note installed with the
+    package."""
 
     def build_extensions(self) -> None:
         kind = self.compiler.compiler_type
         for ext in self.extensions:
             if kind == "unix":
-                ext.extra_compile_args = [*ext.extra_compile_args, "-ffp-contract=off"]
+                ext.extra_compile_args = [
+                    *ext.extra_compile_args,
+                    "-O3",
+                    "-ffp-contract=off",
+                ]
             elif kind == "msvc":
                 ext.extra_compile_args = [*ext.extra_compile_args, *self._msvc_args()]
         super().build_extensions()

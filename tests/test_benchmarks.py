@@ -79,8 +79,8 @@ def test_the_instruction_count_helper_evaluates_the_model(tmp_path):
 
 def test_the_issue_36_helpers():
     """The import-time parser sums self times by top package; the JᵀJ floor counts one
-    triangle of the symmetric product."""
-    from benchmarks._issue36 import import_times, jtj_floor_seconds
+    triangle of the symmetric product; the per-pass blocks of poses hold every row."""
+    from benchmarks._issue36 import _pass_blocks, import_times, jtj_floor_seconds
 
     text = (
         "import time: self [us] | cumulative | imported package\n"
@@ -94,3 +94,7 @@ def test_the_issue_36_helpers():
     assert t["numpy"] == pytest.approx(1.5e-3) and t["kinecal"] == pytest.approx(2e-3)
     assert t["total"] == pytest.approx(3.8e-3) and t["yaml"] == 0.0
     assert jtj_floor_seconds(6000, 50, 1e9) == pytest.approx(6000 * 50 * 51 / 1e9)
+    X = np.random.default_rng(0).standard_normal((4, 3 * 7))
+    blocks = _pass_blocks(X, poses=3)  # 3 + 3 + 1 poses
+    assert [b.shape for b in blocks] == [(9, 4), (9, 4), (3, 4)]
+    assert np.allclose(sum(b.T @ b for b in blocks), X @ X.T, rtol=1e-13, atol=0)

