@@ -28,6 +28,7 @@ from kinecal.robot import RobotDescription, dump_robot
 __all__ = [
     "MAX_PAYLOAD_KG",
     "check_frames",
+    "check_info",
     "check_payload",
     "check_value",
     "document_fingerprint",
@@ -163,3 +164,61 @@ def check_frames(doc: Any, derived: dict[str, Any], p: Path) -> None:
                     f"{unit}; frames_mm_deg is computed from the parameters (edit "
                     "the parameters, or delete the block)."
                 )
+
+
+_KINDS = ("point", "pose", "sensor")
+
+
+def check_info(info: Any, robot: RobotDescription, cam_rotation: bool, p: Path) -> None:
+    """The ``info`` block's fields kinecal reads back: ``kind`` (the data the model was
+    calibrated on: it decides which data ``evaluate`` accepts), ``n``, and
+    ``calibrated_joint_range`` (N pairs [lo, hi] in deg, mm for a prismatic joint: the
+    extrapolation warnings of ``evaluate`` and ``compensate``). A damaged block would
+    silence those checks or turn them into nonsense. Other keys are free."""
+    if not info:
+        return
+    where = f"{p}: info"
+    kind = info.get("kind")
+    if kind is not None:
+        if kind not in _KINDS:
+            raise ConfigError(
+                f"{where}.kind: {kind!r}; expected one of {', '.join(_KINDS)} (the data "
+                "the model was calibrated on)."
+            )
+        if kind != "point" and not cam_rotation:
+            raise ConfigError(
+                f"{where}.kind: {kind!r}, but model.cam_rotation is false (a model of "
+                f"{kind} data has the tool orientation); expected 'point'."
+            )
+    n = info.get("n")
+    if n is not None and (isinstance(n, bool) or not isinstance(n, int) or n < 1):
+        raise ConfigError(
+            f"{where}.n: {n!r}; expected the number of poses, a positive integer."
+        )
+    if "calibrated_joint_range" in info:
+        _check_range(info["calibrated_joint_range"], robot, f"{where}.calibrated_joint_range")
+
+
+def _check_range(rng: Any, robot: RobotDescription, where: str) -> None:
+    n = robot.n_joints
+    units = ["mm" if pr else "deg" for pr in robot.prismatic]
+    if not isinstance(rng, list) or len(rng) != n:
+        raise ConfigError(
+            f"{where}: {str(rng)[:80]}; expected {n} pairs [lo, hi] (one per joint, "
+            f"{', '.join(units)})."
+        )
+    for i, pair in enumerate(rng):
+        ok = (
+            isinstance(pair, list)
+            and len(pair) == 2
+            and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                for v in pair
+            )
+        )
+        if not ok or not pair[0] <= pair[1]:
+            raise ConfigError(
+                f"{where}[{i}] ({robot.joint_names[i]}): {pair!r}; expected [lo, hi] "
+                f"with finite lo <= hi [{units[i]}] (the joint's range in the "
+                "calibration data)."
+            )

@@ -20,6 +20,7 @@ from kinecal.geometry import euler_zyx_to_matrix, matrix_to_euler_zyx
 from kinecal.io._files import atomic_write_text
 from kinecal.io._model_bounds import (
     check_frames,
+    check_info,
     check_payload,
     check_value,
     document_fingerprint,
@@ -341,6 +342,7 @@ def load_model(path: str | Path) -> CalibratedModel:
         Rb = _rotations(refs, "base", len(spec.sets), where)
         Rc = _rotations(refs, "cam", len(spec.markers), where)
         model = model.with_references(Rb, Rc)
+    check_info(doc.get("info"), robot, spec.cam_rotation, p)
     values, std, status = _parameters(doc["parameters"], model, p)
     cal = CalibratedModel(
         model,
