@@ -64,3 +64,28 @@ def test_damaged_info_block_is_refused(pt, tmp_path, capsys, edit, needles) -> N
     ):
         failed_with(run_kinecal(capsys, *args), str(m), *needles)
     assert not out.exists()
+
+
+def _with_columns(src: Path, dst: Path, names: str, values: str) -> Path:
+    lines = src.read_text().splitlines()
+    dst.write_text(
+        "\n".join([f"{lines[0]},{names}", *(f"{ln},{values}" for ln in lines[1:])]) + "\n"
+    )
+    return dst
+
+
+@pytest.mark.parametrize("columns", ["qw,qx,qy,qz", "w_deg,p_deg,r_deg"])
+def test_constant_orientation_of_turning_poses_is_refused(
+    pt, tmp_path, capsys, columns
+) -> None:
+    """The same orientation on every row while the robot turns the tool (a placeholder
+    quaternion): the calibration ran and wrote a model fitted to it."""
+    value = "1,0,0,0" if columns.startswith("q") else "0,0,0"
+    data = _with_columns(pt["train"], tmp_path / "pose.csv", columns, value)
+    out = tmp_path / "cal"
+    res = run_kinecal(
+        capsys, "calibrate", data, "--robot", "fanuc-lrmate200id", "--model",
+        "kinematic", "--cv", "off", "--out", out, "-q",
+    )
+    failed_with(res, str(data), columns.replace(",", ", "), "turns the tool")
+    assert not out.exists()

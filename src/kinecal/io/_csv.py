@@ -34,7 +34,12 @@ import numpy as np
 from kinecal._stats import median
 from kinecal.errors import DataError
 from kinecal.geometry import quat_wxyz_to_matrix, wpr_to_matrix
-from kinecal.io._checks import DataWarning, data_diagnostics, near_miss
+from kinecal.io._checks import (
+    DataWarning,
+    data_diagnostics,
+    frozen_orientations,
+    near_miss,
+)
 from kinecal.io._table import Table, read_table
 from kinecal.measurement import Diagnostic, Measurements
 from kinecal.robot import RobotDescription
@@ -440,6 +445,7 @@ def _read(
     elif kind == "pose":
         R = quat_wxyz_to_matrix(_unit_quaternions(t))
     meas = Measurements(kind, q, mm_to_m(xyz), R_user_cam=R, **common)  # type: ignore[arg-type]
+    frozen_orientations(meas, robot, ", ".join(_WPR if "w_deg" in t.header else _QUAT))
     return meas, found, R is not None and "qw" in t.header
 
 
