@@ -47,7 +47,10 @@ def _edited_model(pt: dict[str, Path], tmp_path: Path, edit) -> Path:
             lambda d: d["info"].__setitem__("calibrated_joint_range", "all"),
             ("info.calibrated_joint_range", "pairs"),
         ),
-        (lambda d: d["info"].__setitem__("kind", "laser"), ("info.kind", "point, pose")),
+        (
+            lambda d: d["info"].__setitem__("kind", "laser"),
+            ("info.kind", "point, pose"),
+        ),
         (lambda d: d["info"].__setitem__("kind", "sensor"), ("info.kind", "'point'")),
         (lambda d: d["info"].__setitem__("n", "many"), ("info.n", "positive integer")),
     ],
@@ -69,7 +72,8 @@ def test_damaged_info_block_is_refused(pt, tmp_path, capsys, edit, needles) -> N
 def _with_columns(src: Path, dst: Path, names: str, values: str) -> Path:
     lines = src.read_text().splitlines()
     dst.write_text(
-        "\n".join([f"{lines[0]},{names}", *(f"{ln},{values}" for ln in lines[1:])]) + "\n"
+        "\n".join([f"{lines[0]},{names}", *(f"{ln},{values}" for ln in lines[1:])])
+        + "\n"
     )
     return dst
 
@@ -84,8 +88,174 @@ def test_constant_orientation_of_turning_poses_is_refused(
     data = _with_columns(pt["train"], tmp_path / "pose.csv", columns, value)
     out = tmp_path / "cal"
     res = run_kinecal(
-        capsys, "calibrate", data, "--robot", "fanuc-lrmate200id", "--model",
-        "kinematic", "--cv", "off", "--out", out, "-q",
+        capsys,
+        "calibrate",
+        data,
+        "--robot",
+        "fanuc-lrmate200id",
+        "--model",
+        "kinematic",
+        "--cv",
+        "off",
+        "--out",
+        out,
+        "-q",
     )
     failed_with(res, str(data), columns.replace(",", ", "), "turns the tool")
     assert not out.exists()
+
+
+def _joints_out(path: Path) -> list[str]:
+    """The corrected joints and predicted errors of a compensate output."""
+    lines = path.read_text().splitlines()
+    head = lines[0].split(",")
+    keep = [i for i, c in enumerate(head) if c.endswith("_deg") or c == "err_mm"]
+    keep = [i for i in keep if head[i] not in ("w_deg", "p_deg", "r_deg")]
+    return [",".join(ln.split(",")[i] for i in keep) for ln in lines[1:]]
+
+
+def test_compensate_reads_wpr_orientation_like_quaternions(
+    pt, tmp_path, capsys
+) -> None:
+    """TARGETS with w_deg, p_deg, r_deg: the orientation was dropped silently (position
+    only), while the same orientation as qw..qz was compensated."""
+    import numpy as np
+
+    from kinecal.geometry import matrix_to_quat_wxyz, wpr_to_matrix
+
+    wpr = (10.0, 20.0, 30.0)
+    quat = matrix_to_quat_wxyz(wpr_to_matrix(np.radians(np.array(wpr))))
+    files = {
+        "wpr": _with_columns(
+            pt["targets"],
+            tmp_path / "wpr.csv",
+            "w_deg,p_deg,r_deg",
+            ",".join(map(str, wpr)),
+        ),
+        "quat": _with_columns(
+            pt["targets"],
+            tmp_path / "quat.csv",
+            "qw,qx,qy,qz",
+            ",".join(f"{v:.15f}" for v in quat),
+        ),
+        "none": pt["targets"],
+    }
+    got = {}
+    for key, f in files.items():
+        out = tmp_path / f"{key}.out.csv"
+        res = run_kinecal(
+            capsys,
+            "compensate",
+            f,
+            "--model",
+            pt["model"],
+            "--out",
+            out,
+            "--allow-unreachable",
+            "-q",
+        )
+        assert res.code == 0, str(res)
+        got[key] = _joints_out(out)
+
+    def table(key: str):
+        return np.array([[float(v) for v in ln.split(",")] for ln in got[key]])
+
+    # The same orientation: the same corrected joints (up to the solver's tolerance
+    # on these partly unreachable rows); without the orientation: other joints.
+    assert np.abs(table("wpr") - table("quat")).max() < 0.05
+    assert np.abs(table("wpr") - table("none")).max() > 1.0
+
+
+def test_compensate_payload_column(pt, tmp_path, capsys) -> None:
+    """A payload_kg column in TARGETS was ignored (the calibration's payload used
+    instead); now it is the payload of each row, checked like --payload-kg's."""
+    lines = pt["train"].read_text().splitlines()
+    loaded = tmp_path / "loaded.csv"
+    loaded.write_text(
+        "\n".join(
+            [lines[0] + ",payload_kg"]
+            + [f"{ln},{1 + 2 * (i % 2)}" for i, ln in enumerate(lines[1:])]
+        )
+        + "\n"
+    )
+    res = run_kinecal(
+        capsys,
+        "calibrate",
+        loaded,
+        "--robot",
+        "fanuc-lrmate200id",
+        "--model",
+        "rfcm",
+        "--cv",
+        "off",
+        "--out",
+        tmp_path / "cal",
+        "-q",
+    )
+    assert res.code in (0, 3), str(res)
+    model = tmp_path / "cal" / "model.yaml"
+    col = _with_columns(pt["targets"], tmp_path / "load.csv", "payload_kg", "6.5")
+    a, b, c = (tmp_path / f"{k}.csv" for k in "abc")
+    runs = ((col,), (pt["targets"], "--payload-kg", "6.5"), (pt["targets"],))
+    for out, args in zip((a, b, c), runs):
+        res = run_kinecal(
+            capsys, "compensate", *args, "--model", model, "--out", out, "-q"
+        )
+        assert res.code == 0, str(res)
+    assert _joints_out(a) == _joints_out(b) != _joints_out(c)
+    res = run_kinecal(
+        capsys,
+        "compensate",
+        col,
+        "--model",
+        model,
+        "--out",
+        tmp_path / "d.csv",
+        "--payload-kg",
+        "1",
+        "-q",
+    )
+    failed_with(res, str(col), "payload_kg", "--payload-kg")
+    res = run_kinecal(
+        capsys,
+        "compensate",
+        col,
+        "--model",
+        pt["model"],
+        "--out",
+        tmp_path / "e.csv",
+        "-q",
+    )
+    failed_with(res, str(col), "payload_kg", "no reference payload")
+    huge = _with_columns(pt["targets"], tmp_path / "huge.csv", "payload_kg", "5000")
+    out = tmp_path / "f.csv"
+    res = run_kinecal(capsys, "compensate", huge, "--model", model, "--out", out)
+    failed_with(res, str(huge), "line 2, column 'payload_kg'", "expected 0 to")
+    assert not out.exists()
+
+
+def test_measured_payload_beyond_ten_times_rating_is_refused(
+    pt, tmp_path, capsys
+) -> None:
+    """payload_kg 5000 on a 7 kg robot: calibrate failed on reading back its own output
+    model.yaml (the message named the result, not the data); evaluate accepted it."""
+    data = _with_columns(pt["train"], tmp_path / "heavy.csv", "payload_kg", "5000")
+    out = tmp_path / "cal"
+    res = run_kinecal(
+        capsys,
+        "calibrate",
+        data,
+        "--robot",
+        "fanuc-lrmate200id",
+        "--model",
+        "kinematic",
+        "--cv",
+        "off",
+        "--out",
+        out,
+        "-q",
+    )
+    failed_with(res, str(data), "line 2, column 'payload_kg'", "70 kg")
+    assert not out.exists()
+    res = run_kinecal(capsys, "evaluate", data, "--model", pt["model"], "--json")
+    failed_with(res, str(data), "column 'payload_kg'")

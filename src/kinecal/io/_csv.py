@@ -402,6 +402,8 @@ def _read(
             )
         if name != "payload_kg":
             _check_weights(t, col, v)
+        else:
+            _payload(t, robot)
         common[name] = v * scale
     found = [] if limits is None else [limits]
     if kind != "sensor" and targets is not None:
@@ -516,6 +518,7 @@ class CompensationTargets:
     marker_index: np.ndarray
     marker_labels: tuple[str, ...]
     diagnostics: list[Diagnostic] = field(default_factory=list)
+    payload_kg: np.ndarray | None = None  # (N,) [kg], the payload_kg column
 
 
 def read_compensation_targets(
@@ -534,14 +537,39 @@ def read_compensation_targets(
             )
     p = mm_to_m(np.column_stack([t.numbers(c) for c in _POINT]))
     R = None
-    if any(c in t.header for c in _QUAT):
-        for c in _QUAT:
+    if any(c in t.header for c in (*_QUAT, *_WPR)):
+        _, need = _kind(t)  # qw..qz or w_deg, p_deg, r_deg, not both
+        for c in need:
             if c not in t.header:
                 raise DataError(
-                    f"{t.path}: missing column '{c}' (orientation needs qw, qx, qy, qz)."
+                    f"{t.path}: missing column '{c}' (orientation needs "
+                    f"{', '.join(need[3:])})."
                 )
-        R = quat_wxyz_to_matrix(_unit_quaternions(t))
+        if "w_deg" in t.header:
+            R = wpr_to_matrix(deg_to_rad(np.column_stack([t.numbers(c) for c in _WPR])))
+        else:
+            R = quat_wxyz_to_matrix(_unit_quaternions(t))
     si, sl = _labels(t, "set")
     mi, ml = _labels(t, "marker")
     found = [] if limits is None else [limits]
-    return CompensationTargets(t, cols, p, q, R, si, sl, mi, ml, found)
+    load = _payload(t, robot) if "payload_kg" in t.header else None
+    return CompensationTargets(t, cols, p, q, R, si, sl, mi, ml, found, load)
+
+
+def _payload(t: Table, robot: RobotDescription) -> np.ndarray:
+    """The ``payload_kg`` column [kg]: finite, >= 0, and at most 10 x the robot's
+    rated payload (a model file cannot hold more; a unit mistake: g, lb)."""
+    from kinecal.io._model_bounds import MAX_PAYLOAD_KG, RATED_FACTOR
+
+    v = t.numbers("payload_kg")
+    rated = robot.rated_payload_kg
+    hi = MAX_PAYLOAD_KG if rated is None else RATED_FACTOR * rated
+    bad = np.flatnonzero(~((v >= 0) & (v <= hi)))
+    if bad.size:
+        i = int(bad[0])
+        also = "" if rated is None else f" (10 x the {rated:g} kg rated payload)"
+        raise DataError(
+            f"{t.path}: line {t.lines[i]}, column 'payload_kg': {v[i]:.6g}; expected "
+            f"0 to {hi:.6g} kg{also}: a unit mistake (g, lb)?"
+        )
+    return v

@@ -27,6 +27,7 @@ from kinecal.robot import RobotDescription, dump_robot
 
 __all__ = [
     "MAX_PAYLOAD_KG",
+    "RATED_FACTOR",
     "check_frames",
     "check_info",
     "check_payload",
@@ -44,7 +45,7 @@ _MAX_NTM_DEG = 10.0  # a transmission error amplitude (real ones: ~0.01 deg)
 _MAX_COMPLIANCE = 0.1  # rad/m: 0.1 rad of deflection for 1 m of lever (real: ~1e-4)
 _MAX_RATIO = 1e4  # a link's mass per unit payload mass
 MAX_PAYLOAD_KG = 1e4  # a reference payload; and at most 10 x the robot's rated one
-_RATED_FACTOR = 10.0
+RATED_FACTOR = 10.0
 
 
 def robot_fingerprint(robot: RobotDescription) -> str:
@@ -125,7 +126,7 @@ def check_payload(payload: float, robot: RobotDescription, where: str) -> None:
     """The reference payload [kg]: positive, and at most 10 x the robot's rated one
     (or :data:`MAX_PAYLOAD_KG` for a robot without one)."""
     rated = robot.rated_payload_kg
-    hi = MAX_PAYLOAD_KG if rated is None else _RATED_FACTOR * rated
+    hi = MAX_PAYLOAD_KG if rated is None else RATED_FACTOR * rated
     if not 0 < payload <= hi:
         also = "" if rated is None else f" (10 x the robot's rated {rated:g} kg)"
         raise ConfigError(
@@ -196,7 +197,9 @@ def check_info(info: Any, robot: RobotDescription, cam_rotation: bool, p: Path) 
             f"{where}.n: {n!r}; expected the number of poses, a positive integer."
         )
     if "calibrated_joint_range" in info:
-        _check_range(info["calibrated_joint_range"], robot, f"{where}.calibrated_joint_range")
+        _check_range(
+            info["calibrated_joint_range"], robot, f"{where}.calibrated_joint_range"
+        )
 
 
 def _check_range(rng: Any, robot: RobotDescription, where: str) -> None:
@@ -212,7 +215,9 @@ def _check_range(rng: Any, robot: RobotDescription, where: str) -> None:
             isinstance(pair, list)
             and len(pair) == 2
             and all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                isinstance(v, (int, float))
+                and not isinstance(v, bool)
+                and math.isfinite(v)
                 for v in pair
             )
         )
