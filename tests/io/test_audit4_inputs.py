@@ -234,28 +234,52 @@ def test_compensate_payload_column(pt, tmp_path, capsys) -> None:
     assert not out.exists()
 
 
-def test_measured_payload_beyond_ten_times_rating_is_refused(
-    pt, tmp_path, capsys
-) -> None:
-    """payload_kg 5000 on a 7 kg robot: calibrate failed on reading back its own output
-    model.yaml (the message named the result, not the data); evaluate accepted it."""
-    data = _with_columns(pt["train"], tmp_path / "heavy.csv", "payload_kg", "5000")
-    out = tmp_path / "cal"
+_PROGRAMS = Path(__file__).resolve().parents[1] / "data" / "programs"
+
+
+def _cut_line(text: str, needle: str) -> str:
+    """``text`` with the first line holding ``needle`` cut in its middle (a copy
+    interrupted there) and everything after it gone."""
+    at = text.index(needle)
+    end = text.find("\n", at)
+    return text[: (text.rfind("\n", 0, at) + 1 + end) // 2]
+
+
+@pytest.mark.parametrize(
+    ("name", "cut", "needles"),
+    [
+        (
+            "pick_demo.dat",
+            lambda t: _cut_line(t, "XHOME1"),
+            ("line 6", "'{' is not closed"),
+        ),
+        ("pick_demo.dat", lambda t: t.replace("ENDDAT", ""), ("without ENDDAT",)),
+        (
+            "pick_demo.script",
+            lambda t: _cut_line(t, "set_tcp"),
+            ("line 2", "not closed"),
+        ),
+        ("pick_demo.ls", lambda t: t[: t.index("/END")], ("without /END",)),
+        ("pick_demo.mod", lambda t: t[: t.index("ENDMODULE")], ("without ENDMODULE",)),
+        ("pick_demo.mod", lambda t: t.replace("]]", "]", 1), ("not closed",)),
+    ],
+)
+def test_truncated_program_is_refused(pt, tmp_path, capsys, name, cut, needles) -> None:
+    """A program cut short: the target cut in its middle (or the tool set-up) was
+    skipped silently and the rest compensated as if the file were whole."""
+    prog = tmp_path / f"cut{Path(name).suffix}"
+    prog.write_text(cut((_PROGRAMS / name).read_text()))
+    out = tmp_path / f"out{Path(name).suffix}"
     res = run_kinecal(
         capsys,
-        "calibrate",
-        data,
-        "--robot",
-        "fanuc-lrmate200id",
+        "compensate",
+        prog,
         "--model",
-        "kinematic",
-        "--cv",
-        "off",
+        pt["model"],
         "--out",
         out,
+        "--allow-unreachable",
         "-q",
     )
-    failed_with(res, str(data), "line 2, column 'payload_kg'", "70 kg")
+    failed_with(res, str(prog), *needles)
     assert not out.exists()
-    res = run_kinecal(capsys, "evaluate", data, "--model", pt["model"], "--json")
-    failed_with(res, str(data), "column 'payload_kg'")

@@ -402,8 +402,6 @@ def _read(
             )
         if name != "payload_kg":
             _check_weights(t, col, v)
-        else:
-            _payload(t, robot)
         common[name] = v * scale
     found = [] if limits is None else [limits]
     if kind != "sensor" and targets is not None:
