@@ -283,3 +283,68 @@ def test_truncated_program_is_refused(pt, tmp_path, capsys, name, cut, needles) 
     )
     failed_with(res, str(prog), *needles)
     assert not out.exists()
+
+
+_FANUC_URDF = (
+    Path(__file__).resolve().parents[1]
+    / "data"
+    / "fanuc_lrmate200id"
+    / "fanuc_lrmate200id.urdf"
+)
+
+
+def _j1_limit(text: str, new: str) -> str:
+    """The URDF with joint J1's <limit .../> replaced by ``new``."""
+    at = text.index('<joint name="J1"')
+    a = text.index("<limit", at)
+    b = text.index("/>", a) + 2
+    return text[:a] + new + text[b:]
+
+
+@pytest.mark.parametrize(
+    ("limit", "needles"),
+    [
+        ("", ("joint 'J1' (revolute): no <limit>", "continuous")),
+        (
+            '<limit effort="1" lower="-170" upper="170" velocity="1"/>',
+            ("joint 'J1' limit: [-170, 170] rad", "degrees given as radians"),
+        ),
+    ],
+)
+def test_urdf_joint_limits_that_cannot_be_right(
+    tmp_path, capsys, limit, needles
+) -> None:
+    """A revolute joint without <limit> was imported as unlimited, one with its limits
+    in degrees as +-9740 deg; both are refused by import-urdf and --robot."""
+    urdf = tmp_path / "robot.urdf"
+    urdf.write_text(_j1_limit(_FANUC_URDF.read_text(), limit))
+    out = tmp_path / "robot.yaml"
+    failed_with(
+        run_kinecal(capsys, "import-urdf", urdf, "--out", out), str(urdf), *needles
+    )
+    sim = tmp_path / "sim"
+    failed_with(
+        run_kinecal(capsys, "simulate", "--robot", urdf, "--out", sim, "-q"),
+        str(urdf),
+        *needles,
+    )
+    assert not out.exists() and not sim.exists()
+
+
+def test_robot_yaml_limits_in_the_wrong_unit(tmp_path, capsys) -> None:
+    """A robot file in radians with its limits typed in degrees: +-170 rad was taken
+    as a joint that turns 27 times each way."""
+    from kinecal.robot import dump_robot, load_robot
+
+    doc = dump_robot(load_robot("generic-6r"))
+    doc["units"]["angle"] = "rad"
+    for j in doc["joints"]:
+        for k in ("theta_offset", "alpha"):
+            j[k] = j[k] * 3.141592653589793 / 180
+    doc["joints"][0]["limits"] = [-170, 170]
+    robot = tmp_path / "robot.yaml"
+    robot.write_text(yaml.dump(doc))
+    res = run_kinecal(
+        capsys, "fk", "--robot", robot, "--", "0", "0", "0", "0", "0", "0"
+    )
+    failed_with(res, str(robot), "joints[0].limits", "degrees given as radians")

@@ -374,8 +374,8 @@ def read_program(path: str | Path, fmt: str | None = None) -> Program:
     text = raw.decode("utf-8", errors="surrogateescape")
     try:
         code = code_only(text, fmt)
+        points, skipped = _READERS[fmt](code)  # its own messages first
         check_complete(code, fmt)
-        points, skipped = _READERS[fmt](code)
     except DataError as exc:
         raise DataError(f"{p}: {exc}") from None
     if not points:

@@ -257,7 +257,26 @@ def _joint_limits(
     hi = _number(lim[1], f"{where}.limits[1]") * scale
     if not lo < hi:
         raise _err(f"{where}.limits", f"lower limit must be below upper; got {lim!r}.")
+    prismatic = jr.get("type") == "prismatic"
+    check_travel(lo, hi, prismatic, f"{where}.limits", f" (limits {lim!r})")
     return (lo, hi)
+
+
+# A revolute joint's limits beyond 4 turns (real arms: 1.25 at most) are a unit
+# mistake: degrees where radians are expected. A prismatic one's beyond 1 km.
+MAX_TURNS = 4.0
+
+
+def check_travel(lo: float, hi: float, prismatic: bool, where: str, what: str) -> None:
+    """Refuse joint limits [SI] no joint of an arm has (see :data:`MAX_TURNS`)."""
+    bound = _MAX_LENGTH_M / 10 if prismatic else MAX_TURNS * 2 * np.pi
+    if max(abs(lo), abs(hi)) > bound:
+        unit = "m" if prismatic else "rad"
+        also = "" if prismatic else f" ({MAX_TURNS:g} turns; degrees given as radians?)"
+        raise ConfigError(
+            f"{where}: [{lo:.6g}, {hi:.6g}] {unit}{what}; expected limits within "
+            f"+-{bound:.6g} {unit}{also}."
+        )
 
 
 def _joint(
