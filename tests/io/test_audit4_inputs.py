@@ -348,3 +348,24 @@ def test_robot_yaml_limits_in_the_wrong_unit(tmp_path, capsys) -> None:
         capsys, "fk", "--robot", robot, "--", "0", "0", "0", "0", "0", "0"
     )
     failed_with(res, str(robot), "joints[0].limits", "degrees given as radians")
+
+
+def test_link_length_in_metres_is_refused(pt, tmp_path, capsys) -> None:
+    """joint2.a typed in metres (0.33 for 330 mm) is 330 mm off a 330 mm link, within
+    the old bound (half the robot's reach, 415 mm): fk and export-urdf used it."""
+
+    def edit(d) -> None:
+        d["parameters"]["joint2.a"]["value"] = (
+            d["parameters"]["joint2.a"]["value"] / 1e3
+        )
+
+    m = _edited_model(pt, tmp_path, edit)
+    out = tmp_path / "cal.urdf"
+    for args in (
+        ("fk", "--model", m, "--", "0", "0", "0", "0", "-90", "0"),
+        ("export-urdf", m, "--out", out),
+    ):
+        failed_with(
+            run_kinecal(capsys, *args), str(m), "parameters.joint2.a", "165 to 495"
+        )
+    assert not out.exists()

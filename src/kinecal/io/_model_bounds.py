@@ -113,6 +113,8 @@ def check_value(model: CalibrationModel, i: int, v: float, where: str) -> None:
     elif unit == "mm":
         reach = _reach_mm(model.robot)
         lim = max(100.0, 0.5 * reach)
+        if abs(nominal) >= 100.0:  # a link: changed by half its length at most
+            lim = min(lim, 0.5 * abs(nominal))
         if abs(v - nominal) > lim:
             raise ConfigError(
                 f"{where}: {v:g} mm is {abs(v - nominal):.4g} mm from the robot's "
