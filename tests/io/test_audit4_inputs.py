@@ -369,3 +369,18 @@ def test_link_length_in_metres_is_refused(pt, tmp_path, capsys) -> None:
             run_kinecal(capsys, *args), str(m), "parameters.joint2.a", "165 to 495"
         )
     assert not out.exists()
+
+
+@pytest.mark.parametrize("radius", ["-14.999", "0"])
+def test_targets_radius_not_positive_is_refused(tmp_path, radius) -> None:
+    """A targets file's r_mm of -15 or 0 was read as a sphere radius."""
+    from kinecal.errors import DataError
+    from kinecal.io import read_targets
+
+    f = tmp_path / "targets.csv"
+    f.write_text(
+        "target,x_mm,y_mm,z_mm,r_mm\nS1,185.3,408.4,2303.9,15.0\n"
+        f"S2,240.4,377.9,2640.9,{radius}\n"
+    )
+    with pytest.raises(DataError, match=r"line 3, column 'r_mm': .*expected a sphere"):
+        read_targets(f)

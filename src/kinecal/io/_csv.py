@@ -113,6 +113,12 @@ def read_targets(path: str | Path) -> Targets:
             "(targets millimetres apart?), which looks like metres; convert to "
             "millimetres."
         )
+    if r is not None and np.any(r <= 0):  # all below 0.25 mm: metres (below)
+        i = int(np.flatnonzero(r <= 0)[0])
+        raise DataError(
+            f"{t.path}: line {t.lines[i]}, column 'r_mm': {r[i]:g}; expected a sphere "
+            "radius > 0 mm."
+        )
     if r is not None and np.all(r < 0.25):
         raise DataError(
             f"{t.path}: column 'r_mm': every radius is below 0.25, which looks like "
