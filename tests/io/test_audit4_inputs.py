@@ -384,3 +384,21 @@ def test_targets_radius_not_positive_is_refused(tmp_path, radius) -> None:
     )
     with pytest.raises(DataError, match=r"line 3, column 'r_mm': .*expected a sphere"):
         read_targets(f)
+
+
+@pytest.mark.parametrize("tag", ["origin", "axis", "limit"])
+def test_urdf_element_given_twice_is_refused(tmp_path, capsys, tag) -> None:
+    """A second <origin>, <axis> or <limit> in a joint (an edit pasted beside the
+    original): the first was used and the other ignored, whichever the user meant."""
+    extra = {
+        "origin": '<origin xyz="1 2 3"/>',
+        "axis": '<axis xyz="1 0 0"/>',
+        "limit": '<limit lower="-1" upper="1" effort="1" velocity="1"/>',
+    }[tag]
+    head = '<joint name="J2" type="revolute">'
+    urdf = tmp_path / "robot.urdf"
+    urdf.write_text(_FANUC_URDF.read_text().replace(head, head + extra))
+    out = tmp_path / "robot.yaml"
+    res = run_kinecal(capsys, "import-urdf", urdf, "--out", out)
+    failed_with(res, str(urdf), f"joint 'J2' has 2 <{tag}> elements", "at most one")
+    assert not out.exists()
