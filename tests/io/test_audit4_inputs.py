@@ -402,3 +402,24 @@ def test_urdf_element_given_twice_is_refused(tmp_path, capsys, tag) -> None:
     res = run_kinecal(capsys, "import-urdf", urdf, "--out", out)
     failed_with(res, str(urdf), f"joint 'J2' has 2 <{tag}> elements", "at most one")
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("where", "value"), [("name", "lr\nmate"), ("joint", "J1\u202e"), ("name", "a\tb")]
+)
+def test_robot_names_must_be_one_printable_line(tmp_path, capsys, where, value) -> None:
+    """A robot or joint name with a line break, tab or text-direction character was
+    accepted and written into file headers, URDFs and reports."""
+    from kinecal.robot import dump_robot, load_robot
+
+    doc = dump_robot(load_robot("fanuc-lrmate200id"))
+    if where == "name":
+        doc["name"] = value
+    else:
+        doc["joints"][0]["name"] = value
+    robot = tmp_path / "robot.yaml"
+    robot.write_text(yaml.dump(doc))
+    res = run_kinecal(
+        capsys, "fk", "--robot", robot, "--", "0", "0", "0", "0", "-90", "0"
+    )
+    failed_with(res, str(robot), "name", "one-line string")

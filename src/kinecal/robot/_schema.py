@@ -300,8 +300,10 @@ def _joint(
                 raise _err(f"{where}.{key}", f"expected a positive number; got {v!r}.")
             rates[key] = v * scale
     jname = jr.get("name", f"J{i + 1}")
-    if not isinstance(jname, str) or not jname:
-        raise _err(f"{where}.name", f"expected a non-empty string; got {jname!r}.")
+    if not isinstance(jname, str) or not jname or not jname.isprintable():
+        raise _err(
+            f"{where}.name", f"expected a non-empty one-line string; got {jname!r}."
+        )
     return JointSpec(
         name=jname,
         theta_offset=vals["theta_offset"] * au,
@@ -390,8 +392,12 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
     """
     _check_keys(data, _TOP_KEYS, source, _REQUIRED_TOP)
     name = data["name"]
-    if not isinstance(name, str) or not name:
-        raise _err(f"{source}: name", f"expected a non-empty string; got {name!r}.")
+    if not isinstance(name, str) or not name or not name.isprintable():
+        # (it is written into file headers, URDFs and reports: no line breaks,
+        # control or text-direction characters)
+        raise _err(
+            f"{source}: name", f"expected a non-empty one-line string; got {name!r}."
+        )
     conv = data["convention"]
     if conv not in ("dh", "mdh"):
         raise _err(f"{source}: convention", f"expected 'dh' or 'mdh'; got {conv!r}.")
