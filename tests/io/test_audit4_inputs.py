@@ -423,3 +423,23 @@ def test_robot_names_must_be_one_printable_line(tmp_path, capsys, where, value) 
         capsys, "fk", "--robot", robot, "--", "0", "0", "0", "0", "-90", "0"
     )
     failed_with(res, str(robot), "name", "one-line string")
+
+
+def test_compensate_targets_in_metres_are_refused(pt, tmp_path, capsys) -> None:
+    """x_mm, y_mm, z_mm holding metres: compensate called every target unreachable
+    (exit 4) instead of naming the unit, as evaluate and calibrate do (exit 2)."""
+    lines = pt["targets"].read_text().splitlines()
+    head = lines[0].split(",")
+    k = [head.index(c) for c in ("x_mm", "y_mm", "z_mm")]
+    rows = []
+    for ln in lines[1:]:
+        c = ln.split(",")
+        for i in k:
+            c[i] = f"{float(c[i]) / 1e3:.9f}"
+        rows.append(",".join(c))
+    f = tmp_path / "metres.csv"
+    f.write_text("\n".join([lines[0], *rows]) + "\n")
+    out = tmp_path / "c.csv"
+    res = run_kinecal(capsys, "compensate", f, "--model", pt["model"], "--out", out)
+    failed_with(res, str(f), "columns x_mm, y_mm, z_mm", "looks like metres")
+    assert not out.exists()

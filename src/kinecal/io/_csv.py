@@ -539,7 +539,9 @@ def read_compensation_targets(
             raise DataError(
                 f"{t.path}: missing column '{c}' (targets need x_mm, y_mm, z_mm)."
             )
-    p = mm_to_m(np.column_stack([t.numbers(c) for c in _POINT]))
+    xyz = np.column_stack([t.numbers(c) for c in _POINT])
+    _looks_like_metres(t, xyz, _POINT)  # (they were 'unreachable', exit 4)
+    p = mm_to_m(xyz)
     R = None
     if any(c in t.header for c in (*_QUAT, *_WPR)):
         _, need = _kind(t)  # qw..qz or w_deg, p_deg, r_deg, not both
