@@ -443,3 +443,32 @@ def test_compensate_targets_in_metres_are_refused(pt, tmp_path, capsys) -> None:
     res = run_kinecal(capsys, "compensate", f, "--model", pt["model"], "--out", out)
     failed_with(res, str(f), "columns x_mm, y_mm, z_mm", "looks like metres")
     assert not out.exists()
+
+
+def test_fit_of_another_robots_data_is_refused_naming_the_data(
+    pt, tmp_path, capsys
+) -> None:
+    """LR Mate data calibrated as a UR5e: calibrate failed on reading back its own
+    model.yaml (the message named the result file), compare printed the table (exit 0)."""
+    out = tmp_path / "cal"
+    res = run_kinecal(capsys, "calibrate", pt["train"], "--robot", "ur5e", "--model",
+                      "kinematic", "--cv", "off", "--out", out, "-q")  # fmt: skip
+    last = failed_with(res, str(pt["train"]), "fit ends with", "ur5e")
+    assert "model.yaml" not in last and not out.exists()
+    res = run_kinecal(capsys, "compare", pt["train"], pt["test"], "--robot", "ur5e",
+                      "--models", "kinematic", "-q")  # fmt: skip
+    failed_with(res, str(pt["train"]), "fit ends with", "another robot")
+
+
+@pytest.mark.parametrize("cmd", ["compensate", "fk"])
+def test_payload_option_beyond_ten_times_rating(pt, tmp_path, capsys, cmd) -> None:
+    """--payload-kg 5000 on a 7 kg robot was accepted (kg typed as g)."""
+    tail = ("--", "0", "0", "0", "0", "-90", "0")
+    args = (
+        ("compensate", pt["targets"], "--out", tmp_path / "c.csv")
+        if cmd == "compensate"
+        else ("fk",)
+    )
+    res = run_kinecal(capsys, *args, "--model", pt["model"], "--payload-kg", "5000",
+                      *(tail if cmd == "fk" else ()))  # fmt: skip
+    failed_with(res, "--payload-kg 5000", "at most 70 kg")

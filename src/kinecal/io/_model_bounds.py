@@ -31,6 +31,7 @@ __all__ = [
     "check_frames",
     "check_info",
     "check_payload",
+    "check_result",
     "check_value",
     "document_fingerprint",
     "robot_fingerprint",
@@ -229,3 +230,24 @@ def _check_range(rng: Any, robot: RobotDescription, where: str) -> None:
                 f"with finite lo <= hi [{units[i]}] (the joint's range in the "
                 "calibration data)."
             )
+
+
+def check_result(cal: Any, source: str) -> None:
+    """Refuse a calibration result (a :class:`~kinecal.measurement.CalibratedModel`)
+    whose parameters lie beyond the bounds a model file accepts (:func:`check_value`):
+    the fit of data of another robot (or with a wrong robot file) ends there. Named
+    after the data (``source``), not after the model file it would have become, which
+    kinecal itself would then refuse to read."""
+    from kinecal.errors import DataError
+
+    model = cal.model
+    values = np.asarray(cal.params, float) * model.layout.to_file
+    for i, ps in enumerate(model.layout.specs):
+        try:
+            check_value(model, i, float(values[i]), f"parameter {ps.name}")
+        except ConfigError as exc:
+            raise DataError(
+                f"{source}: the {model.spec.name} fit ends with {exc} Expected data "
+                f"of {model.robot.name}: are these measurements of another robot, or "
+                "is the robot file wrong?"
+            ) from None

@@ -359,6 +359,16 @@ def load_scale(cal: CalibratedModel, payload_kg: float | None) -> float | None:
         return None
     if not payload_kg >= 0:
         raise DataError(f"--payload-kg must be >= 0; got {payload_kg}.")
+    from kinecal.io._model_bounds import MAX_PAYLOAD_KG, RATED_FACTOR
+
+    rated = cal.model.robot.rated_payload_kg
+    hi = MAX_PAYLOAD_KG if rated is None else RATED_FACTOR * rated
+    if payload_kg > hi:
+        also = "" if rated is None else f" (10 x the {rated:g} kg rated payload)"
+        raise DataError(
+            f"--payload-kg {payload_kg:g}: expected at most {hi:g} kg{also}: a unit "
+            "mistake (g, lb)?"
+        )
     ref = cal.reference_payload_kg
     if ref is None:
         if cal.model.spec.load:
