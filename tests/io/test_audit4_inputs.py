@@ -472,3 +472,16 @@ def test_payload_option_beyond_ten_times_rating(pt, tmp_path, capsys, cmd) -> No
     res = run_kinecal(capsys, *args, "--model", pt["model"], "--payload-kg", "5000",
                       *(tail if cmd == "fk" else ()))  # fmt: skip
     failed_with(res, "--payload-kg 5000", "at most 70 kg")
+
+
+def test_calibrated_payload_beyond_ten_times_rating_names_the_data(
+    pt, tmp_path, capsys
+) -> None:
+    """payload_kg 5000 (grams typed as kg) on a 7 kg robot: calibrate failed on reading
+    back its own model.yaml, and the message named that file, not the data."""
+    data = _with_columns(pt["train"], tmp_path / "heavy.csv", "payload_kg", "5000")
+    out = tmp_path / "cal"
+    res = run_kinecal(capsys, "calibrate", data, "--robot", "fanuc-lrmate200id",
+                      "--model", "rfcm", "--cv", "off", "--out", out, "-q")  # fmt: skip
+    last = failed_with(res, str(data), "payload_kg: 5000 kg", "up to 70 kg")
+    assert "model.yaml" not in last and not out.exists()

@@ -241,6 +241,14 @@ def check_result(cal: Any, source: str) -> None:
     from kinecal.errors import DataError
 
     model = cal.model
+    ref = cal.reference_payload_kg
+    if ref is not None:  # the data's payload_kg (their mean, or the one given)
+        try:
+            check_payload(float(ref), model.robot, f"{source}: payload_kg")
+        except ConfigError as exc:
+            raise DataError(
+                f"{exc} (the calibration's reference payload, from the data)"
+            ) from None
     values = np.asarray(cal.params, float) * model.layout.to_file
     for i, ps in enumerate(model.layout.specs):
         try:
