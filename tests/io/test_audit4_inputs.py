@@ -485,3 +485,29 @@ def test_calibrated_payload_beyond_ten_times_rating_names_the_data(
                       "--model", "rfcm", "--cv", "off", "--out", out, "-q")  # fmt: skip
     last = failed_with(res, str(data), "payload_kg: 5000 kg", "up to 70 kg")
     assert "model.yaml" not in last and not out.exists()
+
+
+def test_export_like_vendor_limits_in_degrees_is_refused(tmp_path, capsys) -> None:
+    """export-urdf --like keeps the vendor's limits: a vendor file with J1's lower
+    limit typed in degrees (-170 'rad') was copied into the calibrated URDF."""
+    robot, sim, cal = tmp_path / "robot.yaml", tmp_path / "sim", tmp_path / "cal"
+    for args in (
+        ("import-urdf", _FANUC_URDF, "--out", robot),
+        ("simulate", "--robot", robot, "--out", sim, "-q"),
+        ("calibrate", sim / "train.csv", "--robot", robot, "--model", "kinematic",
+         "--cv", "off", "--out", cal, "-q"),
+    ):  # fmt: skip
+        res = run_kinecal(capsys, *args)
+        assert res.code == 0, str(res)
+    vendor = tmp_path / "vendor.urdf"
+    vendor.write_text(
+        _j1_limit(
+            _FANUC_URDF.read_text(),
+            '<limit effort="500" lower="-170" upper="3.14" velocity="7.85"/>',
+        )
+    )
+    out = tmp_path / "like.urdf"
+    res = run_kinecal(capsys, "export-urdf", cal / "model.yaml", "--like", vendor,
+                      "--out", out)  # fmt: skip
+    failed_with(res, str(vendor), "joint 'J1' limit", "degrees given as radians")
+    assert not out.exists()
