@@ -511,3 +511,21 @@ def test_export_like_vendor_limits_in_degrees_is_refused(tmp_path, capsys) -> No
                       "--out", out)  # fmt: skip
     failed_with(res, str(vendor), "joint 'J1' limit", "degrees given as radians")
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("columns", "values", "needles"),
+    [
+        ("w_deg,p_deg", "0,0", ("missing column 'r_deg'",)),
+        ("qw,qx,qy,qz,w_deg,p_deg,r_deg", "1,0,0,0,0,0,0", ("either as qw..qz",)),
+    ],
+)
+def test_compensate_partial_or_double_orientation(
+    pt, tmp_path, capsys, columns, values, needles
+) -> None:
+    """Two of w_deg, p_deg, r_deg (or both spellings) in TARGETS were ignored."""
+    f = _with_columns(pt["targets"], tmp_path / "t.csv", columns, values)
+    out = tmp_path / "c.csv"
+    res = run_kinecal(capsys, "compensate", f, "--model", pt["model"], "--out", out)
+    failed_with(res, str(f), *needles)
+    assert not out.exists()

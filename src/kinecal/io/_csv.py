@@ -544,12 +544,17 @@ def read_compensation_targets(
     p = mm_to_m(xyz)
     R = None
     if any(c in t.header for c in (*_QUAT, *_WPR)):
-        _, need = _kind(t)  # qw..qz or w_deg, p_deg, r_deg, not both
+        if any(c in t.header for c in _QUAT) and any(c in t.header for c in _WPR):
+            raise DataError(
+                f"{t.path}: give the orientation either as qw..qz or as w_deg, p_deg, "
+                "r_deg, not both."
+            )
+        need = _WPR if any(c in t.header for c in _WPR) else _QUAT
         for c in need:
             if c not in t.header:
                 raise DataError(
                     f"{t.path}: missing column '{c}' (orientation needs "
-                    f"{', '.join(need[3:])})."
+                    f"{', '.join(need)})."
                 )
         if "w_deg" in t.header:
             R = wpr_to_matrix(deg_to_rad(np.column_stack([t.numbers(c) for c in _WPR])))
