@@ -529,3 +529,14 @@ def test_compensate_partial_or_double_orientation(
     res = run_kinecal(capsys, "compensate", f, "--model", pt["model"], "--out", out)
     failed_with(res, str(f), *needles)
     assert not out.exists()
+
+
+def test_plan_joint_range_beyond_the_limits_is_refused(tmp_path, capsys) -> None:
+    """--joint-range J1:-500:500 on a +-170 deg joint was clipped to the limits
+    silently (a range in the wrong unit or for another robot)."""
+    out = tmp_path / "plan.csv"
+    res = run_kinecal(capsys, "plan", "--robot", "fanuc-lrmate200id", "--model",
+                      "kinematic", "--poses", "30", "--joint-range", "J1:-500:500",
+                      "--out", out)  # fmt: skip
+    failed_with(res, "--joint-range", "J1's limits [-170, 170] deg")
+    assert not out.exists()
