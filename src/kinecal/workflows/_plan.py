@@ -16,6 +16,7 @@ from kinecal.io import Table, Targets
 from kinecal.measurement import CalibratedModel
 from kinecal.models import CalibrationModel
 from kinecal.planning import Instrument, Plan
+from kinecal.planning._candidates import range_inside_limits
 from kinecal.robot import RobotDescription
 from kinecal.workflows._poses import pose_lines, read_pose_file
 
@@ -167,13 +168,7 @@ def joint_ranges(text: str | None, robot: RobotDescription) -> np.ndarray | None
                 f"(degrees, or mm for a prismatic joint); got {item!r}"
             ) from None
         f = 1e-3 if robot.joints[j - 1].kind == "prismatic" else np.pi / 180
-        lim = robot.limits[j - 1] / f  # deg or mm; 1 of them beyond is accepted
-        if lo < lim[0] - 1.0 or hi > lim[1] + 1.0:  # (it was clipped silently)
-            unit = "mm" if f == 1e-3 else "deg"
-            raise ValueError(
-                f"{item.strip()!r} goes beyond J{j}'s limits [{lim[0]:.6g}, "
-                f"{lim[1]:.6g}] {unit} of {robot.name}; expected a range inside them"
-            )
+        range_inside_limits(robot, j, lo * f, hi * f, item.strip())
         r[j - 1] = (lo * f, hi * f)
     return r
 
