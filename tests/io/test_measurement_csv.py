@@ -168,11 +168,12 @@ def test_sensor_data_and_targets(tmp_path):
 
 def test_round_trip_with_sets_markers_and_weights(tmp_path, rng):
     n = 12
+    q = rng.uniform(-1, 1, (n, 6))
     m = Measurements(
         "pose",
-        rng.uniform(-1, 1, (n, 6)),
+        q,
         rng.uniform(-1, 1, (n, 3)),
-        R_user_cam=np.broadcast_to(np.eye(3), (n, 3, 3)).copy(),
+        R_user_cam=ROBOT.fk_flange(q)[:, :3, :3],  # turning as the robot turns
         set_index=rng.integers(0, 2, n),
         set_labels=("a", "b"),
         marker_index=rng.integers(0, 2, n),

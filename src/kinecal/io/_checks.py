@@ -261,6 +261,32 @@ def _orientation_spread_deg(meas: Measurements, robot: RobotDescription) -> floa
     return spread
 
 
+def frozen_orientations(
+    meas: Measurements, robot: RobotDescription, columns: str
+) -> None:
+    """Refuse pose data whose measured orientations stay put while the robot turns the
+    tool: the angle between two poses' tool orientations is the same in any user frame
+    and tool, so a real measurement turns as the flange does. A constant orientation
+    (a placeholder 1, 0, 0, 0, or the instrument's own frame) cannot be fitted (the
+    tool rotation is undetermined)."""
+    R = meas.R_user_cam
+    if meas.kind != "pose" or R is None or meas.n < 2:
+        return
+    zero = np.zeros(meas.n, np.intp)
+    measured = float(np.degrees(_relative_angle(R, zero, np.arange(meas.n)).max()))
+    if measured >= SAME_ORIENTATION_DEG / 10:
+        return
+    turned = _orientation_spread_deg(meas, robot)
+    if turned < SAME_ORIENTATION_DEG:
+        return
+    raise DataError(
+        f"{meas.source}: columns {columns}: every row's orientation lies within "
+        f"{measured:.3g} deg of the first, but the robot turns the tool by up to "
+        f"{turned:.3g} deg between these poses; expected the tool's measured "
+        "orientation per row (or no orientation columns, for position data)."
+    )
+
+
 def excitation(meas: Measurements, robot: RobotDescription) -> list[Diagnostic]:
     """Joints that hardly move and a tool orientation that hardly changes."""
     out = []

@@ -34,7 +34,12 @@ import numpy as np
 from kinecal._stats import median
 from kinecal.errors import DataError
 from kinecal.geometry import quat_wxyz_to_matrix, wpr_to_matrix
-from kinecal.io._checks import DataWarning, data_diagnostics, near_miss
+from kinecal.io._checks import (
+    DataWarning,
+    data_diagnostics,
+    frozen_orientations,
+    near_miss,
+)
 from kinecal.io._table import Table, read_table
 from kinecal.measurement import Diagnostic, Measurements
 from kinecal.robot import RobotDescription
@@ -107,6 +112,12 @@ def read_targets(path: str | Path) -> Targets:
             f"{t.path}: columns x_mm, y_mm, z_mm: every target is within 5 of the origin "
             "(targets millimetres apart?), which looks like metres; convert to "
             "millimetres."
+        )
+    if r is not None and np.any(r <= 0):  # all below 0.25 mm: metres (below)
+        i = int(np.flatnonzero(r <= 0)[0])
+        raise DataError(
+            f"{t.path}: line {t.lines[i]}, column 'r_mm': {r[i]:g}; expected a sphere "
+            "radius > 0 mm."
         )
     if r is not None and np.all(r < 0.25):
         raise DataError(
@@ -440,6 +451,7 @@ def _read(
     elif kind == "pose":
         R = quat_wxyz_to_matrix(_unit_quaternions(t))
     meas = Measurements(kind, q, mm_to_m(xyz), R_user_cam=R, **common)  # type: ignore[arg-type]
+    frozen_orientations(meas, robot, ", ".join(_WPR if "w_deg" in t.header else _QUAT))
     return meas, found, R is not None and "qw" in t.header
 
 
@@ -510,6 +522,7 @@ class CompensationTargets:
     marker_index: np.ndarray
     marker_labels: tuple[str, ...]
     diagnostics: list[Diagnostic] = field(default_factory=list)
+    payload_kg: np.ndarray | None = None  # (N,) [kg], the payload_kg column
 
 
 def read_compensation_targets(
@@ -526,16 +539,48 @@ def read_compensation_targets(
             raise DataError(
                 f"{t.path}: missing column '{c}' (targets need x_mm, y_mm, z_mm)."
             )
-    p = mm_to_m(np.column_stack([t.numbers(c) for c in _POINT]))
+    xyz = np.column_stack([t.numbers(c) for c in _POINT])
+    _looks_like_metres(t, xyz, _POINT)  # (they were 'unreachable', exit 4)
+    p = mm_to_m(xyz)
     R = None
-    if any(c in t.header for c in _QUAT):
-        for c in _QUAT:
+    if any(c in t.header for c in (*_QUAT, *_WPR)):
+        if any(c in t.header for c in _QUAT) and any(c in t.header for c in _WPR):
+            raise DataError(
+                f"{t.path}: give the orientation either as qw..qz or as w_deg, p_deg, "
+                "r_deg, not both."
+            )
+        need = _WPR if any(c in t.header for c in _WPR) else _QUAT
+        for c in need:
             if c not in t.header:
                 raise DataError(
-                    f"{t.path}: missing column '{c}' (orientation needs qw, qx, qy, qz)."
+                    f"{t.path}: missing column '{c}' (orientation needs "
+                    f"{', '.join(need)})."
                 )
-        R = quat_wxyz_to_matrix(_unit_quaternions(t))
+        if "w_deg" in t.header:
+            R = wpr_to_matrix(deg_to_rad(np.column_stack([t.numbers(c) for c in _WPR])))
+        else:
+            R = quat_wxyz_to_matrix(_unit_quaternions(t))
     si, sl = _labels(t, "set")
     mi, ml = _labels(t, "marker")
     found = [] if limits is None else [limits]
-    return CompensationTargets(t, cols, p, q, R, si, sl, mi, ml, found)
+    load = _payload(t, robot) if "payload_kg" in t.header else None
+    return CompensationTargets(t, cols, p, q, R, si, sl, mi, ml, found, load)
+
+
+def _payload(t: Table, robot: RobotDescription) -> np.ndarray:
+    """The ``payload_kg`` column [kg]: finite, >= 0, and at most 10 x the robot's
+    rated payload (a model file cannot hold more; a unit mistake: g, lb)."""
+    from kinecal.io._model_bounds import MAX_PAYLOAD_KG, RATED_FACTOR
+
+    v = t.numbers("payload_kg")
+    rated = robot.rated_payload_kg
+    hi = MAX_PAYLOAD_KG if rated is None else RATED_FACTOR * rated
+    bad = np.flatnonzero(~((v >= 0) & (v <= hi)))
+    if bad.size:
+        i = int(bad[0])
+        also = "" if rated is None else f" (10 x the {rated:g} kg rated payload)"
+        raise DataError(
+            f"{t.path}: line {t.lines[i]}, column 'payload_kg': {v[i]:.6g}; expected "
+            f"0 to {hi:.6g} kg{also}: a unit mistake (g, lb)?"
+        )
+    return v

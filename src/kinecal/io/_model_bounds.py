@@ -27,8 +27,11 @@ from kinecal.robot import RobotDescription, dump_robot
 
 __all__ = [
     "MAX_PAYLOAD_KG",
+    "RATED_FACTOR",
     "check_frames",
+    "check_info",
     "check_payload",
+    "check_result",
     "check_value",
     "document_fingerprint",
     "robot_fingerprint",
@@ -43,7 +46,7 @@ _MAX_NTM_DEG = 10.0  # a transmission error amplitude (real ones: ~0.01 deg)
 _MAX_COMPLIANCE = 0.1  # rad/m: 0.1 rad of deflection for 1 m of lever (real: ~1e-4)
 _MAX_RATIO = 1e4  # a link's mass per unit payload mass
 MAX_PAYLOAD_KG = 1e4  # a reference payload; and at most 10 x the robot's rated one
-_RATED_FACTOR = 10.0
+RATED_FACTOR = 10.0
 
 
 def robot_fingerprint(robot: RobotDescription) -> str:
@@ -111,6 +114,8 @@ def check_value(model: CalibrationModel, i: int, v: float, where: str) -> None:
     elif unit == "mm":
         reach = _reach_mm(model.robot)
         lim = max(100.0, 0.5 * reach)
+        if abs(nominal) >= 100.0:  # a link: changed by half its length at most
+            lim = min(lim, 0.5 * abs(nominal))
         if abs(v - nominal) > lim:
             raise ConfigError(
                 f"{where}: {v:g} mm is {abs(v - nominal):.4g} mm from the robot's "
@@ -124,7 +129,7 @@ def check_payload(payload: float, robot: RobotDescription, where: str) -> None:
     """The reference payload [kg]: positive, and at most 10 x the robot's rated one
     (or :data:`MAX_PAYLOAD_KG` for a robot without one)."""
     rated = robot.rated_payload_kg
-    hi = MAX_PAYLOAD_KG if rated is None else _RATED_FACTOR * rated
+    hi = MAX_PAYLOAD_KG if rated is None else RATED_FACTOR * rated
     if not 0 < payload <= hi:
         also = "" if rated is None else f" (10 x the robot's rated {rated:g} kg)"
         raise ConfigError(
@@ -163,3 +168,94 @@ def check_frames(doc: Any, derived: dict[str, Any], p: Path) -> None:
                     f"{unit}; frames_mm_deg is computed from the parameters (edit "
                     "the parameters, or delete the block)."
                 )
+
+
+_KINDS = ("point", "pose", "sensor")
+
+
+def check_info(info: Any, robot: RobotDescription, cam_rotation: bool, p: Path) -> None:
+    """The ``info`` block's fields kinecal reads back: ``kind`` (the data the model was
+    calibrated on: it decides which data ``evaluate`` accepts), ``n``, and
+    ``calibrated_joint_range`` (N pairs [lo, hi] in deg, mm for a prismatic joint: the
+    extrapolation warnings of ``evaluate`` and ``compensate``). A damaged block would
+    silence those checks or turn them into nonsense. Other keys are free."""
+    if not info:
+        return
+    where = f"{p}: info"
+    kind = info.get("kind")
+    if kind is not None:
+        if kind not in _KINDS:
+            raise ConfigError(
+                f"{where}.kind: {kind!r}; expected one of {', '.join(_KINDS)} (the data "
+                "the model was calibrated on)."
+            )
+        if kind != "point" and not cam_rotation:
+            raise ConfigError(
+                f"{where}.kind: {kind!r}, but model.cam_rotation is false (a model of "
+                f"{kind} data has the tool orientation); expected 'point'."
+            )
+    n = info.get("n")
+    if n is not None and (isinstance(n, bool) or not isinstance(n, int) or n < 1):
+        raise ConfigError(
+            f"{where}.n: {n!r}; expected the number of poses, a positive integer."
+        )
+    if "calibrated_joint_range" in info:
+        _check_range(
+            info["calibrated_joint_range"], robot, f"{where}.calibrated_joint_range"
+        )
+
+
+def _check_range(rng: Any, robot: RobotDescription, where: str) -> None:
+    n = robot.n_joints
+    units = ["mm" if pr else "deg" for pr in robot.prismatic]
+    if not isinstance(rng, list) or len(rng) != n:
+        raise ConfigError(
+            f"{where}: {str(rng)[:80]}; expected {n} pairs [lo, hi] (one per joint, "
+            f"{', '.join(units)})."
+        )
+    for i, pair in enumerate(rng):
+        ok = (
+            isinstance(pair, list)
+            and len(pair) == 2
+            and all(
+                isinstance(v, (int, float))
+                and not isinstance(v, bool)
+                and math.isfinite(v)
+                for v in pair
+            )
+        )
+        if not ok or not pair[0] <= pair[1]:
+            raise ConfigError(
+                f"{where}[{i}] ({robot.joint_names[i]}): {pair!r}; expected [lo, hi] "
+                f"with finite lo <= hi [{units[i]}] (the joint's range in the "
+                "calibration data)."
+            )
+
+
+def check_result(cal: Any, source: str) -> None:
+    """Refuse a calibration result (a :class:`~kinecal.measurement.CalibratedModel`)
+    whose parameters lie beyond the bounds a model file accepts (:func:`check_value`):
+    the fit of data of another robot (or with a wrong robot file) ends there. Named
+    after the data (``source``), not after the model file it would have become, which
+    kinecal itself would then refuse to read."""
+    from kinecal.errors import DataError
+
+    model = cal.model
+    ref = cal.reference_payload_kg
+    if ref is not None:  # the data's payload_kg (their mean, or the one given)
+        try:
+            check_payload(float(ref), model.robot, f"{source}: payload_kg")
+        except ConfigError as exc:
+            raise DataError(
+                f"{exc} (the calibration's reference payload, from the data)"
+            ) from None
+    values = np.asarray(cal.params, float) * model.layout.to_file
+    for i, ps in enumerate(model.layout.specs):
+        try:
+            check_value(model, i, float(values[i]), f"parameter {ps.name}")
+        except ConfigError as exc:
+            raise DataError(
+                f"{source}: the {model.spec.name} fit ends with {exc} Expected data "
+                f"of {model.robot.name}: are these measurements of another robot, or "
+                "is the robot file wrong?"
+            ) from None

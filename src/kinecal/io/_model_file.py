@@ -20,7 +20,9 @@ from kinecal.geometry import euler_zyx_to_matrix, matrix_to_euler_zyx
 from kinecal.io._files import atomic_write_text
 from kinecal.io._model_bounds import (
     check_frames,
+    check_info,
     check_payload,
+    check_result,
     check_value,
     document_fingerprint,
     robot_fingerprint,
@@ -102,7 +104,9 @@ def _frames(cal: CalibratedModel) -> dict[str, Any]:
 
 
 def save_model(path: str | Path, cal: CalibratedModel, *, force: bool = False) -> Path:
-    """Write ``model.yaml`` atomically; refuse to overwrite unless ``force``."""
+    """Write ``model.yaml`` atomically; refuse to overwrite unless ``force``, and a
+    model :func:`load_model` would refuse (a DataError naming its data)."""
+    check_result(cal, str(cal.info.get("source") or path))
     doc = model_to_dict(cal)
     text = "# kinecal calibrated model: parameters in mm, deg, rad/m; std = 1 sigma\n"
     text += yaml.dump(_plain(doc), sort_keys=False, allow_unicode=True, width=100)
@@ -341,6 +345,7 @@ def load_model(path: str | Path) -> CalibratedModel:
         Rb = _rotations(refs, "base", len(spec.sets), where)
         Rc = _rotations(refs, "cam", len(spec.markers), where)
         model = model.with_references(Rb, Rc)
+    check_info(doc.get("info"), robot, spec.cam_rotation, p)
     values, std, status = _parameters(doc["parameters"], model, p)
     cal = CalibratedModel(
         model,

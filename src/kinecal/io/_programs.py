@@ -285,6 +285,60 @@ def _krl(text: str) -> tuple[list[ProgramPoint], int]:
     return points, skipped
 
 
+_PAIRS = {"(": ")", "[": "]", "{": "}"}
+# A program's closing line per opening one (format: [(opening, closing, what)]).
+_ENDS = {
+    "fanuc-ls": [(r"^/PROG\b", r"^/END\b", "/END")],
+    "krl": [
+        (r"^[ \t]*(?:GLOBAL[ \t]+)?DEFDAT\b", r"^[ \t]*ENDDAT\b", "ENDDAT"),
+        (r"^[ \t]*(?:GLOBAL[ \t]+)?DEF(?:FCT)?\b", r"^[ \t]*END(?:FCT)?[ \t]*$", "END"),
+    ],
+    "rapid": [(r"^[ \t]*MODULE\b", r"^[ \t]*ENDMODULE\b", "ENDMODULE")],
+}
+
+
+def check_complete(code: str, fmt: str) -> None:
+    """Refuse a truncated or damaged program: a bracket ``( [ {`` left open or closed
+    without an opening one (outside strings), or a program without its closing line
+    (FANUC ``/END``, KRL ``ENDDAT`` / ``END``, RAPID ``ENDMODULE``). A target cut in
+    the middle was skipped silently (and the rest of the file read as if whole)."""
+    stack: list[int] = []
+    quote = ""  # inside a string (to the line's end at most)
+    for i, ch in enumerate(code):
+        if quote:
+            if ch == quote or ch == "\n":
+                quote = ""
+        elif ch == '"' or (ch == "'" and fmt == "urscript"):
+            quote = ch
+        elif ch in _PAIRS:
+            stack.append(i)
+        elif ch in ")]}":
+            if not stack or _PAIRS[code[stack[-1]]] != ch:
+                raise DataError(
+                    f"line {_line(code, i)}: {ch!r} closes no {_opener(ch)!r}; expected "
+                    "a complete program (a truncated or damaged copy?)."
+                )
+            stack.pop()
+    if stack:
+        i = stack[-1]
+        raise DataError(
+            f"line {_line(code, i)}: {code[i]!r} is not closed; expected a complete "
+            "program (a truncated or damaged copy?)."
+        )
+    for head, tail, what in _ENDS.get(fmt, []):
+        if re.search(head, code, re.M | re.I) and not re.search(
+            tail, code, re.M | re.I
+        ):
+            raise DataError(
+                f"line {code.count(chr(10)) + 1}: the file ends without {what}; expected "
+                "a complete program (a truncated copy?)."
+            )
+
+
+def _opener(ch: str) -> str:
+    return next(k for k, v in _PAIRS.items() if v == ch)
+
+
 _READERS = {"fanuc-ls": _fanuc, "urscript": _urscript, "rapid": _rapid, "krl": _krl}
 
 
@@ -319,7 +373,9 @@ def read_program(path: str | Path, fmt: str | None = None) -> Program:
         )
     text = raw.decode("utf-8", errors="surrogateescape")
     try:
-        points, skipped = _READERS[fmt](code_only(text, fmt))
+        code = code_only(text, fmt)
+        points, skipped = _READERS[fmt](code)  # its own messages first
+        check_complete(code, fmt)
     except DataError as exc:
         raise DataError(f"{p}: {exc}") from None
     if not points:

@@ -46,6 +46,8 @@ from kinecal.io._urdf_like_steps import (
     read_vendor,
     with_comment,
 )
+from kinecal.robot._schema import check_travel
+from kinecal.robot._urdf import _limits
 from kinecal.robot._urdf_tree import (
     _MOVABLE,
     _chain_kids,
@@ -201,6 +203,13 @@ class _VendorChain:
                 raise ConfigError(
                     f"{src}: joint {names[i]!r} is {kind}; joint {i + 1} of "
                     f"{robot.name} is {'prismatic' if pris else 'revolute'}."
+                )
+        for k, name, kind in zip(movable, names, kinds):  # kept in the copy: checked
+            lim = path[k].find("limit")
+            if kind != "continuous" and lim is not None:
+                lo, hi = _limits(lim, f"{src}: joint {name!r} limit")
+                check_travel(
+                    lo, hi, kind == "prismatic", f"{src}: joint {name!r} limit", ""
                 )
         where = [f"{src}: joint {j.get('name')!r} origin" for j in path]
         origins = [_origin(j, w) for j, w in zip(path, where)]

@@ -27,14 +27,36 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinecal.models import CalibrationModel, ModelInputs
+from kinecal.robot import RobotDescription
 from kinecal.simulation import sphere_poses
 from kinecal.typing import Float
 
-__all__ = ["Candidates", "halton", "joint_candidates", "sensor_candidates"]
+__all__ = [
+    "Candidates",
+    "halton",
+    "joint_candidates",
+    "range_inside_limits",
+    "sensor_candidates",
+]
 
 log = logging.getLogger(__name__)
 
 _PRIMES = (2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37)
+
+
+def range_inside_limits(
+    robot: RobotDescription, j: int, lo: float, hi: float, item: str
+) -> None:
+    """ValueError for a joint range ``item`` (joint ``j``, 1-based; [lo, hi] in rad or
+    m) more than 1 deg (1 mm) beyond the joint's limits: it was clipped silently."""
+    f = 1e-3 if robot.joints[j - 1].kind == "prismatic" else np.pi / 180
+    lim = robot.limits[j - 1] / f  # deg or mm
+    if lo / f < lim[0] - 1.0 or hi / f > lim[1] + 1.0:
+        unit = "mm" if f == 1e-3 else "deg"
+        raise ValueError(
+            f"{item!r} goes beyond J{j}'s limits [{lim[0]:.6g}, {lim[1]:.6g}] {unit} "
+            f"of {robot.name}; expected a range inside them"
+        )
 
 
 @dataclass(frozen=True)

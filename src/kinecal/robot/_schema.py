@@ -257,7 +257,26 @@ def _joint_limits(
     hi = _number(lim[1], f"{where}.limits[1]") * scale
     if not lo < hi:
         raise _err(f"{where}.limits", f"lower limit must be below upper; got {lim!r}.")
+    prismatic = jr.get("type") == "prismatic"
+    check_travel(lo, hi, prismatic, f"{where}.limits", f" (limits {lim!r})")
     return (lo, hi)
+
+
+# A revolute joint's limits beyond 4 turns (real arms: 1.25 at most) are a unit
+# mistake: degrees where radians are expected. A prismatic one's beyond 1 km.
+MAX_TURNS = 4.0
+
+
+def check_travel(lo: float, hi: float, prismatic: bool, where: str, what: str) -> None:
+    """Refuse joint limits [SI] no joint of an arm has (see :data:`MAX_TURNS`)."""
+    bound = _MAX_LENGTH_M / 10 if prismatic else MAX_TURNS * 2 * np.pi
+    if max(abs(lo), abs(hi)) > bound:
+        unit = "m" if prismatic else "rad"
+        also = "" if prismatic else f" ({MAX_TURNS:g} turns; degrees given as radians?)"
+        raise ConfigError(
+            f"{where}: [{lo:.6g}, {hi:.6g}] {unit}{what}; expected limits within "
+            f"+-{bound:.6g} {unit}{also}."
+        )
 
 
 def _joint(
@@ -281,8 +300,10 @@ def _joint(
                 raise _err(f"{where}.{key}", f"expected a positive number; got {v!r}.")
             rates[key] = v * scale
     jname = jr.get("name", f"J{i + 1}")
-    if not isinstance(jname, str) or not jname:
-        raise _err(f"{where}.name", f"expected a non-empty string; got {jname!r}.")
+    if not isinstance(jname, str) or not jname or not jname.isprintable():
+        raise _err(
+            f"{where}.name", f"expected a non-empty one-line string; got {jname!r}."
+        )
     return JointSpec(
         name=jname,
         theta_offset=vals["theta_offset"] * au,
@@ -371,8 +392,12 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
     """
     _check_keys(data, _TOP_KEYS, source, _REQUIRED_TOP)
     name = data["name"]
-    if not isinstance(name, str) or not name:
-        raise _err(f"{source}: name", f"expected a non-empty string; got {name!r}.")
+    if not isinstance(name, str) or not name or not name.isprintable():
+        # (it is written into file headers, URDFs and reports: no line breaks,
+        # control or text-direction characters)
+        raise _err(
+            f"{source}: name", f"expected a non-empty one-line string; got {name!r}."
+        )
     conv = data["convention"]
     if conv not in ("dh", "mdh"):
         raise _err(f"{source}: convention", f"expected 'dh' or 'mdh'; got {conv!r}.")

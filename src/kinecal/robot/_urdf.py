@@ -27,6 +27,7 @@ import numpy as np
 
 from kinecal.errors import ConfigError
 from kinecal.robot._description import JointSpec, LinkMass, RobotDescription
+from kinecal.robot._schema import check_travel
 from kinecal.robot._urdf_joints import (
     declared_coupling,
     merge_mimics,
@@ -210,8 +211,15 @@ def _walk(chain: list[ET.Element], base: str, src: str) -> _Walk:
         axis = axis / np.linalg.norm(axis)
         lim = j.find("limit")
         lo, hi = -np.inf, np.inf
-        if kind != "continuous" and lim is not None:
+        if kind != "continuous":
+            if lim is None:  # URDF: <limit> is required for revolute and prismatic
+                raise ConfigError(
+                    f"{src}: joint {jn!r} ({kind}): no <limit>; expected <limit "
+                    f"lower=.. upper=.. [{'m' if kind == 'prismatic' else 'rad'}]> (a "
+                    "joint without limits is type 'continuous')."
+                )
             lo, hi = _limits(lim, f"{src}: joint {jn!r} limit")
+            check_travel(lo, hi, kind == "prismatic", f"{src}: joint {jn!r} limit", "")
         w.rates[jn] = rates_of(lim)
         w.lines.append((T[:3, 3].copy(), T[:3, :3] @ axis))
         kind_ = "prismatic" if kind == "prismatic" else "revolute"

@@ -58,6 +58,17 @@ def _origin(joint: ET.Element, where: str, *, quarters: bool = False) -> np.ndar
     return T
 
 
+def _once(el: ET.Element, tags: tuple[str, ...], what: str, src: str) -> None:
+    """Refuse an element given twice where URDF allows one (the first was taken, the
+    second ignored: an edit appended below the original changed nothing)."""
+    for tag in tags:
+        if len(el.findall(tag)) > 1:
+            raise ConfigError(
+                f"{src}: {what} has {len(el.findall(tag))} <{tag}> elements; expected "
+                "at most one."
+            )
+
+
 def _tree(
     root: ET.Element, src: str
 ) -> tuple[set[str], dict[str, ET.Element], dict[str, list[str]]]:
@@ -72,6 +83,7 @@ def _tree(
                 f"{src}: link {name!r} is defined twice; expected unique names."
             )
         links.add(name)
+        _once(el, ("inertial",), f"link {name!r}", src)
     by_child: dict[str, ET.Element] = {}
     children: dict[str, list[str]] = {}
     joint_names: set[str] = set()
@@ -87,6 +99,12 @@ def _tree(
                 f"{src}: joint {jn!r} is defined twice; expected unique names."
             )
         joint_names.add(jn)
+        _once(
+            j,
+            ("parent", "child", "origin", "axis", "limit", "mimic"),
+            f"joint {jn!r}",
+            src,
+        )
         parent, child = j.find("parent"), j.find("child")
         if parent is None or child is None:
             raise ConfigError(f"{src}: joint {jn!r} lacks parent or child.")

@@ -91,6 +91,11 @@ def compare_measurements(
         refit_user=refit_user,
         progress=progress,
     )
+    from kinecal.io._model_bounds import check_result
+
+    for r in rows:  # a fit of another robot's data: refused, not scored
+        if r.calibrated is not None and r.model != "nominal":
+            check_result(r.calibrated, str(train.source))
     return ModelComparison(tuple(rows), comparison_table(rows), test)
 
 

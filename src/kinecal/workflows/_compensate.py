@@ -205,6 +205,7 @@ def compensate_targets(
         tg.marker_labels, tg.marker_index, spec.markers, path, "marker"
     )
     N = tg.p.shape[0]
+    rows = _row_load_scale(cal, tg.payload_kg, payload_kg, path)
     res = run_compensation(
         cal,
         tg.p,
@@ -212,7 +213,7 @@ def compensate_targets(
         R_target=tg.R,
         set_index=set_index,
         marker_index=marker_index,
-        load_scale=None if scale is None else np.full(N, scale),
+        load_scale=rows if scale is None else np.full(N, scale),
         tol=tol_mm * 1e-3,
     )
     where = tuple(f"line {ln}" for ln in tg.table.lines)
@@ -329,12 +330,45 @@ def _emitter(lines: list[str], say: Say | None) -> Say:
     return emit
 
 
+def _row_load_scale(
+    cal: CalibratedModel, column: Any, option: float | None, path: str
+) -> Any:
+    """The load scale per row of a ``payload_kg`` column (None without one)."""
+    if column is None:
+        return None
+    if option is not None:
+        raise DataError(
+            f"{path}: column 'payload_kg' and --payload-kg both give the payload; "
+            "expected one of them."
+        )
+    ref = cal.reference_payload_kg
+    if ref is None:
+        if cal.model.spec.load:
+            raise DataError(
+                f"{path}: column 'payload_kg': the model has no reference payload (its "
+                "compliance is per unit of the calibration's load); expected no "
+                "payload_kg column."
+            )
+        return None
+    return np.asarray(column, float) / ref
+
+
 def load_scale(cal: CalibratedModel, payload_kg: float | None) -> float | None:
     """The load scale of ``payload_kg`` (None: the calibration's)."""
     if payload_kg is None:
         return None
     if not payload_kg >= 0:
         raise DataError(f"--payload-kg must be >= 0; got {payload_kg}.")
+    from kinecal.io._model_bounds import MAX_PAYLOAD_KG, RATED_FACTOR
+
+    rated = cal.model.robot.rated_payload_kg
+    hi = MAX_PAYLOAD_KG if rated is None else RATED_FACTOR * rated
+    if payload_kg > hi:
+        also = "" if rated is None else f" (10 x the {rated:g} kg rated payload)"
+        raise DataError(
+            f"--payload-kg {payload_kg:g}: expected at most {hi:g} kg{also}: a unit "
+            "mistake (g, lb)?"
+        )
     ref = cal.reference_payload_kg
     if ref is None:
         if cal.model.spec.load:

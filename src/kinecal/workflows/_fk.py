@@ -188,19 +188,11 @@ def _model_fk(
                 f"{labels_text(own, what)}."
             )
         idx.append(0 if label is None else own.index(label))
-    scale = 1.0
-    if payload_kg is not None:
-        if not payload_kg >= 0:
-            raise DataError(f"--payload-kg must be >= 0; got {payload_kg}.")
-        ref = cal.reference_payload_kg
-        if ref is None:
-            if spec.load:
-                raise DataError(
-                    "the model has no reference payload (its compliance is per unit of "
-                    "the calibration's load): --payload-kg cannot be used."
-                )
-        else:
-            scale = payload_kg / ref
+    from kinecal.workflows._compensate import load_scale
+
+    # (the checks of compensate's --payload-kg; None: the calibration's load)
+    given = load_scale(cal, payload_kg)
+    scale = 1.0 if given is None else given
     inp = ModelInputs.make(
         q[None], set_index=[idx[0]], marker_index=[idx[1]], load_scale=[scale]
     )

@@ -16,6 +16,7 @@ from kinecal.io import Table, Targets
 from kinecal.measurement import CalibratedModel
 from kinecal.models import CalibrationModel
 from kinecal.planning import Instrument, Plan
+from kinecal.planning._candidates import range_inside_limits
 from kinecal.robot import RobotDescription
 from kinecal.workflows._poses import pose_lines, read_pose_file
 
@@ -167,6 +168,7 @@ def joint_ranges(text: str | None, robot: RobotDescription) -> np.ndarray | None
                 f"(degrees, or mm for a prismatic joint); got {item!r}"
             ) from None
         f = 1e-3 if robot.joints[j - 1].kind == "prismatic" else np.pi / 180
+        range_inside_limits(robot, j, lo * f, hi * f, item.strip())
         r[j - 1] = (lo * f, hi * f)
     return r
 
