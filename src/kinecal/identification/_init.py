@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinecal._stats import present
-from kinecal.errors import IdentifiabilityError
+from kinecal.errors import DataError, IdentifiabilityError
 from kinecal.geometry import (
     make_transform,
     matrix_to_euler_zyx,
@@ -229,7 +229,10 @@ def _init_pose(
         if rows.sum() < 3:
             rows = si == s
         # M_i = Y F_i X  <=>  M_i X^-1 = Y F_i : AX' = YB with A = M, B = F, X' = X^-1.
-        Xinv, Ys = solve_axyb(Mm[rows], F[rows])
+        try:
+            Xinv, Ys = solve_axyb(Mm[rows], F[rows])
+        except ValueError:  # fewer than 3 poses, or rotations about one axis at most
+            raise DataError(_one_axis(meas, model.spec.sets[s], S > 1)) from None
         Y[s] = Ys
         if s == 0:
             X[m0] = transform_inv(Xinv)
@@ -240,6 +243,18 @@ def _init_pose(
             project_to_so3(Xi[:, :3, :3].mean(axis=0)), Xi[:, :3, 3].mean(axis=0)
         )
     return Y[:, :3, :3], Y[:, :3, 3], X[:, :3, :3], X[:, :3, 3]
+
+
+def _one_axis(meas: Measurements, label: str, several: bool) -> str:
+    """The message for pose data whose orientations cannot fix the tool and user frames."""
+    where = f" (set {label})" if several else ""
+    return (
+        f"{meas.source}{where}: the measured tool orientations turn about one axis at "
+        "most (or there are fewer than 3 poses), so they cannot determine the tool's "
+        "and the user frame's rotation; expected poses that turn the tool about at "
+        "least two different axes, or position-only data (without the orientation "
+        "columns)."
+    )
 
 
 def _init_sensor(
