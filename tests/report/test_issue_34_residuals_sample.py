@@ -48,7 +48,8 @@ def test_sampled_read_is_the_sample_of_the_whole_file(tmp_path, monkeypatch):
     ("line", "message"),
     [
         (4000, r"line 4000, column 'ex_mm': not a finite number"),
-        (17, r"residuals.csv: .*"),  # a value that is not a number
+        (17, r"residuals.csv: line 17: 'x1' is not a number"),
+        (23, r"residuals.csv: line 23: 17 values; expected 18"),  # a ragged line
     ],
 )
 def test_sampled_read_names_a_malformed_line(tmp_path, line, message):
@@ -57,8 +58,10 @@ def test_sampled_read_names_a_malformed_line(tmp_path, line, message):
     cells = lines[line - 1].split(",")
     if line == 4000:  # an error column: every row's is read
         cells[13] = "nan"
-    else:
+    elif line == 17:
         cells[10] = "x1"
+    else:
+        cells.pop()
     lines[line - 1] = ",".join(cells)
     path.write_text("\n".join(lines))
     with pytest.raises(DataError, match=message):

@@ -269,8 +269,33 @@ def read_pose_errors(path: str | Path, sample: int | None = None) -> PoseErrors:
         # str and a StringIO, took 0.7 GB.
         a = np.loadtxt(p, delimiter=",", skiprows=1, ndmin=2, encoding="utf-8")
     except ValueError as exc:
-        raise DataError(f"{p}: {exc}".replace("\n", " ")) from None
+        bad = _bad_line(p, len(head))
+        raise DataError(bad or f"{p}: {exc}".replace("\n", " ")) from None
     return _table(p, a, head, np.arange(a.shape[0]) + 2)
+
+
+def _bad_line(p: Path, width: int) -> str | None:
+    """The message for the first line of a residuals file that is not ``width``
+    numbers (after a failed read: numpy's own text counts rows its way)."""
+    with open(p, encoding="utf-8", errors="replace") as fh:
+        next(fh, None)
+        for line_no, line in enumerate(fh, start=2):
+            if not line.strip():
+                continue
+            cells = line.rstrip("\r\n").split(",")
+            if len(cells) != width:
+                return (
+                    f"{p}: line {line_no}: {len(cells)} values; expected {width}, as "
+                    "the header has."
+                )
+            for cell in cells:
+                try:
+                    float(cell)
+                except ValueError:
+                    return (
+                        f"{p}: line {line_no}: {cell.strip()[:40]!r} is not a number."
+                    )
+    return None
 
 
 def _table(p: Path, a: Float, head: list[str], lines: Int) -> PoseErrors:
