@@ -540,3 +540,24 @@ def test_plan_joint_range_beyond_the_limits_is_refused(tmp_path, capsys) -> None
                       "--out", out)  # fmt: skip
     failed_with(res, "--joint-range", "J1's limits [-170, 170] deg")
     assert not out.exists()
+
+
+def test_evaluate_payload_column_without_reference_payload(
+    pt, tmp_path, capsys
+) -> None:
+    """A model with payload compliance but no reference payload (calibrated on data
+    without payload_kg) scaled its compliance by the evaluated data's own mean payload;
+    now refused, as compensate's TARGETS are. Data without the column still evaluate."""
+    lines = pt["train"].read_text().splitlines()
+    loaded = tmp_path / "loaded.csv"
+    loaded.write_text(
+        "\n".join(
+            [lines[0] + ",payload_kg"]
+            + [f"{ln},{1 + 2 * (i % 2)}" for i, ln in enumerate(lines[1:])]
+        )
+        + "\n"
+    )
+    res = run_kinecal(capsys, "evaluate", loaded, "--model", pt["model"])
+    failed_with(res, str(loaded), "payload_kg", "no reference payload")
+    res = run_kinecal(capsys, "evaluate", pt["train"], "--model", pt["model"])
+    assert res.code == 0, str(res)
