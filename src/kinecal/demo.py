@@ -102,6 +102,9 @@ def truth_model(exp: Any) -> Any:
         x,
         np.full(tm.size, np.nan),
         ["fixed"] * tm.size,
+        # The payload the data were simulated at is the unit of its compliance (as a
+        # calibration's reference payload): evaluate and compensate scale by it.
+        exp.train.reference_payload(),
         info={
             # the kind of data the truth generated: evaluate and plan --add read it
             "kind": exp.train.kind,

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from kinecal.identification import calibrate, evaluate
-from kinecal.io import read_measurements
+from kinecal.io import load_model, read_measurements
 from kinecal.robot import load_robot, robot_from_urdf
 from kinecal.simulation import (
     gravity_torques,
@@ -98,6 +98,9 @@ def test_simulate_robot_cli(tmp_path, capsys):
     assert robot.link_bodies == (2, 3, 4, 5, 6) and robot.payload_kg == 2
     train = read_measurements(out / "train.csv", robot)
     assert train.n == 40 and np.all(train.payload_kg == 2)
+    # The truth's compliance is per unit of the simulated payload, written as its
+    # reference payload (evaluate refuses payload data against a model without one).
+    assert load_model(out / "truth.yaml").reference_payload_kg == 2
     code = main(
         [
             "evaluate",
