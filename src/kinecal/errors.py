@@ -12,6 +12,7 @@ __all__ = [
     "DataError",
     "IdentifiabilityError",
     "ModelError",
+    "OutputClosed",
 ]
 
 
@@ -33,3 +34,9 @@ class ModelError(CalibError, ValueError):
 
 class IdentifiabilityError(CalibError, ValueError):
     """The data cannot determine the model asked for (too few poses, rank too low)."""
+
+
+class OutputClosed(Exception):
+    """The reader of a command's output went away (``kinecal robots | head -1``): the
+    command stops; exit 141, as SIGPIPE (docs/errors.md). Raised from the
+    ``BrokenPipeError`` of the write, which click itself would turn into exit 1."""

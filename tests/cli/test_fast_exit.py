@@ -105,3 +105,23 @@ def test_program_output_and_codes_same_as_full_exit(tmp_path):
     assert refused.returncode == 2
     assert refused.stderr.startswith("Error: ") and "Traceback" not in refused.stderr
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("full_exit", ["", "1"])
+def test_output_closed_by_its_reader_exits_141(full_exit):
+    """`kinecal robots | head -0`: docs/errors.md's 141 (as SIGPIPE), with no message;
+    click turned the broken pipe into exit 1 before."""
+    import os
+
+    env = {**os.environ, "KINECAL_FULL_EXIT": full_exit}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "kinecal", "robots"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+    )
+    assert proc.stdout is not None
+    proc.stdout.close()  # the reader goes away before the first line is written
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 141, err
+    assert b"Traceback" not in err and b"internal error" not in err

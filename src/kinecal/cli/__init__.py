@@ -20,6 +20,7 @@ import click
 
 from kinecal._version import __version__
 from kinecal.cli._errors import ExitCode
+from kinecal.errors import OutputClosed
 
 EXIT_INTERNAL = int(ExitCode.INTERNAL)
 EXIT_BAD_INPUT = int(ExitCode.BAD_INPUT)
@@ -65,9 +66,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
 
 # Options that name what a command writes; every other option or argument that names an
 # existing file is an input, which no output may replace (kinecal._outputs.note_input).
-OUTPUT_PARAMS = frozenset(
-    {"out", "out_dir", "out_path", "errors_out", "report_path", "save_candidates"}
-)
+_OUTS = ("out", "out_dir", "out_path", "errors_out", "report_path", "save_candidates")
+OUTPUT_PARAMS = frozenset(_OUTS)
 
 
 def _note_inputs(params: dict[str, object]) -> None:
@@ -105,7 +105,10 @@ def _guarded(cmd: click.Command) -> click.Command:
 
     def guarded(*args: object, **kwargs: object) -> object:
         _note_inputs(kwargs)
-        return callback(*args, **kwargs)
+        try:
+            return callback(*args, **kwargs)
+        except BrokenPipeError as exc:  # not to click: it exits 1 on EPIPE, not 141
+            raise OutputClosed() from exc
 
     guarded._kinecal_guarded = True  # type: ignore[attr-defined]
     cmd.callback = functools.update_wrapper(guarded, callback)
@@ -263,7 +266,3 @@ def _exit_code(exc: SystemExit) -> int:
         return exc.code
     click.echo(f"Error: {exc.code}", err=True)
     return EXIT_INTERNAL
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

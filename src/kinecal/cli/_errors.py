@@ -129,7 +129,7 @@ def _os_error(exc: OSError) -> tuple[ExitCode, str]:
 def classify(exc: BaseException) -> tuple[ExitCode, str]:
     """Exit code and one-line message (without "Error: ") of an exception that ended a
     command."""
-    from kinecal.errors import CalibError
+    from kinecal.errors import CalibError, OutputClosed
 
     if isinstance(exc, CommandFailed):
         return exc.code, one_line(str(exc))
@@ -152,7 +152,7 @@ def classify(exc: BaseException) -> tuple[ExitCode, str]:
             "terminated (SIGTERM); nothing of this run was written, earlier results are "
             "unchanged"
         )
-    if isinstance(exc, BrokenPipeError):
+    if isinstance(exc, (BrokenPipeError, OutputClosed)):
         return ExitCode.BROKEN_PIPE, "the output was closed by its reader"
     if isinstance(exc, OSError):
         return _os_error(exc)
