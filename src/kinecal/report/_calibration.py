@@ -493,6 +493,7 @@ def write_report(
     """
     from kinecal.errors import DataError
     from kinecal.io import atomic_write_text, load_model
+    from kinecal.report._summary_check import check_summary
 
     d = Path(folder)
     target = Path(out) if out is not None else d / "report.html"
@@ -519,6 +520,7 @@ def write_report(
             raise DataError(
                 f"{js}: missing key {key!r}; not a report.json of kinecal calibrate."
             )
+    check_summary(summary, js)
     cal = load_model(d / "model.yaml")
     res = d / RESIDUALS_CSV
     poses = read_pose_errors(res, sample=FIGURE_POSES) if res.is_file() else None

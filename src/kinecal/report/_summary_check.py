@@ -1,0 +1,79 @@
+"""report.json checked before it is drawn (``kinecal report DIR``).
+
+The file is what ``kinecal calibrate`` wrote, or a hand-edited copy: with the run's
+manifest.json its hash is checked (:func:`kinecal.report._calibration.write_report`);
+without one, a value that cannot be right would be drawn as it stands (an RMS of
+``"big"``, a negative standard deviation). Every quantity is named by its unit suffix
+(``_mm``, ``_deg``, ``_s``), or is a parameter's ``value``, ``std``, ``start`` or
+``prior_std``, or a count ``n``: each must be a finite number (or null: not measured),
+RMS values, standard deviations, maxima, percentiles, noise and counts not negative;
+lists of them alike.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+from kinecal.errors import DataError
+
+__all__ = ["check_summary"]
+
+_UNITS = ("_mm", "_deg", "_s", "_um")
+_PARAMETER = ("value", "std", "start", "prior_std")
+# Quantities that cannot be negative (by their name's start); the others (positions,
+# offsets, angles, a parameter's value) may be.
+_NOT_NEGATIVE: tuple[str, ...] = ("n", "rms", "std", "se_", "max", "mean_mm", "p50")
+_NOT_NEGATIVE += ("p95", "p99", "sigma", "noise", "radius", "prior_std")
+
+
+def check_summary(doc: Any, path: Path) -> None:
+    """Refuse a report.json whose quantities are not numbers (DataError naming the
+    file and the field, e.g. ``after.rms_mm``)."""
+    if not isinstance(doc, dict):
+        raise DataError(
+            f"{path}: expected a JSON object (report.json of kinecal calibrate)."
+        )
+    _walk(doc, "", path)
+
+
+def _walk(node: Any, where: str, path: Path) -> None:
+    if isinstance(node, dict):
+        for key, value in node.items():
+            name = f"{where}.{key}" if where else str(key)
+            if _is_quantity(str(key)):
+                _quantity(value, name, path, signed=not _not_negative(str(key)))
+            else:
+                _walk(value, name, path)
+    elif isinstance(node, list):
+        for i, value in enumerate(node):
+            _walk(value, f"{where}[{i}]", path)
+
+
+def _is_quantity(key: str) -> bool:
+    return key == "n" or key in _PARAMETER or key.endswith(_UNITS)
+
+
+def _not_negative(key: str) -> bool:
+    return "signed" not in key and (key.startswith(_NOT_NEGATIVE) or "_rms" in key)
+
+
+def _quantity(value: Any, name: str, path: Path, *, signed: bool) -> None:
+    if isinstance(value, list):
+        for i, v in enumerate(value):
+            _quantity(v, f"{name}[{i}]", path, signed=signed)
+        return
+    if value is None:
+        return
+    number = isinstance(value, (int, float)) and not isinstance(value, bool)
+    ok = number and math.isfinite(value) and (signed or value >= 0)
+    if ok and name.rsplit(".", 1)[-1] == "n":
+        ok = isinstance(value, int)
+    if not ok:
+        what = "a finite number" if signed else "a finite number >= 0"
+        raise DataError(
+            f"{path}: {name}: {str(value)[:40]!r} is not {what} (or null); expected "
+            "the report.json kinecal calibrate wrote (draw the report from the run's "
+            "own files, or run the calibration again)."
+        )
