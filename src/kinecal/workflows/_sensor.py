@@ -69,9 +69,15 @@ def reconstruct_scan(
 
     say = progress or _quiet
     files = image_files(folder, "plane_*.png")
-    idx = np.array([plane_index(f) for f in files])
+    idx = np.array(plane_indices(files))
     say("images", f"{len(files)} stripe images")
     cam = sensor.camera
+    if idx.max() >= len(sensor.planes):
+        raise DataError(
+            f"{files[int(idx.argmax())]}: light plane {int(idx.max())}; expected a "
+            f"plane number 0..{len(sensor.planes) - 1}, the planes of the sensor "
+            f"{source or 'file'}."
+        )
     read = SameSize(read_scan_image, (cam.width, cam.height), source)
     return sensor.scan(LazyImages(list(files), read), idx, jobs=jobs, method=method)
 
@@ -455,7 +461,7 @@ def _pose_folders(
                 f"{d}: missing board.png (the chessboard image of this pose)"
             )
         files = image_files(d, "plane_*.png")
-        idx = [plane_index(f) for f in files]
+        idx = plane_indices(files)
         highest = max(highest, max(idx) + 1)
         boards.append(d / "board.png")
         sets.append(dict(zip(idx, files)))
@@ -468,13 +474,28 @@ def _pose_folders(
 
 
 def plane_index(path: Path) -> int:
-    """The light-plane number a stripe image's name ends with."""
-    m = re.search(r"(\d+)\D*$", path.stem)
+    """The light-plane number of a stripe image ``plane_NNN.png``."""
+    m = re.fullmatch(r"plane_(\d+)", path.stem)
     if not m:
         raise DataError(
-            f"{path}: stripe images must end with their light-plane number, e.g. plane_007.png"
+            f"{path}: file name; expected plane_NNN.png, NNN the light-plane number "
+            "(e.g. plane_007.png); move other files out of the folder."
         )
     return int(m.group(1))
+
+
+def plane_indices(files: Sequence[Path]) -> list[int]:
+    """The light-plane numbers of stripe images; two images of one plane are refused."""
+    seen: dict[int, Path] = {}
+    for f in files:
+        i = plane_index(f)
+        if i in seen:
+            raise DataError(
+                f"{f}: light plane {i} again (also {seen[i].name}); expected one "
+                "image per plane."
+            )
+        seen[i] = f
+    return list(seen)
 
 
 def read_scan_image(path: Path) -> np.ndarray:

@@ -1,0 +1,81 @@
+"""Second fault audit (``kinecal sensor``): stripe-image folders whose file names do not
+give one light plane each, or a plane the sensor file lacks. In-process."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from tests.cli_contract import failed_with, run_kinecal
+
+
+@pytest.fixture(scope="module")
+def scan(tmp_path_factory):
+    """A scan of every 16th light plane of the built-in sensor."""
+    from kinecal.cli import main
+
+    d = tmp_path_factory.mktemp("scan") / "scan"
+    assert (
+        main(["sensor", "simulate-scan", "--out", str(d), "--every", "16", "-q"]) == 0
+    )
+    return d
+
+
+def _copy(scan, tmp_path):
+    d = tmp_path / "scan"
+    shutil.copytree(scan, d)
+    return d
+
+
+def _reconstruct(capsys, d, sensor):
+    out = d.parent / "cloud.csv"
+    return run_kinecal(
+        capsys, "sensor", "reconstruct", d, "--sensor", sensor, "--out", out, "-q"
+    ), out
+
+
+def test_a_stripe_image_not_named_plane_nnn_is_refused(capsys, tmp_path, scan):
+    """plane_48b.png was read as plane 48 (the last digits of the name)."""
+    d = _copy(scan, tmp_path)
+    (d / "plane_048.png").rename(d / "plane_48b.png")
+    res, out = _reconstruct(capsys, d, scan / "sensor.yaml")
+    failed_with(res, "plane_48b.png", "plane_NNN.png")
+    assert not out.exists()
+
+
+def test_two_images_of_one_plane_are_refused(capsys, tmp_path, scan):
+    """plane_48.png beside plane_048.png: both used as plane 48 (reconstruct), or one
+    dropped unsaid (calibrate-planes)."""
+    d = _copy(scan, tmp_path)
+    shutil.copy(d / "plane_048.png", d / "plane_48.png")
+    res, out = _reconstruct(capsys, d, scan / "sensor.yaml")
+    failed_with(res, "plane_48.png", "light plane 48 again", "plane_048.png")
+    assert not out.exists()
+
+
+def test_a_plane_the_sensor_lacks_names_the_image_and_the_sensor(
+    capsys, tmp_path, scan
+):
+    """plane_999.png of a 120-plane sensor: 'light-plane index out of range 0..119:
+    16..999' named neither the image nor the sensor file."""
+    d = _copy(scan, tmp_path)
+    (d / "plane_048.png").rename(d / "plane_999.png")
+    res, out = _reconstruct(capsys, d, scan / "sensor.yaml")
+    failed_with(res, "plane_999.png", "0..119", "sensor.yaml")
+    assert not out.exists()
+
+
+def test_calibrate_planes_refuses_two_images_of_one_plane(capsys, tmp_path, scan):
+    pose = tmp_path / "planes" / "pose_00"
+    pose.mkdir(parents=True)
+    shutil.copy(scan / "plane_048.png", pose / "board.png")
+    shutil.copy(scan / "plane_048.png", pose / "plane_048.png")
+    shutil.copy(scan / "plane_048.png", pose / "plane_48.png")
+    out = tmp_path / "s.yaml"
+    res = run_kinecal(
+        capsys, "sensor", "calibrate-planes", tmp_path / "planes", "--camera",
+        scan / "sensor.yaml", "--out", out, "-q", "--jobs", "1",
+    )  # fmt: skip
+    failed_with(res, "plane_48.png", "again")
+    assert not out.exists()
