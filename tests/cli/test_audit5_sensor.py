@@ -79,3 +79,25 @@ def test_calibrate_planes_refuses_two_images_of_one_plane(capsys, tmp_path, scan
     )  # fmt: skip
     failed_with(res, "plane_48.png", "again")
     assert not out.exists()
+
+
+def test_calibrate_planes_refuses_a_square_size_in_metres(capsys, tmp_path):
+    """--square-mm 0.0025 (2.5 mm in metres) wrote light planes 0.065 mm from the
+    camera, 1000 times too close, with exit 0."""
+    from kinecal.cli import main
+
+    d = tmp_path / "session"
+    argv = ["sensor", "simulate-calibration", "--out", str(d), "-q"]
+    assert main([*argv, "--views", "1", "--poses", "3", "--every", "16"]) == 0
+    out = tmp_path / "s.yaml"
+    res = run_kinecal(
+        capsys, "sensor", "calibrate-planes", d / "planes", "--camera",
+        d / "truth_sensor.yaml", "--out", out, "-q", "--square-mm", "0.0025",
+    )  # fmt: skip
+    failed_with(res, "--square-mm 0.0025", "mm from the camera", "in mm")
+    assert not out.exists()
+    res = run_kinecal(
+        capsys, "sensor", "calibrate-planes", d / "planes", "--camera",
+        d / "truth_sensor.yaml", "--out", out, "-q",
+    )  # fmt: skip
+    assert res.code == 0, str(res)

@@ -419,6 +419,7 @@ def calibrate_sensor_images(
     except DataError as exc:  # which folder, and which board was looked for
         where = chessboard if "camera views" in str(exc) else folder
         raise DataError(f"{where}: {exc} (--board {board})") from None
+    _board_distance_checked(res.bundle.T_cam_board, target, folder)
     skipped = sorted(set(range(len(pose_dirs))) - set(res.plane_poses))
     pc = res.planes
     status = {k: pc.status.count(k) for k in sorted(set(pc.status))}
@@ -440,6 +441,20 @@ def calibrate_sensor_images(
     if camera is None:
         info["camera"] = camera_info(res.camera, target, square_mm)
     return SensorRun(res, tuple(boards[k] for k in skipped), status, info)
+
+
+def _board_distance_checked(
+    T: np.ndarray, target: ChessboardTarget, where: Any
+) -> None:
+    """Refuse boards found within 5 mm of the camera centre: a --square-mm in metres
+    (0.0025 for 2.5 mm) scales the light planes 1000 times down, without an error."""
+    dist_mm = float(np.median(np.linalg.norm(T[:, :3, 3], axis=1))) * 1e3
+    if dist_mm < 5.0:
+        raise DataError(
+            f"{where}: the chessboard would be {dist_mm:.3g} mm from the camera with "
+            f"--square-mm {target.square * 1e3:g}; expected the square's side in mm "
+            "(a board closer than 5 mm cannot be seen sharply: metres given?)."
+        )
 
 
 def _pose_folders(
