@@ -101,3 +101,49 @@ def test_calibrate_planes_refuses_a_square_size_in_metres(capsys, tmp_path):
         d / "truth_sensor.yaml", "--out", out, "-q",
     )  # fmt: skip
     assert res.code == 0, str(res)
+
+
+def _edit(scan, tmp_path, edit):
+    import yaml
+
+    doc = yaml.safe_load((scan / "sensor.yaml").read_text())
+    edit(doc)
+    f = tmp_path / "sensor.yaml"
+    f.write_text(yaml.safe_dump(doc))
+    return f
+
+
+def _plane(i, row):
+    return lambda doc: doc["light_planes"]["planes"].__setitem__(i, row)
+
+
+def _planes_m(doc):
+    doc["light_planes"]["planes"] = [
+        [*p[:3], p[3] / 1000] for p in doc["light_planes"]["planes"]
+    ]
+
+
+@pytest.mark.parametrize(
+    ("edit", "needles"),
+    [  # internal errors (exit 1):
+        (_plane(5, [0, 0, "a", 1]), ["planes[5]", "four finite numbers"]),
+        (_plane(5, [0, 0, 1]), ["planes[5]", "four finite numbers"]),
+        # no file, no plane named, numpy warnings:
+        (_plane(5, [0, 0, 0, -65]), ["planes[5]", "normal", "zero"]),
+        # read with exit 0 and a wrong cloud:
+        (lambda d: d["light_planes"].update(unit="m"), ["unit", "'mm'", "'m'"]),
+        (_planes_m, ["b_mm", "millimetres"]),
+        (lambda d: d.update(format=2), ["format", "expected 1", "2"]),
+        (lambda d: d["camera"].pop("width"), ["missing key", "width"]),
+        (lambda d: d["camera"].update(width=1280.5), ["width", "whole number"]),
+        (lambda d: d["camera"].update(u0=50000), ["u0", "0..1280", "50000"]),
+        (lambda d: d["camera"].update(fx=3.4), ["fx", "in pixels", "3.4"]),
+    ],
+)
+def test_a_damaged_sensor_file_is_refused_naming_the_field(
+    capsys, tmp_path, scan, edit, needles
+):
+    f = _edit(scan, tmp_path, edit)
+    res, out = _reconstruct(capsys, scan, f)
+    failed_with(res, str(f), *needles)
+    assert not out.exists()
