@@ -1,6 +1,5 @@
-"""The planning workflow of ``kinecal plan``: the model and instrument a plan is for,
-the candidate poses (read or generated), and the poses chosen, ordered and reported
-(report.json's content, file units: mm, deg)."""
+"""The planning workflow of ``kinecal plan``: the model and instrument of a plan, the
+candidates (read or generated), the poses chosen, ordered and reported (in mm, deg)."""
 
 from __future__ import annotations
 
@@ -153,6 +152,7 @@ def joint_ranges(text: str | None, robot: RobotDescription) -> np.ndarray | None
     if text is None:
         return None
     r = robot.limits.copy()
+    seen: dict[int, str] = {}  # joint -> its item
     for item in text.split(","):
         parts = item.strip().split(":")
         try:
@@ -160,12 +160,13 @@ def joint_ranges(text: str | None, robot: RobotDescription) -> np.ndarray | None
                 raise ValueError
             j = int(parts[0][1:])
             lo, hi = float(parts[1]), float(parts[2])
-            if not 1 <= j <= robot.n_joints or not lo <= hi:
+            if not 1 <= j <= robot.n_joints or not lo <= hi or j in seen:
                 raise ValueError
+            seen[j] = item  # which of two ranges of a joint is meant?
         except ValueError:
             raise ValueError(
-                f"expected Jk:low:high with 1 <= k <= {robot.n_joints} and low <= high "
-                f"(degrees, or mm for a prismatic joint); got {item!r}"
+                f"expected Jk:low:high with 1 <= k <= {robot.n_joints}, each joint once, "
+                f"low <= high (degrees, or mm for a prismatic joint); got {item!r}"
             ) from None
         f = 1e-3 if robot.joints[j - 1].kind == "prismatic" else np.pi / 180
         range_inside_limits(robot, j, lo * f, hi * f, item.strip())
