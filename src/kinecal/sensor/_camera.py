@@ -142,7 +142,7 @@ class Camera:
                     "(millimetres?)"
                 )
         try:
-            return cls(**kw)  # type: ignore[arg-type]
+            return cls(**kw)
         except ConfigError as exc:  # the file's name in front of the check's message
             raise ConfigError(f"{where}: {exc}") from None
 
