@@ -16,3 +16,30 @@ def test_plan_refuses_two_ranges_of_one_joint(capsys, tmp_path):
     )  # fmt: skip
     failed_with(res, "--joint-range", "each joint once", "j1:0:20")
     assert not out.exists()
+
+
+def test_simulate_refuses_more_poses_than_any_session(capsys, tmp_path):
+    """--n-train 10^8 was killed by the kernel for its memory (exit 137); 10^9 test
+    poses ran out of memory (exit 5)."""
+    out = tmp_path / "sim"
+    res = run_kinecal(
+        capsys, "simulate", "--robot", "fanuc-lrmate200id", "--out", out,
+        "--n-train", "30", "--n-test", "1000000000", "-q",
+    )  # fmt: skip
+    failed_with(res, "--n-test 1000000000", "at most 1000000")
+    assert not out.exists()
+
+
+def test_simulate_refuses_a_payload_beyond_the_robot_naming_the_option(
+    capsys, tmp_path
+):
+    """--payload-kg 1e6 was refused only when truth.yaml (an output) was written, and
+    the message named that file instead of the option."""
+    out = tmp_path / "sim"
+    res = run_kinecal(
+        capsys, "simulate", "--robot", "fanuc-lrmate200id", "--out", out,
+        "--n-train", "30", "--n-test", "5", "--payload-kg", "1e6", "-q",
+    )  # fmt: skip
+    last = failed_with(res, "--payload-kg", "up to 70 kg")
+    assert "truth.yaml" not in last
+    assert not out.exists()
