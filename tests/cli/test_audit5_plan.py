@@ -43,3 +43,26 @@ def test_simulate_refuses_a_payload_beyond_the_robot_naming_the_option(
     last = failed_with(res, "--payload-kg", "up to 70 kg")
     assert "truth.yaml" not in last
     assert not out.exists()
+
+
+def test_a_plan_of_another_robot_is_refused(capsys, tmp_path):
+    """simulate --robot ur5e --plan PLAN.csv of the LR Mate: simulated with exit 0 (the
+    LR Mate's joints fit the UR5e's limits); PLAN.report.json names the robot."""
+    plan = tmp_path / "plan.csv"
+    res = run_kinecal(
+        capsys, "plan", "--robot", "fanuc-lrmate200id", "--poses", "20", "--out", plan,
+        "--n-candidates", "100", "--random-draws", "1", "--model", "kinematic",
+    )  # fmt: skip
+    assert res.code == 0, str(res)
+    out = tmp_path / "sim"
+    res = run_kinecal(
+        capsys, "simulate", "--robot", "ur5e", "--plan", plan, "--out", out,
+        "--n-test", "5", "-q",
+    )  # fmt: skip
+    failed_with(res, "plan.csv", "planned for fanuc-lrmate200id", "ur5e")
+    assert not out.exists()
+    res = run_kinecal(
+        capsys, "simulate", "--robot", "fanuc-lrmate200id", "--plan", plan, "--out",
+        out, "--n-test", "5", "-q",
+    )  # fmt: skip
+    assert res.code == 0, str(res)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
@@ -15,6 +16,23 @@ from kinecal.robot import RobotDescription
 __all__ = ["pose_lines", "read_pose_file"]
 
 Say = Callable[[str], None]
+
+
+def _check_planned_robot(path: str, robot: RobotDescription) -> None:
+    """A plan written by ``kinecal plan`` for another robot (its PLAN.report.json beside
+    it names that robot): its poses are not ``robot``'s, even where they fit its limits."""
+    import json
+
+    rep = Path(path).with_suffix(".report.json")
+    try:
+        planned = json.loads(rep.read_text(encoding="utf-8")).get("robot")
+    except (OSError, ValueError, AttributeError):  # no report, or not a plan's
+        return
+    if isinstance(planned, str) and planned != robot.name:
+        raise DataError(
+            f"{path}: planned for {planned} ({rep.name} beside it says so); expected "
+            f"poses of {robot.name} (plan them with --robot {robot.name})."
+        )
 
 
 def read_pose_file(
@@ -39,6 +57,7 @@ def read_pose_file(
     from kinecal.io import read_table
 
     t = read_table(path)
+    _check_planned_robot(path, robot)
     pat = re.compile(r"^j(\d+)_(deg|rad|mm|m)$")
     found = {int(m.group(1)): c for c in t.header if (m := pat.match(c))}
     n = robot.n_joints
