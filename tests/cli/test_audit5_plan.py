@@ -66,3 +66,30 @@ def test_a_plan_of_another_robot_is_refused(capsys, tmp_path):
         out, "--n-test", "5", "-q",
     )  # fmt: skip
     assert res.code == 0, str(res)
+
+
+def test_plan_add_refuses_data_the_model_was_not_calibrated_on(capsys, tmp_path):
+    """--data of other poses (J1 60 deg beyond the calibrated range) was taken as the
+    calibration's information, the plan added to poses never measured."""
+    from tests.cli_contract import make_point_data
+
+    d = make_point_data(tmp_path)
+    lines = d["train"].read_text().splitlines()
+    moved = [lines[0]]
+    for ln in lines[1:]:
+        v = ln.split(",")
+        v[0] = f"{float(v[0]) + 60:.6f}"
+        moved.append(",".join(v))
+    other = tmp_path / "other.csv"
+    other.write_text("\n".join(moved) + "\n")
+
+    def plan(data, out):
+        return run_kinecal(
+            capsys, "plan", "--add", "5", "--model", d["model"], "--data", data,
+            "--out", out, "--n-candidates", "200", "--random-draws", "1",
+        )  # fmt: skip
+
+    res = plan(other, tmp_path / "p1.csv")
+    failed_with(res, "other.csv", "line 2, column j1_deg", "calibrated on", "--data")
+    assert not (tmp_path / "p1.csv").exists()
+    assert plan(d["train"], tmp_path / "p2.csv").code == 0

@@ -17,7 +17,7 @@ from kinecal.models import CalibrationModel
 from kinecal.planning import Instrument, Plan
 from kinecal.planning._candidates import range_inside_limits
 from kinecal.robot import RobotDescription
-from kinecal.workflows._poses import pose_lines, read_pose_file
+from kinecal.workflows._poses import check_calibration_data, pose_lines, read_pose_file
 
 __all__ = [
     "PlanRun",
@@ -198,10 +198,10 @@ def calibration_noise_mm(model_file: str) -> tuple[float | None, Path]:
 def read_measured_poses(
     setup: PlanSetup, path: str, allow: bool = False, warn: Say | None = None
 ) -> tuple[np.ndarray, np.ndarray | None]:
-    """The poses of a sequential plan's calibration data ``path`` (``--data``): joints
-    (N, n) [rad] and target indices. A file with measurement columns is checked as
-    measurements (``allow``: joints beyond the limits, with a ``warn`` line)."""
+    """The poses (N, n) [rad] and target indices of a sequential plan's calibration data
+    ``path`` (``--data``), checked as measurements (``allow``: beyond the limits)."""
     table, _, q, ti = read_pose_file(path, setup.robot, setup.labels, allow, warn)
+    check_calibration_data(setup.cal, q, table, path)
     if {"x_mm", "xc_mm"} & set(table.header):
         from kinecal.io import read_measurements
 

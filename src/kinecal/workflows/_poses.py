@@ -11,6 +11,7 @@ import numpy as np
 
 from kinecal.errors import DataError
 from kinecal.io import Table
+from kinecal.measurement import CalibratedModel
 from kinecal.robot import RobotDescription
 
 __all__ = ["pose_lines", "read_pose_file"]
@@ -32,6 +33,34 @@ def _check_planned_robot(path: str, robot: RobotDescription) -> None:
         raise DataError(
             f"{path}: planned for {planned} ({rep.name} beside it says so); expected "
             f"poses of {robot.name} (plan them with --robot {robot.name})."
+        )
+
+
+def check_calibration_data(
+    cal: CalibratedModel | None, q: np.ndarray, table: Table, path: str
+) -> None:
+    """``plan --add --data``: refuse poses outside the joint ranges the model was
+    calibrated on (its file's ``calibrated_joint_range``): not that calibration's data,
+    whose information the plan would start from."""
+    rng = None if cal is None else cal.info.get("calibrated_joint_range")
+    robot = None if cal is None else cal.model.robot
+    try:
+        rng = np.asarray(rng, dtype=float)
+    except (TypeError, ValueError):
+        return
+    if robot is None or rng.shape != (robot.n_joints, 2):
+        return
+    v = q * np.where(robot.prismatic, 1e3, 180.0 / np.pi)
+    slack = np.maximum(0.02 * (rng[:, 1] - rng[:, 0]), 1.0)
+    out = (v < rng[:, 0] - slack) | (v > rng[:, 1] + slack)
+    if out.any():
+        i, j = np.argwhere(out)[0]
+        raise DataError(
+            f"{path}: line {table.lines[i]}, column j{j + 1}_"
+            f"{'mm' if robot.prismatic[j] else 'deg'}: {v[i, j]:.1f} is outside "
+            f"{rng[j, 0]:.1f} .. {rng[j, 1]:.1f}, the joint range of the data the model "
+            f"was calibrated on ({int(out.any(axis=1).sum())} rows outside); expected "
+            "that calibration's data file (--data)."
         )
 
 
