@@ -147,3 +147,14 @@ def test_a_damaged_sensor_file_is_refused_naming_the_field(
     res, out = _reconstruct(capsys, scan, f)
     failed_with(res, str(f), *needles)
     assert not out.exists()
+
+
+def test_simulate_scan_blames_every_when_it_skips_the_lit_planes(capsys, tmp_path):
+    """--every 1000 renders plane 0 only, which misses the default sphere: the message
+    told to move the sphere (--center-mm) to the working distance, where it is."""
+    out = tmp_path / "scan"
+    res = run_kinecal(
+        capsys, "sensor", "simulate-scan", "--out", out, "--every", "1000", "-q"
+    )
+    failed_with(res, "--every skips", "1 of 120", "smaller --every")
+    assert not out.exists()
