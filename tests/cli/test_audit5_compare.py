@@ -43,3 +43,12 @@ def test_compare_refuses_a_test_set_in_another_frame(capsys, tmp_path, data):
     res = _compare(capsys, data["train"], moved)
     failed_with(res, "moved.csv", "expected at most 50 mm", "--refit user")
     assert _compare(capsys, data["train"], data["test"]).code == 0
+
+
+def test_compare_refuses_a_model_given_twice(capsys, data):
+    """--models kinematic,kinematic fitted it twice and listed two equal rows."""
+    res = run_kinecal(
+        capsys, "compare", data["train"], data["test"], "--robot",
+        "fanuc-lrmate200id", "--models", "kinematic,kinematic", "--json", "-q",
+    )  # fmt: skip
+    failed_with(res, "--models", "'kinematic' given twice")

@@ -83,6 +83,11 @@ def compare_measurements(
         raise ValueError(
             f"models: expected some of {', '.join(MODELS)}; got {', '.join(names)!r}"
         )
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:  # fitted and listed twice, the table's rows indistinguishable
+        raise DataError(
+            f"--models: {twice[0]!r} given twice; expected each model once."
+        )
     _check_test_not_train(train, test)
     rows = compare_models(
         robot,
