@@ -221,6 +221,12 @@ def load_sensor(path: str | Path, *, need_planes: bool = True) -> Sensor | Camer
         raise ConfigError(f"{p}: not valid YAML ({exc}).") from None
     if not isinstance(doc, dict) or "camera" not in doc:
         raise ConfigError(f"{p}: expected a sensor file with a 'camera' section.")
+    fmt = doc.get("format", SENSOR_FORMAT)
+    if fmt != SENSOR_FORMAT:
+        raise ConfigError(
+            f"{p}: format: expected {SENSOR_FORMAT} (the sensor files this kinecal "
+            f"reads); got {fmt!r}"
+        )
     if "light_planes" not in doc:
         if need_planes:
             raise ConfigError(

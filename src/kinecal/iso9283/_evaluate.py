@@ -196,6 +196,23 @@ def _check_labels(
     return idx, cyc.astype(np.intp)
 
 
+def _check_layout(source: str, fig: IsoFigures) -> None:
+    """Refuse point labels that do not fit the test's layout: P1 the cube's centre,
+    P2-P4 and P3-P5 each a diagonal through it (labels swapped, or rows of another
+    test). Tolerance: 5 % of the P2-P4 distance (a nominal program's command poses)."""
+    c = np.array([f.command for f in fig.points])
+    tol = 0.05 * float(np.linalg.norm(c[1] - c[3]))
+    off = [np.linalg.norm(c[a] + c[b] - 2.0 * c[0]) for a, b in ((1, 3), (2, 4))]
+    if max(off) > tol:
+        a, b = ((1, 3), (2, 4))[int(np.argmax(off))]
+        raise DataError(
+            f"{source}: column 'iso_point': the midpoint of {POINT_LABELS[a]} and "
+            f"{POINT_LABELS[b]} is {max(off) * _M / 2:.1f} mm from P1; expected P1 at "
+            "the cube's centre and P2-P4, P3-P5 on its diagonals (labels swapped? "
+            "kinecal plan --iso9283 writes them)."
+        )
+
+
 def _to_base(cal: CalibratedModel, set_index: np.ndarray) -> tuple[Float, Float]:
     """Per row ``(R_base_user (N, 3, 3), t_base_user (N, 3))``: the robot base frame
     (the robot description's) from the user frame of each row's set."""
@@ -314,6 +331,7 @@ def evaluate_iso9283(
     m = cal.align(meas)
     to_base = _to_base(cal, m.set_index)
     fig = _figures("model", cal, m, to_base, idx, cyc)
+    _check_layout(meas.source, fig)
     nom = None
     if nominal:
         nom = _figures("nominal", nominal_placed(cal), m, to_base, idx, cyc)

@@ -15,6 +15,7 @@ reports (Sec. 5.1) are OpenCV's, so this is the model they belong to.
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, replace
 from typing import Any
 
@@ -109,18 +110,39 @@ class Camera:
             raise ConfigError(
                 f"{where}: unknown key(s) {sorted(unknown)}; expected {sorted(known)}"
             )
-        missing = {"fx", "fy", "u0", "v0"} - set(d)
+        missing = {"fx", "fy", "u0", "v0", "width", "height"} - set(d)
         if missing:
             raise ConfigError(f"{where}: missing key(s) {sorted(missing)}")
+        kw: dict[str, Any] = {}
+        for k, v in d.items():
+            size = k in ("width", "height")
+            try:
+                x = float(v)
+                ok = math.isfinite(x) and (not size or x == int(x))
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                what = "a whole number of pixels" if size else "a finite number"
+                raise ConfigError(
+                    f"{where}: camera parameter {k}: expected {what}; got {v!r}"
+                )
+            kw[k] = int(x) if size else x
+        w, h = kw.get("width", cls.width), kw.get("height", cls.height)
+        for k, lim in (("u0", w), ("v0", h)):
+            if w > 0 and h > 0 and not 0 <= kw[k] <= lim:
+                raise ConfigError(
+                    f"{where}: {k}: expected the principal point in the image, "
+                    f"0..{lim} px; got {kw[k]:g}"
+                )
+        for k in ("fx", "fy"):
+            if 0 < kw[k] < 0.05 * max(w, h):
+                raise ConfigError(
+                    f"{where}: {k}: expected the focal length in pixels (at least "
+                    f"{0.05 * max(w, h):g} for a {w}x{h} image); got {kw[k]:g} "
+                    "(millimetres?)"
+                )
         try:
-            kw = {
-                k: (int(v) if k in ("width", "height") else float(v))
-                for k, v in d.items()
-            }
-        except (TypeError, ValueError) as exc:
-            raise ConfigError(f"{where}: {exc}") from None
-        try:
-            return cls(**kw)  # type: ignore[arg-type]
+            return cls(**kw)
         except ConfigError as exc:  # the file's name in front of the check's message
             raise ConfigError(f"{where}: {exc}") from None
 

@@ -80,13 +80,36 @@ class LightPlanes:
             raise ConfigError(
                 f"{where}: 'planes' must be a non-empty list of [nx, ny, nz, b_mm]"
             )
-        arr = np.asarray(rows, dtype=float)
-        if arr.ndim != 2 or arr.shape[1] != 4:
-            raise ConfigError(
-                f"{where}: each plane must be [nx, ny, nz, b_mm], got shape {arr.shape}"
-            )
+        unit = d.get("unit", "mm")
+        if unit != "mm":
+            raise ConfigError(f"{where}: unit: expected 'mm'; got {unit!r}")
+        arr = np.full((len(rows), 4), np.nan)
+        for i, row in enumerate(rows):  # a file's rows: which one is wrong
+            try:
+                arr[i] = [float(v) for v in row]
+                ok = bool(np.isfinite(arr[i]).all())
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise ConfigError(
+                    f"{where}: planes[{i}]: expected four finite numbers "
+                    f"[nx, ny, nz, b_mm]; got {row!r}"
+                )
         n = arr[:, :3]
         norm = np.linalg.norm(n, axis=1, keepdims=True)
+        if (norm[:, 0] < 1e-9).any():
+            i = int(np.argmax(norm[:, 0] < 1e-9))
+            raise ConfigError(
+                f"{where}: planes[{i}]: normal [nx, ny, nz] is zero; expected a "
+                "non-zero normal"
+            )
+        b_mm = np.abs(arr[:, 3]) / norm[:, 0]
+        if np.median(b_mm) < 1.0:
+            raise ConfigError(
+                f"{where}: planes: offsets b_mm {np.median(b_mm):.3g} mm from the "
+                "camera (median); expected millimetres (a light plane through the "
+                "camera centre cannot triangulate: metres given?)"
+            )
         src = d.get("source_mm")
         return cls(
             n / norm,

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from kinecal.errors import DataError
 from kinecal.identification import ComparisonRow
 from kinecal.measurement import Measurements
 from kinecal.robot import RobotDescription
@@ -82,6 +83,12 @@ def compare_measurements(
         raise ValueError(
             f"models: expected some of {', '.join(MODELS)}; got {', '.join(names)!r}"
         )
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:  # fitted and listed twice, the table's rows indistinguishable
+        raise DataError(
+            f"--models: {twice[0]!r} given twice; expected each model once."
+        )
+    _check_test_not_train(train, test)
     rows = compare_models(
         robot,
         train,
@@ -96,7 +103,45 @@ def compare_measurements(
     for r in rows:  # a fit of another robot's data: refused, not scored
         if r.calibrated is not None and r.model != "nominal":
             check_result(r.calibrated, str(train.source))
+    _check_test_scores(rows, train, test, robot)
     return ModelComparison(tuple(rows), comparison_table(rows), test)
+
+
+def _check_test_not_train(train: Measurements, test: Measurements) -> None:
+    """TEST the very rows of TRAIN (poses and measurements): its 'held-out' figures
+    would be training errors."""
+    import numpy as np
+
+    same = train.n == test.n and train.p.shape == test.p.shape
+    if (
+        same
+        and np.array_equal(train.q_ctrl, test.q_ctrl)
+        and np.array_equal(train.p, test.p)
+    ):
+        raise DataError(
+            f"{test.source}: the same rows as TRAIN {train.source}; expected "
+            "measurements the models were not fitted on (a held-out test set)."
+        )
+
+
+def _check_test_scores(
+    rows: Sequence[ComparisonRow],
+    train: Measurements,
+    test: Measurements,
+    robot: RobotDescription,
+) -> None:
+    """Every calibrated model off by more than any calibration on TEST: another robot's
+    data, or another frame (as ``kinecal evaluate`` refuses it)."""
+    from kinecal.workflows._evaluate import OTHER_ROBOT_MM
+
+    fitted = [r.test.mean_mm for r in rows if r.model != "nominal"]
+    if fitted and min(fitted) > OTHER_ROBOT_MM:
+        raise DataError(
+            f"{test.source}: the models fitted on {train.source} are off by "
+            f"{min(fitted):.1f} mm (mean) on these rows; expected at most "
+            f"{OTHER_ROBOT_MM:g} mm: are they measurements of {robot.name} in the "
+            "frame and set-up of TRAIN? (--refit user for a new set-up)"
+        )
 
 
 def write_comparison(

@@ -16,6 +16,7 @@ from kinecal.compensation import CompensationResult
 from kinecal.errors import DataError
 from kinecal.io import CompensationTargets
 from kinecal.measurement import CalibratedModel
+from kinecal.workflows._target_labels import map_labels
 
 __all__ = [
     "ProgramCompensation",
@@ -200,8 +201,8 @@ def compensate_targets(
     check_positions(tg.p, tg.table.lines, str(targets), "x_mm, y_mm, z_mm")
     spec = cal.model.spec
     path = str(targets)
-    set_index = _map_labels(tg.set_labels, tg.set_index, spec.sets, path, "set")
-    marker_index = _map_labels(
+    set_index = map_labels(tg.set_labels, tg.set_index, spec.sets, path, "set")
+    marker_index = map_labels(
         tg.marker_labels, tg.marker_index, spec.markers, path, "marker"
     )
     N = tg.p.shape[0]
@@ -567,21 +568,3 @@ def _echo_cartesian(
         f"calibrated robot at the corrected targets as the nominal controller reads them "
         f"{worst:.4f} mm, {worst_r:.4f} deg."
     )
-
-
-def _map_labels(
-    labels: Sequence[str],
-    index: np.ndarray,
-    own: tuple[str, ...],
-    path: str,
-    what: str,
-) -> np.ndarray:
-    """Map the file's set/marker labels onto the model's (one frame: any label)."""
-    if len(own) == 1:
-        return np.zeros(index.shape[0], np.intp)
-    missing = [lab for lab in labels if lab not in own]
-    if missing:
-        raise DataError(
-            f"{path}: {what} {missing[0]!r} is not in the model ({', '.join(own)})."
-        )
-    return np.array([own.index(lab) for lab in labels], np.intp)[index]

@@ -1,6 +1,5 @@
-"""The planning workflow of ``kinecal plan``: the model and instrument a plan is for,
-the candidate poses (read or generated), and the poses chosen, ordered and reported
-(report.json's content, file units: mm, deg)."""
+"""The planning workflow of ``kinecal plan``: the model and instrument of a plan, the
+candidates (read or generated), the poses chosen, ordered and reported (in mm, deg)."""
 
 from __future__ import annotations
 
@@ -18,7 +17,7 @@ from kinecal.models import CalibrationModel
 from kinecal.planning import Instrument, Plan
 from kinecal.planning._candidates import range_inside_limits
 from kinecal.robot import RobotDescription
-from kinecal.workflows._poses import pose_lines, read_pose_file
+from kinecal.workflows._poses import check_calibration_data, pose_lines, read_pose_file
 
 __all__ = [
     "PlanRun",
@@ -153,6 +152,7 @@ def joint_ranges(text: str | None, robot: RobotDescription) -> np.ndarray | None
     if text is None:
         return None
     r = robot.limits.copy()
+    seen: dict[int, str] = {}  # joint -> its item
     for item in text.split(","):
         parts = item.strip().split(":")
         try:
@@ -160,12 +160,13 @@ def joint_ranges(text: str | None, robot: RobotDescription) -> np.ndarray | None
                 raise ValueError
             j = int(parts[0][1:])
             lo, hi = float(parts[1]), float(parts[2])
-            if not 1 <= j <= robot.n_joints or not lo <= hi:
+            if not 1 <= j <= robot.n_joints or not lo <= hi or j in seen:
                 raise ValueError
+            seen[j] = item  # which of two ranges of a joint is meant?
         except ValueError:
             raise ValueError(
-                f"expected Jk:low:high with 1 <= k <= {robot.n_joints} and low <= high "
-                f"(degrees, or mm for a prismatic joint); got {item!r}"
+                f"expected Jk:low:high with 1 <= k <= {robot.n_joints}, each joint once, "
+                f"low <= high (degrees, or mm for a prismatic joint); got {item!r}"
             ) from None
         f = 1e-3 if robot.joints[j - 1].kind == "prismatic" else np.pi / 180
         range_inside_limits(robot, j, lo * f, hi * f, item.strip())
@@ -197,10 +198,10 @@ def calibration_noise_mm(model_file: str) -> tuple[float | None, Path]:
 def read_measured_poses(
     setup: PlanSetup, path: str, allow: bool = False, warn: Say | None = None
 ) -> tuple[np.ndarray, np.ndarray | None]:
-    """The poses of a sequential plan's calibration data ``path`` (``--data``): joints
-    (N, n) [rad] and target indices. A file with measurement columns is checked as
-    measurements (``allow``: joints beyond the limits, with a ``warn`` line)."""
+    """The poses (N, n) [rad] and target indices of a sequential plan's calibration data
+    ``path`` (``--data``), checked as measurements (``allow``: beyond the limits)."""
     table, _, q, ti = read_pose_file(path, setup.robot, setup.labels, allow, warn)
+    check_calibration_data(setup.cal, q, table, path)
     if {"x_mm", "xc_mm"} & set(table.header):
         from kinecal.io import read_measurements
 

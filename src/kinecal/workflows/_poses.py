@@ -5,16 +5,63 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
 from kinecal.errors import DataError
 from kinecal.io import Table
+from kinecal.measurement import CalibratedModel
 from kinecal.robot import RobotDescription
 
 __all__ = ["pose_lines", "read_pose_file"]
 
 Say = Callable[[str], None]
+
+
+def _check_planned_robot(path: str, robot: RobotDescription) -> None:
+    """A plan written by ``kinecal plan`` for another robot (its PLAN.report.json beside
+    it names that robot): its poses are not ``robot``'s, even where they fit its limits."""
+    import json
+
+    rep = Path(path).with_suffix(".report.json")
+    try:
+        planned = json.loads(rep.read_text(encoding="utf-8")).get("robot")
+    except (OSError, ValueError, AttributeError):  # no report, or not a plan's
+        return
+    if isinstance(planned, str) and planned != robot.name:
+        raise DataError(
+            f"{path}: planned for {planned} ({rep.name} beside it says so); expected "
+            f"poses of {robot.name} (plan them with --robot {robot.name})."
+        )
+
+
+def check_calibration_data(
+    cal: CalibratedModel | None, q: np.ndarray, table: Table, path: str
+) -> None:
+    """``plan --add --data``: refuse poses outside the joint ranges the model was
+    calibrated on (its file's ``calibrated_joint_range``): not that calibration's data,
+    whose information the plan would start from."""
+    rng = None if cal is None else cal.info.get("calibrated_joint_range")
+    robot = None if cal is None else cal.model.robot
+    try:
+        rng = np.asarray(rng, dtype=float)
+    except (TypeError, ValueError):
+        return
+    if robot is None or rng.shape != (robot.n_joints, 2):
+        return
+    v = q * np.where(robot.prismatic, 1e3, 180.0 / np.pi)
+    slack = np.maximum(0.02 * (rng[:, 1] - rng[:, 0]), 1.0)
+    out = (v < rng[:, 0] - slack) | (v > rng[:, 1] + slack)
+    if out.any():
+        i, j = np.argwhere(out)[0]
+        raise DataError(
+            f"{path}: line {table.lines[i]}, column j{j + 1}_"
+            f"{'mm' if robot.prismatic[j] else 'deg'}: {v[i, j]:.1f} is outside "
+            f"{rng[j, 0]:.1f} .. {rng[j, 1]:.1f}, the joint range of the data the model "
+            f"was calibrated on ({int(out.any(axis=1).sum())} rows outside); expected "
+            "that calibration's data file (--data)."
+        )
 
 
 def read_pose_file(
@@ -39,6 +86,7 @@ def read_pose_file(
     from kinecal.io import read_table
 
     t = read_table(path)
+    _check_planned_robot(path, robot)
     pat = re.compile(r"^j(\d+)_(deg|rad|mm|m)$")
     found = {int(m.group(1)): c for c in t.header if (m := pat.match(c))}
     n = robot.n_joints

@@ -69,9 +69,15 @@ def reconstruct_scan(
 
     say = progress or _quiet
     files = image_files(folder, "plane_*.png")
-    idx = np.array([plane_index(f) for f in files])
+    idx = np.array(plane_indices(files))
     say("images", f"{len(files)} stripe images")
     cam = sensor.camera
+    if idx.max() >= len(sensor.planes):
+        raise DataError(
+            f"{files[int(idx.argmax())]}: light plane {int(idx.max())}; expected a "
+            f"plane number 0..{len(sensor.planes) - 1}, the planes of the sensor "
+            f"{source or 'file'}."
+        )
     read = SameSize(read_scan_image, (cam.width, cam.height), source)
     return sensor.scan(LazyImages(list(files), read), idx, jobs=jobs, method=method)
 
@@ -413,6 +419,7 @@ def calibrate_sensor_images(
     except DataError as exc:  # which folder, and which board was looked for
         where = chessboard if "camera views" in str(exc) else folder
         raise DataError(f"{where}: {exc} (--board {board})") from None
+    _board_distance_checked(res.bundle.T_cam_board, target, folder)
     skipped = sorted(set(range(len(pose_dirs))) - set(res.plane_poses))
     pc = res.planes
     status = {k: pc.status.count(k) for k in sorted(set(pc.status))}
@@ -436,6 +443,20 @@ def calibrate_sensor_images(
     return SensorRun(res, tuple(boards[k] for k in skipped), status, info)
 
 
+def _board_distance_checked(
+    T: np.ndarray, target: ChessboardTarget, where: Any
+) -> None:
+    """Refuse boards found within 5 mm of the camera centre: a --square-mm in metres
+    (0.0025 for 2.5 mm) scales the light planes 1000 times down, without an error."""
+    dist_mm = float(np.median(np.linalg.norm(T[:, :3, 3], axis=1))) * 1e3
+    if dist_mm < 5.0:
+        raise DataError(
+            f"{where}: the chessboard would be {dist_mm:.3g} mm from the camera with "
+            f"--square-mm {target.square * 1e3:g}; expected the square's side in mm "
+            "(a board closer than 5 mm cannot be seen sharply: metres given?)."
+        )
+
+
 def _pose_folders(
     folder: str | Path, n_planes: int | None
 ) -> tuple[list[Path], list[Path], list[dict[int, Path]], int]:
@@ -455,7 +476,7 @@ def _pose_folders(
                 f"{d}: missing board.png (the chessboard image of this pose)"
             )
         files = image_files(d, "plane_*.png")
-        idx = [plane_index(f) for f in files]
+        idx = plane_indices(files)
         highest = max(highest, max(idx) + 1)
         boards.append(d / "board.png")
         sets.append(dict(zip(idx, files)))
@@ -468,13 +489,28 @@ def _pose_folders(
 
 
 def plane_index(path: Path) -> int:
-    """The light-plane number a stripe image's name ends with."""
-    m = re.search(r"(\d+)\D*$", path.stem)
+    """The light-plane number of a stripe image ``plane_NNN.png``."""
+    m = re.fullmatch(r"plane_(\d+)", path.stem)
     if not m:
         raise DataError(
-            f"{path}: stripe images must end with their light-plane number, e.g. plane_007.png"
+            f"{path}: file name; expected plane_NNN.png, NNN the light-plane number "
+            "(e.g. plane_007.png); move other files out of the folder."
         )
     return int(m.group(1))
+
+
+def plane_indices(files: Sequence[Path]) -> list[int]:
+    """The light-plane numbers of stripe images; two images of one plane are refused."""
+    seen: dict[int, Path] = {}
+    for f in files:
+        i = plane_index(f)
+        if i in seen:
+            raise DataError(
+                f"{f}: light plane {i} again (also {seen[i].name}); expected one "
+                "image per plane."
+            )
+        seen[i] = f
+    return list(seen)
 
 
 def read_scan_image(path: Path) -> np.ndarray:

@@ -158,6 +158,15 @@ def scene_problem(sen: Sensor, c: np.ndarray, r: float, idx: np.ndarray) -> str 
             f"the sphere centre ({c_mm}) mm is outside the camera's "
             f"{cam.width}x{cam.height} image; expected a centre in view, e.g. 0,0,125"
         )
+    every = np.arange(len(sen.planes))
+    if not np.any(np.abs(sen.planes.distance(c, idx)) < r) and np.any(
+        np.abs(sen.planes.distance(c, every)) < r
+    ):  # the sphere is lit, by planes --every skips
+        return (
+            f"the sphere ({c_mm}) mm, radius {r_mm:g} mm, is lit only by light planes "
+            f"that --every skips (it renders {len(idx)} of {len(sen.planes)}): the "
+            "images would be empty; expected a smaller --every"
+        )
     if not np.any(np.abs(sen.planes.distance(c, idx)) < r):
         return (
             f"no rendered light plane meets the sphere ({c_mm}) mm, radius {r_mm:g} mm: "

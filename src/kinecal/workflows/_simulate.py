@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kinecal.errors import DataError
 from kinecal.robot import RobotDescription
 from kinecal.simulation import Experiment
 
@@ -118,6 +119,7 @@ def simulate_robot_twin(
     """
     from kinecal.simulation import LaserTracker, robot_experiment, robot_truth
 
+    _check_twin_size(robot, n_train if q_train is None else len(q_train), n_test)
     if sensor:
         from kinecal.simulation import robot_sensor_twin
 
@@ -144,6 +146,24 @@ def simulate_robot_twin(
         new_session=new_session,
     )
     return SimulatedData(exp, truth.description)
+
+
+MAX_TWIN_POSES = 1_000_000  # --n-train + --n-test: far beyond any measured session
+
+
+def _check_twin_size(robot: RobotDescription, n_train: int, n_test: int) -> None:
+    """Refuse sizes no session has (10^8 poses ran out of memory and were killed) and a
+    payload beyond the robot's bound before simulating (it was refused only when
+    truth.yaml, an output, was written, naming that file)."""
+    from kinecal.io._model_bounds import check_payload
+
+    if n_train + n_test > MAX_TWIN_POSES:
+        raise DataError(
+            f"--n-train {n_train} and --n-test {n_test}: {n_train + n_test} poses; "
+            f"expected at most {MAX_TWIN_POSES} in all (a tracker session has hundreds)."
+        )
+    if robot.payload_kg is not None:
+        check_payload(robot.payload_kg, robot, "--payload-kg")
 
 
 def write_simulation(
