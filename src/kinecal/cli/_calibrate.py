@@ -258,8 +258,9 @@ def _usable_folds(
     try:
         check_cv_folds(meas, k, groups, cv_groups)
     except DataError as exc:
-        if cv_text != str(DEFAULT_CV_FOLDS):
-            raise
+        given = click.get_current_context().get_parameter_source("cv_text")
+        if given is not None and given.name not in ("DEFAULT", "DEFAULT_MAP"):
+            raise  # an explicit --cv K (even the default's K) the data cannot give
         click.echo(f"note      no cross-validation: {exc}", err=True)
         return None
     return k

@@ -209,7 +209,8 @@ def make_folds(
     if units.size < k:
         raise DataError(
             f"{meas.source}: {k}-fold cross-validation needs at least {k} "
-            f"{unit}s to hold out; the data have {units.size}."
+            + (f"{unit}s" if groups is None else f"values of column {unit!r}")
+            + f" to hold out; the data have {units.size}."
         )
     # Units in the order they first appear, so data whose rows are all different poses
     # fold exactly as rows do.
