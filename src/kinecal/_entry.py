@@ -2,8 +2,8 @@
 
 When a command has returned, its results are written and closed (atomically, and moved
 into place by the output transaction). What the interpreter would still do is free every
-module and object one by one: with numpy and kinecal loaded that is ~20 ms of CPU, 6 % of
-a 2000-pose ``kinecal calibrate`` (issue 36). :func:`run` flushes the standard streams and
+module and object one by one: with numpy and kinecal loaded that is ~20 ms of CPU, 7-9 %
+of a 2000-pose ``kinecal calibrate`` (issue 36). :func:`run` flushes the standard streams and
 ends the process with :func:`os._exit` instead, as other command-line programs in Python
 do. It falls back to the normal exit where that could lose something: another thread still
 running (daemon threads, such as kinecal's own workers, end with the process either

@@ -166,7 +166,7 @@ def calibrate(
     )
     groups = group_labels(data, cv_groups, meas.rows) if cv_groups else None
     if cv_folds is not None:  # the folds' own check, before the calibration runs
-        cv_folds = _usable_folds(meas, cv_folds, groups, cv_groups, cv_text)
+        cv_folds = _usable_folds(meas, cv_folds, groups, cv_groups)
     certificate = certificate_block(meta_fields, temperature_range(data, meas.rows))
     nj = _transmission_joints(ntm_joints, robot)
     run = calibrate_measurements(
@@ -247,9 +247,7 @@ def _unused(model: str, cv: int | None, reject: str) -> dict[str, str]:
     return why
 
 
-def _usable_folds(
-    meas: Any, k: int, groups: Any, cv_groups: str | None, cv_text: str
-) -> int | None:
+def _usable_folds(meas: Any, k: int, groups: Any, cv_groups: str | None) -> int | None:
     """``--cv K`` checked on the data; the default K that does not fit them: None,
     with a note (no held-out figure, said so)."""
     from kinecal.errors import DataError
