@@ -24,7 +24,7 @@ _UNITS = ("_mm", "_deg", "_s", "_um")
 _PARAMETER = ("value", "std", "start", "prior_std")
 # Quantities that cannot be negative (by their name's start); the others (positions,
 # offsets, angles, a parameter's value) may be.
-_NOT_NEGATIVE: tuple[str, ...] = ("n", "rms", "std", "se_", "max", "mean_mm", "p50")
+_NOT_NEGATIVE: tuple[str, ...] = ("rms", "std", "se_", "max", "mean_mm", "p50")
 _NOT_NEGATIVE += ("p95", "p99", "sigma", "noise", "radius", "prior_std")
 
 
@@ -56,6 +56,8 @@ def _is_quantity(key: str) -> bool:
 
 
 def _not_negative(key: str) -> bool:
+    if key == "n":  # a count
+        return True
     return "signed" not in key and (key.startswith(_NOT_NEGATIVE) or "_rms" in key)
 
 
