@@ -78,6 +78,21 @@ def _with_columns(src: Path, dst: Path, names: str, values: str) -> Path:
     return dst
 
 
+def _loaded(src: Path, dst: Path) -> Path:
+    """``src`` with a payload_kg column of 1 and 3 kg on alternate rows."""
+    lines = src.read_text().splitlines()
+    rows = [f"{ln},{1 + 2 * (i % 2)}" for i, ln in enumerate(lines[1:])]
+    dst.write_text("\n".join([lines[0] + ",payload_kg", *rows]) + "\n")
+    return dst
+
+
+def _fk_of(doc, tmp_path: Path, capsys, *joints: str):
+    """``kinecal fk`` of the robot document ``doc`` written as a file: (file, run)."""
+    robot = tmp_path / "robot.yaml"
+    robot.write_text(yaml.dump(doc))
+    return robot, run_kinecal(capsys, "fk", "--robot", robot, "--", *joints)
+
+
 @pytest.mark.parametrize("columns", ["qw,qx,qy,qz", "w_deg,p_deg,r_deg"])
 def test_constant_orientation_of_turning_poses_is_refused(
     pt, tmp_path, capsys, columns
@@ -169,15 +184,7 @@ def test_compensate_reads_wpr_orientation_like_quaternions(
 def test_compensate_payload_column(pt, tmp_path, capsys) -> None:
     """A payload_kg column in TARGETS was ignored (the calibration's payload used
     instead); now it is the payload of each row, checked like --payload-kg's."""
-    lines = pt["train"].read_text().splitlines()
-    loaded = tmp_path / "loaded.csv"
-    loaded.write_text(
-        "\n".join(
-            [lines[0] + ",payload_kg"]
-            + [f"{ln},{1 + 2 * (i % 2)}" for i, ln in enumerate(lines[1:])]
-        )
-        + "\n"
-    )
+    loaded = _loaded(pt["train"], tmp_path / "loaded.csv")
     res = run_kinecal(
         capsys,
         "calibrate",
@@ -342,11 +349,7 @@ def test_robot_yaml_limits_in_the_wrong_unit(tmp_path, capsys) -> None:
         for k in ("theta_offset", "alpha"):
             j[k] = j[k] * 3.141592653589793 / 180
     doc["joints"][0]["limits"] = [-170, 170]
-    robot = tmp_path / "robot.yaml"
-    robot.write_text(yaml.dump(doc))
-    res = run_kinecal(
-        capsys, "fk", "--robot", robot, "--", "0", "0", "0", "0", "0", "0"
-    )
+    robot, res = _fk_of(doc, tmp_path, capsys, "0", "0", "0", "0", "0", "0")
     failed_with(res, str(robot), "joints[0].limits", "degrees given as radians")
 
 
@@ -417,11 +420,7 @@ def test_robot_names_must_be_one_printable_line(tmp_path, capsys, where, value) 
         doc["name"] = value
     else:
         doc["joints"][0]["name"] = value
-    robot = tmp_path / "robot.yaml"
-    robot.write_text(yaml.dump(doc))
-    res = run_kinecal(
-        capsys, "fk", "--robot", robot, "--", "0", "0", "0", "0", "-90", "0"
-    )
+    robot, res = _fk_of(doc, tmp_path, capsys, "0", "0", "0", "0", "-90", "0")
     failed_with(res, str(robot), "name", "one-line string")
 
 
@@ -548,15 +547,7 @@ def test_evaluate_payload_column_without_reference_payload(
     """A model with payload compliance but no reference payload (calibrated on data
     without payload_kg) scaled its compliance by the evaluated data's own mean payload;
     now refused, as compensate's TARGETS are. Data without the column still evaluate."""
-    lines = pt["train"].read_text().splitlines()
-    loaded = tmp_path / "loaded.csv"
-    loaded.write_text(
-        "\n".join(
-            [lines[0] + ",payload_kg"]
-            + [f"{ln},{1 + 2 * (i % 2)}" for i, ln in enumerate(lines[1:])]
-        )
-        + "\n"
-    )
+    loaded = _loaded(pt["train"], tmp_path / "loaded.csv")
     res = run_kinecal(capsys, "evaluate", loaded, "--model", pt["model"])
     failed_with(res, str(loaded), "payload_kg", "no reference payload")
     res = run_kinecal(capsys, "evaluate", pt["train"], "--model", pt["model"])
