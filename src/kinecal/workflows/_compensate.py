@@ -344,12 +344,7 @@ def _row_load_scale(
         )
     ref = cal.reference_payload_kg
     if ref is None:
-        if cal.model.spec.load:
-            raise DataError(
-                f"{path}: column 'payload_kg': the model has no reference payload (its "
-                "compliance is per unit of the calibration's load); expected no "
-                "payload_kg column."
-            )
+        check_payload_scales(cal, f"{path}: column 'payload_kg'")
         return None
     return np.asarray(column, float) / ref
 
@@ -372,13 +367,23 @@ def load_scale(cal: CalibratedModel, payload_kg: float | None) -> float | None:
         )
     ref = cal.reference_payload_kg
     if ref is None:
-        if cal.model.spec.load:
-            raise DataError(
-                "the model has no reference payload (its compliance is per unit of the "
-                "calibration's load): --payload-kg cannot be used."
-            )
+        check_payload_scales(cal, f"--payload-kg {payload_kg:g}")
         return None
     return payload_kg / ref
+
+
+def check_payload_scales(cal: CalibratedModel, what: str) -> None:
+    """Refuse a payload (``what``: the option or column giving it) for a model with
+    payload compliance but no reference payload: that compliance is per unit of the
+    calibration's unknown load (DataError). A model with a reference payload, or
+    without payload compliance (nothing to scale), passes."""
+    if cal.reference_payload_kg is None and cal.model.spec.load:
+        raise DataError(
+            f"{what}: the model has no reference payload (its payload compliance is per "
+            "unit of the calibration's unknown load, so a payload cannot scale it); "
+            "expected no payload with this model, or a model calibrated on data with a "
+            "payload_kg column."
+        )
 
 
 def check_positions(p_m: Any, lines: Any, path: str, columns: str) -> None:

@@ -103,15 +103,10 @@ def evaluate_measurements(
             say(line)
 
     meas, found = check_data_for_model(meas, cal)
-    if meas.payload_kg is not None and cal.reference_payload_kg is None:
-        if cal.model.spec.load:  # (as compensate's TARGETS: workflows/_compensate.py)
-            raise DataError(
-                f"{data_name or meas.source}: column 'payload_kg': {model_name} has no "
-                "reference payload (its payload compliance is per unit of the "
-                "calibration's unknown load, so these payloads cannot scale it); "
-                "expected data without a payload_kg column, or a model calibrated on "
-                "data with one."
-            )
+    if meas.payload_kg is not None:  # as compensate's TARGETS and --payload-kg
+        from kinecal.workflows._compensate import check_payload_scales
+
+        check_payload_scales(cal, f"{data_name or meas.source}: column 'payload_kg'")
     if "marker" in refit:  # a marker of one row: its refitted offset matches it exactly
         from kinecal.io._checks import lone_labels
 
