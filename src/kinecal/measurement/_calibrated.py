@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -74,42 +74,8 @@ class CalibratedModel:
             idx = getattr(meas, attr_i)
             if tuple(labels) == tuple(own):
                 continue
-            if len(own) == 1:
-                used = [labels[i] for i in np.unique(idx)]
-                named = [lab for lab in used if lab and own[0] and lab != own[0]]
-                if len(used) > 1 or (what == "marker" and named):
-                    # several set-ups (points on the tool) cannot share one frame;
-                    # a marker named otherwise than the model's is another point
-                    why = (
-                        "each marker is its own point on the tool"
-                        if what == "marker"
-                        else "each set is its own user frame"
-                    )
-                    named_own = f" ({own[0]!r})" if own[0] else ""
-                    raise DataError(
-                        f"{meas.source}: {what}s {label_list(used, what)} in the data, "
-                        f"but the model has one {what}{named_own}: {why}; expected "
-                        f"data of that one {what} (or a model calibrated with these "
-                        f"{what}s)."
-                    )
-                out[attr_i] = np.zeros(meas.n, np.intp)
-                out[attr_l] = own
-                continue
-            missing = [lab for lab in labels if lab not in own]
-            if missing:
-                hint = " Use --refit user for a new set-up." if what == "set" else ""
-                if not missing[0]:  # data without the column: the default label
-                    raise DataError(
-                        f"{meas.source}: no {what} column, but the model has "
-                        f"{what}s {label_list(own, what)}; expected a {what} column "
-                        f"naming them.{hint}"
-                    )
-                raise DataError(
-                    f"{meas.source}: {what} {missing[0]!r} is not in the model "
-                    f"(it has {label_list(own, what)}).{hint}"
-                )
-            remap = np.array([own.index(lab) for lab in labels], dtype=np.intp)
-            out[attr_i] = remap[idx]
+            hint = " Use --refit user for a new set-up." if what == "set" else ""
+            out[attr_i] = map_labels(labels, idx, own, what, meas.source, hint=hint)
             out[attr_l] = own
         if not out:
             return meas
@@ -146,3 +112,51 @@ def label_list(labels: Iterable[str], what: str = "set") -> str:
     """Set or marker labels for a message, the default one (``''``: data without the
     column) said in words, never as ``''``."""
     return ", ".join(repr(x) if x else f"the default {what}" for x in labels)
+
+
+def map_labels(
+    labels: Sequence[str],
+    index: np.ndarray,
+    own: tuple[str, ...],
+    what: str,
+    where: str,
+    *,
+    noun: str = "data",
+    hint: str = "",
+) -> np.ndarray:
+    """The model's index (into ``own``, its sets or markers: ``what``) of each row,
+    whose label is ``labels[index]``. A model with a single user frame (or marker)
+    takes the rows of one label, any (the same set-up), except a marker named otherwise
+    than the model's; several labels onto one frame are refused. Otherwise every label
+    must be the model's. ``where`` starts the messages, ``noun`` names the rows
+    ('data', 'targets'), ``hint`` ends the message of a label the model lacks."""
+    if len(own) == 1:
+        used = [labels[i] for i in np.unique(index)]
+        named = [lab for lab in used if lab and own[0] and lab != own[0]]
+        if len(used) > 1 or (what == "marker" and named):
+            # several set-ups (points on the tool) cannot share one frame; a marker
+            # named otherwise than the model's is another point
+            why = (
+                "each marker is its own point on the tool"
+                if what == "marker"
+                else "each set is its own user frame"
+            )
+            named_own = f" ({own[0]!r})" if own[0] else ""
+            raise DataError(
+                f"{where}: {what}s {label_list(used, what)} in the {noun}, but the "
+                f"model has one {what}{named_own}: {why}; expected {noun} of that one "
+                f"{what} (or a model calibrated with these {what}s)."
+            )
+        return np.zeros(index.shape[0], np.intp)
+    missing = [lab for lab in labels if lab not in own]
+    if missing and not missing[0]:  # rows without the column: the default label
+        raise DataError(
+            f"{where}: no {what} column, but the model has {what}s "
+            f"{label_list(own, what)}; expected a {what} column naming them.{hint}"
+        )
+    if missing:
+        raise DataError(
+            f"{where}: {what} {missing[0]!r} is not in the model (it has "
+            f"{label_list(own, what)}).{hint}"
+        )
+    return np.array([own.index(lab) for lab in labels], np.intp)[index]

@@ -16,7 +16,7 @@ from kinecal.compensation import CompensationResult
 from kinecal.errors import DataError
 from kinecal.io import CompensationTargets
 from kinecal.measurement import CalibratedModel
-from kinecal.workflows._target_labels import map_labels
+from kinecal.measurement._calibrated import map_labels
 
 __all__ = [
     "ProgramCompensation",
@@ -201,9 +201,12 @@ def compensate_targets(
     check_positions(tg.p, tg.table.lines, str(targets), "x_mm, y_mm, z_mm")
     spec = cal.model.spec
     path = str(targets)
-    set_index = map_labels(tg.set_labels, tg.set_index, spec.sets, path, "set")
-    marker_index = map_labels(
-        tg.marker_labels, tg.marker_index, spec.markers, path, "marker"
+    set_index, marker_index = (
+        map_labels(lab, idx, own, what, f"{path}: column '{what}'", noun="targets")
+        for lab, idx, own, what in (
+            (tg.set_labels, tg.set_index, spec.sets, "set"),
+            (tg.marker_labels, tg.marker_index, spec.markers, "marker"),
+        )
     )
     N = tg.p.shape[0]
     rows = _row_load_scale(cal, tg.payload_kg, payload_kg, path)
