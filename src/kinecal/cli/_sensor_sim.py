@@ -83,7 +83,7 @@ def simulate_scan(
     idx = np.arange(0, len(sen.planes), every)
     problem = scene_problem(sen, c, radius_mm * 1e-3, idx)
     if problem:  # an empty set of images with exit 0 otherwise
-        raise click.BadParameter(problem, param_hint="--center-mm")
+        raise click.BadParameter(problem[1], param_hint=problem[0])
     d = prepare_output_dir(out, scan_files(every), force=force)
     ses = render_scan(
         d, center, radius_mm, every=every, seed=seed, jobs=jobs, progress=prog

@@ -17,6 +17,7 @@ from kinecal.cli._common import (
     manifest,
     option_table,
     parse_pose,
+    refuse_unused,
     targets_option,
 )
 
@@ -320,9 +321,9 @@ def _simulate_robot(
         robot = replace(robot, payload_kg=payload_kg or None)
     if tool is not None:
         robot = replace(robot, T_flange_tool=parse_pose(tool, "--tool", (3, 6)))
+    if plan_file:  # its rows are the poses to calibrate (--n-train was ignored)
+        refuse_unused({"n_train": f"is for random poses; --plan {plan_file} has them"})
     q_train = read_pose_file(plan_file, robot, None)[2] if plan_file else None
-    if q_train is None and n_train < 1:  # pragma: no cover - click checks it
-        raise click.BadParameter("expected at least 1", param_hint="--n-train")
     if sensor and (plan_file or new_session):
         raise click.BadParameter(
             "--sensor plans its own views of the spheres in one session; expected no "
@@ -339,12 +340,8 @@ def _simulate_robot(
     )  # fmt: skip
     exp = sim.experiment
     written = write_simulation(sim, out, Path(out_dir), robot_file=sim.robot)
-    config: dict[str, Any] = {
-        "seed": seed,
-        "n_train": exp.train.n,
-        "n_test": exp.test.n,
-    }
-    config |= {"extras": list(extras), "noise_um": noise_um}
+    config: dict[str, Any] = {"seed": seed, "n_train": exp.train.n}
+    config |= {"n_test": exp.test.n, "extras": list(extras), "noise_um": noise_um}
     config |= {"payload_kg": robot.payload_kg, "truth": sim.description}
     config |= {"instrument": "sensor" if sensor else "tracker"}
     tgt = f" --targets {written['targets']}" if "targets" in written else ""

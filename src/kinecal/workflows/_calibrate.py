@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from kinecal._stats import distinct_rows
-from kinecal.errors import CalibError, IdentifiabilityError
+from kinecal.errors import CalibError, ConfigError, IdentifiabilityError
 from kinecal.identification import (
     CalibrationOptions,
     CalibrationResult,
@@ -114,6 +114,7 @@ def calibrate_measurements(
     CalibError
         A fold of the cross-validation could not be fitted.
     """
+    _check_arguments(robot, meas, options, cv_folds, groups, group_name)
     opts = options or CalibrationOptions()
     say: Progress = progress or (lambda stage, detail: None)
     hay = parallel_pairs(robot) if hayati else ()
@@ -276,7 +277,14 @@ def group_labels(data: str, column: str, rows: np.ndarray) -> np.ndarray:
         )
     k = table.header.index(column)
     by_line = {line: row[k].strip() for line, row in zip(table.lines, table.rows)}
-    return np.array([by_line[int(r)] for r in rows])
+    labels = np.array([by_line[int(r)] for r in rows])
+    empty = np.flatnonzero(labels == "")
+    if empty.size:  # they made one group of their own, unsaid
+        raise DataError(
+            f"{data}: line {int(rows[empty[0]])}, column {column!r}: empty ({empty.size} "
+            f"of {labels.size} rows); expected a group label in every row (--cv-groups)."
+        )
+    return labels
 
 
 def _checks(
@@ -323,6 +331,37 @@ def check_distinct_poses(
         )
 
 
+def _check_arguments(
+    robot: Any,
+    meas: Any,
+    options: Any,
+    cv_folds: Any,
+    groups: Any,
+    group_name: str,
+) -> None:
+    """What a script hands :func:`calibrate_measurements`: a robot, its measurements,
+    options, a fold count and one group label per row (ConfigError otherwise); the
+    folds checked before the calibration runs (not after it, as a fold's failure)."""
+    from kinecal.workflows._args import count, need, need_measurements, need_robot
+
+    need_robot(robot)
+    need_measurements(meas, robot.n_joints)
+    if options is not None:
+        need(options, CalibrationOptions, "options")
+    if groups is not None and np.shape(groups) != (meas.n,):
+        raise ConfigError(
+            f"groups: expected one label per row of meas ({meas.n}); got shape "
+            f"{np.shape(groups)}."
+        )
+    if cv_folds is not None:
+        check_cv_folds(
+            meas,
+            count(cv_folds, "cv_folds", 2),
+            None if groups is None else np.asarray(groups),
+            group_name,
+        )
+
+
 def check_cv_folds(
     meas: Measurements, k: int, groups: np.ndarray | None, group_name: str | None
 ) -> None:
@@ -338,7 +377,35 @@ def check_cv_folds(
             f"{meas.source}: --cv {k}: {k} folds asked, but the data have {meas.n} rows; "
             f"expected at most {meas.n} (5 or 10 is usual)."
         )
-    make_folds(meas, k, groups=groups, group_name=group_name or "group")
+    folds = [make_folds(meas, k, groups=groups, group_name=group_name or "group")]
+    if groups is None and len(meas.set_labels) > 1:  # the in-session figure's too
+        folds.append(make_folds(meas, k, scheme="pose"))
+    for f in folds:
+        if not f.by_set:
+            _check_sets_in_folds(meas, k, f.test, group_name or f.unit)
+
+
+def _check_sets_in_folds(
+    meas: Measurements, k: int, tests: list[np.ndarray], unit: str
+) -> None:
+    """Every set a fold holds rows of keeps at least 3 rows to fit its user frame on
+    (a set of 3 rows, or of copies of one pose, lost them to a fold: the whole
+    calibration failed after it had run, with 'set B has 2 rows')."""
+    from kinecal.errors import DataError
+
+    n_sets = len(meas.set_labels)
+    total = np.bincount(meas.set_index, minlength=n_sets)
+    for i, test in enumerate(tests):
+        held = np.bincount(meas.set_index[test], minlength=n_sets)
+        short = np.flatnonzero((held > 0) & (total - held < 3))
+        if short.size:
+            s = int(short[0])
+            raise DataError(
+                f"{meas.source}: --cv {k}: fold {i + 1} holds out {held[s]} of the "
+                f"{total[s]} rows of set {meas.set_labels[s]!r} (whole {unit}s), leaving "
+                f"{total[s] - held[s]} to fit its user frame on; expected at least 3 "
+                f"left in every fold: more poses in that set, or --cv off."
+            )
 
 
 def check_auto_folds(

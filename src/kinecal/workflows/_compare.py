@@ -76,13 +76,14 @@ def compare_measurements(
     """
     from kinecal.identification import CalibrationOptions, compare_models
     from kinecal.report import comparison_table
+    from kinecal.workflows._args import need_measurements, need_robot, words
 
-    names = tuple(models)
-    bad = [n for n in names if n not in MODELS]
-    if bad or not names:
-        raise ValueError(
-            f"models: expected some of {', '.join(MODELS)}; got {', '.join(names)!r}"
-        )
+    need_robot(robot)
+    need_measurements(train, robot.n_joints, "train")
+    need_measurements(test, robot.n_joints, "test")
+    names = words(models, MODELS, "models")
+    if not names:
+        raise ValueError(f"models: expected some of {', '.join(MODELS)}; got none.")
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:  # fitted and listed twice, the table's rows indistinguishable
         raise DataError(

@@ -5,6 +5,7 @@ Cartesian targets in their user and tool frames; the rest of the program byte fo
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -187,7 +188,10 @@ def compensate_targets(
     """
     from kinecal.compensation import compensate as run_compensation
     from kinecal.io import read_compensation_targets
+    from kinecal.workflows._args import need, need_model
 
+    need_model(cal)
+    need(targets, (str, Path), "targets")
     lines: list[str] = []
     emit = _emitter(lines, say)
     scale = load_scale(cal, payload_kg)
@@ -356,6 +360,8 @@ def load_scale(cal: CalibratedModel, payload_kg: float | None) -> float | None:
     """The load scale of ``payload_kg`` (None: the calibration's)."""
     if payload_kg is None:
         return None
+    if isinstance(payload_kg, bool) or not isinstance(payload_kg, numbers.Real):
+        raise DataError(f"--payload-kg: expected a number [kg]; got {payload_kg!r}.")
     if not payload_kg >= 0:
         raise DataError(f"--payload-kg must be >= 0; got {payload_kg}.")
     from kinecal.io._model_bounds import MAX_PAYLOAD_KG, RATED_FACTOR

@@ -94,7 +94,11 @@ def evaluate_measurements(
     """
     from kinecal.identification import evaluate
     from kinecal.io import check_data_for_model
+    from kinecal.workflows._args import need_measurements, need_model, words
 
+    need_model(cal)
+    need_measurements(meas, cal.model.robot.n_joints)
+    refit = words(refit, ("user", "tool", "marker"), "refit")
     lines: list[str] = []
 
     def emit(line: str) -> None:

@@ -105,7 +105,11 @@ def export_model(
     >>> Path("calibrated.urdf").write_text(ex.text)
     """
     from kinecal.compensation import geometry_loss, has_compliance
+    from kinecal.workflows._args import choice, need_model
 
+    need_model(cal)
+    choice(fmt, ("urdf", "yaml-dh", "ur-calibration"), "fmt")
+    choice(names, ("kinecal", "robot"), "names")
     robot = cal.model.robot
     inputs, where, data_lines = _loss_poses(cal, data, targets)
     notes = [

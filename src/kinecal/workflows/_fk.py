@@ -12,6 +12,7 @@ import numpy as np
 from kinecal.errors import DataError
 from kinecal.measurement import CalibratedModel
 from kinecal.robot import RobotDescription
+from kinecal.workflows._args import need_robot
 
 __all__ = ["ImportedRobot", "PoseReport", "forward_pose", "import_urdf_robot"]
 
@@ -121,6 +122,9 @@ def forward_pose(
     """
     cal = source if isinstance(source, CalibratedModel) else None
     robot = source.model.robot if isinstance(source, CalibratedModel) else source
+    if cal is None:
+        need_robot(source, "source")
+    joints = _joint_values(joints)
     if len(joints) != robot.n_joints:
         raise DataError(
             f"{robot.name} has {robot.n_joints} joints; got {len(joints)} joint values."
@@ -135,7 +139,57 @@ def forward_pose(
     if cal is None:
         xyz, wpr = _pose_mm_deg(robot.fk_flange(q))
         return PoseReport(robot.name, xyz, wpr)
+    _warn_extrapolation(cal, q)
     return _model_fk(cal, q, payload_kg, set_label, marker)
+
+
+def _warn_extrapolation(cal: CalibratedModel, q: np.ndarray) -> None:
+    """Warn (as evaluate and compensate do) when a joint lies outside the range the
+    model was calibrated on: its pose there is an extrapolation (it was printed as
+    calibrated, unsaid)."""
+    import warnings
+
+    from kinecal.io import extrapolation
+
+    found = extrapolation(cal, q[None], [1], "fk")
+    if found is None:
+        return
+    robot = cal.model.robot
+    rng = np.asarray(cal.info["calibrated_joint_range"], float)
+    v = q * np.where(robot.prismatic, 1e3, 180.0 / np.pi)
+    parts = []
+    for name in found.parameters:
+        j = robot.joint_names.index(name)
+        unit = "mm" if robot.prismatic[j] else "deg"
+        parts.append(
+            f"{name} {v[j]:.1f} {unit} (calibrated {rng[j, 0]:.1f} .. {rng[j, 1]:.1f})"
+        )
+    source = cal.info.get("source", "the calibration data")
+    warnings.warn(
+        f"{'; '.join(parts)}: outside the joint ranges of {source}, which the model was "
+        "calibrated on; its pose there extrapolates and can be far off.",
+        stacklevel=3,
+    )
+
+
+def _joint_values(joints: Any) -> list[float]:
+    """``joints`` as a list of numbers: one value per joint, a flat sequence."""
+    from kinecal.errors import ConfigError
+
+    a = None
+    if not isinstance(joints, (str, bytes)):
+        try:
+            a = np.asarray(joints, dtype=float)
+        except (TypeError, ValueError):
+            pass
+    if a is None or a.ndim != 1:
+        raise ConfigError(
+            "joints: expected one number per joint (a list or 1-D array); got "
+            f"{type(joints).__name__}"
+            + ("" if a is None or a.ndim == 0 else f" of shape {a.shape}")
+            + "."
+        )
+    return [float(v) for v in a]
 
 
 def _check_joints(

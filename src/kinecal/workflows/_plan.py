@@ -17,6 +17,7 @@ from kinecal.models import CalibrationModel
 from kinecal.planning import Instrument, Plan
 from kinecal.planning._candidates import range_inside_limits
 from kinecal.robot import RobotDescription
+from kinecal.workflows._args import need_robot
 from kinecal.workflows._poses import check_calibration_data, pose_lines, read_pose_file
 
 __all__ = [
@@ -99,6 +100,7 @@ def plan_setup(
     """
     from kinecal.planning import planning_model
 
+    need_robot(robot)
     cal = model if isinstance(model, CalibratedModel) else None
     inst_name = instrument or default_instrument(cal)
     inst = Instrument(
@@ -201,13 +203,7 @@ def read_measured_poses(
     """The poses (N, n) [rad] and target indices of a sequential plan's calibration data
     ``path`` (``--data``), checked as measurements (``allow``: beyond the limits)."""
     table, _, q, ti = read_pose_file(path, setup.robot, setup.labels, allow, warn)
-    check_calibration_data(setup.cal, q, table, path)
-    if {"x_mm", "xc_mm"} & set(table.header):
-        from kinecal.io import read_measurements
-
-        read_measurements(
-            path, setup.robot, setup.targets, allow_out_of_limits=allow, check=False
-        )
+    check_calibration_data(setup.cal, q, table, path, setup.robot, setup.targets, allow)
     return q, ti
 
 

@@ -10,9 +10,10 @@ from pathlib import Path
 import numpy as np
 
 from kinecal.errors import DataError
-from kinecal.io import Table
-from kinecal.measurement import CalibratedModel
+from kinecal.io import Table, Targets
+from kinecal.measurement import CalibratedModel, Measurements
 from kinecal.robot import RobotDescription
+from kinecal.workflows._args import need_robot
 
 __all__ = ["pose_lines", "read_pose_file"]
 
@@ -37,18 +38,44 @@ def _check_planned_robot(path: str, robot: RobotDescription) -> None:
 
 
 def check_calibration_data(
-    cal: CalibratedModel | None, q: np.ndarray, table: Table, path: str
+    cal: CalibratedModel | None,
+    q: np.ndarray,
+    table: Table,
+    path: str,
+    robot: RobotDescription | None = None,
+    targets: Targets | None = None,
+    allow: bool = False,
 ) -> None:
-    """``plan --add --data``: refuse poses outside the joint ranges the model was
-    calibrated on (its file's ``calibrated_joint_range``): not that calibration's data,
-    whose information the plan would start from."""
-    rng = None if cal is None else cal.info.get("calibrated_joint_range")
-    robot = None if cal is None else cal.model.robot
+    """``plan --add --data``: refuse data that are not the calibration's, whose
+    information the plan would start from: poses outside the joint ranges the model was
+    calibrated on (its file's ``calibrated_joint_range``); measurements (positions in
+    the file) that read as such for ``robot`` but whose sets or markers the model has
+    not, or that the model misses by more than any calibrated robot does (another
+    robot, frame or set-up; they were taken as its poses)."""
+    if cal is not None:
+        robot = cal.model.robot
+        _check_joint_range(cal, q, table, path)
+    if robot is None or not {"x_mm", "xc_mm"} & set(table.header):
+        return
+    from kinecal.io import read_measurements
+
+    meas = read_measurements(
+        path, robot, targets, allow_out_of_limits=allow, check=False
+    )
+    if cal is not None:
+        _check_model_fits(cal, meas, path)
+
+
+def _check_joint_range(
+    cal: CalibratedModel, q: np.ndarray, table: Table, path: str
+) -> None:
+    """The poses lie within the joint ranges of the model's calibration data."""
+    robot = cal.model.robot
     try:
-        rng = np.asarray(rng, dtype=float)
+        rng = np.asarray(cal.info.get("calibrated_joint_range"), dtype=float)
     except (TypeError, ValueError):
         return
-    if robot is None or rng.shape != (robot.n_joints, 2):
+    if rng.shape != (robot.n_joints, 2):
         return
     v = q * np.where(robot.prismatic, 1e3, 180.0 / np.pi)
     slack = np.maximum(0.02 * (rng[:, 1] - rng[:, 0]), 1.0)
@@ -61,6 +88,33 @@ def check_calibration_data(
             f"{rng[j, 0]:.1f} .. {rng[j, 1]:.1f}, the joint range of the data the model "
             f"was calibrated on ({int(out.any(axis=1).sum())} rows outside); expected "
             "that calibration's data file (--data)."
+        )
+
+
+def _check_model_fits(cal: CalibratedModel, meas: Measurements, path: str) -> None:
+    """The model's sets and markers hold the data's, and its median error on them is
+    what a calibration leaves (at most ``OTHER_ROBOT_MM``)."""
+    from kinecal.io import check_data_for_model
+    from kinecal.measurement._calibrated import map_labels
+    from kinecal.workflows._evaluate import OTHER_ROBOT_MM
+
+    meas, _ = check_data_for_model(meas, cal)
+    spec, hint = cal.model.spec, " Expected that calibration's data file (--data)."
+    for labels, index, own, what in (
+        (meas.set_labels, meas.set_index, spec.sets, "set"),
+        (meas.marker_labels, meas.marker_index, spec.markers, "marker"),
+    ):
+        if tuple(labels) != tuple(own):
+            map_labels(labels, index, own, what, path, hint=hint)
+    err = np.linalg.norm(cal.predict(meas).raw_position, axis=1) * 1e3
+    med = float(np.median(err))
+    if med > OTHER_ROBOT_MM:
+        raise DataError(
+            f"{path}: the model's median error on these rows is {med:.1f} mm (expected "
+            f"at most {OTHER_ROBOT_MM:g} mm on the data it was calibrated on): "
+            f"measurements of another robot, frame or set-up than "
+            f"{cal.model.robot.name}'s calibration; expected that calibration's data "
+            "file (--data)."
         )
 
 
@@ -85,6 +139,7 @@ def read_pose_file(
     """
     from kinecal.io import read_table
 
+    need_robot(robot)
     t = read_table(path)
     _check_planned_robot(path, robot)
     pat = re.compile(r"^j(\d+)_(deg|rad|mm|m)$")

@@ -137,13 +137,18 @@ def render_scan(
     return RenderedSession(d, int(idx.size), tuple(names))
 
 
-def scene_problem(sen: Sensor, c: np.ndarray, r: float, idx: np.ndarray) -> str | None:
+def scene_problem(
+    sen: Sensor, c: np.ndarray, r: float, idx: np.ndarray
+) -> tuple[str, str] | None:
     """Why the scan cannot see the sphere (its images would be empty), or None: behind
     the camera or around it, outside the image, or missed by every rendered light
-    plane. ``c`` (3,) [m] camera frame, ``r`` [m], ``idx`` the rendered planes."""
+    plane. ``c`` (3,) [m] camera frame, ``r`` [m], ``idx`` the rendered planes.
+
+    The problem is (option, message): the option to change, ``--every`` when the
+    sphere is lit by planes it skips, else ``--center-mm``."""
     c_mm, r_mm = ", ".join(f"{v:g}" for v in c * 1e3), r * 1e3
     if c[2] - r <= 0:
-        return (
+        return "--center-mm", (
             f"the sphere ({c_mm}) mm, radius {r_mm:g} mm, is not wholly in front of the "
             f"camera; expected Z > {r_mm:g} mm (the working distance is 115-135 mm)"
         )
@@ -154,7 +159,7 @@ def scene_problem(sen: Sensor, c: np.ndarray, r: float, idx: np.ndarray) -> str 
         np.abs(xy).max() > 1.0  # beyond 45 deg off axis (where the distortion folds)
         or not (-0.5 <= uv[0] <= cam.width - 0.5 and -0.5 <= uv[1] <= cam.height - 0.5)
     ):
-        return (
+        return "--center-mm", (
             f"the sphere centre ({c_mm}) mm is outside the camera's "
             f"{cam.width}x{cam.height} image; expected a centre in view, e.g. 0,0,125"
         )
@@ -162,13 +167,13 @@ def scene_problem(sen: Sensor, c: np.ndarray, r: float, idx: np.ndarray) -> str 
     if not np.any(np.abs(sen.planes.distance(c, idx)) < r) and np.any(
         np.abs(sen.planes.distance(c, every)) < r
     ):  # the sphere is lit, by planes --every skips
-        return (
+        return "--every", (
             f"the sphere ({c_mm}) mm, radius {r_mm:g} mm, is lit only by light planes "
             f"that --every skips (it renders {len(idx)} of {len(sen.planes)}): the "
             "images would be empty; expected a smaller --every"
         )
     if not np.any(np.abs(sen.planes.distance(c, idx)) < r):
-        return (
+        return "--center-mm", (
             f"no rendered light plane meets the sphere ({c_mm}) mm, radius {r_mm:g} mm: "
             "the images would be empty; expected a sphere at the working distance "
             "(115-135 mm), e.g. 0,0,125"

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -117,9 +118,18 @@ def simulate_robot_twin(
     SimulatedData
         The truth, the measurements to calibrate and to test (and the targets).
     """
-    from kinecal.simulation import LaserTracker, robot_experiment, robot_truth
+    from kinecal.simulation import EXTRAS, LaserTracker, robot_experiment, robot_truth
+    from kinecal.workflows._args import count, need_robot, words
 
-    _check_twin_size(robot, n_train if q_train is None else len(q_train), n_test)
+    need_robot(robot)
+    extras = words(extras, EXTRAS, "extras")
+    if q_train is not None:
+        q_train = _check_planned_poses(robot, q_train)
+    else:
+        count(n_train, "n_train")
+    _check_twin_size(
+        robot, n_train if q_train is None else len(q_train), count(n_test, "n_test")
+    )
     if sensor:
         from kinecal.simulation import robot_sensor_twin
 
@@ -149,6 +159,25 @@ def simulate_robot_twin(
 
 
 MAX_TWIN_POSES = 1_000_000  # --n-train + --n-test: far beyond any measured session
+
+
+def _check_planned_poses(robot: RobotDescription, q_train: Any) -> np.ndarray:
+    """``q_train``: (N, n) finite controller joints [rad] within the joint limits (90
+    given as degrees was simulated as 90 rad)."""
+    from kinecal.errors import ConfigError
+    from kinecal.workflows._args import joint_rows
+
+    q = joint_rows(q_train, robot.n_joints, "q_train")
+    out = np.argwhere((q < robot.limits[:, 0] - 1e-9) | (q > robot.limits[:, 1] + 1e-9))
+    if out.size:
+        i, j = out[0]
+        unit = "m" if robot.prismatic[j] else "rad"
+        raise ConfigError(
+            f"q_train[{i}, {j}]: {q[i, j]:g} {unit} is beyond the limits "
+            f"[{robot.limits[j, 0]:g}, {robot.limits[j, 1]:g}] {unit} of {robot.name} "
+            f"{robot.joint_names[j]}; expected controller joints in radians (metres)."
+        )
+    return q
 
 
 def _check_twin_size(robot: RobotDescription, n_train: int, n_test: int) -> None:
