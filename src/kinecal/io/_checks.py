@@ -439,8 +439,10 @@ def extrapolation(
     parts = []
     for i in bad[:8]:
         j = int(np.flatnonzero(out[i])[0])
+        # the data's column too where the robot names its joints otherwise (UR, URDF)
+        col = "" if names[j] == f"J{j + 1}" else f" (j{j + 1}_{unit[j]})"
         parts.append(
-            f"row {row_of[i]} {names[j]} {q[i, j]:.1f} {unit[j]} (calibrated "
+            f"row {row_of[i]} {names[j]}{col} {q[i, j]:.1f} {unit[j]} (calibrated "
             f"{rng[j, 0]:.1f} .. {rng[j, 1]:.1f})"
         )
     more = f" and {bad.size - 8} more" if bad.size > 8 else ""

@@ -36,6 +36,13 @@ __all__ = ["gravity_torques", "random_joint_poses", "robot_experiment", "robot_t
 _TORQUE_POSES = 400
 
 
+# The largest joint compliance drawn [rad/m], for a joint whose gravity torque is tiny
+# (a wrist joint near the tool): deflection / torque gave 0.48 rad/m on an xArm6's J6,
+# beyond the 0.1 rad/m a model file holds (io/_model_bounds; real joints ~1e-4), and
+# `simulate` refused its own truth. With the +-0.4 draw below at most 0.075 rad/m.
+_MAX_LAMBDA = 0.05
+
+
 def robot_truth(
     robot: RobotDescription,
     *,
@@ -87,7 +94,7 @@ def robot_truth(
     carried = tau > 1e-6 * max(tau.max(), 1e-300)
     typical = deflection / np.median(tau[carried]) if carried.any() else 3e-4
     for j in range(robot.n_joints):
-        lam = deflection / tau[j] if carried[j] else typical
+        lam = min(deflection / tau[j], _MAX_LAMBDA) if carried[j] else typical
         x[L.index(f"joint{j + 1}.lambda")] = lam * np.exp(rng.uniform(-0.4, 0.4))
     x[model.base_index[0]] = (
         base

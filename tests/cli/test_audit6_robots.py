@@ -1,0 +1,52 @@
+"""Audit 6: the user's own robot through simulate and evaluate (in-process): a URDF arm
+whose wrist carries almost no gravity torque, and extrapolation warnings on a robot
+that names its joints otherwise than the data's columns."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from tests.cli_contract import run_kinecal
+
+_URDF = Path(__file__).parents[1] / "data" / "vendor_urdf"
+
+
+def test_simulate_a_urdf_arm_with_a_nearly_unloaded_wrist(capsys, tmp_path):
+    """xArm6: the twin drew J6's compliance as deflection / its tiny gravity torque
+    (0.48 rad/m) and simulate refused its own truth.yaml ('are these measurements of
+    another robot, or is the robot file wrong?', exit 2)."""
+    out = tmp_path / "sim"
+    res = run_kinecal(
+        capsys, "simulate", "--robot", _URDF / "xarm6_gripper.urdf", "--out", out,
+        "--n-train", "40", "--n-test", "5", "-q",
+    )  # fmt: skip
+    assert res.code == 0, str(res)
+    res = run_kinecal(
+        capsys, "evaluate", out / "test.csv", "--model", out / "truth.yaml", "--json"
+    )
+    assert res.code == 0, str(res)
+
+
+def test_extrapolation_names_the_data_column_of_a_named_joint(capsys, tmp_path):
+    """UR5e data beyond the calibrated range: the warning named 'shoulder_pan' only; the
+    data's column is j1_deg."""
+    sim = tmp_path / "sim"
+    args = ["--robot", "ur5e", "--out", sim, "--n-train", "40", "--n-test", "30", "-q"]
+    assert run_kinecal(capsys, "simulate", *args).code == 0
+    cal = tmp_path / "cal"
+    res = run_kinecal(
+        capsys, "calibrate", sim / "train.csv", "--robot", sim / "robot.yaml",
+        "--model", "kinematic", "--cv", "off", "--out", cal, "-q",
+    )  # fmt: skip
+    assert res.code == 0, str(res)
+    lines = (sim / "test.csv").read_text().splitlines()
+    far = [lines[0]] + [ln.replace(ln.split(",")[0], "359.0", 1) for ln in lines[1:]]
+    data = tmp_path / "far.csv"
+    data.write_text("\n".join(far) + "\n")
+    res = run_kinecal(
+        capsys, "evaluate", data, "--model", cal / "model.yaml", "--json",
+        "--allow-out-of-limits",
+    )  # fmt: skip
+    warned = [ln for ln in res.err.splitlines() if "lie outside the joint" in ln]
+    assert warned, str(res)
+    assert "row 2 shoulder_pan (j1_deg) 359.0 deg (calibrated" in warned[0], warned[0]
