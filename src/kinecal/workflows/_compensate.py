@@ -189,6 +189,7 @@ def compensate_targets(
     from kinecal.compensation import compensate as run_compensation
     from kinecal.io import read_compensation_targets
     from kinecal.workflows._args import need, need_model
+    from kinecal.workflows._seeds import check_seed_units
 
     need_model(cal)
     need(targets, (str, Path), "targets")
@@ -212,6 +213,7 @@ def compensate_targets(
             (tg.marker_labels, tg.marker_index, spec.markers, "marker"),
         )
     )
+    check_seed_units(cal, tg, set_index, marker_index, path)
     N = tg.p.shape[0]
     rows = _row_load_scale(cal, tg.payload_kg, payload_kg, path)
     res = run_compensation(

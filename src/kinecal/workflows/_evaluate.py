@@ -121,16 +121,26 @@ def evaluate_measurements(
     check_refit_poses(meas, refit)
     ev = evaluate(cal, meas, refit=refit)
     _check_same_robot(
-        ev.errors_mm, data_name or meas.source, model_name, cal.model.robot.name
-    )
+        ev.errors_mm, data_name or meas.source, model_name, cal.model.robot.name,
+        _radian_like(meas, cal),
+    )  # fmt: skip
     for d in ev.diagnostics:
         if d.severity == "warning":
             emit(f"warning   {d.message}")
     return ModelEvaluation(ev, meas, refit, tuple(lines))
 
 
+def _radian_like(meas: Measurements, cal: CalibratedModel) -> bool:
+    """Every revolute joint value within +-2 pi degrees: radians under jK_deg columns
+    (the reader tells them by their spread from 5 rows on)."""
+    rev = ~np.asarray(cal.model.robot.prismatic)
+    return bool(
+        rev.any() and np.abs(meas.q_ctrl[:, rev]).max() <= np.radians(2 * np.pi)
+    )
+
+
 def _check_same_robot(
-    errors_mm: np.ndarray, data: str, model_path: str, robot: str
+    errors_mm: np.ndarray, data: str, model_path: str, robot: str, radians: bool
 ) -> None:
     med = float(np.median(errors_mm)) if len(errors_mm) else 0.0
     if med > OTHER_ROBOT_MM:
@@ -139,6 +149,12 @@ def _check_same_robot(
             f"at most {OTHER_ROBOT_MM:g} mm for any calibrated robot): are they "
             f"measurements of {robot}, the robot of {model_path}, in the frame and "
             "set-up it was calibrated in? (--refit user,tool for a new set-up)"
+            + (
+                f" Every joint value is within ±{2 * np.pi:.2f} deg: radians in jK_deg "
+                "columns? (convert to degrees or name the columns jK_rad)"
+                if radians
+                else ""
+            )
         )
 
 

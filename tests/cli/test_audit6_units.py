@@ -1,0 +1,56 @@
+"""Audit 6: joint angles in radians under jK_deg columns in a short file (the reader
+tells radians from degrees by the spread of 5 rows or more), in-process."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from tests.cli_contract import failed_with, make_point_data, run_kinecal
+
+
+@pytest.fixture(scope="module")
+def pt(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    return make_point_data(tmp_path_factory.mktemp("audit6_units"))
+
+
+def _first_rows_in_radians(src: Path, dst: Path, n: int) -> Path:
+    lines = src.read_text().splitlines()
+    head = lines[0].split(",")
+    out = [lines[0]]
+    for ln in lines[1 : 1 + n]:
+        v = ln.split(",")
+        out.append(
+            ",".join(
+                f"{math.radians(float(x)):.6f}" if h.endswith("_deg") else x
+                for h, x in zip(head, v)
+            )
+        )
+    dst.write_text("\n".join(out) + "\n")
+    return dst
+
+
+@pytest.mark.parametrize("n", [1, 3])
+def test_compensate_seeds_in_radians_are_refused(pt, capsys, tmp_path, n):
+    """Three targets whose program joints were in radians: compensated from those
+    poses, J4 moved by about 60 deg, exit 0 (5 rows or more are refused by the
+    reader)."""
+    tg = _first_rows_in_radians(pt["targets"], tmp_path / "t.csv", n)
+    out = tmp_path / "c.csv"
+    res = run_kinecal(capsys, "compensate", tg, "--model", pt["model"], "--out", out)
+    failed_with(res, "t.csv", "j1_deg..j6_deg", "look like radians", "jK_rad")
+    assert not out.exists()
+    ok = tmp_path / "ok.csv"
+    ok.write_text("\n".join(pt["targets"].read_text().splitlines()[: 1 + n]) + "\n")
+    res = run_kinecal(capsys, "compensate", ok, "--model", pt["model"], "--out", out)
+    assert res.code == 0, str(res)
+
+
+def test_evaluate_of_few_rows_in_radians_says_so(pt, capsys, tmp_path):
+    """Three rows in radians: refused as 'measurements of another robot or set-up?',
+    with nothing on the likelier cause."""
+    data = _first_rows_in_radians(pt["test"], tmp_path / "d.csv", 3)
+    res = run_kinecal(capsys, "evaluate", data, "--model", pt["model"], "--json")
+    failed_with(res, "d.csv", "median error", "radians in jK_deg columns")
