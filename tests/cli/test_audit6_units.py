@@ -54,3 +54,38 @@ def test_evaluate_of_few_rows_in_radians_says_so(pt, capsys, tmp_path):
     data = _first_rows_in_radians(pt["test"], tmp_path / "d.csv", 3)
     res = run_kinecal(capsys, "evaluate", data, "--model", pt["model"], "--json")
     failed_with(res, "d.csv", "median error", "radians in jK_deg columns")
+
+
+def test_evaluate_payload_beyond_ten_times_the_rating_is_refused(capsys, tmp_path):
+    """payload_kg 3000 (grams typed as kg) on a 5 kg UR5e in evaluate's data: a
+    warning, then scored with exit 0 (compensate's TARGETS, --payload-kg and a
+    calibration's payload refuse it)."""
+    sim, cal = tmp_path / "sim", tmp_path / "cal"
+    res = run_kinecal(
+        capsys, "simulate", "--robot", "ur5e", "--payload-kg", "3", "--out", sim,
+        "--n-train", "40", "--n-test", "10", "-q",
+    )  # fmt: skip
+    assert res.code == 0, str(res)
+    res = run_kinecal(
+        capsys, "calibrate", sim / "train.csv", "--robot", sim / "robot.yaml",
+        "--model", "kinematic", "--cv", "off", "--out", cal, "-q",
+    )  # fmt: skip
+    assert res.code == 0, str(res)
+    lines = (sim / "test.csv").read_text().splitlines()
+    k = lines[0].split(",").index("payload_kg")
+
+    def with_payload(kg: str) -> Path:
+        out = [lines[0]]
+        for ln in lines[1:]:
+            v = ln.split(",")
+            v[k] = kg
+            out.append(",".join(v))
+        f = tmp_path / f"p{kg}.csv"
+        f.write_text("\n".join(out) + "\n")
+        return f
+
+    model = cal / "model.yaml"
+    res = run_kinecal(capsys, "evaluate", with_payload("3000"), "--model", model)
+    failed_with(res, "p3000.csv", "line 2, column 'payload_kg'", "at most 50 kg")
+    res = run_kinecal(capsys, "evaluate", with_payload("3"), "--model", model)
+    assert res.code == 0, str(res)

@@ -5,18 +5,18 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from kinecal.errors import DataError
 from kinecal.identification import Evaluation
 from kinecal.measurement import CalibratedModel, Measurements
+from kinecal.robot import RobotDescription
+from kinecal.workflows._seeds import OTHER_ROBOT_MM
 
-__all__ = ["ModelEvaluation", "evaluate_measurements"]
+__all__ = ["OTHER_ROBOT_MM", "ModelEvaluation", "evaluate_measurements"]
 
-# A calibrated model whose median error on a data file exceeds this is not being
-# evaluated on its robot (another robot's data, another frame or units): refused.
-OTHER_ROBOT_MM = 50.0
 
 Say = Callable[[str], None]
 
@@ -107,6 +107,9 @@ def evaluate_measurements(
             say(line)
 
     meas, found = check_data_for_model(meas, cal)
+    check_payload_column(
+        meas.payload_kg, meas.rows, cal.model.robot, data_name or meas.source
+    )
     if meas.payload_kg is not None:  # as compensate's TARGETS and --payload-kg
         from kinecal.workflows._compensate import check_payload_scales
 
@@ -128,6 +131,30 @@ def evaluate_measurements(
         if d.severity == "warning":
             emit(f"warning   {d.message}")
     return ModelEvaluation(ev, meas, refit, tuple(lines))
+
+
+def check_payload_column(
+    payload_kg: np.ndarray | None, lines: Any, robot: RobotDescription, path: str
+) -> None:
+    """A ``payload_kg`` column (of evaluate's data or compensate's TARGETS) up to 10 x
+    the robot's rated payload, as ``--payload-kg`` and a calibration's reference
+    payload (3000 kg on a 5 kg arm was a warning, and scored or compensated with exit
+    0); between the rating and that, a warning says so."""
+    from kinecal.io._model_bounds import MAX_PAYLOAD_KG, RATED_FACTOR
+
+    if payload_kg is None:
+        return
+    rated = robot.rated_payload_kg
+    hi = MAX_PAYLOAD_KG if rated is None else RATED_FACTOR * rated
+    over = np.flatnonzero(np.asarray(payload_kg, float) > hi)
+    if over.size:
+        i = int(over[0])
+        also = "" if rated is None else f" (10 x the {rated:g} kg rated payload)"
+        raise DataError(
+            f"{path}: line {lines[i]}, column 'payload_kg': {payload_kg[i]:g} kg "
+            f"({over.size} rows over); expected at most {hi:g} kg{also} for "
+            f"{robot.name}: a unit mistake (g, lb)?"
+        )
 
 
 def _radian_like(meas: Measurements, cal: CalibratedModel) -> bool:

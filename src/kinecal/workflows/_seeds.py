@@ -9,6 +9,10 @@ from kinecal.errors import DataError
 from kinecal.io import CompensationTargets
 from kinecal.measurement import CalibratedModel
 
+# A calibrated model whose median error on a data file exceeds this is not being
+# evaluated on its robot (another robot's data, another frame or units): refused.
+OTHER_ROBOT_MM = 50.0
+
 
 def check_seed_units(
     cal: CalibratedModel,
@@ -23,7 +27,6 @@ def check_seed_units(
     of 5 rows or more; a short TARGETS (one to four rows) was compensated from the
     radian poses, every joint moved by tens of degrees, with exit 0."""
     from kinecal.models import ModelInputs
-    from kinecal.workflows._evaluate import OTHER_ROBOT_MM
 
     robot = cal.model.robot
     deg = [k for k, c in enumerate(tg.joint_columns) if c.endswith("_deg")]
