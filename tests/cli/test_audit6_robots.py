@@ -50,3 +50,35 @@ def test_extrapolation_names_the_data_column_of_a_named_joint(capsys, tmp_path):
     warned = [ln for ln in res.err.splitlines() if "lie outside the joint" in ln]
     assert warned, str(res)
     assert "row 2 shoulder_pan (j1_deg) 359.0 deg (calibrated" in warned[0], warned[0]
+
+
+def test_robot_option_given_a_model_or_a_data_file(capsys, tmp_path):
+    """--robot DIR/model.yaml (the last calibration, for the next one): "unknown key
+    'kinecal_model' (allowed: ...)"; --robot DATA.csv: "expected a mapping; got str"."""
+    from tests.cli_contract import failed_with, make_point_data
+
+    pt = make_point_data(tmp_path)
+    res = run_kinecal(
+        capsys, "calibrate", pt["train"], "--robot", pt["model"], "--out",
+        tmp_path / "cal", "-q",
+    )  # fmt: skip
+    failed_with(res, "model.yaml", "a calibrated model", "not a robot file", "--model")
+    res = run_kinecal(capsys, "fk", "--robot", pt["train"], "--", *["0"] * 6)
+    failed_with(res, "train.csv", "a CSV table", "not a robot file")
+    robot = tmp_path / "robot.yaml"
+    robot.write_text("# j1_deg, j2_deg: a comment\n" + _ROBOT)
+    res = run_kinecal(capsys, "fk", "--robot", robot, "--json", "--", *["0"] * 6)
+    assert res.code == 0, str(res)
+
+
+_ROBOT = """name: six-axis
+convention: dh
+units: {length: mm, angle: deg}
+joints:
+  - {theta_offset: 0, d: 300, a: 50, alpha: -90, limits: [-170, 170]}
+  - {theta_offset: 0, d: 0, a: 300, alpha: 0, limits: [-170, 170]}
+  - {theta_offset: 0, d: 0, a: 50, alpha: -90, limits: [-170, 170]}
+  - {theta_offset: 0, d: 300, a: 0, alpha: 90, limits: [-170, 170]}
+  - {theta_offset: 0, d: 0, a: 0, alpha: -90, limits: [-120, 120]}
+  - {theta_offset: 0, d: 80, a: 0, alpha: 0, limits: [-360, 360]}
+"""

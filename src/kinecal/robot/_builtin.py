@@ -93,11 +93,36 @@ def load_robot(name_or_path: str | Path) -> RobotDescription:
     if p.suffix.lower() in (".yaml", ".yml") or p.exists():
         if not p.exists():
             raise ConfigError(f"{p}: robot file not found.")
+        _not_a_robot_file(p)
         return load_robot_file(p)
     raise ConfigError(
         f"unknown robot {s!r}: not a built-in ({', '.join(builtin_robot_names())}) "
         "and not a YAML or URDF file."
     )
+
+
+def _not_a_robot_file(p: Path) -> None:
+    """Refuse the files a user hands ``--robot`` by mistake, naming what they are: a
+    model.yaml of ``kinecal calibrate`` (was: "unknown key 'kinecal_model'"), a
+    measurement or pose CSV (was: "expected a mapping; got str")."""
+    try:
+        with p.open("rb") as f:
+            head = f.read(4096).decode("utf-8", "replace")
+    except OSError:
+        return  # (the reader says why)
+    if any(ln.startswith("kinecal_model:") for ln in head.splitlines()):
+        raise ConfigError(
+            f"{p}: a calibrated model (kinecal_model), not a robot file; expected a "
+            "robot YAML or URDF (`kinecal export-urdf MODEL --format yaml-dh` writes the "
+            "calibrated robot as one; evaluate, compensate, fk take the model as --model)."
+        )
+    first = next((ln for ln in head.splitlines() if ln.strip()), "")
+    table = "," in first and ":" not in first and not first.startswith("#")
+    if p.suffix.lower() in (".csv", ".txt") or table:
+        raise ConfigError(
+            f"{p}: a CSV table (first line {first[:60]!r}), not a robot file; expected a "
+            "robot YAML or URDF, or a built-in name (kinecal robots)."
+        )
 
 
 if __name__ == "__main__":
