@@ -157,3 +157,30 @@ def test_compare_models_given_as_one_string(pt):
     )  # fmt: skip
     assert "n, t, m" not in msg
     assert Path(pt["model"]).exists()
+
+
+def test_plan_functions_arguments(pt):
+    """ranges in degrees: clipped to the limits (the whole range planned, unsaid);
+    measured poses in degrees: planned from as radians; n '100': a TypeError; a model
+    name for the setup or an array for the candidates: an AttributeError."""
+    setup = W.plan_setup(pt["robot"], "kinematic")
+    _refused(
+        lambda: W.plan_candidates(setup, n=50, ranges=np.array([[-90.0, 90.0]] * 6)),
+        "ranges[0] (J1)", "[-90, 90] rad", "radians",
+    )  # fmt: skip
+    _refused(lambda: W.plan_candidates(setup, n=50, ranges=np.zeros((5, 2))), "(5, 2)")
+    _refused(lambda: W.plan_candidates(setup, n="100"), "n:", "'100'")
+    _refused(
+        lambda: W.plan_candidates("kinematic", n=10), "setup: expected a PlanSetup"
+    )
+    cand = W.plan_candidates(setup, n=200)
+    _refused(lambda: W.plan_measurements(setup, cand.q, 5), "candidates: expected")
+    seq = W.plan_setup(pt["robot"], pt["cal"])
+    deg = np.degrees(pt["meas"].q_ctrl)
+    _refused(
+        lambda: W.plan_measurements(seq, cand, 5, measured=deg, random_draws=1),
+        "measured[", "radians",
+    )  # fmt: skip
+    run = W.plan_measurements(seq, cand, 5, measured=pt["meas"].q_ctrl, random_draws=1)
+    assert run is not None
+    _refused(lambda: W.iso_test_program("fanuc-lrmate200id"), "robot:")

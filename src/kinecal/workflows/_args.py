@@ -121,3 +121,79 @@ def joint_rows(q: Any, n_joints: int, name: str) -> np.ndarray:
             f"{name}[{i}, {j}]: expected a finite joint value; got {a[i, j]}."
         )
     return a
+
+
+def joints_within_limits(
+    q: Any, robot: Any, name: str, beyond: bool = False
+) -> np.ndarray:
+    """:func:`joint_rows` of ``robot``'s joints [rad, m], each within its limits (90
+    given in degrees was taken as 90 rad); ``beyond``: within a turn (1 m) of them
+    (measured with ``allow_out_of_limits``)."""
+    a = joint_rows(q, robot.n_joints, name)
+    lim = robot.limits
+    slack = np.where(robot.prismatic, 1.0, 2 * np.pi) if beyond else _slack(robot)
+    out = np.argwhere((a < lim[:, 0] - slack) | (a > lim[:, 1] + slack))
+    if out.size:
+        i, j = out[0]
+        unit = "m" if robot.prismatic[j] else "rad"
+        raise ConfigError(
+            f"{name}[{i}, {j}]: {a[i, j]:g} {unit} is beyond the limits "
+            f"[{lim[j, 0]:g}, {lim[j, 1]:g}] {unit} of {robot.name} "
+            f"{robot.joint_names[j]}; expected controller joints in radians (metres)."
+        )
+    return a
+
+
+def plan_arguments(
+    setup: Any,
+    *,
+    candidates: Any = None,
+    n: Any = None,
+    ranges: Any = None,
+    measured: Any = None,
+) -> None:
+    """What a script hands :func:`~kinecal.workflows.plan_candidates` and
+    :func:`~kinecal.workflows.plan_measurements`: a PlanSetup, PoseCandidates, a
+    count, joint ranges (n, 2) within the limits and measured poses (N, n) [rad]
+    (ranges in degrees were clipped to the limits, unsaid: the whole range was
+    planned; measured poses in degrees were planned from as radians)."""
+    from kinecal.workflows._plan import PlanSetup, PoseCandidates
+
+    need(setup, PlanSetup, "setup")
+    if candidates is not None:
+        need(candidates, PoseCandidates, "candidates")
+    if n is not None:
+        count(n, "n")
+    robot = setup.robot
+    if ranges is not None:
+        _joint_ranges(ranges, robot)
+    if measured is not None:  # (beyond the limits with allow_out_of_limits)
+        joints_within_limits(measured, robot, "measured", beyond=True)
+
+
+def _joint_ranges(ranges: Any, robot: Any) -> None:
+    """(n, 2) [low, high] per joint [rad, m], low <= high, within the limits."""
+    try:
+        r = np.asarray(ranges, dtype=float)
+    except (TypeError, ValueError):
+        r = np.zeros(0)
+    if r.shape != (robot.n_joints, 2) or not np.all(r[:, 0] <= r[:, 1]):
+        raise ConfigError(
+            f"ranges: expected ({robot.n_joints}, 2) [low, high] per joint [rad, m] "
+            f"with low <= high; got {_got(ranges) if r.size == 0 else r.shape}."
+        )
+    lim, slack = robot.limits, _slack(robot)
+    bad = np.flatnonzero((r[:, 0] < lim[:, 0] - slack) | (r[:, 1] > lim[:, 1] + slack))
+    if bad.size:
+        j = int(bad[0])
+        unit = "m" if robot.prismatic[j] else "rad"
+        raise ConfigError(
+            f"ranges[{j}] ({robot.joint_names[j]}): [{r[j, 0]:g}, {r[j, 1]:g}] {unit} "
+            f"reaches beyond the limits [{lim[j, 0]:g}, {lim[j, 1]:g}] {unit}; expected "
+            "a range within them, in radians (metres)."
+        )
+
+
+def _slack(robot: Any) -> np.ndarray:
+    """How far beyond its limits a joint value may lie (1 deg, 1 mm), as the files'."""
+    return np.where(robot.prismatic, 1e-3, np.radians(1.0))

@@ -107,7 +107,9 @@ def iso_test_program(
         The plan, PLAN.csv's lines and report.json's content.
     """
     from kinecal.iso9283 import compensated_plan, plan_iso9283
+    from kinecal.workflows._args import need_robot
 
+    need_robot(robot)
     say = progress or _quiet
     edge = None if edge_mm is None else edge_mm * 1e-3
     centre = None if centre_mm is None else np.array(centre_mm) * 1e-3

@@ -17,7 +17,7 @@ from kinecal.models import CalibrationModel
 from kinecal.planning import Instrument, Plan
 from kinecal.planning._candidates import range_inside_limits
 from kinecal.robot import RobotDescription
-from kinecal.workflows._args import need_robot
+from kinecal.workflows._args import need_robot, plan_arguments
 from kinecal.workflows._poses import check_calibration_data, pose_lines, read_pose_file
 
 __all__ = [
@@ -259,8 +259,8 @@ def plan_candidates(
     """
     from kinecal.planning import joint_candidates, sensor_candidates
 
-    say = progress or _quiet
-    robot, inst = setup.robot, setup.instrument
+    plan_arguments(setup, n=n, ranges=ranges)
+    say, robot, inst = progress or _quiet, setup.robot, setup.instrument
     if path:
         table, _, q, ti = read_pose_file(path, robot, setup.labels)
         say("candidates", f"{q.shape[0]} poses from {path}")
@@ -431,6 +431,7 @@ def plan_measurements(
     """
     from kinecal.planning import plan_poses
 
+    plan_arguments(setup, candidates=candidates, n=n, measured=measured)
     say = progress or _quiet
     _check_poses(setup, candidates, n, option, measured is None and setup.cal is None)
     say("plan", f"{n} of {candidates.q.shape[0]} poses, {criterion}-optimal")

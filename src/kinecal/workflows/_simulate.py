@@ -6,7 +6,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -119,12 +118,17 @@ def simulate_robot_twin(
         The truth, the measurements to calibrate and to test (and the targets).
     """
     from kinecal.simulation import EXTRAS, LaserTracker, robot_experiment, robot_truth
-    from kinecal.workflows._args import count, need_robot, words
+    from kinecal.workflows._args import (
+        count,
+        joints_within_limits,
+        need_robot,
+        words,
+    )
 
     need_robot(robot)
     extras = words(extras, EXTRAS, "extras")
     if q_train is not None:
-        q_train = _check_planned_poses(robot, q_train)
+        q_train = joints_within_limits(q_train, robot, "q_train")
     else:
         count(n_train, "n_train")
     _check_twin_size(
@@ -159,25 +163,6 @@ def simulate_robot_twin(
 
 
 MAX_TWIN_POSES = 1_000_000  # --n-train + --n-test: far beyond any measured session
-
-
-def _check_planned_poses(robot: RobotDescription, q_train: Any) -> np.ndarray:
-    """``q_train``: (N, n) finite controller joints [rad] within the joint limits (90
-    given as degrees was simulated as 90 rad)."""
-    from kinecal.errors import ConfigError
-    from kinecal.workflows._args import joint_rows
-
-    q = joint_rows(q_train, robot.n_joints, "q_train")
-    out = np.argwhere((q < robot.limits[:, 0] - 1e-9) | (q > robot.limits[:, 1] + 1e-9))
-    if out.size:
-        i, j = out[0]
-        unit = "m" if robot.prismatic[j] else "rad"
-        raise ConfigError(
-            f"q_train[{i}, {j}]: {q[i, j]:g} {unit} is beyond the limits "
-            f"[{robot.limits[j, 0]:g}, {robot.limits[j, 1]:g}] {unit} of {robot.name} "
-            f"{robot.joint_names[j]}; expected controller joints in radians (metres)."
-        )
-    return q
 
 
 def _check_twin_size(robot: RobotDescription, n_train: int, n_test: int) -> None:
