@@ -184,3 +184,38 @@ def test_plan_functions_arguments(pt):
     run = W.plan_measurements(seq, cand, 5, measured=pt["meas"].q_ctrl, random_draws=1)
     assert run is not None
     _refused(lambda: W.iso_test_program("fanuc-lrmate200id"), "robot:")
+
+
+@pytest.mark.parametrize(
+    ("centre", "every", "needle"),
+    [((0.0, 0.0, 140.0), 1000, "every:"), ((0.0, 0.0, -140.0), 1, "center_mm:")],
+)
+def test_render_scan_of_a_sphere_it_cannot_see(tmp_path, centre, every, needle):
+    """render_scan of a sphere behind the camera (or lit only by skipped planes): 120
+    empty images written (the command line checked; the workflow did not)."""
+    _refused(lambda: W.render_scan(tmp_path, centre, 15.0, every=every), needle)
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize(
+    ("key", "needles"),
+    [
+        ("cam_rotation", ("model: missing key 'cam_rotation'",)),  # was: 'got None'
+        ("ntm_joints", ("unknown parameter 'joint1.k0'", "has no ntm_joints")),
+        ("load", ("enable load", "has no load: defaults taken")),
+        ("link", ("unknown parameter 'link.s1'", "has no link")),
+    ],
+)
+def test_model_file_of_another_layout_names_the_absent_key(pt, tmp_path, key, needles):
+    """A model.yaml whose model section lacks a term (another kinecal's layout, a hand
+    edit) took its default and failed on a parameter ('unknown parameter joint1.k0'),
+    or said 'got None', without naming the key that was absent."""
+    from kinecal import _yaml as yaml
+    from kinecal.io import load_model
+
+    doc = yaml.load(pt["model"].read_text())
+    doc["model"].pop(key)
+    f = tmp_path / "old.yaml"
+    f.write_text(yaml.dump(doc, sort_keys=False))
+    msg = _refused(lambda: load_model(f), "old.yaml", *needles)
+    assert "None" not in msg

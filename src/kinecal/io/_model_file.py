@@ -171,6 +171,8 @@ def _model_name_ok(name: Any) -> bool:
 
 def _bool(s: dict[str, Any], key: str, default: bool | None, where: str) -> bool:
     v = s.get(key, default)
+    if key not in s and default is None:  # (was: 'got None')
+        raise ConfigError(f"{where}: missing key {key!r} (true or false).")
     if not isinstance(v, bool):
         raise ConfigError(f"{where}.{key}: expected true or false; got {v!r}.")
     return v
@@ -236,7 +238,19 @@ def _spec(s: Any, n_joints: int, where: str) -> ModelSpec:
     except ConfigError:  # a field's own message names the file and the key already
         raise
     except ValueError as exc:  # ModelError: an inconsistent combination
-        raise ConfigError(f"{where}: {exc}") from None
+        raise ConfigError(f"{where}: {str(exc).rstrip('.')}{_absent(s)}.") from None
+
+
+def _absent(s: dict[str, Any]) -> str:
+    """The terms a model section lacks (they take their defaults), for the message of a
+    file of another layout (a hand edit, another version) that then fails."""
+    optional = {"name", "reference_payload_kg", "reference_rotations_deg"}
+    absent = sorted(_SPEC_KEYS - set(map(str, s)) - optional)
+    return (
+        f" (the model section has no {', '.join(absent)}: defaults taken)"
+        if absent
+        else ""
+    )
 
 
 def _rotations(refs: Any, key: str, count: int, where: str) -> np.ndarray | None:
@@ -331,10 +345,11 @@ def load_model(path: str | Path) -> CalibratedModel:
     if payload is not None:
         where = f"{p}: model.reference_payload_kg"
         check_payload(_finite(payload, where), robot, where)
+    why = _absent(s)
     try:
         model = CalibrationModel(robot, spec)
     except ValueError as exc:
-        raise ConfigError(f"{p}: model: {exc}") from None
+        raise ConfigError(f"{p}: model: {str(exc).rstrip('.')}{why}.") from None
     refs = s.get("reference_rotations_deg") or {}
     if not isinstance(refs, dict) or not set(refs) <= {"base", "cam"}:
         raise ConfigError(
@@ -346,7 +361,7 @@ def load_model(path: str | Path) -> CalibratedModel:
         Rc = _rotations(refs, "cam", len(spec.markers), where)
         model = model.with_references(Rb, Rc)
     check_info(doc.get("info"), robot, spec.cam_rotation, p)
-    values, std, status = _parameters(doc["parameters"], model, p)
+    values, std, status = _parameters(doc["parameters"], model, p, why)
     cal = CalibratedModel(
         model,
         values,
@@ -360,7 +375,7 @@ def load_model(path: str | Path) -> CalibratedModel:
 
 
 def _parameters(
-    params_doc: Any, model: CalibrationModel, p: Path
+    params_doc: Any, model: CalibrationModel, p: Path, why: str = ""
 ) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Values, std (SI) and status of every parameter, validated."""
     if not isinstance(params_doc, dict):
@@ -380,7 +395,7 @@ def _parameters(
             f"missing {missing[0]!r}" if missing else f"unknown parameter {extra[0]!r}"
         )
         raise ConfigError(
-            f"{p}: parameters: {what} for the model described in the file."
+            f"{p}: parameters: {what} for the model described in the file{why}."
         )
     values = np.zeros(model.size)
     std = np.full(model.size, np.nan)

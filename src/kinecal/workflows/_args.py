@@ -146,6 +146,7 @@ def joints_within_limits(
 
 def plan_arguments(
     setup: Any,
+    kinds: tuple[type, type],
     *,
     candidates: Any = None,
     n: Any = None,
@@ -157,11 +158,9 @@ def plan_arguments(
     count, joint ranges (n, 2) within the limits and measured poses (N, n) [rad]
     (ranges in degrees were clipped to the limits, unsaid: the whole range was
     planned; measured poses in degrees were planned from as radians)."""
-    from kinecal.workflows._plan import PlanSetup, PoseCandidates
-
-    need(setup, PlanSetup, "setup")
+    need(setup, kinds[0], "setup")  # kinds: (PlanSetup, PoseCandidates), of _plan
     if candidates is not None:
-        need(candidates, PoseCandidates, "candidates")
+        need(candidates, kinds[1], "candidates")
     if n is not None:
         count(n, "n")
     robot = setup.robot

@@ -259,7 +259,7 @@ def plan_candidates(
     """
     from kinecal.planning import joint_candidates, sensor_candidates
 
-    plan_arguments(setup, n=n, ranges=ranges)
+    plan_arguments(setup, (PlanSetup, PoseCandidates), n=n, ranges=ranges)
     say, robot, inst = progress or _quiet, setup.robot, setup.instrument
     if path:
         table, _, q, ti = read_pose_file(path, robot, setup.labels)
@@ -431,7 +431,8 @@ def plan_measurements(
     """
     from kinecal.planning import plan_poses
 
-    plan_arguments(setup, candidates=candidates, n=n, measured=measured)
+    plan_arguments(setup, (PlanSetup, PoseCandidates), candidates=candidates, n=n)
+    plan_arguments(setup, (PlanSetup, PoseCandidates), measured=measured)
     say = progress or _quiet
     _check_poses(setup, candidates, n, option, measured is None and setup.cal is None)
     say("plan", f"{n} of {candidates.q.shape[0]} poses, {criterion}-optimal")

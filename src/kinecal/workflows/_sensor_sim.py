@@ -93,7 +93,14 @@ def render_scan(
     -------
     RenderedSession
         The folder and what was written.
+
+    Raises
+    ------
+    ConfigError
+        A sphere the scan cannot see (:func:`scene_problem`: its images would be empty;
+        they were written, with the command line's check only).
     """
+    from kinecal.errors import ConfigError
     from kinecal.io import save_sensor, write_json
     from kinecal.sensor import (
         RenderedImages,
@@ -105,6 +112,9 @@ def render_scan(
     sen = paper_sensor()
     center = np.array(center_mm) * 1e-3
     idx = np.arange(0, len(sen.planes), every)
+    problem = scene_problem(sen, center, radius_mm * 1e-3, idx)
+    if problem:
+        raise ConfigError(f"{problem[0].lstrip('-').replace('-', '_')}: {problem[1]}.")
     ren = StripeRenderer(sen.camera, sen.planes)
     scene = sphere_scene(center, radius_mm * 1e-3)
     imgs = RenderedImages(
