@@ -175,3 +175,16 @@ def test_simulate_scan_every_names_the_option(capsys, tmp_path):
         capsys, "sensor", "simulate-scan", "--center-mm", "0,0,-5", "--out", out
     )
     failed_with(res, "Invalid value for --center-mm")
+
+
+def test_evaluate_on_the_calibration_data_says_so(pt, capsys, tmp_path):
+    """evaluate of the very file a model was calibrated on printed its training errors
+    as held-out figures, unsaid (the next session's data file mixed up with the last
+    one's)."""
+    cal = tmp_path / "cal"
+    assert _calibrate(capsys, pt["train"], cal, "--cv", "off").code == 0
+    res = run_kinecal(capsys, "evaluate", pt["train"], "--model", cal / "model.yaml")
+    assert res.code == 0, str(res)
+    assert "the very data" in res.err and "training errors" in res.err, str(res)
+    res = run_kinecal(capsys, "evaluate", pt["test"], "--model", cal / "model.yaml")
+    assert res.code == 0 and "the very data" not in res.err, str(res)

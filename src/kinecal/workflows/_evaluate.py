@@ -121,6 +121,9 @@ def evaluate_measurements(
     for d in found:
         if d.severity == "warning":
             emit(f"warning   {d.message}")
+    note = _training_data(data_name, model_name)
+    if note:
+        emit(f"warning   {note}")
     check_refit_poses(meas, refit)
     ev = evaluate(cal, meas, refit=refit)
     _check_same_robot(
@@ -155,6 +158,32 @@ def check_payload_column(
             f"({over.size} rows over); expected at most {hi:g} kg{also} for "
             f"{robot.name}: a unit mistake (g, lb)?"
         )
+
+
+def _training_data(data: str | None, model_path: str) -> str | None:
+    """The data file is the very file the model was calibrated on (its SHA-256 is the
+    one manifest.json beside the model records): its figures are training errors,
+    printed as if held out."""
+    import json
+    from pathlib import Path
+
+    from kinecal.io import file_sha256
+
+    if data is None:
+        return None
+    try:
+        man = json.loads((Path(model_path).parent / "manifest.json").read_text())
+        sha = man["inputs"]["data"]["sha256"]
+        same = isinstance(sha, str) and file_sha256(data) == sha
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if not same:
+        return None
+    return (
+        f"{data}: the very data {model_path} was calibrated on (manifest.json beside it "
+        "has its SHA-256): these are training errors, not held-out ones (report.json "
+        "has them); evaluate on poses the model was not fitted on."
+    )
 
 
 def _radian_like(meas: Measurements, cal: CalibratedModel) -> bool:
