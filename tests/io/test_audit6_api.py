@@ -59,6 +59,8 @@ def test_objects_given_as_names_or_paths(pt):
     _refused(lambda: W.evaluate_measurements(pt["cal"], str(pt["test"])), "meas:")
     _refused(lambda: W.compensate_targets(str(pt["model"]), pt["targets"]), "cal:")
     _refused(lambda: W.export_model(str(pt["model"])), "cal:")
+    _refused(lambda: W.compensate_program(str(pt["model"]), "p.ls", "fanuc-ls"), "cal:")
+    _refused(lambda: W.evaluate_iso_test(pt["cal"], None, "d.csv"), "meas:")
     _refused(lambda: W.forward_pose("fanuc-lrmate200id", [0] * 6), "source:")
     _refused(lambda: W.plan_setup("fanuc-lrmate200id"), "robot:")
     _refused(lambda: W.simulate_robot_twin("ur5e", n_train=10, n_test=5), "robot:")

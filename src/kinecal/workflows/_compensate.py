@@ -18,6 +18,7 @@ from kinecal.errors import DataError
 from kinecal.io import CompensationTargets
 from kinecal.measurement import CalibratedModel
 from kinecal.measurement._calibrated import map_labels
+from kinecal.workflows._args import need, need_model
 
 __all__ = [
     "ProgramCompensation",
@@ -188,7 +189,6 @@ def compensate_targets(
     """
     from kinecal.compensation import compensate as run_compensation
     from kinecal.io import read_compensation_targets
-    from kinecal.workflows._args import need, need_model
     from kinecal.workflows._seeds import check_seed_units
 
     need_model(cal)
@@ -271,7 +271,7 @@ def compensate_program(
 
     lines: list[str] = []
     emit = _emitter(lines, say)
-    scale = load_scale(cal, payload_kg)
+    scale = load_scale(cal, payload_kg)  # (a CalibratedModel: need_model)
     robot = cal.model.robot
     prog = read_program(path, fmt)
     q_prog, p_t, res_j, ls = _joint_part(cal, prog, scale, tol_mm)
@@ -359,7 +359,9 @@ def _row_load_scale(
 
 
 def load_scale(cal: CalibratedModel, payload_kg: float | None) -> float | None:
-    """The load scale of ``payload_kg`` (None: the calibration's)."""
+    """The load scale of ``payload_kg`` (None: the calibration's) for the model
+    ``cal`` (ConfigError for anything else)."""
+    need_model(cal)
     if payload_kg is None:
         return None
     if isinstance(payload_kg, bool) or not isinstance(payload_kg, numbers.Real):

@@ -274,6 +274,10 @@ def evaluate_iso_test(
         No point or cycle column, or a cycle that is not a number.
     """
     from kinecal.iso9283 import evaluate_iso9283
+    from kinecal.workflows._args import need_measurements, need_model
+
+    need_model(cal)
+    need_measurements(meas, cal.model.robot.n_joints)
 
     point, cycle = _labels(str(data), meas.rows)
     iso = evaluate_iso9283(cal, meas, point, cycle, refit=refit)
