@@ -221,3 +221,13 @@ def test_model_file_of_another_layout_names_the_absent_key(pt, tmp_path, key, ne
     f.write_text(yaml.dump(doc, sort_keys=False))
     msg = _refused(lambda: load_model(f), "old.yaml", *needles)
     assert "None" not in msg
+
+
+def test_calibrate_measurements_refuses_another_robots_fit(pt):
+    """LR Mate data calibrated as a UR5e from Python: a result with success True, 28 mm
+    RMS and J2 138 deg off its nominal (the command refused it only when writing
+    model.yaml, after its cross-validation had run)."""
+    _refused(
+        lambda: W.calibrate_measurements(pt["ur5e"], pt["meas"], model="kinematic"),
+        "fit ends with", "ur5e", kind=DataError,
+    )  # fmt: skip

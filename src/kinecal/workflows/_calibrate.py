@@ -111,8 +111,12 @@ def calibrate_measurements(
     ------
     IdentifiabilityError
         Too few (distinct) poses for the model, or for ``auto``'s folds.
+    DataError
+        A fit whose parameters no model file holds (another robot's data).
     CalibError
         A fold of the cross-validation could not be fitted.
+    ConfigError
+        Arguments of the wrong type or shape.
     """
     _check_arguments(robot, meas, options, cv_folds, groups, group_name)
     opts = options or CalibrationOptions()
@@ -155,6 +159,12 @@ def calibrate_measurements(
         robot, meas, spec, opts, progress=say
     )
     _checks(result, robot, meas, opts, say)
+    from kinecal.io._model_bounds import check_result
+
+    # A fit beyond what a model file holds (another robot's data): refused here, for a
+    # script as for the command (which refused it only when writing model.yaml, after
+    # the cross-validation had run; a script got it with success True).
+    check_result(result.calibrated, str(meas.source))
     held = None
     if cv_folds:
         say("cv", f"{cv_folds}-fold cross-validation: nominal and model, random poses "
