@@ -159,12 +159,6 @@ def calibrate_measurements(
         robot, meas, spec, opts, progress=say
     )
     _checks(result, robot, meas, opts, say)
-    from kinecal.io._model_bounds import check_result
-
-    # A fit beyond what a model file holds (another robot's data): refused here, for a
-    # script as for the command (which refused it only when writing model.yaml, after
-    # the cross-validation had run; a script got it with success True).
-    check_result(result.calibrated, str(meas.source))
     held = None
     if cv_folds:
         say("cv", f"{cv_folds}-fold cross-validation: nominal and model, random poses "
@@ -306,9 +300,13 @@ def _checks(
 ) -> None:
     """The nominal robot and the priors against the data (one more fit without priors:
     a wrong nominal table or units), and gravity-like residuals on a robot without a
-    self-weight layout; their findings join the result's diagnostics."""
+    self-weight layout; their findings join the result's diagnostics. A fit beyond what
+    a model file holds (another robot's data) is refused here, for a script as for the
+    command (which refused it only when writing model.yaml, after the cross-validation;
+    a script got it with success True)."""
     from kinecal.identification._gravity_check import gravity_check
     from kinecal.io._checks import lone_labels
+    from kinecal.io._model_bounds import check_result
 
     result.diagnostics.extend(lone_labels(meas))  # issue 35: fitted to one row
     if opts.priors != "none" and meas.n <= NOMINAL_CHECK_ROWS:
@@ -317,6 +315,7 @@ def _checks(
     found = gravity_check(result, meas)
     if found is not None:
         result.diagnostics.append(found)
+    check_result(result.calibrated, str(meas.source))
 
 
 def check_distinct_poses(
