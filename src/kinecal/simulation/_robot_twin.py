@@ -8,7 +8,8 @@ The truth (:func:`robot_truth`) has
 * gravity compliance: the link self-weight of the robot's own layout, the lumped one
   (``self_weight``) or the general one from its link masses (``link_masses``, each mass
   and first moment off the nominal by about 10 %), and joint compliances scaled so that
-  each joint yields about ``deflection`` under the largest gravity torque it carries;
+  each joint yields about ``deflection`` under the largest gravity torque it carries
+  (at most 10x the median joint's compliance);
 * a payload at the tool (the robot's ``payload_kg``, or a 1 kg tool).
 
 :func:`robot_experiment` measures it with a laser tracker at given (a plan's) or random
@@ -86,8 +87,12 @@ def robot_truth(
         tau = tau + 2.0 * (tau > 1e-9)
     carried = tau > 1e-6 * max(tau.max(), 1e-300)
     typical = deflection / np.median(tau[carried]) if carried.any() else 3e-4
+    # A joint that carries almost no torque (a wrist whose links' centres of mass lie
+    # on its axis, with the tool on it too) is not that much softer: at most 10x the
+    # typical compliance (deflection / its tiny torque put an xArm 6's J6 at 0.48 rad/m,
+    # beyond what a model file accepts).
     for j in range(robot.n_joints):
-        lam = deflection / tau[j] if carried[j] else typical
+        lam = min(deflection / tau[j], 10.0 * typical) if carried[j] else typical
         x[L.index(f"joint{j + 1}.lambda")] = lam * np.exp(rng.uniform(-0.4, 0.4))
     x[model.base_index[0]] = (
         base
