@@ -181,6 +181,10 @@ def joint_candidates(
     if n < 1:
         raise ValueError(f"the number of candidates must be positive; got {n}.")
     lim = model.robot.limits.copy()
+    # A joint without limits (a URDF 'continuous' joint): one turn, every angle once
+    # (a slide without limits: +-0.5 m).
+    wide = np.where(model.robot.prismatic, 0.5, np.pi)
+    lim = np.where(np.isfinite(lim), lim, np.sign(lim) * wide[:, None])
     lim[:, 0] += margin
     lim[:, 1] -= margin
     if ranges is not None:
