@@ -208,14 +208,14 @@ def _frame0(d: Any, where: str, length: str, angle: str, au: float) -> np.ndarra
     for k in _FRAME_KEYS:
         v = abs(d.get(k, 0.0))
         if k in "xyz" and v * lu > 100.0:
-            also = "; did you mean 'mm'?" if length == "m" else ""
+            also = "; did you mean 'mm'?" if length == "m" else "."
             raise _err(
                 f"{where}.{k}",
                 f"{d[k]:g} {length} is not a plausible offset of a robot's frame 0 "
                 f"from its base (over 100 m; units.length is {length!r}){also}",
             )
         if k in "rwp" and v * au > 4 * np.pi + 1e-9:
-            also = "; did you mean 'deg'?" if angle == "rad" else ""
+            also = "; did you mean 'deg'?" if angle == "rad" else "."
             raise _err(
                 f"{where}.{k}",
                 f"{d[k]:g} {angle} is not a plausible angle (over 2 turns; units.angle "
