@@ -11,8 +11,7 @@ Schema (DESIGN §11, with the optional extensions marked *)::
          velocity*: deg/s or mm/s (the file's units per second), effort*: N m or N}
     coupling: [{joint: 3, from: 2, factor: 1}]      # theta = C q_ctrl
     frame0: {x, y, z, r, w, p}                     * frame 0 of the joint table in the
-                                                      robot base frame (a URDF's base
-                                                      link); default the base itself
+                                                      robot base (a URDF's base link)
     flange: {x, y, z, r, w, p}                     * physical flange in the last joint frame
     tool: {x, y, z, r, w, p}                        nominal tool in the flange frame
     gravity: [gx, gy, gz]                           base frame; only the direction is used
@@ -440,11 +439,9 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
     if len(set(names)) != n:
         raise _err(f"{source}: joints", f"joint names must be unique; got {names}.")
     C = _coupling(data, source, n)
-    T_base_0 = (
-        _frame0(data["frame0"], f"{source}: frame0", length, angle, au)
-        if "frame0" in data
-        else np.eye(4)
-    )
+    T_base_0 = np.eye(4)
+    if "frame0" in data:
+        T_base_0 = _frame0(data["frame0"], f"{source}: frame0", length, angle, au)
     T_n_flange = (
         _frame(data["flange"], f"{source}: flange", lu, au)
         if "flange" in data
@@ -552,11 +549,7 @@ def dump_robot(robot: RobotDescription) -> dict[str, Any]:
         "units": {"length": "mm", "angle": "deg"},
         "joints": joints,
         "coupling": coupling,
-        **(
-            {}
-            if np.array_equal(robot.T_base_0, np.eye(4))
-            else {"frame0": _frame_dict(robot.T_base_0)}
-        ),
+        "frame0": {k: v + 0.0 for k, v in _frame_dict(robot.T_base_0).items()},
         "flange": _frame_dict(robot.T_n_flange),
         "tool": _frame_dict(robot.T_flange_tool),
         "gravity": [float(x) for x in robot.gravity],
@@ -568,6 +561,8 @@ def dump_robot(robot: RobotDescription) -> dict[str, Any]:
             "wrist_frame": robot.self_weight.wrist_frame,
         },
     }
+    if np.array_equal(robot.T_base_0, np.eye(4)):
+        del out["frame0"]  # (none: the document of a robot file as before)
     if robot.link_masses:
         out["link_masses"] = [
             {
