@@ -13,6 +13,7 @@ import json
 import re
 import warnings
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -49,10 +50,10 @@ def _fixture(tmp_path, which: str):
     return path
 
 
-def _import(path):
+def _import(path, tip="flange"):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # tested in test_moved_base_fk_is_the_urdfs
-        return robot_from_urdf(path, tip="flange")
+        return robot_from_urdf(path, tip=tip)
 
 
 def _poses(robot, n, seed=0):
@@ -86,6 +87,35 @@ def test_moved_base_fk_is_the_urdfs(which, tmp_path):
             np.testing.assert_allclose(
                 u.get_transform("flange", "base"), T, rtol=0, atol=1e-12
             )
+
+
+VENDOR = Path(__file__).resolve().parents[1] / "data" / "vendor_urdf"
+
+
+def _exact_quarters(text: str) -> str:
+    """The vendor's rounded pi/2 and pi written exactly, as import-urdf reads them."""
+    for rounded, k in (("-1.570796327 ", -1), ("3.1416 ", 2), ("1.5708 ", 1)):
+        text = text.replace(rounded, f"{k * np.pi / 2!r} ")
+    return text
+
+
+@pytest.mark.parametrize(
+    ("name", "base", "tip"),
+    [
+        ("kuka_kr210.urdf", "base_link", "tool0"),  # first axis 2.8 mm off
+        ("kinova_gen3_7dof.urdf", "base_link", "end_effector_link"),  # along -z
+    ],
+)
+def test_vendor_urdfs_pose_is_their_base_links(name, base, tip, tmp_path):
+    """On the vendor files the nominal pose is tf's base_link -> tip (the Gen3's was
+    2.2 m off: its base turned upside down)."""
+    robot = _import(VENDOR / name, tip)
+    assert robot.source.endswith("deg)") and "frame0: base_link moved" in robot.source
+    exact = tmp_path / name
+    exact.write_text(_exact_quarters((VENDOR / name).read_text()))
+    q = _poses(robot, 20)
+    want = np.array([urdf_chain_fk(exact, base, tip, qk) for qk in q])
+    np.testing.assert_allclose(robot.fk_flange(q), want, rtol=0, atol=1e-12)
 
 
 def test_fk_robot_command_gives_the_urdfs_pose(tmp_path, run_cli_here):
