@@ -333,3 +333,20 @@ def test_exports_of_a_moved_base_model_keep_the_base_link(tmp_path, run_cli_here
             rtol=0,
             atol=1e-12,
         )
+
+
+def test_dh_description_of_a_moved_base_model_keeps_frame0(tmp_path):
+    """`kinecal.compensation.dh_description`: the robot base it returns in the user
+    frame is the base link, and its description keeps frame0, so that the two give the
+    model's kinematic tool point (it lacked frame0: off by the base's shift and turn)."""
+    from kinecal.compensation import dh_description, kinematic_params
+    from kinecal.models import ModelInputs
+
+    robot = _import(_fixture(tmp_path, "turned"))
+    cal = _perturbed(robot)
+    desc, T_user_base = dh_description(cal)
+    np.testing.assert_array_equal(desc.T_base_0, robot.T_base_0)
+    q = _poses(robot, 10, seed=4)
+    want = cal.model.evaluate(kinematic_params(cal), ModelInputs.make(q)).p_user
+    got = (T_user_base @ desc.fk_tool(q))[:, :3, 3]
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)

@@ -316,8 +316,6 @@ def _dh_text(
     from kinecal.io import robot_yaml_text
 
     desc, T_user_base = dh_description(cal, set_label=set_label, marker=marker)
-    # The robot base (T_user_base) is the robot's, frame 0 of its table too.
-    desc = replace(desc, T_base_0=cal.model.robot.T_base_0.copy())
     e = transform_to_euler(T_user_base)
     notes = [
         ln.replace("Lengths in metres, angles in radians (URDF).", "") for ln in notes
