@@ -389,8 +389,8 @@ def _onto_first_axis(w: _Walk, base: str, src: str) -> np.ndarray:
     warnings.warn(
         f"{src}: the first joint axis is not the z axis of link {base!r}; the "
         f"chain's base (DH frame 0) is {_moved(F0, base)[10:]}, kept as the robot's "
-        f"frame0: the robot base stays link {base!r} (robot poses are given in its frame, as "
-        "the URDF's; export-urdf --like writes the vendor's frames).",
+        f"frame0: the robot base stays link {base!r} (robot poses are given in its "
+        "frame, as the URDF's; export-urdf --like writes the vendor's frames).",
         stacklevel=3,
     )
     return F0
