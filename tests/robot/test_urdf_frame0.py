@@ -350,3 +350,36 @@ def test_dh_description_of_a_moved_base_model_keeps_frame0(tmp_path):
     want = cal.model.evaluate(kinematic_params(cal), ModelInputs.make(q)).p_user
     got = (T_user_base @ desc.fk_tool(q))[:, :3, 3]
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+
+
+def _origins(text: str) -> np.ndarray:
+    """Every ``<origin xyz rpy>`` of a URDF text, (k, 6) [m, rad]."""
+    found = re.findall(r'<origin xyz="([^"]*)" rpy="([^"]*)"', text)
+    return np.array([[float(v) for v in f"{a} {b}".split()] for a, b in found])
+
+
+@pytest.mark.parametrize(
+    ("name", "tip"),
+    [("kuka_kr210.urdf", "tool0"), ("kinova_gen3_7dof.urdf", "end_effector_link")],
+)
+def test_like_copy_does_not_depend_on_frame0(name, tip):
+    """`export-urdf --like` writes the vendor's frames: one calibration (the same
+    parameters: user frame -> joint 1 frame, joint rows, tool) of the robot imported with
+    frame0 and of the robot with its base moved onto the first axis (the previous
+    import) gives the same copy to 1e-15 m (a model file written before reads as the
+    latter)."""
+    from kinecal.workflows import export_model
+
+    robot = _import(VENDOR / name, tip)
+    new = _perturbed(robot)
+    old_model = CalibrationModel(_old_import(robot), ModelSpec.preset("kinematic"))
+    old = CalibratedModel(old_model, new.params, new.std, list(new.status))
+    texts = [
+        export_model(c, "urdf", like=str(VENDOR / name), user_link="user").text
+        for c in (new, old)
+    ]
+    a, b = (_origins(t) for t in texts)  # the joints', the user and tool links', ...
+    assert a.shape == b.shape and a.shape[0] >= robot.n_joints + 2
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-15)
+    strip = re.compile(r'<origin xyz="[^"]*" rpy="[^"]*"/>')
+    assert strip.sub("", texts[0]) == strip.sub("", texts[1])  # the rest as it was
