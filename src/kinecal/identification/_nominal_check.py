@@ -79,6 +79,9 @@ WIDE_ANGLE_DEG = 5.0
 # The nominal robot with fitted frames leaves errors this many times the calibrated ones.
 FAR_FACTOR = 2.0
 _STAGE = "nominal check"
+# The screen's stage 3: its s0 alone is read, so it stops on the pre-fits' tolerance
+# and takes no Jacobian at its solution (issue 36: one Jacobian pass fewer).
+SCREEN_FIT = FullStage(screen=True)
 
 
 @dataclass(frozen=True)
@@ -158,9 +161,14 @@ def _without_geometry_priors(
     if from_fit:
         # The screen answers alone only below SCREEN_RATIO < HELD_RATIO, where the
         # findings read its s0 and its parameters, never its standard deviations: no
-        # covariance (its jackknife alone was a third of the screen's cost).
+        # covariance (its jackknife alone was a third of the screen's cost), and a
+        # stage 3 that stops as the pre-fits do (SCREEN_FIT: s0 moves by ~1e-6).
         rest = [
-            Uncertainty(covariance=False) if isinstance(s, Uncertainty) else s
+            Uncertainty(covariance=False)
+            if isinstance(s, Uncertainty)
+            else SCREEN_FIT
+            if isinstance(s, FullStage)
+            else s
             for s in rest
             if not isinstance(s, (KinematicStage, TransmissionStage))
         ]

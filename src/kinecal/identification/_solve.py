@@ -49,6 +49,7 @@ def run_lm(
     required: bool = True,
     lifted: bool = False,
     resume: object | None = None,
+    final_jacobian: bool = True,
 ) -> tuple[State, LMResult]:
     """Levenberg-Marquardt over ``free`` from ``x0`` with the state's model and weights.
 
@@ -62,6 +63,8 @@ def run_lm(
     resume : SolverRun, optional
         A run of this fit with a larger ``stol`` (:attr:`State.prefit`): continued,
         where it is of this fit, instead of run again (the same iterates).
+    final_jacobian : bool
+        False: no Jacobian at the solution unless asked for (:func:`solve_lm`).
 
     Returns
     -------
@@ -98,6 +101,7 @@ def run_lm(
         label=name,
         on_iteration=lambda it, c, ch: problem.progress.iteration(name, it, c, ch),
         resume=None if lifted else ck,
+        final_jacobian=final_jacobian,
     )
     after = ev.rms_mm(cm, res.x, w)
     entry = StageLog(

@@ -22,6 +22,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
@@ -35,6 +36,7 @@ from kinecal.identification._noise import estimate_noise
 from kinecal.identification._options import (
     MU0_WARM,
     STOL,
+    STOL_PRE,
     FitSettings,
     IdentifySettings,
 )
@@ -345,18 +347,22 @@ class FullStage:
     link products, with all priors. Without sigmas in the data, the noise is estimated
     again from its residuals (Helmert, per set or marker where they differ); while a
     sigma moves by more than 20 %, once more with it (the priors were weighed against
-    the wrong noise)."""
+    the wrong noise). ``screen``: a fit whose ``s0`` alone is read (the nominal
+    check's screen): it stops on the pre-fits' statistical tolerance
+    (:data:`STOL_PRE`) and evaluates no Jacobian at its solution."""
 
     name: str = "stage 3: all"
+    screen: bool = False
 
     def __call__(self, problem: Problem, state: State) -> State:
         if not np.any(state.free & ~problem.kinematic):
             return state
         lm3 = replace(state.lm, max_iter=max(state.lm.max_iter, 200))
+        if self.screen:
+            lm3 = replace(lm3, stol=max(lm3.stol, STOL_PRE))
         prior = state.active_prior()
-        state, res = run_lm(
-            problem, state, self.name, state.x, state.free, lm3, prior, lifted=True
-        )
+        fit = partial(run_lm, lifted=True, final_jacobian=not self.screen)
+        state, res = fit(problem, state, self.name, state.x, state.free, lm3, prior)
         state = state.but(x=res.x)
         for _ in range(_NOISE_ROUNDS if problem.estimate_noise else 0):
             # Variance components iterated with the fit (Eq. (T-7)): the priors were
@@ -365,9 +371,7 @@ class FullStage:
             if _noise_moved(state.weights, new.weights) <= np.log(_NOISE_TOL):
                 state = new  # the estimate at this fit; no refit for a small change
                 break
-            state, res = run_lm(
-                problem, new, self.name, state.x, state.free, lm3, prior, lifted=True
-            )
+            state, res = fit(problem, new, self.name, state.x, state.free, lm3, prior)
             state = state.but(x=res.x)
         return state
 
