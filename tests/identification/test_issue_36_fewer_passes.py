@@ -1,20 +1,26 @@
 """Issue 36, point 3: at most ~10 Jacobian passes for the whole calibration command.
 
-The nominal check's screen (the fit without geometry priors from the calibration's
-solution) reads only its ``s0``: it stops on the pre-fits' statistical tolerance and
-takes no Jacobian at its solution.
+* The nominal check's screen (the fit without geometry priors from the calibration's
+  solution) reads only its ``s0``: it stops on the pre-fits' statistical tolerance and
+  takes no Jacobian at its solution.
+* Registration fits the frames from the flange frames (:class:`FrameFit`): its
+  residuals and Jacobian columns are the model's own, without passes of the model.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pytest
 
 import kinecal.identification._nominal_check as nc
 from kinecal.identification import CalibrationOptions, calibrate, nominal_check
+from kinecal.identification._frame_fit import FrameFit
 from kinecal.identification._lm import LMOptions, solve_lm
 from kinecal.identification._nominal_check import _without_geometry_priors
-from kinecal.identification._stages import FullStage
+from kinecal.identification._problem import Problem
+from kinecal.identification._stages import FullStage, Register
 from kinecal.models import pass_counts
 
 
@@ -101,10 +107,81 @@ def test_the_nominal_check_screen_reads_s0_from_one_jacobian_pass(twin500):
 
 
 def test_the_calibration_command_takes_few_jacobian_passes(twin500):
-    """The calibration and its nominal check on 500 twin poses: 11 + 1 Jacobian passes
-    (11 + 2 before; the whole command on 2000 twin poses 13 -> 12)."""
+    """The calibration and its nominal check on 500 twin poses: 10 + 1 Jacobian passes
+    (11 + 2 before; the whole command on 2000 twin poses 13 -> 11), and registration
+    one of them (at its solution, where stage 1 starts)."""
     robot, meas = twin500
     res, n_fit = _jacobians(lambda: calibrate(robot, meas, "full"))
     found, n_check = _jacobians(lambda: nominal_check(res, robot, meas))
-    assert n_fit <= 11 and n_check <= 1
+    assert n_fit <= 10 and n_check <= 1
+    problem = Problem.make(robot, meas, "full")
+    state, n_reg = _jacobians(lambda: Register()(problem, problem.start()))
+    assert n_reg == 1
+    np.testing.assert_allclose(state.x, res.registered, rtol=0.0, atol=1e-15)
     assert not [d for d in found if d.code in ("priors_held", "nominal_mismatch")]
+
+
+def _frame_cases():
+    """(model, x, measurements, inputs) of point, pose and sensor data at a
+    registered point (the frames moved off the closed form's, compliance zero)."""
+    from kinecal.simulation import experiment1
+    from kinecal.workflows._simulate import simulate_paper_experiment
+
+    e2 = simulate_paper_experiment(2, n_train=60).experiment
+    e1 = experiment1(0, n_train=40)
+    out = []
+    for e, kind in ((e2, "point"), (e2, "pose"), (e1, "sensor")):
+        meas = e.train
+        if kind == "pose":
+            p, R = e.truth.evaluate(meas.q_ctrl, orientation=True)
+            meas = dataclasses.replace(
+                meas,
+                kind="pose",
+                p=p,
+                R_user_cam=R,
+                sigma=np.full(meas.n, 1e-5),
+                sigma_rot=np.full(meas.n, 1e-4),
+            )
+        assert meas.kind == kind
+        problem = Problem.make(e.truth.robot, meas, "full")
+        state = Register()(problem, problem.start())
+        out.append((state.model, state.x, meas, problem.inputs, problem.frames))
+    return out
+
+
+@pytest.mark.parametrize("case", range(3), ids=["point", "pose", "sensor"])
+def test_the_frame_fit_gives_the_models_residuals_and_frame_columns(case):
+    """At frames away from the registered ones, the frame fit's residuals and Jacobian
+    columns of the frames are the model's (to rounding); its other columns are zero."""
+    from kinecal.measurement._residuals import Weights, residuals
+
+    cm, x, meas, inputs, frames = _frame_cases()[case]
+    fit = FrameFit.of(cm, x, meas, inputs)
+    assert fit is not None
+    y = x.copy()
+    y[frames] += 1e-2 * np.random.default_rng(case).standard_normal(frames.sum())
+    w = Weights.default(meas)
+    mine = fit(cm, y, w, jacobian=True)
+    model = residuals(cm, y, meas, w, inputs=inputs, jacobian=True)
+    assert mine.J is not None and model.J is not None
+    np.testing.assert_allclose(
+        mine.r, model.r, rtol=0.0, atol=1e-9 * abs(model.r).max()
+    )
+    scale = abs(model.J[:, :, frames]).max()
+    np.testing.assert_allclose(
+        mine.J[:, :, frames], model.J[:, :, frames], rtol=0.0, atol=1e-12 * scale
+    )
+    assert not mine.J[:, :, ~frames].any()
+    assert fit.rms_mm(cm, y, w) == pytest.approx(
+        float(np.sqrt(np.mean(np.sum(model.raw_position**2, axis=1)))) * 1e3,
+        rel=1e-12,
+    )
+
+
+def test_the_frame_fit_is_refused_where_a_deflection_moves_with_the_frames():
+    """A compliance term not zero (the payload's torque moves with the tool): no frame
+    fit, registration by the model as before."""
+    cm, x, meas, inputs, _ = _frame_cases()[0]
+    y = x.copy()
+    y[next(i for i, s in enumerate(cm.layout.specs) if s.kind == "compliance")] = 1e-6
+    assert FrameFit.of(cm, y, meas, inputs) is None

@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal.identification._frame_fit import FrameFit
 from kinecal.identification._lift import lifted_start
 from kinecal.identification._lm import (
     LMCheckpoint,
@@ -50,6 +51,7 @@ def run_lm(
     lifted: bool = False,
     resume: object | None = None,
     final_jacobian: bool = True,
+    evaluate: FrameFit | None = None,
 ) -> tuple[State, LMResult]:
     """Levenberg-Marquardt over ``free`` from ``x0`` with the state's model and weights.
 
@@ -65,6 +67,7 @@ def run_lm(
         where it is of this fit, instead of run again (the same iterates).
     final_jacobian : bool
         False: no Jacobian at the solution unless asked for (:func:`solve_lm`).
+    evaluate : FrameFit, optional, in place of the problem's evaluations.
 
     Returns
     -------
@@ -72,7 +75,7 @@ def run_lm(
         diagnostic); its parameters are unchanged.
     result : LMResult
     """
-    ev, cm, w = problem.evaluations, state.model, state.weights
+    ev, cm, w = evaluate or problem.evaluations, state.model, state.weights
     before = ev.rms_mm(cm, x0, w)
     problem.progress(name, f"{int(free.sum())} parameters")
     t0 = time.perf_counter()
@@ -84,7 +87,7 @@ def run_lm(
     if isinstance(resume, SolverRun) and resume.serves(cm, x0, free, w, lm, prior):
         ck = resume.checkpoint
         if resume.block is not None:  # its last evaluation, for the runs after it
-            ev.put(cm, ck.x, w, resume.block)
+            problem.evaluations.put(cm, ck.x, w, resume.block)
 
     def fun(x: Float, jac: bool) -> tuple[Float, Float | NormalSource | None]:
         # A lifted stage's Jacobians carry the product columns (served from the cache).

@@ -28,6 +28,7 @@ import numpy as np
 
 from kinecal._stats import median
 from kinecal.errors import IdentifiabilityError
+from kinecal.identification._frame_fit import FrameFit
 from kinecal.identification._identifiability import (
     identifiability_from_normal,
 )
@@ -94,12 +95,19 @@ class Register:
         frames = problem.frames
         # The closed form is next to the optimum: little initial damping (MU0_WARM).
         warm = replace(state.lm, mu0=MU0_WARM)
-        state, res = run_lm(problem, state, self.name, x, frames, warm)
+        # The frames alone move: from the flange frames, without passes of the model
+        # (issue 36), where they are exact (None: by the model).
+        fit = FrameFit.of(model, x, problem.meas, problem.inputs)
+        state, res = run_lm(problem, state, self.name, x, frames, warm, evaluate=fit)
         x = res.x
         if problem.meas.kind == "pose" and problem.estimate_noise:
             state = estimate_noise(problem, state, x, frames, None)
-            state, res = run_lm(problem, state, self.name, x, frames, warm)
+            state, res = run_lm(
+                problem, state, self.name, x, frames, warm, evaluate=fit
+            )
             x = res.x
+        if fit is not None:  # the model's own Jacobian where the next stage starts
+            problem.evaluations(model, x, state.weights, jacobian=True)
         return state.but(x=x, x_registered=x)
 
 
