@@ -13,10 +13,11 @@ at the nominal start (the tool's position moves the payload's torque otherwise).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal.geometry import so3_right_jacobian_inv
 from kinecal.measurement import _blocks
 from kinecal.measurement._measurements import Measurements
 from kinecal.measurement._residuals import ResidualBlock, Weights, whiten
@@ -35,8 +36,7 @@ class FrameFit:
     model: CalibrationModel
     meas: Measurements
     inputs: ModelInputs
-    R_fl: Float  # (N, 3, 3) flange frames in the model base
-    o_fl: Float  # (N, 3)
+    flange: tuple[Float, Float]  # (R (N, 3, 3), o (N, 3)) in the model base
 
     @classmethod
     def of(
@@ -53,8 +53,25 @@ class FrameFit:
             return None
         if meas.n * meas.components > _blocks.BLOCK_ROWS:
             return None
-        R_fl, o_fl = model.flange_frames(x, inputs)
-        return cls(model, meas, inputs, R_fl, o_fl)
+        # The model's tool pose with the user frames at the identity, less the cam
+        # frame: the flange (the compiled kernel's forward pass where it is built).
+        bare = model.with_references(np.broadcast_to(np.eye(3), model.R_ref_base.shape))
+        x0 = x.copy()
+        x0[bare.base_index] = 0.0
+        out = bare.evaluate(x0, inputs, orientation=True)
+        assert out.R_user_cam is not None
+        R_c, t_c = bare.cam_frames(x0)
+        mi = inputs.marker_index
+        R_fl = out.R_user_cam @ np.swapaxes(R_c, 1, 2)[mi]
+        o_fl = out.p_user - np.einsum(
+            "nij,nj->ni", R_fl, t_c[mi] + np.einsum("nij,nj->ni", R_c[mi], inputs.p_cam)
+        )
+        return cls(model, meas, inputs, (R_fl, o_fl))
+
+    def on(self, model: CalibrationModel) -> FrameFit:
+        """The same fit of ``model`` (the same kinematics, other reference rotations:
+        the closed form's)."""
+        return replace(self, model=model)
 
     def __call__(
         self,
@@ -67,16 +84,31 @@ class FrameFit:
     ) -> ResidualBlock:
         """The residual block at ``x`` (its frames moved from the flange frames')."""
         assert cm is self.model and not products
-        meas = self.meas
-        out = self.output(x, jacobian, meas.kind == "pose")
-        r, J, e_p, e_r = whiten(
-            out,
-            meas.reference_points(),
-            meas.R_user_cam,
-            w.sigma,
-            w.sigma_rot,
-            jacobian,
-        )
+        meas, pose = self.meas, self.meas.kind == "pose"
+        p, R_uc, parts = self._predict(x, jacobian, pose)
+        out = ModelOutput(p, R_uc, None, None, self.inputs.q_ctrl)
+        ref = meas.reference_points()
+        r, _, e_p, e_r = whiten(out, ref, meas.R_user_cam, w.sigma, w.sigma_rot, False)
+        if parts is None:
+            return ResidualBlock(r, None, e_p, e_r)
+        si, mi = self.inputs.set_index, self.inputs.marker_index
+        N, c = r.shape
+        J = np.zeros((cm.size, c, N)).transpose(2, 1, 0)  # the model's layout
+        rot = None
+        if e_r is not None and w.sigma_rot is not None:
+            rot = so3_right_jacobian_inv(-e_r) * (1.0 / w.sigma_rot)[:, None, None]
+        # Each row's columns of its own user frame, then of its own cam frame.
+        for (J_p, J_w), index, of in (
+            (parts[:2], cm.base_index, si),
+            (parts[2:], cm.cam_index, mi),
+        ):
+            J_p *= (1.0 / w.sigma)[:, None, None]  # whitened as the model's
+            J_r = None if rot is None else rot @ J_w
+            for k, cols in enumerate(index):
+                mine = None if len(index) == 1 else (of == k)[:, None, None]
+                J[:, :3, cols] = J_p if mine is None else J_p * mine
+                if J_r is not None:
+                    J[:, 3:, cols] = J_r if mine is None else J_r * mine
         return ResidualBlock(r, J, e_p, e_r)
 
     def rms_mm(self, cm: CalibrationModel, x: Float, w: Weights) -> float:
@@ -84,42 +116,40 @@ class FrameFit:
         e_p = self(cm, x, w).raw_position
         return float(np.sqrt(np.mean(np.sum(e_p**2, axis=1)))) * 1e3
 
-    def output(self, x: Float, jacobian: bool, orientation: bool) -> ModelOutput:
-        """The model's output at ``x`` (its Jacobian: the frames' columns)."""
+    def _predict(
+        self, x: Float, jacobian: bool, orientation: bool
+    ) -> tuple[Float, Float | None, tuple[Float, Float, Float, Float] | None]:
+        """The model's point and orientation at ``x`` and, with ``jacobian``, the
+        columns of each row's own user frame (``d p_user`` and the angular velocity,
+        (N, 3, 6) each), then of its own cam frame."""
         cm, inp = self.model, self.inputs
+        R_fl, o_fl = self.flange
         si, mi = inp.set_index, inp.marker_index
         R_b, t_b = cm.base_frames(x)
         R_c, t_c = cm.cam_frames(x)
-        R_bf = R_b[si] @ self.R_fl
+        R_bf = R_b[si] @ R_fl
         v = np.einsum("nij,nj->ni", R_c[mi], inp.p_cam)  # the point in the flange
-        y = self.o_fl + np.einsum("nij,nj->ni", self.R_fl, t_c[mi] + v)
+        y = o_fl + np.einsum("nij,nj->ni", R_fl, t_c[mi] + v)
         p = np.einsum("nij,nj->ni", R_b[si], y) + t_b[si]
         R_uc = R_bf @ R_c[mi] if orientation else None
         if not jacobian:
-            return ModelOutput(p, R_uc, None, None, inp.q_ctrl)
-        N, P = p.shape[0], cm.size
-        # The model's layout: parameter-major, (N, 3, P) views.
-        J_p = np.zeros((P, 3, N)).transpose(2, 1, 0)
-        J_w = np.zeros((P, 3, N)).transpose(2, 1, 0)
-        bi, ci = cm.base_index, cm.cam_index
-        axes = cm.definition.base_axes(x)  # (S, 3, 3): the Euler angles' axes
-        arm = p - t_b[si]
-        for s in range(bi.shape[0]):
-            rows = np.flatnonzero(si == s)
-            for k in range(3):
-                J_p[rows, k, bi[s, k]] = 1.0
-                J_p[rows, :, bi[s, 3 + k]] = np.cross(axes[s, :, k], arm[rows])
-                J_w[rows, :, bi[s, 3 + k]] = axes[s, :, k]
-        cam_axes = cm.definition.cam_axes(x) if ci.shape[1] == 6 else None
-        for m in range(ci.shape[0]):
-            rows = np.flatnonzero(mi == m)
-            for k in range(3):
-                J_p[rows, :, ci[m, k]] = R_bf[rows, :, k]
-                if cam_axes is None:
-                    continue
-                a = cam_axes[m, :, k]
-                J_p[rows, :, ci[m, 3 + k]] = np.einsum(
-                    "nij,nj->ni", R_bf[rows], np.cross(a, v[rows])
-                )
-                J_w[rows, :, ci[m, 3 + k]] = R_bf[rows] @ a
-        return ModelOutput(p, R_uc, J_p, J_w if orientation else None, inp.q_ctrl)
+            return p, R_uc, None
+        N, nc = p.shape[0], cm.cam_index.shape[1]
+        # Each row's columns of its own user frame (6) and cam frame (nc).
+        Jb, Jwb = np.zeros((N, 3, 6)), np.zeros((N, 3, 6))
+        Jb[:, :, :3] = np.eye(3)
+        axes = cm.definition.base_axes(x)[si]  # (N, 3, 3): the Euler angles' axes
+        Jb[:, :, 3:] = _cross_columns(axes, p - t_b[si])
+        Jwb[:, :, 3:] = axes
+        Jc, Jwc = np.zeros((N, 3, nc)), np.zeros((N, 3, nc))
+        Jc[:, :, :3] = R_bf
+        if nc == 6:
+            cam_axes = R_bf @ cm.definition.cam_axes(x)[mi]  # in the user frame
+            Jc[:, :, 3:] = _cross_columns(cam_axes, np.einsum("nij,nj->ni", R_bf, v))
+            Jwc[:, :, 3:] = cam_axes
+        return p, R_uc, (Jb, Jwb, Jc, Jwc)
+
+
+def _cross_columns(A: Float, b: Float) -> Float:
+    """``A[:, :, k] x b`` for every column k of A (N, 3, 3), b (N, 3): (N, 3, 3)."""
+    return np.swapaxes(np.cross(np.swapaxes(A, 1, 2), b[:, None, :]), 1, 2)

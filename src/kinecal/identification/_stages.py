@@ -84,8 +84,16 @@ class Register:
 
     def __call__(self, problem: Problem, state: State) -> State:
         problem.progress("init", "closed-form user and cam frames")
+        # While the frames alone move, the model's points follow from the flange
+        # frames: one forward pass for the closed form and the fit (issue 36; None
+        # where that does not hold: by the model).
+        fit = FrameFit.of(state.model, state.x, problem.meas, problem.inputs)
         model, x, found = initial_registration(
-            state.model, state.x, problem.meas, inputs=problem.inputs
+            state.model,
+            state.x,
+            problem.meas,
+            inputs=problem.inputs,
+            flange=None if fit is None else fit.flange,
         )
         # In a calibration the identifiability analysis decides (and reports) what the
         # poses leave undetermined: the closed form's finding is only a note.
@@ -95,9 +103,7 @@ class Register:
         frames = problem.frames
         # The closed form is next to the optimum: little initial damping (MU0_WARM).
         warm = replace(state.lm, mu0=MU0_WARM)
-        # The frames alone move: from the flange frames, without passes of the model
-        # (issue 36), where they are exact (None: by the model).
-        fit = FrameFit.of(model, x, problem.meas, problem.inputs)
+        fit = None if fit is None else fit.on(model)  # its reference rotations
         state, res = run_lm(problem, state, self.name, x, frames, warm, evaluate=fit)
         x = res.x
         if problem.meas.kind == "pose" and problem.estimate_noise:
