@@ -150,9 +150,10 @@ def _frame_cases():
 
 
 @pytest.mark.parametrize("case", range(3), ids=["point", "pose", "sensor"])
-def test_the_frame_fit_gives_the_models_residuals_and_frame_columns(case):
-    """At frames away from the registered ones, the frame fit's residuals and Jacobian
-    columns of the frames are the model's (to rounding); its other columns are zero."""
+def test_the_frame_fit_gives_the_models_residuals_and_normal_equations(case):
+    """At frames away from the registered ones, the frame fit's residuals and the
+    normal equations of the frames' columns (robust row weights or not) are the
+    model's, to rounding; another column is refused."""
     from kinecal.measurement._residuals import Weights, residuals
 
     cm, x, meas, inputs, frames = _frame_cases()[case]
@@ -163,19 +164,26 @@ def test_the_frame_fit_gives_the_models_residuals_and_frame_columns(case):
     w = Weights.default(meas)
     mine = fit(cm, y, w, jacobian=True)
     model = residuals(cm, y, meas, w, inputs=inputs, jacobian=True)
-    assert mine.J is not None and model.J is not None
     np.testing.assert_allclose(
         mine.r, model.r, rtol=0.0, atol=1e-9 * abs(model.r).max()
     )
-    scale = abs(model.J[:, :, frames]).max()
     np.testing.assert_allclose(
-        mine.J[:, :, frames], model.J[:, :, frames], rtol=0.0, atol=1e-12 * scale
+        mine.raw_position, model.raw_position, rtol=0, atol=1e-13
     )
-    assert not mine.J[:, :, ~frames].any()
+    cols = np.flatnonzero(frames)
+    scales = cm.layout.scales[cols]
+    assert mine.jacobian is not None
+    for rw in (None, np.linspace(0.5, 1.0, meas.n)):
+        A, g = mine.jacobian.normal(cols, scales, rw)
+        A0, g0 = model.normal(cols, scales, rw)
+        np.testing.assert_allclose(A, A0, rtol=0.0, atol=1e-12 * abs(A0).max())
+        np.testing.assert_allclose(g, g0, rtol=0.0, atol=1e-9 * abs(g0).max())
     assert fit.rms_mm(cm, y, w) == pytest.approx(
         float(np.sqrt(np.mean(np.sum(model.raw_position**2, axis=1)))) * 1e3,
         rel=1e-12,
     )
+    with pytest.raises(ValueError, match="another parameter"):
+        mine.jacobian.normal(np.flatnonzero(~frames)[:1], np.ones(1))
 
 
 def test_the_frame_fit_is_refused_where_a_deflection_moves_with_the_frames():

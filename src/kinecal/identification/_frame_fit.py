@@ -20,18 +20,19 @@ import numpy as np
 from kinecal.geometry import so3_right_jacobian_inv
 from kinecal.measurement import _blocks
 from kinecal.measurement._measurements import Measurements
-from kinecal.measurement._residuals import ResidualBlock, Weights, whiten
+from kinecal.measurement._residuals import Weights, whiten
 from kinecal.models import CalibrationModel, ModelInputs, ModelOutput
 from kinecal.typing import Float
 
-__all__ = ["FrameFit"]
+__all__ = ["FrameBlock", "FrameFit"]
 
 
 @dataclass(frozen=True, eq=False)
 class FrameFit:
     """Residual blocks of one model's data with only its frames moving, from the flange
-    frames at ``x`` (what :class:`~kinecal.identification._problem.EvaluationCache`
-    gives for the frames' columns; the other columns of its Jacobians are zero)."""
+    frames at ``x``: what :class:`~kinecal.identification._problem.EvaluationCache`
+    gives, with the normal equations of the frames' columns alone (no other column
+    is asked for in a fit of the frames)."""
 
     model: CalibrationModel
     meas: Measurements
@@ -81,7 +82,7 @@ class FrameFit:
         *,
         jacobian: bool = False,
         products: bool = False,
-    ) -> ResidualBlock:
+    ) -> FrameBlock:
         """The residual block at ``x`` (its frames moved from the flange frames')."""
         assert cm is self.model and not products
         meas, pose = self.meas, self.meas.kind == "pose"
@@ -90,26 +91,30 @@ class FrameFit:
         ref = meas.reference_points()
         r, _, e_p, e_r = whiten(out, ref, meas.R_user_cam, w.sigma, w.sigma_rot, False)
         if parts is None:
-            return ResidualBlock(r, None, e_p, e_r)
+            return FrameBlock(r, e_p, e_r, None)
         si, mi = self.inputs.set_index, self.inputs.marker_index
         N, c = r.shape
-        J = np.zeros((cm.size, c, N)).transpose(2, 1, 0)  # the model's layout
+        cols = np.concatenate([cm.base_index.ravel(), cm.cam_index.ravel()])
+        J = np.zeros((N, c, cols.size))  # the frames' columns alone
         rot = None
         if e_r is not None and w.sigma_rot is not None:
             rot = so3_right_jacobian_inv(-e_r) * (1.0 / w.sigma_rot)[:, None, None]
         # Each row's columns of its own user frame, then of its own cam frame.
-        for (J_p, J_w), index, of in (
-            (parts[:2], cm.base_index, si),
-            (parts[2:], cm.cam_index, mi),
+        at = 0
+        for J_p, J_w, index, of in (
+            (*parts[:2], cm.base_index, si),
+            (*parts[2:], cm.cam_index, mi),
         ):
             J_p *= (1.0 / w.sigma)[:, None, None]  # whitened as the model's
             J_r = None if rot is None else rot @ J_w
-            for k, cols in enumerate(index):
+            n = index.shape[1]
+            for k in range(len(index)):
                 mine = None if len(index) == 1 else (of == k)[:, None, None]
-                J[:, :3, cols] = J_p if mine is None else J_p * mine
+                J[:, :3, at : at + n] = J_p if mine is None else J_p * mine
                 if J_r is not None:
-                    J[:, 3:, cols] = J_r if mine is None else J_r * mine
-        return ResidualBlock(r, J, e_p, e_r)
+                    J[:, 3:, at : at + n] = J_r if mine is None else J_r * mine
+                at += n
+        return FrameBlock(r, e_p, e_r, _FrameNormal(r, J, cols, cm.size))
 
     def rms_mm(self, cm: CalibrationModel, x: Float, w: Weights) -> float:
         """RMS of the 3-D position errors at ``x`` [mm]."""
@@ -127,29 +132,82 @@ class FrameFit:
         si, mi = inp.set_index, inp.marker_index
         R_b, t_b = cm.base_frames(x)
         R_c, t_c = cm.cam_frames(x)
-        R_bf = R_b[si] @ R_fl
-        v = np.einsum("nij,nj->ni", R_c[mi], inp.p_cam)  # the point in the flange
-        y = o_fl + np.einsum("nij,nj->ni", R_fl, t_c[mi] + v)
-        p = np.einsum("nij,nj->ni", R_b[si], y) + t_b[si]
-        R_uc = R_bf @ R_c[mi] if orientation else None
-        if not jacobian:
+        Rb, Rc = _per_row(R_b, si), _per_row(R_c, mi)  # (3, 3) for one set or marker
+        v = _apply(Rc, inp.p_cam)  # the point in the flange
+        p = _apply(Rb, o_fl + _apply(R_fl, _per_row(t_c, mi) + v)) + _per_row(t_b, si)
+        R_bf = Rb @ R_fl if orientation or jacobian else None
+        R_uc = R_bf @ Rc if R_bf is not None and orientation else None
+        if R_bf is None:
             return p, R_uc, None
         N, nc = p.shape[0], cm.cam_index.shape[1]
         # Each row's columns of its own user frame (6) and cam frame (nc).
         Jb, Jwb = np.zeros((N, 3, 6)), np.zeros((N, 3, 6))
         Jb[:, :, :3] = np.eye(3)
-        axes = cm.definition.base_axes(x)[si]  # (N, 3, 3): the Euler angles' axes
-        Jb[:, :, 3:] = _cross_columns(axes, p - t_b[si])
+        axes = _per_row(cm.definition.base_axes(x), si)  # the Euler angles' axes
+        Jb[:, :, 3:] = _cross_columns(axes, p - _per_row(t_b, si))
         Jwb[:, :, 3:] = axes
         Jc, Jwc = np.zeros((N, 3, nc)), np.zeros((N, 3, nc))
         Jc[:, :, :3] = R_bf
         if nc == 6:
-            cam_axes = R_bf @ cm.definition.cam_axes(x)[mi]  # in the user frame
-            Jc[:, :, 3:] = _cross_columns(cam_axes, np.einsum("nij,nj->ni", R_bf, v))
+            cam_axes = R_bf @ _per_row(cm.definition.cam_axes(x), mi)  # user frame
+            Jc[:, :, 3:] = _cross_columns(cam_axes, _apply(R_bf, v))
             Jwc[:, :, 3:] = cam_axes
         return p, R_uc, (Jb, Jwb, Jc, Jwc)
 
 
 def _cross_columns(A: Float, b: Float) -> Float:
-    """``A[:, :, k] x b`` for every column k of A (N, 3, 3), b (N, 3): (N, 3, 3)."""
-    return np.swapaxes(np.cross(np.swapaxes(A, 1, 2), b[:, None, :]), 1, 2)
+    """``A[..., :, k] x b`` for every column k of A ((3, 3) or (N, 3, 3)), b (N, 3):
+    (N, 3, 3)."""
+    a0, a1, a2 = A[..., 0, :], A[..., 1, :], A[..., 2, :]
+    b0, b1, b2 = b[:, 0, None], b[:, 1, None], b[:, 2, None]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
+
+
+def _per_row(frames: Float, index: np.ndarray) -> Float:
+    """The frame of each row, ``frames[index]``; the frame itself (no copy per row)
+    where there is one."""
+    return frames[0] if frames.shape[0] == 1 else frames[index]
+
+
+def _apply(R: Float, v: Float) -> Float:
+    """``R v`` row by row, R (3, 3) or (N, 3, 3), v (N, 3)."""
+    return v @ R.T if R.ndim == 2 else np.einsum("nij,nj->ni", R, v)
+
+
+@dataclass(frozen=True)
+class _FrameNormal:
+    """The normal equations of the frames' Jacobian columns (N, c, K) at ``cols`` of
+    the model's P parameters (:class:`~kinecal.identification._normal.NormalSource`)."""
+
+    r: Float
+    J: Float
+    cols: np.ndarray
+    size: int
+
+    def normal(
+        self, cols: np.ndarray, scales: Float, row_weights: Float | None = None
+    ) -> tuple[Float, Float]:
+        where = np.full(self.size, -1)
+        where[self.cols] = np.arange(self.cols.size)
+        sel = where[np.asarray(cols, dtype=np.intp)]
+        if np.any(sel < 0):
+            raise ValueError(
+                "a fit of the frames asked for another parameter's column."
+            )
+        X, r = self.J[:, :, sel] * scales, self.r
+        if row_weights is not None:
+            X, r = X * row_weights[:, None, None], r * row_weights[:, None]
+        Xm = X.reshape(-1, sel.size)
+        return Xm.T @ Xm, Xm.T @ r.reshape(-1)
+
+
+@dataclass(frozen=True)
+class FrameBlock:
+    """A :class:`~kinecal.measurement._residuals.ResidualBlock` of a fit of the frames:
+    whitened residuals, raw errors, and the normal equations of the frames' columns
+    (``jacobian``, when asked for)."""
+
+    r: Float
+    raw_position: Float
+    raw_rotation: Float | None
+    jacobian: _FrameNormal | None
