@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 import pytest
@@ -121,9 +122,11 @@ def test_the_calibration_command_takes_few_jacobian_passes(twin500):
     assert not [d for d in found if d.code in ("priors_held", "nominal_mismatch")]
 
 
+@functools.cache
 def _frame_cases():
-    """(model, x, measurements, inputs) of point, pose and sensor data at a
-    registered point (the frames moved off the closed form's, compliance zero)."""
+    """(model, x, measurements, inputs, frames) of point, pose and sensor data, and of
+    real data with two sets and three markers, at a registered point (compliance
+    zero)."""
     from kinecal.simulation import experiment1
     from kinecal.workflows._simulate import simulate_paper_experiment
 
@@ -143,13 +146,47 @@ def _frame_cases():
                 sigma_rot=np.full(meas.n, 1e-4),
             )
         assert meas.kind == kind
-        problem = Problem.make(e.truth.robot, meas, "full")
-        state = Register()(problem, problem.start())
-        out.append((state.model, state.x, meas, problem.inputs, problem.frames))
+        out.append(_registered(e.truth.robot, meas))
+    out += _real_cases()
     return out
 
 
-@pytest.mark.parametrize("case", range(3), ids=["point", "pose", "sensor"])
+def _registered(robot, meas):
+    problem = Problem.make(robot, meas, "full")
+    state = Register()(problem, problem.start())
+    return state.model, state.x, meas, problem.inputs, problem.frames
+
+
+def _real_cases():
+    """The FR3 camera poses of two set-ups as two sets (user frames), and the TIAGo
+    mocap points of three markers (cam frames)."""
+    import tempfile
+    from pathlib import Path
+
+    from kinecal.io import read_measurements
+    from kinecal.robot import load_robot
+
+    real = Path(__file__).resolve().parents[1] / "data" / "real"
+    fr3 = load_robot("franka-fr3")
+    text_a = (real / "fr3_session_a.csv").read_text().splitlines()
+    text_b = (real / "fr3_session_b_board_moved.csv").read_text().splitlines()
+    both = ["set," + text_a[0]] + ["A," + r for r in text_a[1:]]
+    both += ["B," + r for r in text_b[1:]]
+    with tempfile.TemporaryDirectory() as tmp:
+        f = Path(tmp) / "both.csv"
+        f.write_text("\n".join(both) + "\n")
+        two_sets = read_measurements(f, fr3)
+    tiago = load_robot(
+        real.parents[2] / "examples/data/tiago_figaroh_qualisys/tiago.yaml"
+    )
+    markers = read_measurements(real / "tiago_mocap.csv", tiago)
+    assert two_sets.set_labels == ("A", "B") and len(markers.marker_labels) == 3
+    return [_registered(fr3, two_sets), _registered(tiago, markers)]
+
+
+@pytest.mark.parametrize(
+    "case", range(5), ids=["point", "pose", "sensor", "fr3-two-sets", "tiago-markers"]
+)
 def test_the_frame_fit_gives_the_models_residuals_and_normal_equations(case):
     """At frames away from the registered ones, the frame fit's residuals and the
     normal equations of the frames' columns (robust row weights or not) are the

@@ -24,7 +24,8 @@ without those three stages). It shares the calibration's registration and identi
 analysis, and starts from the calibration's solution; only where that fit finds the priors
 holding the calibration back (its noise ratio above 1.2) does the fit from nominal run,
 and its numbers are the ones reported (issue 36: 9 -> 3 Jacobian passes on 2000 twin poses,
-the findings unchanged).
+the findings unchanged; then 2 -> 1: that fit reads only its s0, so it stops on the
+pre-fits' tolerance and takes no Jacobian at its solution, :data:`SCREEN_FIT`).
 """
 
 from __future__ import annotations
@@ -126,8 +127,8 @@ def _without_geometry_priors(
     rejection: on the same rows the calibration's own state after them serves
     (:attr:`CalibrationResult.identified`; the same numbers). With ``from_fit`` the fit
     starts from the calibration's solution, with the noise its residuals give, instead
-    of stages 1 and 2 from nominal (3 Jacobian passes instead of 7 on 2000 twin poses);
-    None where there is no shared state. On data far from nominal it can end in another
+    of stages 1 and 2 from nominal (1 Jacobian pass with the calibration's workspace
+    instead of 7 on 2000 twin poses); None where there is no shared state. On data far from nominal it can end in another
     minimum than the fit from nominal (the UR10e poses on the CB table: RMS 2.66 against
     2.79 mm), so :func:`nominal_check` uses it only to screen.
     """
