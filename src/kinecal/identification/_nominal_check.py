@@ -128,9 +128,10 @@ def _without_geometry_priors(
     (:attr:`CalibrationResult.identified`; the same numbers). With ``from_fit`` the fit
     starts from the calibration's solution, with the noise its residuals give, instead
     of stages 1 and 2 from nominal (1 Jacobian pass with the calibration's workspace
-    instead of 7 on 2000 twin poses); None where there is no shared state. On data far from nominal it can end in another
-    minimum than the fit from nominal (the UR10e poses on the CB table: RMS 2.66 against
-    2.79 mm), so :func:`nominal_check` uses it only to screen.
+    instead of 7 on 2000 twin poses); None where there is no shared state. On data far
+    from nominal it can end in another minimum than the fit from nominal (the UR10e
+    poses on the CB table: RMS 2.66 against 2.79 mm), so :func:`nominal_check` uses it
+    only to screen.
     """
     free = replace(opts, priors="compliance", reject="off")
     kept = ~np.isin(meas.rows, [o.row for o in result.rejected])
