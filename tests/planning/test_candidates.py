@@ -84,3 +84,27 @@ def test_sensor_candidates_view_the_targets_from_the_working_distance():
     assert np.all((d_cam[:, 2] > 0.115 - 1e-4) & (d_cam[:, 2] < 0.135 + 1e-4))
     assert np.all(np.hypot(d_cam[:, 0], d_cam[:, 1]) < 1e-4)  # on the optical axis
     assert np.all(np.abs(c.q_ctrl[:, 4]) >= np.radians(10))
+
+
+def test_joints_without_limits_are_planned_over_one_turn():
+    """A URDF's continuous joints (Kinova Gen3: J1, J3, J5, J7) have no limits: their
+    candidates spread over one turn. Before, the infinite limits gave NaN joint values
+    and ``kinecal plan --robot`` an internal error (SVD did not converge)."""
+    import warnings
+    from pathlib import Path
+
+    urdf = (
+        Path(__file__).resolve().parents[1] / "data/vendor_urdf/kinova_gen3_7dof.urdf"
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # its base moved onto the first axis
+        robot = load_robot(str(urdf))
+    free = ~np.isfinite(robot.limits).all(axis=1)
+    assert free.tolist() == [True, False, True, False, True, False, True]
+    cm, x = planning_model(robot, "kinematic", Instrument())
+    q = joint_candidates(cm, x, 300, seed=1).q_ctrl
+    assert q.shape == (300, 7) and np.isfinite(q).all()
+    assert np.all(np.abs(q[:, free]) <= np.pi)
+    assert np.all(np.ptp(q[:, free], axis=0) > np.radians(300))  # around the turn
+    lim = robot.limits[~free]
+    assert np.all((q[:, ~free] >= lim[:, 0]) & (q[:, ~free] <= lim[:, 1]))

@@ -492,6 +492,7 @@ def dh_description(
         self_weight=robot.self_weight,
         source=f"kinematic part of a calibrated {robot.name}",
         prior_sigma=dict(robot.prior_sigma),
+        T_base_0=robot.T_base_0.copy(),  # T_user_base is the robot's base
     )
     T_user_base = T_user_mb[s] @ np.linalg.inv(robot_base_offset(robot))
     return desc, T_user_base

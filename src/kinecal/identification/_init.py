@@ -33,6 +33,8 @@ from kinecal.typing import Float
 
 __all__ = ["closed_form_frames", "euler_with_reference", "initial_frames"]
 
+Flange = tuple[Float, Float]  # flange frames (R (N, 3, 3), o (N, 3)) in the model base
+
 _GIMBAL_MARGIN = np.radians(15.0)
 
 
@@ -67,13 +69,17 @@ def _flange(
 
 
 def _init_point(
-    model: CalibrationModel, params: Float, meas: Measurements, n_iter: int = 50
+    model: CalibrationModel,
+    params: Float,
+    meas: Measurements,
+    n_iter: int = 50,
+    flange: Flange | None = None,
 ) -> tuple[Float, Float, Float, list[int]]:
     """Base rotations (S, 3, 3), base translations (S, 3), tool points (M, 3), and the
     sets whose points do not fix their rotation."""
     if 3 * meas.n > _blocks.BLOCK_ROWS:
         return _init_point_large(model, params, meas, n_iter)
-    R_fl, o_fl = _flange(model, params, meas)
+    R_fl, o_fl = flange or _flange(model, params, meas)
     S, M = len(model.spec.sets), len(model.spec.markers)
     _, t_cam = model.cam_frames(params)
     tool = t_cam.copy()
@@ -211,11 +217,11 @@ def _groups(index: np.ndarray, count: int) -> list[np.ndarray | slice]:
 
 
 def _init_pose(
-    model: CalibrationModel, params: Float, meas: Measurements
+    model: CalibrationModel, params: Float, meas: Measurements, flange: Flange | None
 ) -> tuple[Float, Float, Float, Float]:
     """Base (S) and cam (M) frames from AX = YB."""
     assert meas.R_user_cam is not None
-    R_fl, o_fl = _flange(model, params, meas)
+    R_fl, o_fl = flange or _flange(model, params, meas)
     F = make_transform(R_fl, o_fl)
     Mm = make_transform(meas.R_user_cam, meas.p)
     S, Mk = len(model.spec.sets), len(model.spec.markers)
@@ -258,12 +264,12 @@ def _one_axis(meas: Measurements, label: str, several: bool) -> str:
 
 
 def _init_sensor(
-    model: CalibrationModel, params: Float, meas: Measurements
+    model: CalibrationModel, params: Float, meas: Measurements, flange: Flange | None
 ) -> tuple[Float, Float, Float, Float, list[int]]:
     """Cam frames (M) by a linear hand-eye solve, then user frames (S) by Kabsch; the
     sets whose targets do not fix their rotation."""
     assert meas.targets is not None and meas.target_index is not None
-    R_fl, o_fl = _flange(model, params, meas)
+    R_fl, o_fl = flange or _flange(model, params, meas)
     S, Mk = len(model.spec.sets), len(model.spec.markers)
     K = meas.targets.shape[0]
     si, mi, ti = meas.set_index, meas.marker_index, meas.target_index
@@ -348,10 +354,14 @@ def initial_frames(
 
 
 def closed_form_frames(
-    model: CalibrationModel, params: Float, meas: Measurements
+    model: CalibrationModel,
+    params: Float,
+    meas: Measurements,
+    flange: Flange | None = None,
 ) -> tuple[CalibrationModel, Float, list[int]]:
     """:func:`initial_frames`, and the sets whose data do not fix their user frame's
-    rotation (one point, or all on one line)."""
+    rotation (one point, or all on one line). ``flange``: the flange frames of
+    ``params`` where already evaluated (in the model base, ``(R, o)``)."""
     x = params.copy()
     R_ref_b = model.R_ref_base.copy()
     R_ref_c = model.R_ref_cam.copy()
@@ -360,13 +370,13 @@ def closed_form_frames(
     base_idx = work.base_index
     x[base_idx] = 0.0
     if meas.kind == "point":
-        R_b, t_b, tool, loose = _init_point(work, x, meas)
+        R_b, t_b, tool, loose = _init_point(work, x, meas, flange=flange)
         R_c, t_c = None, tool
     elif meas.kind == "pose":
-        R_b, t_b, R_c, t_c = _init_pose(work, x, meas)
+        R_b, t_b, R_c, t_c = _init_pose(work, x, meas, flange)
         loose = []
     else:
-        R_b, t_b, R_c, t_c, loose = _init_sensor(work, x, meas)
+        R_b, t_b, R_c, t_c, loose = _init_sensor(work, x, meas, flange)
     for s in range(len(model.spec.sets)):
         R_ref_b[s], rwp = euler_with_reference(R_b[s])
         x[base_idx[s]] = np.concatenate([t_b[s], rwp])

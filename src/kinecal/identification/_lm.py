@@ -230,6 +230,7 @@ def solve_lm(
     on_iteration: Callable[[int, float, float], None] | None = None,
     s0sq: float | None = None,
     resume: LMCheckpoint | None = None,
+    final_jacobian: bool = True,
 ) -> LMResult:
     """Levenberg-Marquardt on ``fun`` over the parameters flagged in ``free``.
 
@@ -253,6 +254,9 @@ def solve_lm(
         Where a run of the same problem from ``x0`` with a larger ``stol`` stopped
         (:attr:`LMResult.checkpoint`): this run continues from there, with the iterates
         a run from ``x0`` takes (ignored for a larger ``stol`` than its own).
+    final_jacobian : bool
+        False: no Jacobian at the point where the run ends unless ``normal_matrix`` is
+        asked for (a fit whose Jacobian there nobody reads: one pass fewer).
 
     Returns
     -------
@@ -267,20 +271,21 @@ def solve_lm(
     x, free, scales = checked_start(x0, free, scales)
     if resume is not None and opts.stol <= resume.stol:
         obj = _Objective.make(fun, free, scales, opts, prior, s0sq, resume.r.size)
-        run = _Run(obj, label)
+        run = _Run(obj, label, final_jacobian)
         first = run.restore(resume)
     else:
         r, J = fun(x, True)
         check_first_evaluation(r, J, x.size)
         assert J is not None
-        run = _Run(_Objective.make(fun, free, scales, opts, prior, s0sq, r.size), label)
+        obj = _Objective.make(fun, free, scales, opts, prior, s0sq, r.size)
+        run = _Run(obj, label, final_jacobian)
         run.start(x, r, J)
         first = 1
     for it in range(first, opts.max_iter + 1 if first else 0):
         if run.iterate(it, on_iteration):
             break
     else:
-        run._jacobian()  # at the last point, where the next stage starts
+        run.at_end()  # the Jacobian at the last point, where the next stage starts
     return run.result(time.perf_counter() - t0)
 
 
@@ -349,12 +354,10 @@ class _Run:
     """The iterations of one :func:`solve_lm` run: the accepted point, its Jacobian
     (asked for when an iteration needs it), the damping (Nielsen's rule) and the log."""
 
-    def __init__(self, obj: _Objective, label: str) -> None:
-        self.obj, self.label = obj, label
+    def __init__(self, obj: _Objective, label: str, final_jacobian: bool) -> None:
+        self.obj, self.label, self.final_jacobian = obj, label, final_jacobian
         self.mu, self.nu = obj.opts.mu0, 2.0
-        self.trust = (
-            False  # the last step's quadratic model predicted its decrease well
-        )
+        self.trust = False  # the last step's model predicted its decrease well
         self.n_eval, self.it = 1, 0
         self.history: list[dict[str, float]] = []
         self.status, self.success = "max_iter", False
@@ -500,14 +503,25 @@ class _Run:
         )
         if converged is None:
             return False
-        self._jacobian()  # at the solution: the next stage starts there
+        self.at_end()  # at the solution: the next stage starts there
         if converged == "stol":
             self.checkpoint = self._snapshot("accept", self.it, dcost)
         # The normal matrix at the solution, computed when asked for (large data take
         # a pass over every pose for it).
-        self.final = _deferred(obj, self.x, self.r, self.J, self.w)
+        self.final = self._final_normal
         msg = f"{self.label}: converged ({converged}) after {self.it} iterations"
         return self._end(converged, msg, True)
+
+    def at_end(self) -> None:
+        """The Jacobian where the run ends, if wanted there (``final_jacobian``)."""
+        if self.final_jacobian:
+            self._jacobian()
+
+    def _final_normal(self) -> tuple[Float, Float]:
+        """The normal matrix and gradient at the solution (its Jacobian evaluated now
+        if the run did not)."""
+        self._jacobian()
+        return self.obj.normal(self.x, self.r, self.J, self.w)
 
     def _jacobian(self) -> None:
         """The Jacobian (and residuals) at the accepted point, if not yet evaluated."""
@@ -538,13 +552,8 @@ class _Run:
 
     def restore(self, ck: LMCheckpoint) -> int:
         """The state at ``ck``; the iteration to go on with (0: converged there)."""
-        self.x, self.r, self.stale, self.cost, self.w = (
-            ck.x,
-            ck.r,
-            ck.stale,
-            ck.cost,
-            ck.w,
-        )
+        self.x, self.r, self.stale = ck.x, ck.r, ck.stale
+        self.cost, self.w = ck.cost, ck.w
         self.J = ck.J  # type: ignore[assignment]
         self.mu, self.nu, self.trust, self.n_eval = ck.mu, ck.nu, ck.trust, ck.n_eval
         self.history = list(ck.history)
@@ -555,7 +564,7 @@ class _Run:
         # xtol tests, which do not depend on it, had not stopped the run).
         opts = self.obj.opts
         if ck.dcost <= opts.stol * self.obj.unit(self.cost):
-            self.final = _deferred(self.obj, self.x, self.r, self.J, self.w)
+            self.final = self._final_normal
             self.checkpoint = ck
             msg = f"{self.label}: converged (stol) after {self.it} iterations"
             self._end("stol", msg, True)
@@ -587,9 +596,3 @@ def _gauss_newton(A: Float, g: Float) -> tuple[Float, float]:
     dz = -spd_solve(A, g)
     pred = -float(g @ dz + 0.5 * dz @ (A @ dz))
     return dz, pred if np.isfinite(pred) else float("inf")
-
-
-def _deferred(
-    obj: _Objective, x: Float, r: Float, J: Float | NormalSource, w: Float
-) -> Callable[[], tuple[Float, Float]]:
-    return lambda: obj.normal(x, r, J, w)

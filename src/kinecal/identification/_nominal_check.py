@@ -24,7 +24,8 @@ without those three stages). It shares the calibration's registration and identi
 analysis, and starts from the calibration's solution; only where that fit finds the priors
 holding the calibration back (its noise ratio above 1.2) does the fit from nominal run,
 and its numbers are the ones reported (issue 36: 9 -> 3 Jacobian passes on 2000 twin poses,
-the findings unchanged).
+the findings unchanged; then 2 -> 1: that fit reads only its s0, so it stops on the
+pre-fits' tolerance and takes no Jacobian at its solution, :data:`SCREEN_FIT`).
 """
 
 from __future__ import annotations
@@ -79,6 +80,9 @@ WIDE_ANGLE_DEG = 5.0
 # The nominal robot with fitted frames leaves errors this many times the calibrated ones.
 FAR_FACTOR = 2.0
 _STAGE = "nominal check"
+# The screen's stage 3: its s0 alone is read, so it stops on the pre-fits' tolerance
+# and takes no Jacobian at its solution (issue 36: one Jacobian pass fewer).
+SCREEN_FIT = FullStage(screen=True)
 
 
 @dataclass(frozen=True)
@@ -123,10 +127,11 @@ def _without_geometry_priors(
     rejection: on the same rows the calibration's own state after them serves
     (:attr:`CalibrationResult.identified`; the same numbers). With ``from_fit`` the fit
     starts from the calibration's solution, with the noise its residuals give, instead
-    of stages 1 and 2 from nominal (3 Jacobian passes instead of 7 on 2000 twin poses);
-    None where there is no shared state. On data far from nominal it can end in another
-    minimum than the fit from nominal (the UR10e poses on the CB table: RMS 2.66 against
-    2.79 mm), so :func:`nominal_check` uses it only to screen.
+    of stages 1 and 2 from nominal (1 Jacobian pass with the calibration's workspace
+    instead of 7 on 2000 twin poses); None where there is no shared state. On data far
+    from nominal it can end in another minimum than the fit from nominal (the UR10e
+    poses on the CB table: RMS 2.66 against 2.79 mm), so :func:`nominal_check` uses it
+    only to screen.
     """
     free = replace(opts, priors="compliance", reject="off")
     kept = ~np.isin(meas.rows, [o.row for o in result.rejected])
@@ -158,9 +163,14 @@ def _without_geometry_priors(
     if from_fit:
         # The screen answers alone only below SCREEN_RATIO < HELD_RATIO, where the
         # findings read its s0 and its parameters, never its standard deviations: no
-        # covariance (its jackknife alone was a third of the screen's cost).
+        # covariance (its jackknife alone was a third of the screen's cost), and a
+        # stage 3 that stops as the pre-fits do (SCREEN_FIT: s0 moves by ~1e-6).
         rest = [
-            Uncertainty(covariance=False) if isinstance(s, Uncertainty) else s
+            Uncertainty(covariance=False)
+            if isinstance(s, Uncertainty)
+            else SCREEN_FIT
+            if isinstance(s, FullStage)
+            else s
             for s in rest
             if not isinstance(s, (KinematicStage, TransmissionStage))
         ]

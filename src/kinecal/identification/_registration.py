@@ -93,9 +93,10 @@ def initial_registration(
     meas: Measurements,
     groups: Iterable[str] = FRAME_GROUPS,
     inputs: ModelInputs | None = None,
+    flange: tuple[Float, Float] | None = None,
 ) -> tuple[CalibrationModel, Float, list[Diagnostic]]:
     """Closed-form frames of ``groups`` ('base': user frames, 'cam': cam frames) with
-    the other parameters of ``x`` held.
+    the other parameters of ``x`` held (``flange``: its flange frames, if evaluated).
 
     Returns
     -------
@@ -110,7 +111,7 @@ def initial_registration(
         inp = inputs if inputs is not None else meas.model_inputs()
         model, out, loose = _user_frames(model, x, meas, inp)
     else:
-        joint, out, loose = closed_form_frames(model, x, meas)
+        joint, out, loose = closed_form_frames(model, x, meas, flange)
         if "base" in solve:
             model = joint
         else:  # cam frames alone: the joint closed form's cam part, user frames kept

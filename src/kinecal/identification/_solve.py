@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal.identification._frame_fit import FrameFit
 from kinecal.identification._lift import lifted_start
 from kinecal.identification._lm import (
     LMCheckpoint,
@@ -49,6 +50,8 @@ def run_lm(
     required: bool = True,
     lifted: bool = False,
     resume: object | None = None,
+    final_jacobian: bool = True,
+    evaluate: FrameFit | None = None,
 ) -> tuple[State, LMResult]:
     """Levenberg-Marquardt over ``free`` from ``x0`` with the state's model and weights.
 
@@ -62,6 +65,9 @@ def run_lm(
     resume : SolverRun, optional
         A run of this fit with a larger ``stol`` (:attr:`State.prefit`): continued,
         where it is of this fit, instead of run again (the same iterates).
+    final_jacobian : bool
+        False: no Jacobian at the solution unless asked for (:func:`solve_lm`).
+    evaluate : FrameFit, optional, in place of the problem's evaluations.
 
     Returns
     -------
@@ -69,7 +75,7 @@ def run_lm(
         diagnostic); its parameters are unchanged.
     result : LMResult
     """
-    ev, cm, w = problem.evaluations, state.model, state.weights
+    ev, cm, w = evaluate or problem.evaluations, state.model, state.weights
     before = ev.rms_mm(cm, x0, w)
     problem.progress(name, f"{int(free.sum())} parameters")
     t0 = time.perf_counter()
@@ -81,7 +87,7 @@ def run_lm(
     if isinstance(resume, SolverRun) and resume.serves(cm, x0, free, w, lm, prior):
         ck = resume.checkpoint
         if resume.block is not None:  # its last evaluation, for the runs after it
-            ev.put(cm, ck.x, w, resume.block)
+            problem.evaluations.put(cm, ck.x, w, resume.block)
 
     def fun(x: Float, jac: bool) -> tuple[Float, Float | NormalSource | None]:
         # A lifted stage's Jacobians carry the product columns (served from the cache).
@@ -98,6 +104,7 @@ def run_lm(
         label=name,
         on_iteration=lambda it, c, ch: problem.progress.iteration(name, it, c, ch),
         resume=None if lifted else ck,
+        final_jacobian=final_jacobian,
     )
     after = ev.rms_mm(cm, res.x, w)
     entry = StageLog(

@@ -22,11 +22,13 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
 from kinecal._stats import median
 from kinecal.errors import IdentifiabilityError
+from kinecal.identification._frame_fit import FrameFit
 from kinecal.identification._identifiability import (
     identifiability_from_normal,
 )
@@ -35,6 +37,7 @@ from kinecal.identification._noise import estimate_noise
 from kinecal.identification._options import (
     MU0_WARM,
     STOL,
+    STOL_PRE,
     FitSettings,
     IdentifySettings,
 )
@@ -81,8 +84,16 @@ class Register:
 
     def __call__(self, problem: Problem, state: State) -> State:
         problem.progress("init", "closed-form user and cam frames")
+        # While the frames alone move, the model's points follow from the flange
+        # frames: one forward pass for the closed form and the fit (issue 36; None
+        # where that does not hold: by the model).
+        fit = FrameFit.of(state.model, state.x, problem.meas, problem.inputs)
         model, x, found = initial_registration(
-            state.model, state.x, problem.meas, inputs=problem.inputs
+            state.model,
+            state.x,
+            problem.meas,
+            inputs=problem.inputs,
+            flange=None if fit is None else fit.flange,
         )
         # In a calibration the identifiability analysis decides (and reports) what the
         # poses leave undetermined: the closed form's finding is only a note.
@@ -92,12 +103,17 @@ class Register:
         frames = problem.frames
         # The closed form is next to the optimum: little initial damping (MU0_WARM).
         warm = replace(state.lm, mu0=MU0_WARM)
-        state, res = run_lm(problem, state, self.name, x, frames, warm)
+        fit = None if fit is None else fit.on(model)  # its reference rotations
+        state, res = run_lm(problem, state, self.name, x, frames, warm, evaluate=fit)
         x = res.x
         if problem.meas.kind == "pose" and problem.estimate_noise:
             state = estimate_noise(problem, state, x, frames, None)
-            state, res = run_lm(problem, state, self.name, x, frames, warm)
+            state, res = run_lm(
+                problem, state, self.name, x, frames, warm, evaluate=fit
+            )
             x = res.x
+        if fit is not None:  # the model's own Jacobian where the next stage starts
+            problem.evaluations(model, x, state.weights, jacobian=True)
         return state.but(x=x, x_registered=x)
 
 
@@ -345,18 +361,22 @@ class FullStage:
     link products, with all priors. Without sigmas in the data, the noise is estimated
     again from its residuals (Helmert, per set or marker where they differ); while a
     sigma moves by more than 20 %, once more with it (the priors were weighed against
-    the wrong noise)."""
+    the wrong noise). ``screen``: a fit whose ``s0`` alone is read (the nominal
+    check's screen): it stops on the pre-fits' statistical tolerance
+    (:data:`STOL_PRE`) and evaluates no Jacobian at its solution."""
 
     name: str = "stage 3: all"
+    screen: bool = False
 
     def __call__(self, problem: Problem, state: State) -> State:
         if not np.any(state.free & ~problem.kinematic):
             return state
         lm3 = replace(state.lm, max_iter=max(state.lm.max_iter, 200))
+        if self.screen:
+            lm3 = replace(lm3, stol=max(lm3.stol, STOL_PRE))
         prior = state.active_prior()
-        state, res = run_lm(
-            problem, state, self.name, state.x, state.free, lm3, prior, lifted=True
-        )
+        fit = partial(run_lm, lifted=True, final_jacobian=not self.screen)
+        state, res = fit(problem, state, self.name, state.x, state.free, lm3, prior)
         state = state.but(x=res.x)
         for _ in range(_NOISE_ROUNDS if problem.estimate_noise else 0):
             # Variance components iterated with the fit (Eq. (T-7)): the priors were
@@ -365,9 +385,7 @@ class FullStage:
             if _noise_moved(state.weights, new.weights) <= np.log(_NOISE_TOL):
                 state = new  # the estimate at this fit; no refit for a small change
                 break
-            state, res = run_lm(
-                problem, new, self.name, state.x, state.free, lm3, prior, lifted=True
-            )
+            state, res = fit(problem, new, self.name, state.x, state.free, lm3, prior)
             state = state.but(x=res.x)
         return state
 

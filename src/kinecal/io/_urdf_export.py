@@ -176,6 +176,8 @@ def robot_yaml_text(robot: RobotDescription, *, comments: list[str]) -> str:
         row["alpha"] = float(np.degrees(j.alpha))
         if "limits" in row:
             row["limits"] = [round(float(v), 9) for v in row["limits"]]
+    if "frame0" in doc:
+        doc["frame0"] = _frame_dict_full(robot.T_base_0)
     doc["flange"] = _frame_dict_full(robot.T_n_flange)
     doc["tool"] = _frame_dict_full(robot.T_flange_tool)
     head = "".join(f"# {ln}".rstrip() + "\n" for ln in comments)

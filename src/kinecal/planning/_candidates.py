@@ -167,8 +167,8 @@ def joint_candidates(
     ----------
     model, params : the planning model at nominal kinematics (user frame set).
     n : number of candidates wanted.
-    ranges : (n_joints, 2) [rad]; default the joint limits (+-170 deg for a joint without
-        any) less ``margin``. Ranges outside the limits are clipped to them.
+    ranges : (n_joints, 2) [rad]; default the joint limits less ``margin``. Ranges outside
+        the limits are clipped to them.
     seed : random shift of the sequence.
     min_j5 : smallest ``|J5|`` [rad] (wrist singularity at J5 = 0 on a 6-axis arm).
     min_conditioning : smallest inverse condition number of the geometric Jacobian
@@ -180,9 +180,11 @@ def joint_candidates(
     """
     if n < 1:
         raise ValueError(f"the number of candidates must be positive; got {n}.")
-    from kinecal.robot._gravity import finite_limits
-
-    lim = finite_limits(model.robot)  # (a continuous joint's infinite ones gave nan)
+    lim = model.robot.limits.copy()
+    # A joint without limits (a URDF 'continuous' joint): one turn, every angle once
+    # (a slide without limits: +-0.5 m).
+    wide = np.where(model.robot.prismatic, 0.5, np.pi)
+    lim = np.where(np.isfinite(lim), lim, np.sign(lim) * wide[:, None])
     lim[:, 0] += margin
     lim[:, 1] -= margin
     if ranges is not None:

@@ -6,9 +6,11 @@ standard-DH chain (:meth:`RobotDescription.dh_chain`), which the models use:
 .. math:: T_{base,flange}(\\theta) = T_{base,0} \\prod_i R_z(\\theta_i + o_i) T_z(d_i) T_x(a_i)
           R_x(\\alpha_i) \\; T_{n,flange}
 
-A Craig (modified) DH row ``Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i)`` is re-grouped
-exactly into standard rows: the first ``Rx Tx`` becomes the fixed prefix ``T_base_0`` and
-row i takes ``a``, ``alpha`` of MDH row i + 1.
+``T_{base,0}`` is the robot's fixed frame 0 of the joint table in its base frame
+(``RobotDescription.T_base_0``: identity, or a URDF's base link to the DH frame on the
+first axis). A Craig (modified) DH row ``Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i)``
+is re-grouped exactly into standard rows: the first ``Rx Tx`` joins the fixed prefix
+``T_base_0`` and row i takes ``a``, ``alpha`` of MDH row i + 1.
 
 Controller angles ``q_ctrl`` (what the data holds) map to kinematic angles through the
 coupling matrix: ``theta = C @ q_ctrl`` (FANUC: ``theta3 = J3 + J2``).
@@ -91,7 +93,8 @@ class DHChain:
 
     Attributes
     ----------
-    T_base_0 : (4, 4) fixed transform from the robot base to the first DH frame.
+    T_base_0 : (4, 4) fixed transform from the robot base to the first DH frame (the
+        robot's ``T_base_0``, then an MDH table's first ``Rx Tx``).
     theta_offset, d, a, alpha : (n,) standard DH rows.
     prismatic : (n,) bool, joint variable adds to ``d`` instead of ``theta``.
     T_n_flange : (4, 4) physical flange in the last DH frame.
@@ -174,6 +177,10 @@ class RobotDescription:
     link_masses : tuple of LinkMass
         Link masses and centres of mass (from a URDF's inertials) for the general link
         self-weight model; used when ``self_weight`` is None. Empty: none known.
+    T_base_0 : (4, 4) ndarray
+        Frame 0 of the joint table in the robot base frame (YAML ``frame0``): identity,
+        or where ``import-urdf`` put DH frame 0 on a first axis that is not the base
+        link's z axis, so that poses stay in the URDF's base link.
     """
 
     name: str
@@ -189,9 +196,22 @@ class RobotDescription:
     prior_sigma: dict[tuple[str, str], float] = field(default_factory=dict)
     rated_payload_kg: float | None = None
     link_masses: tuple[LinkMass, ...] = ()
+    T_base_0: Pose = field(default_factory=lambda: np.eye(4))
 
     def __post_init__(self) -> None:
         n = len(self.joints)
+        M = np.asarray(self.T_base_0)
+        R = M[:3, :3] if M.shape == (4, 4) else np.zeros((3, 3))
+        if not (
+            np.all(np.isfinite(M))
+            and np.allclose(R.T @ R, np.eye(3), atol=1e-9)
+            and np.linalg.det(R) > 0
+            and np.array_equal(M[3], [0.0, 0.0, 0.0, 1.0])
+        ):
+            raise ConfigError(
+                f"{self.name}: T_base_0 (frame0) must be a rigid transform, shape (4, "
+                f"4); got {np.array2string(M, precision=6, separator=', ')}."
+            )
         if n < 2:
             raise ConfigError(f"{self.name}: a robot needs at least 2 joints; got {n}.")
         if self.convention not in ("dh", "mdh"):
@@ -281,13 +301,16 @@ class RobotDescription:
         a = np.array([j.a for j in js])
         al = np.array([j.alpha for j in js])
         pris = self.prismatic
+        T_b0 = np.array(self.T_base_0, dtype=np.float64)
         if self.convention == "dh":
-            return DHChain(np.eye(4), off, d, a, al, pris, self.T_n_flange.copy())
+            return DHChain(T_b0, off, d, a, al, pris, self.T_n_flange.copy())
         # Craig: prod_i Rx(al_i) Tx(a_i) Rz(th_i) Tz(d_i)
         #      = [Rx(al_1) Tx(a_1)] prod_i [Rz(th_i) Tz(d_i) Tx(a_{i+1}) Rx(al_{i+1})] ...
         #        with Rx Tx = Tx Rx (same axis), and the last row has a = alpha = 0.
-        T_base_0 = make_transform(rot_x(al[0]), [0.0, 0.0, 0.0]) @ make_transform(
-            np.eye(3), [a[0], 0.0, 0.0]
+        T_base_0 = (
+            T_b0
+            @ make_transform(rot_x(al[0]), [0.0, 0.0, 0.0])
+            @ make_transform(np.eye(3), [a[0], 0.0, 0.0])
         )
         a_dh = np.append(a[1:], 0.0)
         al_dh = np.append(al[1:], 0.0)

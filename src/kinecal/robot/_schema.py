@@ -10,6 +10,8 @@ Schema (DESIGN §11, with the optional extensions marked *)::
       - {name: J1*, theta_offset, d, a, alpha, limits: [lo, hi], type: revolute | prismatic*,
          velocity*: deg/s or mm/s (the file's units per second), effort*: N m or N}
     coupling: [{joint: 3, from: 2, factor: 1}]      # theta = C q_ctrl
+    frame0: {x, y, z, r, w, p}                     * frame 0 of the joint table in the
+                                                      robot base (a URDF's base link)
     flange: {x, y, z, r, w, p}                     * physical flange in the last joint frame
     tool: {x, y, z, r, w, p}                        nominal tool in the flange frame
     gravity: [gx, gy, gz]                           base frame; only the direction is used
@@ -53,6 +55,7 @@ _TOP_KEYS = {
     "units",
     "joints",
     "coupling",
+    "frame0",
     "flange",
     "tool",
     "gravity",
@@ -195,6 +198,29 @@ def _frame(d: Any, where: str, lu: float, au: float) -> np.ndarray:
     v[:3] *= lu
     v[3:] *= au
     return euler_transform(v)
+
+
+def _frame0(d: Any, where: str, length: str, angle: str, au: float) -> np.ndarray:
+    """``frame0`` (a robot base's mount, at most 100 m and 2 turns): unit slips named."""
+    lu = LENGTH_UNITS[length]
+    T = _frame(d, where, lu, au)
+    for k in _FRAME_KEYS:
+        v = abs(d.get(k, 0.0))
+        if k in "xyz" and v * lu > 100.0:
+            also = "; did you mean 'mm'?" if length == "m" else "."
+            raise _err(
+                f"{where}.{k}",
+                f"{d[k]:g} {length} is not a plausible offset of a robot's frame 0 "
+                f"from its base (over 100 m; units.length is {length!r}){also}",
+            )
+        if k in "rwp" and v * au > 4 * np.pi + 1e-9:
+            also = "; did you mean 'deg'?" if angle == "rad" else "."
+            raise _err(
+                f"{where}.{k}",
+                f"{d[k]:g} {angle} is not a plausible angle (over 2 turns; units.angle "
+                f"is {angle!r}){also}",
+            )
+    return T
 
 
 def _units(data: Mapping[str, Any], source: str) -> tuple[str, str, float, float]:
@@ -413,6 +439,9 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
     if len(set(names)) != n:
         raise _err(f"{source}: joints", f"joint names must be unique; got {names}.")
     C = _coupling(data, source, n)
+    T_base_0 = np.eye(4)
+    if "frame0" in data:
+        T_base_0 = _frame0(data["frame0"], f"{source}: frame0", length, angle, au)
     T_n_flange = (
         _frame(data["flange"], f"{source}: flange", lu, au)
         if "flange" in data
@@ -453,6 +482,7 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
         source=source if not desc else f"{source} ({desc})",
         prior_sigma=priors,
         link_masses=link_masses,
+        T_base_0=T_base_0,
     )
 
 
@@ -519,6 +549,7 @@ def dump_robot(robot: RobotDescription) -> dict[str, Any]:
         "units": {"length": "mm", "angle": "deg"},
         "joints": joints,
         "coupling": coupling,
+        "frame0": {k: v + 0.0 for k, v in _frame_dict(robot.T_base_0).items()},
         "flange": _frame_dict(robot.T_n_flange),
         "tool": _frame_dict(robot.T_flange_tool),
         "gravity": [float(x) for x in robot.gravity],
@@ -530,6 +561,8 @@ def dump_robot(robot: RobotDescription) -> dict[str, Any]:
             "wrist_frame": robot.self_weight.wrist_frame,
         },
     }
+    if np.array_equal(robot.T_base_0, np.eye(4)):
+        del out["frame0"]  # (none: the document of a robot file as before)
     if robot.link_masses:
         out["link_masses"] = [
             {

@@ -6,6 +6,9 @@ pointing along the URDF axis so that positive joint values turn the same way, ``
 along the common normal to the next axis) and the four DH numbers read off between
 consecutive frames. The last DH frame is put on the last axis, level with the tip
 link's origin; the tip link is the physical flange (``flange`` in the description).
+DH frame 0 is the base link itself when the first axis is its z axis, else the base
+link moved onto the first axis; that fixed transform is the description's ``T_base_0``
+(``frame0``), so that poses stay in the base link's frame as in the URDF.
 
 The links' inertials become the general link self-weight layout (``link_masses``): the
 masses and centres of mass of every link between joint k and joint k + 1 (links hanging
@@ -361,10 +364,11 @@ def _base_on_first_axis(w: _Walk) -> str | None:
 
 def _onto_first_axis(w: _Walk, base: str, src: str) -> np.ndarray:
     """When the first joint axis is not the base link's z axis (a vendor's base_link on
-    the floor with the axis a few mm off, a first axis along -z): the robot base (DH
-    frame 0) is the base link turned so that its z axis is the first axis and moved onto
-    it (to the axis point nearest its origin); ``w`` re-expressed in that frame, which
-    is returned (in the base link), with a warning."""
+    the floor with the axis a few mm off, a first axis along -z): DH frame 0 is the base
+    link turned so that its z axis is the first axis and moved onto it (to the axis
+    point nearest its origin); ``w`` re-expressed in that frame, which is returned (in
+    the base link: the description's ``T_base_0``, so that the robot base stays the
+    base link), with a warning."""
     p1, u1 = w.lines[0]
     if _on_z(p1, u1):  # (a slide's line was put through the origin)
         return np.eye(4)
@@ -383,21 +387,23 @@ def _onto_first_axis(w: _Walk, base: str, src: str) -> np.ndarray:
     w.fixed_above = [(nm, Fi @ T) for nm, T in w.fixed_above]
     w.T_tip = Fi @ w.T_tip
     warnings.warn(
-        f"{src}: the first joint axis is not the z axis of link {base!r}; the robot "
-        f"base (DH frame 0) is {_moved(F0, base)[8:]} (robot poses are given in that "
-        "frame; export-urdf --like writes the vendor's frames).",
+        f"{src}: the first joint axis is not the z axis of link {base!r}; the "
+        f"chain's base (DH frame 0) is {_moved(F0, base)[10:]}, kept as the robot's "
+        f"frame0: the robot base stays link {base!r} (robot poses are given in its "
+        "frame, as the URDF's; export-urdf --like writes the vendor's frames).",
         stacklevel=3,
     )
     return F0
 
 
 def _moved(F0: np.ndarray, base: str) -> str:
-    """'; base: <base> moved by ... mm and turned by ... deg' (empty when not moved)."""
+    """'; frame0: <base> moved by ... mm and turned by ... deg' (empty when not
+    moved)."""
     if np.array_equal(F0, np.eye(4)):
         return ""
     ang = np.degrees(np.arccos(np.clip((np.trace(F0[:3, :3]) - 1) / 2, -1, 1)))
     xyz = ", ".join(f"{v * 1e3 + 0.0:.6g}" for v in np.round(F0[:3, 3], 12))
-    return f"; base: {base} moved by ({xyz}) mm and turned by {ang:.6g} deg"
+    return f"; frame0: {base} moved by ({xyz}) mm and turned by {ang:.6g} deg"
 
 
 def robot_from_urdf(
@@ -458,15 +464,15 @@ def robot_from_urdf(
     F0 = _onto_first_axis(w, base, src) if len(w.lines) > 1 else np.eye(4)
     _check_first_axis(w, base, tip, src)
     joints, frames, T_n_flange = _dh_joints(w, offsets, src)
-    g = F0[:3, :3].T @ np.array([0.0, 0.0, -9.80665])
     return RobotDescription(
         name=name or root.get("name") or Path(path).stem,
         convention="dh",
         joints=tuple(joints),
         coupling=C,
         T_n_flange=T_n_flange,
-        gravity=np.where(np.abs(g) < 1e-12, 0.0, g),
+        gravity=np.array([0.0, 0.0, -9.80665]),  # the base link's -z (REP 103)
         self_weight=None,
         source=f"{src} (URDF {base} -> {tip}{_moved(F0, base)})",
         link_masses=_link_masses(root, src, w.placed, frames),
+        T_base_0=F0,
     )

@@ -8,7 +8,8 @@ The truth (:func:`robot_truth`) has
 * gravity compliance: the link self-weight of the robot's own layout, the lumped one
   (``self_weight``) or the general one from its link masses (``link_masses``, each mass
   and first moment off the nominal by about 10 %), and joint compliances scaled so that
-  each joint yields about ``deflection`` under the largest gravity torque it carries;
+  each joint yields about ``deflection`` under the largest gravity torque it carries
+  (at most 10x the median joint's compliance);
 * a payload at the tool (the robot's ``payload_kg``, or a 1 kg tool).
 
 :func:`robot_experiment` measures it with a laser tracker at given (a plan's) or random
@@ -34,13 +35,6 @@ from kinecal.typing import Float
 __all__ = ["gravity_torques", "random_joint_poses", "robot_experiment", "robot_truth"]
 
 _TORQUE_POSES = 400
-
-
-# The largest joint compliance drawn [rad/m], for a joint whose gravity torque is tiny
-# (a wrist joint near the tool): deflection / torque gave 0.48 rad/m on an xArm6's J6,
-# beyond the 0.1 rad/m a model file holds (io/_model_bounds; real joints ~1e-4), and
-# `simulate` refused its own truth. With the +-0.4 draw below at most 0.075 rad/m.
-_MAX_LAMBDA = 0.05
 
 
 def robot_truth(
@@ -93,8 +87,12 @@ def robot_truth(
         tau = tau + 2.0 * (tau > 1e-9)
     carried = tau > 1e-6 * max(tau.max(), 1e-300)
     typical = deflection / np.median(tau[carried]) if carried.any() else 3e-4
+    # A joint that carries almost no torque (a wrist whose links' centres of mass lie
+    # on its axis, with the tool on it too) is not that much softer: at most 10x the
+    # typical compliance (deflection / its tiny torque put an xArm 6's J6 at 0.48 rad/m,
+    # beyond what a model file accepts).
     for j in range(robot.n_joints):
-        lam = min(deflection / tau[j], _MAX_LAMBDA) if carried[j] else typical
+        lam = min(deflection / tau[j], 10.0 * typical) if carried[j] else typical
         x[L.index(f"joint{j + 1}.lambda")] = lam * np.exp(rng.uniform(-0.4, 0.4))
     x[model.base_index[0]] = (
         base
