@@ -477,12 +477,18 @@ def _figures(summary: Mapping[str, Any], poses: PoseErrors | None) -> list[str]:
 
 # ---------------------------------------------------------------------- files
 def write_report(
-    folder: str | Path, *, out: str | Path | None = None, force: bool = False
+    folder: str | Path,
+    *,
+    out: str | Path | None = None,
+    force: bool = False,
+    poses: PoseErrors | None = None,
 ) -> Path:
     """Draw ``report.html`` from a calibration result folder.
 
     Reads ``folder/model.yaml``, ``folder/report.json`` and, when present,
     ``folder/residuals.csv``; writes ``out`` (default ``folder/report.html``).
+    ``poses``: the per-pose errors whose :meth:`~PoseErrors.to_csv` is the folder's
+    residuals.csv, just written: the same report without reading that file again.
 
     Raises
     ------
@@ -523,7 +529,10 @@ def write_report(
     check_summary(summary, js)
     cal = load_model(d / "model.yaml")
     res = d / RESIDUALS_CSV
-    poses = read_pose_errors(res, sample=FIGURE_POSES) if res.is_file() else None
+    if poses is not None:
+        poses = poses.as_read(res, sample=FIGURE_POSES)
+    elif res.is_file():
+        poses = read_pose_errors(res, sample=FIGURE_POSES)
     return atomic_write_text(
         target, render_calibration_report(summary, cal, poses), force=True
     )

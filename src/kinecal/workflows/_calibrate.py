@@ -258,7 +258,7 @@ def write_calibration(
         from kinecal.report import write_report
 
         say("report", "drawing report.html")
-        write_report(out, force=True)
+        write_report(out, force=True, poses=files.errors)
     return written
 
 
