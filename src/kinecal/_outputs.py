@@ -396,7 +396,10 @@ def end_transaction(tx: OutputTransaction) -> None:
 
 def _rmtree(path: Path) -> None:
     """Remove a folder and what it holds, quietly (shutil imported only here: every
-    command imports this module, few remove anything)."""
+    command imports this module, few remove anything; a staging folder moved into
+    place is gone already)."""
+    if not os.path.lexists(path):
+        return
     import shutil
 
     shutil.rmtree(path, ignore_errors=True)
