@@ -9,7 +9,6 @@ Folders of several result files are staged as a whole (:mod:`kinecal._outputs`).
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -200,33 +199,14 @@ def check_distinct_outputs(paths: Iterable[str | Path | None]) -> None:
 
 def json_text(data: Any) -> str:
     """``data`` as indented JSON text (NaN and inf written as null)."""
-    return json.dumps(_clean(data), indent=2) + "\n"
+    from kinecal.io._json import dumps
+
+    return dumps(data) + "\n"
 
 
 def write_json(path: str | Path, data: Any, *, force: bool = False) -> Path:
     """Atomically write ``data`` as indented JSON (NaN written as null)."""
     return atomic_write_text(path, json_text(data), force=force)
-
-
-def _clean(x: Any) -> Any:
-    import math
-
-    import numpy as np
-
-    if isinstance(x, dict):
-        return {str(k): _clean(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_clean(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _clean(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        v = float(x)
-        return None if not math.isfinite(v) else v
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (np.bool_,)):
-        return bool(x)
-    return x
 
 
 def prepare_output_dir(
