@@ -24,6 +24,7 @@ NOT_IMPORTED = {
     "gzip",  # numpy's datasource: residuals.csv parsed again for the report
     "bz2",
     "lzma",
+    "yaml",  # model.yaml written without PyYAML, and not read back for the report
 }
 
 

@@ -482,13 +482,15 @@ def write_report(
     out: str | Path | None = None,
     force: bool = False,
     poses: PoseErrors | None = None,
+    model: Any = None,
 ) -> Path:
     """Draw ``report.html`` from a calibration result folder.
 
     Reads ``folder/model.yaml``, ``folder/report.json`` and, when present,
     ``folder/residuals.csv``; writes ``out`` (default ``folder/report.html``).
     ``poses``: the per-pose errors whose :meth:`~PoseErrors.to_csv` is the folder's
-    residuals.csv, just written: the same report without reading that file again.
+    residuals.csv, just written, and ``model`` what ``load_model`` returns for its
+    model.yaml: the same report without reading those files again.
 
     Raises
     ------
@@ -527,7 +529,7 @@ def write_report(
                 f"{js}: missing key {key!r}; not a report.json of kinecal calibrate."
             )
     check_summary(summary, js)
-    cal = load_model(d / "model.yaml")
+    cal = model if model is not None else load_model(d / "model.yaml")
     res = d / RESIDUALS_CSV
     if poses is not None:
         poses = poses.as_read(res, sample=FIGURE_POSES)
