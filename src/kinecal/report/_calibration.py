@@ -501,14 +501,14 @@ def write_report(
     """
     from kinecal.errors import DataError
     from kinecal.io import atomic_write_text, load_model
-    from kinecal.report._summary_check import check_summary
+    from kinecal.report._summary_check import check_manifest, check_summary
 
     d = Path(folder)
     target = Path(out) if out is not None else d / "report.html"
     if target.exists() and not force:
         raise FileExistsError(f"{target} exists; use --force to overwrite it.")
     js = d / "report.json"
-    _check_manifest(d)
+    check_manifest(d)
     try:
         summary = json.loads(js.read_text(encoding="utf-8"))
     except FileNotFoundError:
@@ -538,32 +538,6 @@ def write_report(
     return atomic_write_text(
         target, render_calibration_report(summary, cal, poses), force=True
     )
-
-
-def _check_manifest(d: Path) -> None:
-    """The folder's files against the SHA-256 its manifest.json recorded (a
-    manifest without them, or none, is not checked): files of different runs are
-    refused, naming the one that differs."""
-    from kinecal.errors import DataError
-    from kinecal.io import file_sha256
-
-    try:
-        doc = json.loads((d / "manifest.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return
-    outputs = doc.get("outputs") if isinstance(doc, dict) else None
-    if not isinstance(outputs, dict):
-        return
-    for name in ("model.yaml", "report.json", RESIDUALS_CSV):
-        want = outputs.get(name)
-        f = d / name
-        if isinstance(want, str) and f.is_file() and file_sha256(f) != want:
-            raise DataError(
-                f"{f}: is not the file its run wrote (its SHA-256 differs from the one "
-                f"in {d / 'manifest.json'}); the folder mixes files of different runs. "
-                "Expected the files of one `kinecal calibrate` run: run it again, or "
-                "remove manifest.json to draw the report from these files anyway."
-            )
 
 
 def write_calibration_report(

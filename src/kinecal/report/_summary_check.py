@@ -1,7 +1,7 @@
 """report.json checked before it is drawn (``kinecal report DIR``).
 
 The file is what ``kinecal calibrate`` wrote, or a hand-edited copy: with the run's
-manifest.json its hash is checked (:func:`kinecal.report._calibration.write_report`);
+manifest.json its hash is checked (:func:`check_manifest`);
 without one, a value that cannot be right would be drawn as it stands (an RMS of
 ``"big"``, a negative standard deviation). Every quantity is named by its unit suffix
 (``_mm``, ``_deg``, ``_s``), or is a parameter's ``value``, ``std``, ``start`` or
@@ -12,13 +12,14 @@ lists of them alike.
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import Any
 
 from kinecal.errors import DataError
 
-__all__ = ["check_summary"]
+__all__ = ["check_manifest", "check_summary"]
 
 _UNITS = ("_mm", "_deg", "_s", "_um")
 _PARAMETER = ("value", "std", "start", "prior_std")
@@ -79,3 +80,29 @@ def _quantity(value: Any, name: str, path: Path, *, signed: bool) -> None:
             "the report.json kinecal calibrate wrote (draw the report from the run's "
             "own files, or run the calibration again)."
         )
+
+
+def check_manifest(d: Path) -> None:
+    """The folder's files against the SHA-256 its manifest.json recorded (a
+    manifest without them, or none, is not checked): files of different runs are
+    refused, naming the one that differs."""
+    from kinecal.io import file_sha256
+    from kinecal.report._poses import RESIDUALS_CSV
+
+    try:
+        doc = json.loads((d / "manifest.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return
+    outputs = doc.get("outputs") if isinstance(doc, dict) else None
+    if not isinstance(outputs, dict):
+        return
+    for name in ("model.yaml", "report.json", RESIDUALS_CSV):
+        want = outputs.get(name)
+        f = d / name
+        if isinstance(want, str) and f.is_file() and file_sha256(f) != want:
+            raise DataError(
+                f"{f}: is not the file its run wrote (its SHA-256 differs from the one "
+                f"in {d / 'manifest.json'}); the folder mixes files of different runs. "
+                "Expected the files of one `kinecal calibrate` run: run it again, or "
+                "remove manifest.json to draw the report from these files anyway."
+            )
