@@ -47,9 +47,10 @@ def _walk(node: Any, where: str, path: Path) -> None:
                 _quantity(value, name, path, signed=not _not_negative(str(key)))
             else:
                 _walk(value, name, path)
-    elif isinstance(node, list):
+    elif isinstance(node, list):  # only containers hold quantities (names: lazily)
         for i, value in enumerate(node):
-            _walk(value, f"{where}[{i}]", path)
+            if isinstance(value, (dict, list)):
+                _walk(value, f"{where}[{i}]", path)
 
 
 def _is_quantity(key: str) -> bool:
@@ -64,16 +65,11 @@ def _not_negative(key: str) -> bool:
 
 def _quantity(value: Any, name: str, path: Path, *, signed: bool) -> None:
     if isinstance(value, list):
-        for i, v in enumerate(value):
-            _quantity(v, f"{name}[{i}]", path, signed=signed)
+        for i, v in enumerate(value):  # the element's name only for a message
+            if isinstance(v, list) or not _fine(v, signed, False):
+                _quantity(v, f"{name}[{i}]", path, signed=signed)
         return
-    if value is None:
-        return
-    number = isinstance(value, (int, float)) and not isinstance(value, bool)
-    ok = number and math.isfinite(value) and (signed or value >= 0)
-    if ok and name.rsplit(".", 1)[-1] == "n":
-        ok = isinstance(value, int)
-    if not ok:
+    if not _fine(value, signed, name.rsplit(".", 1)[-1] == "n"):
         what = "a finite number" if signed else "a finite number >= 0"
         raise DataError(
             f"{path}: {name}: {str(value)[:40]!r} is not {what} (or null); expected "
@@ -106,3 +102,13 @@ def check_manifest(d: Path) -> None:
                 "Expected the files of one `kinecal calibrate` run: run it again, or "
                 "remove manifest.json to draw the report from these files anyway."
             )
+
+
+def _fine(value: Any, signed: bool, count: bool) -> bool:
+    """A quantity that is null, or a finite number (>= 0 unless ``signed``; an
+    integer for a count)."""
+    if value is None:
+        return True
+    number = isinstance(value, (int, float)) and not isinstance(value, bool)
+    ok = number and math.isfinite(value) and (signed or value >= 0)
+    return bool(ok and (isinstance(value, int) or not count))
