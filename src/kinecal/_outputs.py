@@ -124,7 +124,14 @@ def current_transaction() -> OutputTransaction | None:
 
 
 def _matches(entry: str, names: list[str]) -> bool:
-    return any(fnmatch.fnmatchcase(entry, n) for n in names)
+    """``entry`` is one of ``names`` or matches one of its patterns (a plain name is
+    compared as it stands: fnmatch would compile a regular expression for it)."""
+    return any(
+        fnmatch.fnmatchcase(entry, n)
+        if "*" in n or "?" in n or "[" in n
+        else entry == n
+        for n in names
+    )
 
 
 def clashes(folder: Path, names: list[str]) -> list[str]:
