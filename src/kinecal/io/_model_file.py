@@ -106,15 +106,15 @@ def _frames(cal: CalibratedModel) -> dict[str, Any]:
 def save_model(path: str | Path, cal: CalibratedModel, *, force: bool = False) -> Path:
     """Write ``model.yaml`` atomically; refuse to overwrite unless ``force``, and a
     model :func:`load_model` would refuse (a DataError naming its data)."""
-    return save_model_as_read(path, cal, force=force)[0]
+    return save_model_as_read(path, cal, force=force, read=False)[0]
 
 
 def save_model_as_read(
-    path: str | Path, cal: CalibratedModel, *, force: bool = False
+    path: str | Path, cal: CalibratedModel, *, force: bool = False, read: bool = True
 ) -> tuple[Path, CalibratedModel | None]:
-    """:func:`save_model`, and what :func:`load_model` of the file returns, built
-    from the document (not read and parsed again) where its text was written without
-    PyYAML (a document that reads back as itself); None otherwise."""
+    """:func:`save_model`, and (``read``) what :func:`load_model` of the file returns,
+    built from the document (not read and parsed again) where its text was written
+    without PyYAML (a document that reads back as itself); None otherwise."""
     check_result(cal, str(cal.info.get("source") or path))
     doc = _plain(model_to_dict(cal))
     text = "# kinecal calibrated model: parameters in mm, deg, rad/m; std = 1 sigma\n"
@@ -125,6 +125,8 @@ def save_model_as_read(
         text += yaml.dump(doc, sort_keys=False, allow_unicode=True, width=100)
         return atomic_write_text(path, text, force=force), None
     p = atomic_write_text(path, text + body, force=force)
+    if not read:
+        return p, None
     from kinecal._outputs import note_input
 
     note_input(p)

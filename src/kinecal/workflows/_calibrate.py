@@ -246,7 +246,8 @@ def write_calibration(
 
     say: Progress = progress or (lambda stage, detail: None)
     say("write", "model.yaml, report.json, residuals.csv, manifest.json")
-    _, model = save_model_as_read(out / "model.yaml", run.result.calibrated, force=True)
+    cal = run.result.calibrated
+    _, model = save_model_as_read(out / "model.yaml", cal, force=True, read=report)
     write_json(out / "report.json", files.summary, force=True)
     atomic_write_bytes(out / RESIDUALS_CSV, files.residuals_csv(), force=True)
     written = ["model.yaml", "report.json", RESIDUALS_CSV, "manifest.json"]
