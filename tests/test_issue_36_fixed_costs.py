@@ -73,3 +73,34 @@ def test_issue_36_temperature_range_parses_no_file_without_the_column(
     )
     with pytest.raises(AssertionError, match="parsed again"):
         temperature_range(str(with_t), [2, 3])
+
+
+def test_issue_36_the_program_collects_no_garbage_in_a_short_command(data, tmp_path):
+    """kinecal (the program) lets 100 000 new objects come before a collection: a small
+    calibrate runs none (the default threshold ran ~60, over the imports' objects)."""
+    argv = ["kinecal", "calibrate", str(data), "--robot", "fanuc-lrmate200id"]
+    argv += ["--model", "kinematic", "--cv", "off", "--out", str(tmp_path / "o"), "-q"]
+    code = (
+        "import gc, sys\nfrom kinecal import _entry\nruns = []\n"
+        "gc.callbacks.append(lambda phase, info: runs.append(phase))\n"
+        "def leave(code):\n"
+        "    print('RESULT', code, gc.get_threshold()[0], runs.count('stop'))\n"
+        "    raise SystemExit(0)\n"
+        f"_entry.leave = leave\nsys.argv = {argv!r}\n_entry.run()"
+    )
+    res = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=300
+    )
+    assert res.returncode == 0, res.stderr
+    rc, young, collections = res.stdout.split("RESULT")[-1].split()
+    assert (int(rc), int(young), int(collections)) == (0, 100_000, 0)
+
+
+def test_issue_36_main_keeps_the_callers_garbage_collection(capsys):
+    import gc
+
+    from kinecal.cli import main
+
+    before = gc.get_threshold()
+    assert main(["robots"]) == 0
+    assert gc.get_threshold() == before
