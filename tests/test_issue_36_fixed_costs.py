@@ -1,6 +1,6 @@
-"""Issue 36: the fixed costs of a whole ``kinecal calibrate`` process. Modules its path
-no longer needs stay unimported (what each cost at start-up: in the modules that
-dropped them), and the data file is parsed once."""
+"""Issue 36: the fixed costs of a whole ``kinecal calibrate`` process. The modules its
+path no longer needs stay unimported (each cost is said where it was dropped), the data
+file is parsed once, and the program collects no garbage in a short command."""
 
 from __future__ import annotations
 
@@ -53,7 +53,11 @@ def test_issue_36_calibrate_imports_only_what_it_uses(data, tmp_path):
     rc, loaded = json.loads(res.stdout.splitlines()[-1])
     assert rc == 0 and (tmp_path / "out" / "report.html").is_file()
     assert "kinecal.report._calibration" in loaded  # the report was drawn
-    assert not NOT_IMPORTED & set(loaded), sorted(NOT_IMPORTED & set(loaded))
+    from kinecal.io._yaml_plain import dump
+
+    # PyYAML writes model.yaml where the data file's name needs quotes (info.source)
+    spared = NOT_IMPORTED - ({"yaml"} if dump({"source": str(data)}) is None else set())
+    assert not spared & set(loaded), sorted(spared & set(loaded))
 
 
 def test_issue_36_temperature_range_parses_no_file_without_the_column(
