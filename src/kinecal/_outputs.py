@@ -124,7 +124,14 @@ def current_transaction() -> OutputTransaction | None:
 
 
 def _matches(entry: str, names: list[str]) -> bool:
-    return any(fnmatch.fnmatchcase(entry, n) for n in names)
+    """``entry`` is one of ``names`` or matches one of its patterns (a plain name is
+    compared as it stands: fnmatch would compile a regular expression for it)."""
+    return any(
+        fnmatch.fnmatchcase(entry, n)
+        if "*" in n or "?" in n or "[" in n
+        else entry == n
+        for n in names
+    )
 
 
 def clashes(folder: Path, names: list[str]) -> list[str]:
@@ -396,7 +403,10 @@ def end_transaction(tx: OutputTransaction) -> None:
 
 def _rmtree(path: Path) -> None:
     """Remove a folder and what it holds, quietly (shutil imported only here: every
-    command imports this module, few remove anything)."""
+    command imports this module, few remove anything; a staging folder moved into
+    place is gone already)."""
+    if not os.path.lexists(path):
+        return
     import shutil
 
     shutil.rmtree(path, ignore_errors=True)

@@ -18,11 +18,13 @@ if TYPE_CHECKING:
         output_transaction,
     )
     from kinecal.io._checks import DataWarning, check_data_for_model, data_diagnostics
-    from kinecal.io._csv import (
+    from kinecal.io._compensation_csv import (
         CompensationTargets,
+        read_compensation_targets,
+    )
+    from kinecal.io._csv import (
         Table,
         Targets,
-        read_compensation_targets,
         read_data,
         read_measurements,
         read_table,
@@ -152,11 +154,10 @@ __getattr__, __dir__ = _lazy.exports(
             "extrapolation",
             "data_diagnostics",
         ),
+        "_compensation_csv": ("CompensationTargets", "read_compensation_targets"),
         "_csv": (
-            "CompensationTargets",
             "Table",
             "Targets",
-            "read_compensation_targets",
             "read_data",
             "read_measurements",
             "read_table",

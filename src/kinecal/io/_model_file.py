@@ -13,7 +13,6 @@ from typing import Any
 
 import numpy as np
 
-from kinecal import _yaml as yaml
 from kinecal._version import __version__
 from kinecal.errors import ConfigError
 from kinecal.geometry import euler_zyx_to_matrix, matrix_to_euler_zyx
@@ -28,6 +27,7 @@ from kinecal.io._model_bounds import (
     robot_fingerprint,
 )
 from kinecal.io._parameters import parameter_records
+from kinecal.io._yaml_plain import dump as dump_plain
 from kinecal.measurement import CalibratedModel
 from kinecal.measurement._calibrated import STATUSES
 from kinecal.models import CalibrationModel, ModelSpec
@@ -106,11 +106,31 @@ def _frames(cal: CalibratedModel) -> dict[str, Any]:
 def save_model(path: str | Path, cal: CalibratedModel, *, force: bool = False) -> Path:
     """Write ``model.yaml`` atomically; refuse to overwrite unless ``force``, and a
     model :func:`load_model` would refuse (a DataError naming its data)."""
+    return save_model_as_read(path, cal, force=force, read=False)[0]
+
+
+def save_model_as_read(
+    path: str | Path, cal: CalibratedModel, *, force: bool = False, read: bool = True
+) -> tuple[Path, CalibratedModel | None]:
+    """:func:`save_model`, and (``read``) what :func:`load_model` of the file returns,
+    built from the document (not read and parsed again) where its text was written
+    without PyYAML (a document that reads back as itself); None otherwise."""
     check_result(cal, str(cal.info.get("source") or path))
-    doc = model_to_dict(cal)
+    doc = _plain(model_to_dict(cal))
     text = "# kinecal calibrated model: parameters in mm, deg, rad/m; std = 1 sigma\n"
-    text += yaml.dump(_plain(doc), sort_keys=False, allow_unicode=True, width=100)
-    return atomic_write_text(path, text, force=force)
+    body = dump_plain(doc)
+    if body is None:
+        from kinecal import _yaml as yaml
+
+        text += yaml.dump(doc, sort_keys=False, allow_unicode=True, width=100)
+        return atomic_write_text(path, text, force=force), None
+    p = atomic_write_text(path, text + body, force=force)
+    if not read:
+        return p, None
+    from kinecal._outputs import note_input
+
+    note_input(p)
+    return p, _model_from_doc(_checked_doc(doc, p), p)
 
 
 def _plain(x: Any) -> Any:
@@ -286,10 +306,16 @@ def _read_doc(p: Path) -> dict[str, Any]:
         ) from None
     except UnicodeDecodeError:
         raise ConfigError(f"{p}: not a text file; expected a model.yaml.") from None
+    from kinecal import _yaml as yaml
+
     try:
         doc = yaml.load(text)
     except yaml.YAMLError as exc:
         raise ConfigError(f"{p}: not valid YAML ({exc}).".replace("\n", " ")) from None
+    return _checked_doc(doc, p)
+
+
+def _checked_doc(doc: Any, p: Path) -> dict[str, Any]:
     if not isinstance(doc, dict) or "kinecal_model" not in doc:
         raise ConfigError(f"{p}: not a kinecal model file (no 'kinecal_model' key).")
     if doc["kinecal_model"] != FORMAT_VERSION:
@@ -326,7 +352,10 @@ def load_model(path: str | Path) -> CalibratedModel:
 
     note_input(path)
     p = Path(path)
-    doc = _read_doc(p)
+    return _model_from_doc(_read_doc(p), p)
+
+
+def _model_from_doc(doc: dict[str, Any], p: Path) -> CalibratedModel:
     robot = robot_from_dict(doc["robot"], source=f"{p}: robot")
     stamp = doc.get("robot_sha256")
     if stamp is not None and stamp not in (

@@ -9,7 +9,6 @@ which also finds the file line and the value for the message.
 
 from __future__ import annotations
 
-import csv
 import itertools
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -231,6 +230,8 @@ def read_table(path: str | Path) -> Table:
 
 def _read_quoted(p: Path, text: str) -> Table:
     """A file with quoted cells (or unusual line breaks): the csv module, row by row."""
+    import csv
+
     header: list[str] | None = None
     rows: list[list[str]] = []
     lines: list[int] = []

@@ -477,12 +477,20 @@ def _figures(summary: Mapping[str, Any], poses: PoseErrors | None) -> list[str]:
 
 # ---------------------------------------------------------------------- files
 def write_report(
-    folder: str | Path, *, out: str | Path | None = None, force: bool = False
+    folder: str | Path,
+    *,
+    out: str | Path | None = None,
+    force: bool = False,
+    poses: PoseErrors | None = None,
+    model: Any = None,
 ) -> Path:
     """Draw ``report.html`` from a calibration result folder.
 
     Reads ``folder/model.yaml``, ``folder/report.json`` and, when present,
     ``folder/residuals.csv``; writes ``out`` (default ``folder/report.html``).
+    ``poses``: the per-pose errors whose :meth:`~PoseErrors.to_csv` is the folder's
+    residuals.csv, just written, and ``model`` what ``load_model`` returns for its
+    model.yaml: the same report without reading those files again.
 
     Raises
     ------
@@ -493,14 +501,14 @@ def write_report(
     """
     from kinecal.errors import DataError
     from kinecal.io import atomic_write_text, load_model
-    from kinecal.report._summary_check import check_summary
+    from kinecal.report._summary_check import check_manifest, check_summary
 
     d = Path(folder)
     target = Path(out) if out is not None else d / "report.html"
     if target.exists() and not force:
         raise FileExistsError(f"{target} exists; use --force to overwrite it.")
     js = d / "report.json"
-    _check_manifest(d)
+    check_manifest(d)
     try:
         summary = json.loads(js.read_text(encoding="utf-8"))
     except FileNotFoundError:
@@ -521,38 +529,15 @@ def write_report(
                 f"{js}: missing key {key!r}; not a report.json of kinecal calibrate."
             )
     check_summary(summary, js)
-    cal = load_model(d / "model.yaml")
+    cal = model if model is not None else load_model(d / "model.yaml")
     res = d / RESIDUALS_CSV
-    poses = read_pose_errors(res, sample=FIGURE_POSES) if res.is_file() else None
+    if poses is not None:
+        poses = poses.as_read(res, sample=FIGURE_POSES)
+    elif res.is_file():
+        poses = read_pose_errors(res, sample=FIGURE_POSES)
     return atomic_write_text(
         target, render_calibration_report(summary, cal, poses), force=True
     )
-
-
-def _check_manifest(d: Path) -> None:
-    """The folder's files against the SHA-256 its manifest.json recorded (a
-    manifest without them, or none, is not checked): files of different runs are
-    refused, naming the one that differs."""
-    from kinecal.errors import DataError
-    from kinecal.io import file_sha256
-
-    try:
-        doc = json.loads((d / "manifest.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return
-    outputs = doc.get("outputs") if isinstance(doc, dict) else None
-    if not isinstance(outputs, dict):
-        return
-    for name in ("model.yaml", "report.json", RESIDUALS_CSV):
-        want = outputs.get(name)
-        f = d / name
-        if isinstance(want, str) and f.is_file() and file_sha256(f) != want:
-            raise DataError(
-                f"{f}: is not the file its run wrote (its SHA-256 differs from the one "
-                f"in {d / 'manifest.json'}); the folder mixes files of different runs. "
-                "Expected the files of one `kinecal calibrate` run: run it again, or "
-                "remove manifest.json to draw the report from these files anyway."
-            )
 
 
 def write_calibration_report(

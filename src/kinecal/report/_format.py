@@ -12,7 +12,6 @@ Formats
 
 from __future__ import annotations
 
-import html
 import math
 import re
 import time
@@ -26,8 +25,10 @@ DASH = "—"
 
 
 def e(x: object) -> str:
-    """HTML-escaped text."""
-    return html.escape(str(x))
+    """HTML-escaped text: ``html.escape`` (the html package is not imported for it: its
+    table of entities costs 1-2 ms at start-up)."""
+    s = str(x).replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    return s.replace('"', "&quot;").replace("'", "&#x27;")
 
 
 def _finite(v: object) -> float | None:

@@ -244,13 +244,15 @@ def write_calibration(
     residuals.csv, manifest.json (the ``inputs`` files' hashes, the ``settings`` with
     the model code, the outputs' hashes and the certificate fields ``meta``) and
     report.html when ``report``; the names written."""
-    from kinecal.io import atomic_write_bytes, save_model, write_json
+    from kinecal.io import atomic_write_bytes, write_json
+    from kinecal.io._model_file import save_model_as_read
     from kinecal.models import kernel_name
     from kinecal.report import RESIDUALS_CSV
 
     say: Progress = progress or (lambda stage, detail: None)
     say("write", "model.yaml, report.json, residuals.csv, manifest.json")
-    save_model(out / "model.yaml", run.result.calibrated, force=True)
+    cal = run.result.calibrated
+    _, model = save_model_as_read(out / "model.yaml", cal, force=True, read=report)
     write_json(out / "report.json", files.summary, force=True)
     atomic_write_bytes(out / RESIDUALS_CSV, files.residuals_csv(), force=True)
     written = ["model.yaml", "report.json", RESIDUALS_CSV, "manifest.json"]
@@ -263,7 +265,7 @@ def write_calibration(
         from kinecal.report import write_report
 
         say("report", "drawing report.html")
-        write_report(out, force=True)
+        write_report(out, force=True, poses=files.errors, model=model)
     return written
 
 
