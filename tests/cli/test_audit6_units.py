@@ -89,3 +89,31 @@ def test_evaluate_payload_beyond_ten_times_the_rating_is_refused(capsys, tmp_pat
     failed_with(res, "p3000.csv", "line 2, column 'payload_kg'", "at most 50 kg")
     res = run_kinecal(capsys, "evaluate", with_payload("3"), "--model", model)
     assert res.code == 0, str(res)
+
+
+@pytest.mark.parametrize("unit", ["metres", "radians"])
+def test_one_session_in_other_units_is_named(pt, capsys, tmp_path, unit):
+    """Two sessions in one file, the second exported in metres (or its joints in
+    radians): the file-wide unit checks passed, and the calibration failed on a
+    parameter far off ('are these measurements of another robot?') without naming
+    the session."""
+    a = pt["train"].read_text().splitlines()
+    b = pt["test"].read_text().splitlines()
+    head = a[0].split(",")
+    rows = [a[0] + ",set"] + [f"{r},A" for r in a[1:]]
+    for r in b[1:]:
+        v = r.split(",")
+        for k, h in enumerate(head):
+            if unit == "metres" and h in ("x_mm", "y_mm", "z_mm"):
+                v[k] = f"{float(v[k]) / 1000:.9f}"
+            if unit == "radians" and h.endswith("_deg"):
+                v[k] = f"{math.radians(float(v[k])):.9f}"
+        rows.append(",".join(v) + ",B")
+    data = tmp_path / "two.csv"
+    data.write_text("\n".join(rows) + "\n")
+    res = run_kinecal(
+        capsys, "calibrate", data, "--robot", "fanuc-lrmate200id", "--model",
+        "kinematic", "--cv", "off", "--out", tmp_path / "cal", "-q",
+    )  # fmt: skip
+    failed_with(res, "two.csv", "set 'B' (from line", f"looks like {unit}")
+    assert not (tmp_path / "cal").exists()

@@ -328,6 +328,38 @@ def excitation(meas: Measurements, robot: RobotDescription) -> list[Diagnostic]:
     return out
 
 
+def set_units(meas: Measurements, robot: RobotDescription) -> None:
+    """Refuse a set (one session of several) whose positions look like metres or whose
+    joint values look like radians while the other sets' do not: the file-wide unit
+    checks took the mix as plausible, and the calibration failed on a parameter far
+    off ('are these measurements of another robot?') without naming the set."""
+    if len(meas.set_labels) < 2:
+        return
+    rev = ~np.asarray(robot.prismatic)
+    p_mm = np.abs(meas.p).max(axis=1) * 1e3
+    q_deg = np.degrees(np.abs(meas.q_ctrl[:, rev])).max(axis=1) if rev.any() else None
+    cols = "xc_mm, yc_mm, zc_mm" if meas.kind == "sensor" else "x_mm, y_mm, z_mm"
+    for s, label in enumerate(meas.set_labels):
+        rows = meas.set_index == s
+        if rows.sum() < 3 or rows.all():
+            continue
+        first = int(np.asarray(meas.rows)[rows][0])
+        where = f"{meas.source}: set {label!r} (from line {first})"
+        if p_mm[rows].max() < 5.0 <= p_mm[~rows].max():
+            raise DataError(
+                f"{where}: columns {cols}: every value of its {int(rows.sum())} rows is "
+                "below 5, which looks like metres (the other sets' are not); convert "
+                "that set to millimetres."
+            )
+        limit = 2 * np.pi + 1e-9
+        if q_deg is not None and q_deg[rows].max() <= limit < q_deg[~rows].max():
+            raise DataError(
+                f"{where}: every joint value of its {int(rows.sum())} rows is within "
+                f"±{2 * np.pi:.2f} deg, which looks like radians (the other sets' are "
+                "not); convert that set to degrees."
+            )
+
+
 def data_diagnostics(
     meas: Measurements, robot: RobotDescription, *, quaternions: bool = True
 ) -> list[Diagnostic]:

@@ -351,12 +351,15 @@ def _check_arguments(
     group_name: str,
 ) -> None:
     """What a script hands :func:`calibrate_measurements`: a robot, its measurements,
-    options, a fold count and one group label per row (ConfigError otherwise); the
-    folds checked before the calibration runs (not after it, as a fold's failure)."""
+    options, a fold count and one group label per row (ConfigError otherwise); no set
+    in other units than the rest (:func:`kinecal.io._checks.set_units`); the folds
+    checked before the calibration runs (not after it, as a fold's failure)."""
+    from kinecal.io._checks import set_units
     from kinecal.workflows._args import count, need, need_measurements, need_robot
 
     need_robot(robot)
     need_measurements(meas, robot.n_joints)
+    set_units(meas, robot)
     if options is not None:
         need(options, CalibrationOptions, "options")
     if groups is not None and np.shape(groups) != (meas.n,):

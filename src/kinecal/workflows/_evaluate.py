@@ -94,6 +94,7 @@ def evaluate_measurements(
     """
     from kinecal.identification import evaluate
     from kinecal.io import check_data_for_model
+    from kinecal.io._checks import set_units
     from kinecal.workflows._args import need_measurements, need_model, words
 
     need_model(cal)
@@ -106,6 +107,7 @@ def evaluate_measurements(
         if say is not None:
             say(line)
 
+    set_units(meas, cal.model.robot)
     meas, found = check_data_for_model(meas, cal)
     check_payload_column(
         meas.payload_kg, meas.rows, cal.model.robot, data_name or meas.source
