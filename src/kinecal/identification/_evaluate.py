@@ -102,6 +102,7 @@ def refit_diagnosed(
         model, x = old, calibrated.params.copy()
         status, std = list(calibrated.status), calibrated.std.copy()
         m = calibrated.align(meas)
+        model, x, status, std, m = _present_sets(model, x, status, std, m)
     layout = model.layout
     if names is None:
         free = np.isin([s.group for s in layout.specs], groups)
@@ -136,6 +137,38 @@ def refit_diagnosed(
         info={**calibrated.info, "refit": list(groups) if names is None else names},
     )
     return cal, list(reg.diagnostics)
+
+
+def _present_sets(
+    model: CalibrationModel,
+    x: Float,
+    status: list[str],
+    std: Float,
+    meas: Measurements,
+) -> tuple[CalibrationModel, Float, list[str], Float, Measurements]:
+    """The model restricted to the sets (user frames) ``meas`` has rows of, and the data
+    relabelled to it: a tool or marker refit of the data of one session of a model
+    calibrated on several needs no frame of the others (their closed form failed on
+    their empty rows: "set 'A' has 0 rows"). As a refit of the user frames does, the
+    refitted model then holds the data's sets."""
+    spec = model.spec
+    used = np.unique(meas.set_index)
+    if used.size == len(spec.sets):
+        return model, x, status, std, meas
+    keep = tuple(spec.sets[i] for i in used)
+    sub = CalibrationModel(model.robot, replace(spec, sets=keep)).with_references(
+        model.R_ref_base[used], model.R_ref_cam if spec.cam_rotation else None
+    )
+    old = model.layout
+    remap = np.full(len(spec.sets), -1, np.intp)
+    remap[used] = np.arange(used.size)
+    return (
+        sub,
+        sub.layout.transfer(x, old),
+        [status[old.index(n)] for n in sub.layout.names],
+        sub.layout.transfer(std, old),
+        replace(meas, set_index=remap[meas.set_index], set_labels=keep),
+    )
 
 
 REFIT_GROUPS = {"user": "base", "tool": "cam", "marker": "marker"}

@@ -166,7 +166,7 @@ def load_frames_file(path: str, fmt: str) -> tuple[dict, dict, dict]:
     """A YAML file ``{uframe: {ID: [..]}, utool: {ID: [..]}, posreg: {n: ..}}``, for
     KRL the controller's ``$config.dat`` (``BASE_DATA[n]``, ``TOOL_DATA[n]``), for FANUC
     the controller's ``SYSFRAME.VA`` or ``POSREG.VA`` -> (uframes, utools, registers)."""
-    import yaml
+    from kinecal import _yaml as yaml
 
     if fmt == "krl" and Path(path).suffix.lower() == ".dat":
         return (*_krl_config_frames(path, _read_text(path)), {})
@@ -182,7 +182,7 @@ def load_frames_file(path: str, fmt: str) -> tuple[dict, dict, dict]:
         return (parse_frames(va[0], fmt, f"{path}: $MNUFRAME"),
                 parse_frames(va[1], fmt, f"{path}: $MNUTOOL"), {})  # fmt: skip
     try:
-        doc = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
+        doc = yaml.load(Path(path).read_text(encoding="utf-8")) or {}
     except (OSError, yaml.YAMLError, UnicodeDecodeError) as exc:
         raise DataError(f"{path}: cannot read the frames file ({exc}).") from None
     if not isinstance(doc, dict) or set(doc) - {"uframe", "utool", "posreg"}:
