@@ -272,6 +272,31 @@ def _check_columns(t: Table, joint_cols: list[str], n_joints: int) -> None:
                 f"{t.path}: column {c!r} is not understood; column names carry their "
                 "unit (x_mm, sigma_mm, payload_kg, j1_deg, ...)."
             )
+        if base in _SET_LIKE and "set" not in t.header:
+            _check_set_like(t, c)
+
+
+# Names a user may give the column of set-ups (sessions, tracker stations): read under
+# another name, several set-ups would be calibrated with one user frame, unsaid.
+_SET_LIKE = frozenset(
+    {"set", "session", "sessions", "station", "stations", "setup", "setups"}
+)
+
+
+def _check_set_like(t: Table, c: str) -> None:
+    """Refuse a column ``c`` that names set-ups, with several values, where the data
+    have no ``set`` column (one value throughout is a label and is ignored)."""
+    values = sorted({v.strip() for v in t.column(c)})
+    if len(values) > 1:
+        shown = ", ".join(repr(v) for v in values[:4]) + (
+            " ..." if len(values) > 4 else ""
+        )
+        raise DataError(
+            f"{t.path}: column {c!r} has {len(values)} values ({shown}): kinecal reads "
+            "the set-up of each row (session, tracker station, one user frame each) "
+            "from a column named 'set'; rename it to 'set', or remove it if every row "
+            "is of one set-up."
+        )
 
 
 def _kind(t: Table) -> tuple[str, Sequence[str]]:
