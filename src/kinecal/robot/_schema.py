@@ -44,6 +44,7 @@ from kinecal.robot._description import (
     RobotDescription,
     SelfWeightSpec,
 )
+from kinecal.robot._unit_slips import check_unit_slips
 from kinecal.units import ANGLE_UNITS, LENGTH_UNITS
 
 __all__ = ["dump_robot", "load_robot_file", "robot_from_dict"]
@@ -452,6 +453,7 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
         if data.get("tool")
         else np.eye(4)
     )
+    check_unit_slips(joints, (T_n_flange, T_flange_tool), source, length, angle)
     gravity = _gravity(data, source)
     payload, rated = (
         _mass(data, key, source) for key in ("payload_kg", "rated_payload_kg")
