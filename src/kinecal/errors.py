@@ -13,6 +13,7 @@ __all__ = [
     "IdentifiabilityError",
     "ModelError",
     "OutputClosed",
+    "expect_type",
 ]
 
 
@@ -40,3 +41,16 @@ class OutputClosed(Exception):
     """The reader of a command's output went away (``kinecal robots | head -1``): the
     command stops; exit 141, as SIGPIPE (docs/errors.md). Raised from the
     ``BrokenPipeError`` of the write, which click itself would turn into exit 1."""
+
+
+def expect_type(value: object, cls: type, name: str, how: str = "") -> None:
+    """ConfigError naming the argument ``name`` unless ``value`` is a ``cls`` (what a
+    script hands a public function; ``how``: where one comes from)."""
+    if not isinstance(value, cls):
+        text = repr(value)
+        got = type(value).__name__ + (f" {text}" if len(text) <= 40 else "")
+        raise ConfigError(
+            f"{name}: expected a {cls.__name__}"
+            + (f" (from {how})" if how else "")
+            + f"; got {got}."
+        )

@@ -16,7 +16,7 @@ from typing import Protocol
 
 import numpy as np
 
-from kinecal.errors import DataError, IdentifiabilityError
+from kinecal.errors import ConfigError, DataError, IdentifiabilityError, expect_type
 from kinecal.identification._identifiability import Identifiability
 from kinecal.identification._lm import LMOptions, Prior
 from kinecal.identification._options import (
@@ -375,6 +375,15 @@ class Problem:
         IdentifiabilityError
             Fewer residuals than parameters.
         """
+        expect_type(robot, RobotDescription, "robot", "kinecal.robot.load_robot")
+        expect_type(meas, Measurements, "meas", "kinecal.io.read_measurements")
+        if options is not None:
+            expect_type(options, CalibrationOptions, "options")
+        if not isinstance(model, (str, ModelSpec)):
+            raise ConfigError(
+                f"model: expected a preset name (kinematic, ntm, rfcm, full) or a "
+                f"ModelSpec; got {type(model).__name__} {model!r:.40}."
+            )
         if meas.n_joints != robot.n_joints:
             raise DataError(
                 f"{meas.source} has {meas.n_joints} joint columns; robot {robot.name} "

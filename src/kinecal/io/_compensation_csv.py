@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kinecal.errors import DataError
+from kinecal.errors import DataError, expect_type
 from kinecal.geometry import quat_wxyz_to_matrix, wpr_to_matrix
 from kinecal.io._csv import (
     _POINT,
@@ -55,6 +55,7 @@ def read_compensation_targets(
     optional ``qw, qx, qy, qz``, the seed joints ``j1_deg``-``jN_deg``, optional ``set`` and
     ``marker``. Seeds beyond the joint limits are refused unless ``allow_out_of_limits``
     (then ``diagnostics`` says so)."""
+    expect_type(robot, RobotDescription, "robot", "kinecal.robot.load_robot")
     t = read_table(path)
     cols, q, limits = _joint_columns(t, robot, allow_out_of_limits)
     for c in _POINT:

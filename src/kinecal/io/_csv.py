@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from kinecal._stats import median
-from kinecal.errors import DataError
+from kinecal.errors import DataError, expect_type
 from kinecal.geometry import quat_wxyz_to_matrix, wpr_to_matrix
 from kinecal.io._checks import (
     DataWarning,
@@ -390,6 +390,7 @@ def _read(
 ) -> tuple[Measurements, list[Diagnostic], bool]:
     """The measurements, the out-of-limits finding, and whether the orientations came
     from quaternion columns."""
+    expect_type(robot, RobotDescription, "robot", "kinecal.robot.load_robot")
     t = read_table(path)
     _check_columns(t, [c for c in t.header if _JOINT_RE.match(c)], robot.n_joints)
     _, q, limits = _joint_columns(t, robot, allow_out_of_limits)
