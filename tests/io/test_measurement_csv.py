@@ -71,7 +71,12 @@ def test_good_point_file(tmp_path):
         ),
         (
             HEAD + ",sigma_mm\n" + "1,2,3,4,5,6,700,800,900,0\n",
-            r"line 2, column 'sigma_mm': must be positive",
+            r"line 2, column 'sigma_mm': 0; expected a positive standard deviation in mm",
+        ),
+        (
+            HEAD + ",payload_kg\n" + "1,2,3,4,5,6,700,800,900,0\n",
+            r"line 2, column 'payload_kg': 0; expected a positive mass in kg .*leave the "
+            r"column out",
         ),
         (HEAD + ",x_mm\n" + "1,2,3,4,5,6,7,8,9,1\n", r"duplicate column 'x_mm'"),
     ],

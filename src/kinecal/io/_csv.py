@@ -322,6 +322,12 @@ MAX_POSITION_MM = 1e6
 # The largest plausible value of the optional columns: beyond it a cell is a typing
 # error (a payload of 1e300 kg overflowed the compliance terms).
 _MAX_OPTIONAL = {"sigma_mm": MAX_POSITION_MM, "sigma_deg": 360.0, "payload_kg": 1e5}
+_POSITIVE = {
+    "payload_kg": "a positive mass in kg (the payload at the tool; rows without one "
+    "cannot be mixed with rows with one: leave the column out if none has a payload)",
+    "sigma_mm": "a positive standard deviation in mm",
+    "sigma_deg": "a positive standard deviation in deg",
+}
 
 
 def _check_far(t: Table, xyz_mm: np.ndarray, cols: Sequence[str]) -> None:
@@ -421,8 +427,12 @@ def _read(
             continue
         v = t.numbers(col)
         if np.any(v <= 0):
-            line = t.lines[int(np.flatnonzero(v <= 0)[0])]
-            raise DataError(f"{t.path}: line {line}, column '{col}': must be positive.")
+            i = int(np.flatnonzero(v <= 0)[0])
+            raise DataError(
+                f"{t.path}: line {t.lines[i]}, column '{col}': {v[i]:.6g}; expected "
+                + _POSITIVE.get(col, "a positive value")
+                + "."
+            )
         high = _MAX_OPTIONAL[col]
         if np.any(v > high):
             i = int(np.flatnonzero(v > high)[0])
