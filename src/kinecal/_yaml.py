@@ -15,10 +15,11 @@ file's own documentation).
 
 from __future__ import annotations
 
-import re
 from typing import Any
 
 import yaml
+
+from kinecal._yaml_float import EXPONENT_FLOAT, FIRST_CHARS
 
 __all__ = ["DuplicateKeyError", "YAMLError", "dump", "load"]
 
@@ -31,8 +32,8 @@ class DuplicateKeyError(yaml.YAMLError):
     """A mapping of the document has the same key twice (one-line message with lines)."""
 
 
-class _Loader(_BASE_LOADER):
-    """The safe loader, refusing duplicate keys."""
+class _Loader11(_BASE_LOADER):
+    """The safe loader, refusing duplicate keys (YAML 1.1's numbers)."""
 
     def construct_mapping(self, node: Any, deep: bool = False) -> Any:
         if isinstance(node, yaml.MappingNode):
@@ -54,20 +55,29 @@ class _Loader(_BASE_LOADER):
         return super().construct_mapping(node, deep=deep)
 
 
+class _Loader(_Loader11):
+    """:class:`_Loader11` with YAML 1.2's numbers in exponent notation."""
+
+
+class _Dumper(_DUMPER):
+    """The safe dumper, quoting the strings :class:`_Loader` would read as numbers."""
+
+
 # YAML 1.2's floats that YAML 1.1 reads as strings: an exponent without a dot or
-# without a sign ("1e-3", "2E5", "1.5e3"); what 1.1 already reads is unchanged.
-_Loader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
-    list("-+0123456789."),
-)
+# without a sign ("1e-3", "2E5", "1.5e3"); what 1.1 already reads is unchanged. The
+# dumper knows them too, so that the string '12e5' is written quoted and reads back.
+for _cls in (_Loader, _Dumper):
+    _cls.add_implicit_resolver("tag:yaml.org,2002:float", EXPONENT_FLOAT, FIRST_CHARS)
 
 
-def load(text: str) -> Any:
-    """``yaml.safe_load``, refusing duplicate keys (:class:`DuplicateKeyError`)."""
-    return yaml.load(text, Loader=_Loader)
+def load(text: str, *, exponents: bool = True) -> Any:
+    """``yaml.safe_load``, refusing duplicate keys (:class:`DuplicateKeyError`), with
+    numbers in exponent notation as YAML 1.2 reads them; ``exponents=False``: as YAML
+    1.1 (PyYAML) reads them, for the files kinecal itself wrote before it quoted such
+    strings (a model file's 16-digit hex fingerprint ``1234e5678...`` written plain)."""
+    return yaml.load(text, Loader=_Loader if exponents else _Loader11)
 
 
 def dump(doc: Any, **options: Any) -> str:
     """``yaml.safe_dump`` to a string."""
-    return str(yaml.dump(doc, Dumper=_DUMPER, **options))
+    return str(yaml.dump(doc, Dumper=_Dumper, **options))

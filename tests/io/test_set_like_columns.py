@@ -1,15 +1,16 @@
 """A column of set-ups under another name (``session``, ``station``, ``set_id``, ...):
 several tracker stations were calibrated with one user frame, unsaid (the column was an
-extra one, ignored). With several values and no ``set`` column it is now refused."""
+extra one, ignored). With several values and no ``set`` column it is now a finding of
+the data (a warning: such a column may be meant for ``--cv-groups``)."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
 
-from kinecal.errors import DataError
-from kinecal.io import read_measurements
+from kinecal.io import read_data
 from kinecal.robot import load_robot
 from tests.cli_contract import make_point_data
 
@@ -29,18 +30,21 @@ def _with(src: Path, dst: Path, name: str, value) -> Path:
 
 
 @pytest.mark.parametrize("name", ["session", "Station", "set_id", "setup"])
-def test_a_column_of_several_set_ups_under_another_name_is_refused(
-    train, tmp_path, name
-):
+def test_a_column_of_several_set_ups_under_another_name_is_named(train, tmp_path, name):
     f = _with(train, tmp_path / "d.csv", name, lambda k: "s1" if k < 20 else "s2")
-    with pytest.raises(DataError, match=rf"column '{name}' has 2 values .*'set'"):
-        read_measurements(f, ROBOT)
+    _, found = read_data(f, ROBOT)
+    (d,) = [d for d in found if d.code == "set_like_column"]
+    assert re.search(
+        rf"column '{name}' has 2 values .*one user frame.*'set'", d.message
+    )
+    assert d.severity == "warning"
 
 
 def test_one_value_throughout_or_beside_a_set_column_is_a_label(train, tmp_path):
     one = _with(train, tmp_path / "one.csv", "session", lambda k: "2026-12-04")
-    assert read_measurements(one, ROBOT).n == 40
+    assert "set_like_column" not in [d.code for d in read_data(one, ROBOT)[1]]
     both = _with(train, tmp_path / "s.csv", "set", lambda k: "A" if k < 20 else "B")
     both = _with(both, tmp_path / "both.csv", "station", lambda k: k % 3)
-    m = read_measurements(both, ROBOT)
+    m, found = read_data(both, ROBOT)
     assert m.set_labels == ("A", "B")
+    assert "set_like_column" not in [d.code for d in found]

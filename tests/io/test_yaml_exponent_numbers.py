@@ -92,3 +92,18 @@ def test_robot_file_with_exponent_numbers(tmp_path):
         text=True,
     )
     assert out.returncode == 0, out.stderr
+
+
+def test_strings_of_that_form_are_written_quoted_and_read_back():
+    doc = {"label": "12e5", "sha": "1234e5678", "x": 1e-5}
+    text = _yaml.dump(doc)
+    assert "'12e5'" in text and "'1234e5678'" in text
+    assert _yaml.load(text) == doc
+
+
+def test_model_files_keep_yaml_1_1_numbers():
+    """kinecal wrote a 16-digit fingerprint such as 1234e5678... plain before it quoted
+    such strings: its own files are read as they were written."""
+    assert _yaml.load("robot_sha256: 1234e56789012345\n", exponents=False) == {
+        "robot_sha256": "1234e56789012345"
+    }

@@ -249,9 +249,11 @@ def _joint_columns(
     return cols, q, _limits(t, robot, cols, q, allow_out_of_limits)
 
 
-def _check_columns(t: Table, joint_cols: list[str], n_joints: int) -> None:
+def _check_columns(t: Table, joint_cols: list[str], n_joints: int) -> list[Diagnostic]:
     """Refuse a column name that is near a known one (a typo, a plural, another case) or
-    lacks its unit; other extra columns are allowed (and ignored)."""
+    lacks its unit; other extra columns are allowed (and ignored): one that names set-ups
+    with a finding (:func:`_set_like`)."""
+    found: list[Diagnostic] = []
     for c in t.header:
         if c in _KNOWN or c in joint_cols:
             continue
@@ -273,7 +275,8 @@ def _check_columns(t: Table, joint_cols: list[str], n_joints: int) -> None:
                 "unit (x_mm, sigma_mm, payload_kg, j1_deg, ...)."
             )
         if base in _SET_LIKE and "set" not in t.header:
-            _check_set_like(t, c)
+            found += _set_like(t, c)
+    return found
 
 
 # Names a user may give the column of set-ups (sessions, tracker stations): read under
@@ -283,20 +286,24 @@ _SET_LIKE = frozenset(
 )
 
 
-def _check_set_like(t: Table, c: str) -> None:
-    """Refuse a column ``c`` that names set-ups, with several values, where the data
-    have no ``set`` column (one value throughout is a label and is ignored)."""
+def _set_like(t: Table, c: str) -> list[Diagnostic]:
+    """A finding for a column ``c`` that names set-ups with several values, where the
+    data have no ``set`` column (one value throughout is a label). A warning, not an
+    error: such a column may be meant for ``--cv-groups`` (poses of one set-up)."""
     values = sorted({v.strip() for v in t.column(c)})
-    if len(values) > 1:
-        shown = ", ".join(repr(v) for v in values[:4]) + (
-            " ..." if len(values) > 4 else ""
+    if len(values) < 2:
+        return []
+    shown = ", ".join(repr(v) for v in values[:4]) + (" ..." if len(values) > 4 else "")
+    return [
+        Diagnostic(
+            "set_like_column",
+            f"{t.path}: column {c!r} has {len(values)} values ({shown}), but kinecal "
+            "reads set-ups (sessions, tracker stations: one user frame each) from a "
+            "column named 'set' only: every row is taken in one user frame. Rename it "
+            "to 'set' if the rows are of several set-ups (or name it in --cv-groups).",
+            stage="data",
         )
-        raise DataError(
-            f"{t.path}: column {c!r} has {len(values)} values ({shown}): kinecal reads "
-            "the set-up of each row (session, tracker station, one user frame each) "
-            "from a column named 'set'; rename it to 'set', or remove it if every row "
-            "is of one set-up."
-        )
+    ]
 
 
 def _kind(t: Table) -> tuple[str, Sequence[str]]:
@@ -398,7 +405,9 @@ def _read(
     from quaternion columns."""
     expect_type(robot, RobotDescription, "robot", "kinecal.robot.load_robot")
     t = read_table(path)
-    _check_columns(t, [c for c in t.header if _JOINT_RE.match(c)], robot.n_joints)
+    named = _check_columns(
+        t, [c for c in t.header if _JOINT_RE.match(c)], robot.n_joints
+    )
     _, q, limits = _joint_columns(t, robot, allow_out_of_limits)
     kind, need = _kind(t)
     for c in need:
@@ -443,7 +452,7 @@ def _read(
         if name != "payload_kg":
             _check_weights(t, col, v)
         common[name] = v * scale
-    found = [] if limits is None else [limits]
+    found = named + ([] if limits is None else [limits])
     if kind != "sensor" and targets is not None:
         what = "" if isinstance(targets, Targets) else f" {targets}"
         raise DataError(

@@ -309,7 +309,7 @@ def _read_doc(p: Path) -> dict[str, Any]:
     from kinecal import _yaml as yaml
 
     try:
-        doc = yaml.load(text)
+        doc = yaml.load(text, exponents=False)  # its own writing: YAML 1.1 numbers
     except yaml.YAMLError as exc:
         raise ConfigError(f"{p}: not valid YAML ({exc}).".replace("\n", " ")) from None
     return _checked_doc(doc, p)

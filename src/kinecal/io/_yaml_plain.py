@@ -2,13 +2,14 @@
 
 ``import yaml`` costs ~10 ms (its reader compiles a large regular expression), 3-4 % of
 a 2000-pose ``kinecal calibrate``, which only writes model.yaml. :func:`dump` writes the
-very text of ``yaml.dump(doc, Dumper=CSafeDumper, sort_keys=False,
-allow_unicode=True, width=100)`` for the documents kinecal writes: mappings (string
+very text of :func:`kinecal._yaml.dump` (PyYAML's safe dumper; ``sort_keys=False,
+allow_unicode=True, width=100``) for the documents kinecal writes: mappings (string
 keys) and lists in block style, empty ones as ``{}`` and ``[]``; numbers, booleans,
 null, the empty string as ``''``; strings that need no quotes. Anything else (a string
 YAML would quote or read as another type, a long key, a type outside these) returns
-None: the caller then lets PyYAML write the document. Such a document also reads back
-as itself (``yaml.load(dump(doc)) == doc``).
+None (so does a string of an exponent number, ``12e5``, which kinecal's reader takes
+for a number and its dumper quotes): the caller then lets PyYAML write the document.
+Such a document also reads back as itself (``yaml.load(dump(doc)) == doc``).
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ from __future__ import annotations
 import math
 import re
 from typing import Any
+
+from kinecal._yaml_float import EXPONENT_FLOAT
 
 __all__ = ["dump"]
 
@@ -59,7 +62,7 @@ def _scalar(x: Any) -> str | None:
     if t is str:
         if not x:
             return "''"
-        if x in _WORDS or not _PLAIN.fullmatch(x):
+        if x in _WORDS or not _PLAIN.fullmatch(x) or EXPONENT_FLOAT.match(x):
             raise _Other
         return x
     if t is bool:

@@ -45,6 +45,8 @@ CODES: dict[str, str] = {
     "changes: some parameters cannot be separated",
     "lone_label": "a marker or set seen in one row only: a calibration fits it to that "
     "row alone (rows: the file line)",
+    "set_like_column": "a column named as set-ups (session, station, ...) with several "
+    "values, where kinecal reads them from 'set' only: one user frame for all rows",
     "positions_only": "the data carry more than the model uses: only positions are "
     "compared",
     "extrapolation": "poses outside the joint ranges the model was calibrated on "
