@@ -395,6 +395,40 @@ def _unit_quaternions(t: Table) -> np.ndarray:
     return quat
 
 
+def _optional_columns(t: Table) -> dict[str, np.ndarray | None]:
+    """``sigma``, ``sigma_rot`` and ``payload_kg`` of the rows (SI; None without the
+    column), each cell checked: positive, and below its typing-error bound."""
+    optional = {
+        "sigma": ("sigma_mm", 1e-3),
+        "sigma_rot": ("sigma_deg", np.pi / 180.0),
+        "payload_kg": ("payload_kg", 1.0),
+    }
+    out: dict[str, np.ndarray | None] = {}
+    for name, (col, scale) in optional.items():
+        if col not in t.header:
+            out[name] = None
+            continue
+        v = t.numbers(col)
+        if np.any(v <= 0):
+            i = int(np.flatnonzero(v <= 0)[0])
+            raise DataError(
+                f"{t.path}: line {t.lines[i]}, column '{col}': {v[i]:.6g}; expected "
+                + _POSITIVE.get(col, "a positive value")
+                + "."
+            )
+        high = _MAX_OPTIONAL[col]
+        if np.any(v > high):
+            i = int(np.flatnonzero(v > high)[0])
+            raise DataError(
+                f"{t.path}: line {t.lines[i]}, column '{col}': {v[i]:.6g}; expected a "
+                f"value up to {high:.6g} (a typing error?)."
+            )
+        if name != "payload_kg":
+            _check_weights(t, col, v)
+        out[name] = v * scale
+    return out
+
+
 def _read(
     path: str | Path,
     robot: RobotDescription,
@@ -417,11 +451,6 @@ def _read(
             )
     set_index, set_labels = _labels(t, "set")
     marker_index, marker_labels = _labels(t, "marker")
-    optional = {
-        "sigma": ("sigma_mm", 1e-3),
-        "sigma_rot": ("sigma_deg", np.pi / 180.0),
-        "payload_kg": ("payload_kg", 1.0),
-    }
     common: dict[str, object] = {
         "set_index": set_index,
         "set_labels": set_labels,
@@ -429,29 +458,8 @@ def _read(
         "marker_labels": marker_labels,
         "rows": t.lines.copy(),
         "source": t.path,
+        **_optional_columns(t),
     }
-    for name, (col, scale) in optional.items():
-        if col not in t.header:
-            common[name] = None
-            continue
-        v = t.numbers(col)
-        if np.any(v <= 0):
-            i = int(np.flatnonzero(v <= 0)[0])
-            raise DataError(
-                f"{t.path}: line {t.lines[i]}, column '{col}': {v[i]:.6g}; expected "
-                + _POSITIVE.get(col, "a positive value")
-                + "."
-            )
-        high = _MAX_OPTIONAL[col]
-        if np.any(v > high):
-            i = int(np.flatnonzero(v > high)[0])
-            raise DataError(
-                f"{t.path}: line {t.lines[i]}, column '{col}': {v[i]:.6g}; expected a "
-                f"value up to {high:.6g} (a typing error?)."
-            )
-        if name != "payload_kg":
-            _check_weights(t, col, v)
-        common[name] = v * scale
     found = named + ([] if limits is None else [limits])
     if kind != "sensor" and targets is not None:
         what = "" if isinstance(targets, Targets) else f" {targets}"
