@@ -33,6 +33,7 @@ __all__ = [
     "check_payload",
     "check_result",
     "check_value",
+    "compliance_bound",
     "document_fingerprint",
     "robot_fingerprint",
 ]
@@ -89,7 +90,11 @@ def check_value(model: CalibrationModel, i: int, v: float, where: str) -> None:
     elif kind == "ntm":
         bound, what = _MAX_NTM_DEG, "a transmission error amplitude"
     elif kind == "compliance":
-        bound, what = _MAX_COMPLIANCE, "a joint compliance (rad per m of lever)"
+        bound = compliance_bound(model.robot, ps.joint)
+        what = (
+            "a joint compliance (rad per m of lever: at most 0.1 rad of deflection "
+            "at the joint's largest gravity torque)"
+        )
     elif kind == "ratio":
         bound, what = _MAX_RATIO, "a link mass per unit payload mass"
     elif unit == "deg":
@@ -123,6 +128,29 @@ def check_value(model: CalibrationModel, i: int, v: float, where: str) -> None:
                 f"{nominal + lim:g} mm (a calibration corrects by far less: a typing "
                 "error, or a model of another robot?)."
             )
+
+
+# The largest gravity deflection of a joint a model can hold [rad] (5.7 deg): the
+# bound of its compliance is this over the largest torque the joint carries.
+_MAX_DEFLECTION = 0.1
+_LEVERS: dict[int, tuple[RobotDescription, np.ndarray]] = {}
+
+
+def compliance_bound(robot: RobotDescription, joint: int) -> float:
+    """The largest |lambda*| of joint ``joint`` (1-based) [rad/m]: 0.1 rad/m, or more
+    for a joint that carries little gravity torque, up to a deflection of 0.1 rad at the
+    largest torque it carries (a wrist whose tool lies on its axis: 0.2 mm of lever per
+    unit payload weight, where a fit of 1.57 rad/m deflects it 0.02 deg)."""
+    hit = _LEVERS.get(id(robot))
+    if hit is None or hit[0] is not robot:
+        from kinecal.robot._gravity import gravity_torques, random_joint_poses
+
+        q = random_joint_poses(robot, 256, np.random.default_rng(0))
+        hit = (robot, np.abs(gravity_torques(robot, q)).max(axis=0))
+        _LEVERS.clear()  # one robot at a time (the one being read or written)
+        _LEVERS[id(robot)] = hit
+    lever = float(hit[1][joint - 1])
+    return max(_MAX_COMPLIANCE, float(f"{_MAX_DEFLECTION / max(lever, 1e-6):.2g}"))
 
 
 def check_payload(payload: float, robot: RobotDescription, where: str) -> None:
