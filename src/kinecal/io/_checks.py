@@ -460,7 +460,12 @@ def extrapolation(
     scale = np.where(robot.prismatic, 1e3, 180.0 / np.pi)
     q = np.asarray(q_ctrl, float) * scale
     slack = np.maximum(_RANGE_SLACK * (rng[:, 1] - rng[:, 0]), 1.0)
-    low, high = q < rng[:, 0] - slack, q > rng[:, 1] + slack
+    # A revolute joint without limits (a URDF's continuous joint) turns on: every term
+    # of the model repeats each turn, so an angle a whole number of turns from the
+    # calibrated range is inside it.
+    turns = ~robot.prismatic & ~np.isfinite(robot.limits).all(axis=1)
+    qc = np.where(turns, rng[:, 0] - slack + (q - rng[:, 0] + slack) % 360.0, q)
+    low, high = qc < rng[:, 0] - slack, qc > rng[:, 1] + slack
     out = low | high
     bad = np.flatnonzero(out.any(axis=1))
     if bad.size == 0:
