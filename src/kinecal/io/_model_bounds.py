@@ -90,7 +90,7 @@ def check_value(model: CalibrationModel, i: int, v: float, where: str) -> None:
     elif kind == "ntm":
         bound, what = _MAX_NTM_DEG, "a transmission error amplitude"
     elif kind == "compliance":
-        bound = compliance_bound(model.robot, ps.joint)
+        bound = compliance_bound(model.robot, ps.joint or 0)
         what = (
             "a joint compliance (rad per m of lever: at most 0.1 rad of deflection "
             "at the joint's largest gravity torque)"
@@ -149,6 +149,8 @@ def compliance_bound(robot: RobotDescription, joint: int) -> float:
         hit = (robot, np.abs(gravity_torques(robot, q)).max(axis=0))
         _LEVERS.clear()  # one robot at a time (the one being read or written)
         _LEVERS[id(robot)] = hit
+    if not 1 <= joint <= hit[1].size:
+        return _MAX_COMPLIANCE
     lever = float(hit[1][joint - 1])
     return max(_MAX_COMPLIANCE, float(f"{_MAX_DEFLECTION / max(lever, 1e-6):.2g}"))
 
