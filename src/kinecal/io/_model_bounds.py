@@ -134,6 +134,7 @@ def check_value(model: CalibrationModel, i: int, v: float, where: str) -> None:
 # bound of its compliance is this over the largest torque the joint carries.
 _MAX_DEFLECTION = 0.1
 _LEVERS: dict[int, tuple[RobotDescription, np.ndarray]] = {}
+_PRIMES = (2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47, 53, 59, 61, 67, 71)
 
 
 def compliance_bound(robot: RobotDescription, joint: int) -> float:
@@ -143,9 +144,19 @@ def compliance_bound(robot: RobotDescription, joint: int) -> float:
     unit payload weight, where a fit of 1.57 rad/m deflects it 0.02 deg)."""
     hit = _LEVERS.get(id(robot))
     if hit is None or hit[0] is not robot:
-        from kinecal.robot._gravity import gravity_torques, random_joint_poses
+        from kinecal.robot._gravity import gravity_torques
 
-        q = random_joint_poses(robot, 256, np.random.default_rng(0))
+        # 256 poses spread over the limits (+-170 deg or +-0.5 m where a joint has none)
+        # by an additive recurrence: a deterministic low-discrepancy set (numpy.random
+        # would cost a command 13 ms to import)
+        n = robot.n_joints
+        wide = np.where(robot.prismatic, 0.5, np.radians(170.0))
+        lim = np.where(
+            np.isfinite(robot.limits), robot.limits, [-1.0, 1.0] * wide[:, None]
+        )
+        roots = [_PRIMES[i % 20] + 0.5 * (i // 20) for i in range(n)]
+        u = (np.arange(1, 257)[:, None] * (np.sqrt(roots) % 1.0)) % 1.0
+        q = lim[:, 0] + u * (lim[:, 1] - lim[:, 0])
         hit = (robot, np.abs(gravity_torques(robot, q)).max(axis=0))
         _LEVERS.clear()  # one robot at a time (the one being read or written)
         _LEVERS[id(robot)] = hit
