@@ -144,16 +144,12 @@ def compliance_bound(robot: RobotDescription, joint: int) -> float:
     unit payload weight, where a fit of 1.57 rad/m deflects it 0.02 deg)."""
     hit = _LEVERS.get(id(robot))
     if hit is None or hit[0] is not robot:
-        from kinecal.robot._gravity import gravity_torques
+        from kinecal.robot._gravity import finite_limits, gravity_torques
 
-        # 256 poses spread over the limits (+-170 deg or +-0.5 m where a joint has none)
-        # by an additive recurrence: a deterministic low-discrepancy set (numpy.random
-        # would cost a command 13 ms to import)
+        # 256 poses spread over the limits by an additive recurrence: a deterministic
+        # low-discrepancy set (numpy.random would cost a command 13 ms to import)
         n = robot.n_joints
-        wide = np.where(robot.prismatic, 0.5, np.radians(170.0))
-        lim = np.where(
-            np.isfinite(robot.limits), robot.limits, [-1.0, 1.0] * wide[:, None]
-        )
+        lim = finite_limits(robot)
         roots = [_PRIMES[i % 20] + 0.5 * (i // 20) for i in range(n)]
         u = (np.arange(1, 257)[:, None] * (np.sqrt(roots) % 1.0)) % 1.0
         q = lim[:, 0] + u * (lim[:, 1] - lim[:, 0])

@@ -90,10 +90,9 @@ def nominal_model(
 def joint_samples(robot: RobotDescription, n: int, seed: int) -> Float:
     """``n`` controller poses (n, joints) uniform within the joint limits (+-170 deg or
     +-0.5 m where a joint has none), seeded."""
-    lim = robot.limits.copy()
-    wide = np.where(robot.prismatic, 0.5, np.radians(170.0))
-    lim[:, 0] = np.where(np.isfinite(lim[:, 0]), lim[:, 0], -wide)
-    lim[:, 1] = np.where(np.isfinite(lim[:, 1]), lim[:, 1], wide)
+    from kinecal.robot._gravity import finite_limits
+
+    lim = finite_limits(robot)
     rng = np.random.default_rng(seed)
     return lim[:, 0] + rng.random((n, lim.shape[0])) * (lim[:, 1] - lim[:, 0])
 

@@ -20,6 +20,7 @@ __all__ = [
     "MAX_COMPLIANCE",
     "PRIOR_DEFLECTION",
     "compliance_priors",
+    "finite_limits",
     "gravity_torques",
     "random_joint_poses",
 ]
@@ -37,15 +38,22 @@ _G = 9.80665
 _CACHE: dict[int, tuple[RobotDescription, dict[int, float]]] = {}
 
 
+def finite_limits(robot: RobotDescription) -> Float:
+    """The joint limits (n, 2) [rad or m], +-170 deg or +-0.5 m where a joint has none
+    (a URDF's continuous joint): the ranges poses are drawn from."""
+    lim = robot.limits.copy()
+    wide = np.where(robot.prismatic, 0.5, np.radians(170.0))
+    lim[:, 0] = np.where(np.isfinite(lim[:, 0]), lim[:, 0], -wide)
+    lim[:, 1] = np.where(np.isfinite(lim[:, 1]), lim[:, 1], wide)
+    return lim
+
+
 def random_joint_poses(
     robot: RobotDescription, n: int, rng: np.random.Generator
 ) -> Float:
     """``n`` controller poses (n, joints) drawn uniformly within the joint limits (5 %
     margins; +-170 deg or +-0.5 m where a joint has no limit)."""
-    lim = robot.limits.copy()
-    wide = np.where(robot.prismatic, 0.5, np.radians(170.0))
-    lim[:, 0] = np.where(np.isfinite(lim[:, 0]), lim[:, 0], -wide)
-    lim[:, 1] = np.where(np.isfinite(lim[:, 1]), lim[:, 1], wide)
+    lim = finite_limits(robot)
     span = lim[:, 1] - lim[:, 0]
     return rng.uniform(lim[:, 0] + 0.05 * span, lim[:, 1] - 0.05 * span, (n, len(span)))
 
