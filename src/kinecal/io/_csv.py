@@ -562,11 +562,11 @@ def read_measurements(
 def _payload(t: Table, robot: RobotDescription) -> np.ndarray:
     """The ``payload_kg`` column [kg]: finite, >= 0, and at most 10 x the robot's
     rated payload (a model file cannot hold more; a unit mistake: g, lb)."""
-    from kinecal.io._model_bounds import MAX_PAYLOAD_KG, RATED_FACTOR
+    from kinecal.io._model_bounds import max_payload_kg
 
     v = t.numbers("payload_kg")
     rated = robot.rated_payload_kg
-    hi = MAX_PAYLOAD_KG if rated is None else RATED_FACTOR * rated
+    hi = max_payload_kg(robot)
     bad = np.flatnonzero(~((v >= 0) & (v <= hi)))
     if bad.size:
         i = int(bad[0])

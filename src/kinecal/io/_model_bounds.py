@@ -35,6 +35,7 @@ __all__ = [
     "check_value",
     "compliance_bound",
     "document_fingerprint",
+    "max_payload_kg",
     "robot_fingerprint",
 ]
 
@@ -162,11 +163,17 @@ def compliance_bound(robot: RobotDescription, joint: int) -> float:
     return max(_MAX_COMPLIANCE, float(f"{_MAX_DEFLECTION / max(lever, 1e-6):.2g}"))
 
 
-def check_payload(payload: float, robot: RobotDescription, where: str) -> None:
-    """The reference payload [kg]: positive, and at most 10 x the robot's rated one
-    (or :data:`MAX_PAYLOAD_KG` for a robot without one)."""
+def max_payload_kg(robot: RobotDescription) -> float:
+    """The largest payload kinecal takes for ``robot`` [kg]: 10 x its rated payload, or
+    :data:`MAX_PAYLOAD_KG` for a robot without one (beyond: a unit mistake, g or lb)."""
     rated = robot.rated_payload_kg
-    hi = MAX_PAYLOAD_KG if rated is None else RATED_FACTOR * rated
+    return MAX_PAYLOAD_KG if rated is None else RATED_FACTOR * rated
+
+
+def check_payload(payload: float, robot: RobotDescription, where: str) -> None:
+    """The reference payload [kg]: positive, and at most :func:`max_payload_kg`."""
+    rated = robot.rated_payload_kg
+    hi = max_payload_kg(robot)
     if not 0 < payload <= hi:
         also = "" if rated is None else f" (10 x the robot's rated {rated:g} kg)"
         raise ConfigError(

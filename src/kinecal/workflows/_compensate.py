@@ -368,10 +368,10 @@ def load_scale(cal: CalibratedModel, payload_kg: float | None) -> float | None:
         raise DataError(f"--payload-kg: expected a number [kg]; got {payload_kg!r}.")
     if not payload_kg >= 0:
         raise DataError(f"--payload-kg must be >= 0; got {payload_kg}.")
-    from kinecal.io._model_bounds import MAX_PAYLOAD_KG, RATED_FACTOR
+    from kinecal.io._model_bounds import max_payload_kg
 
     rated = cal.model.robot.rated_payload_kg
-    hi = MAX_PAYLOAD_KG if rated is None else RATED_FACTOR * rated
+    hi = max_payload_kg(cal.model.robot)
     if payload_kg > hi:
         also = "" if rated is None else f" (10 x the {rated:g} kg rated payload)"
         raise DataError(

@@ -145,12 +145,12 @@ def check_payload_column(
     the robot's rated payload, as ``--payload-kg`` and a calibration's reference
     payload (3000 kg on a 5 kg arm was a warning, and scored or compensated with exit
     0); between the rating and that, a warning says so."""
-    from kinecal.io._model_bounds import MAX_PAYLOAD_KG, RATED_FACTOR
+    from kinecal.io._model_bounds import max_payload_kg
 
     if payload_kg is None:
         return
     rated = robot.rated_payload_kg
-    hi = MAX_PAYLOAD_KG if rated is None else RATED_FACTOR * rated
+    hi = max_payload_kg(robot)
     over = np.flatnonzero(np.asarray(payload_kg, float) > hi)
     if over.size:
         i = int(over[0])
