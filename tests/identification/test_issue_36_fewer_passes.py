@@ -9,7 +9,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 
 import numpy as np
@@ -23,6 +22,7 @@ from kinecal.identification._nominal_check import _without_geometry_priors
 from kinecal.identification._problem import Problem
 from kinecal.identification._stages import FullStage, Register
 from kinecal.models import pass_counts
+from tests.helpers import exact_pose_data
 
 
 def _jacobians(fn):
@@ -134,17 +134,7 @@ def _frame_cases():
     e1 = experiment1(0, n_train=40)
     out = []
     for e, kind in ((e2, "point"), (e2, "pose"), (e1, "sensor")):
-        meas = e.train
-        if kind == "pose":
-            p, R = e.truth.evaluate(meas.q_ctrl, orientation=True)
-            meas = dataclasses.replace(
-                meas,
-                kind="pose",
-                p=p,
-                R_user_cam=R,
-                sigma=np.full(meas.n, 1e-5),
-                sigma_rot=np.full(meas.n, 1e-4),
-            )
+        meas = exact_pose_data(e.truth, e.train) if kind == "pose" else e.train
         assert meas.kind == kind
         out.append(_registered(e.truth.robot, meas))
     out += _real_cases()

@@ -18,6 +18,7 @@ from kinecal.identification._problem import Problem, run_stages
 from kinecal.identification._robust import RobustRejection, row_z
 from kinecal.identification._stages import run_shared
 from kinecal.models import pass_counts
+from tests.helpers import exact_pose_data
 
 
 def _jacobians(fn):
@@ -131,17 +132,7 @@ def _cache_case(e, kind):
     from kinecal.measurement._residuals import Weights
     from kinecal.models import CalibrationModel, ModelSpec
 
-    meas = e.train
-    if kind == "pose":
-        p, R = e.truth.evaluate(meas.q_ctrl, orientation=True)
-        meas = dataclasses.replace(
-            meas,
-            kind="pose",
-            p=p,
-            R_user_cam=R,
-            sigma=np.full(meas.n, 1e-5),
-            sigma_rot=np.full(meas.n, 1e-4),
-        )
+    meas = exact_pose_data(e.truth, e.train) if kind == "pose" else e.train
     cm = CalibrationModel(e.truth.robot, ModelSpec.preset("full"))
     x = cm.nominal + 1e-4 * np.random.default_rng(3).standard_normal(cm.size)
     cache = EvaluationCache(meas, meas.model_inputs())
