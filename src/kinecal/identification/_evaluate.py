@@ -87,22 +87,16 @@ def refit_diagnosed(
     )
     new_sets = "base" in solve and tuple(meas.set_labels) != tuple(spec.sets)
     if new_sets:
-        model = CalibrationModel(old.robot, replace(spec, sets=meas.set_labels))
-        model = model.with_references(
-            None, old.R_ref_cam if spec.cam_rotation else None
-        )
-        x = model.layout.transfer(calibrated.params, old.layout)
-        status = [
-            calibrated.status[old.layout.index(n)] if n in old.layout else "estimated"
-            for n in model.layout.names
-        ]
-        std = model.layout.transfer(calibrated.std, old.layout)
+        model, x, status, std = _on_sets(calibrated, tuple(meas.set_labels), None)
         m = meas
     else:
-        model, x = old, calibrated.params.copy()
-        status, std = list(calibrated.status), calibrated.std.copy()
         m = calibrated.align(meas)
-        model, x, status, std, m = _present_sets(model, x, status, std, m)
+        used = np.unique(m.set_index)
+        if used.size == len(spec.sets):
+            model, x = old, calibrated.params.copy()
+            status, std = list(calibrated.status), calibrated.std.copy()
+        else:  # a tool or marker refit of the data of some of the model's sets
+            model, x, status, std, m = _present_sets(calibrated, m, used)
     layout = model.layout
     if names is None:
         free = np.isin([s.group for s in layout.specs], groups)
@@ -139,36 +133,45 @@ def refit_diagnosed(
     return cal, list(reg.diagnostics)
 
 
-def _present_sets(
-    model: CalibrationModel,
-    x: Float,
-    status: list[str],
-    std: Float,
-    meas: Measurements,
-) -> tuple[CalibrationModel, Float, list[str], Float, Measurements]:
-    """The model restricted to the sets (user frames) ``meas`` has rows of, and the data
-    relabelled to it: a tool or marker refit of the data of one session of a model
-    calibrated on several needs no frame of the others (their closed form failed on
-    their empty rows: "set 'A' has 0 rows"). As a refit of the user frames does, the
-    refitted model then holds the data's sets."""
-    spec = model.spec
-    used = np.unique(meas.set_index)
-    if used.size == len(spec.sets):
-        return model, x, status, std, meas
-    keep = tuple(spec.sets[i] for i in used)
-    sub = CalibrationModel(model.robot, replace(spec, sets=keep)).with_references(
-        model.R_ref_base[used], model.R_ref_cam if spec.cam_rotation else None
+def _on_sets(
+    calibrated: CalibratedModel, sets: tuple[str, ...], R_ref_base: Float | None
+) -> tuple[CalibrationModel, Float, list[str], Float]:
+    """The calibrated model with the user frames ``sets`` (reference rotations
+    ``R_ref_base``, None: the identity): parameters, status and std carried over by
+    name, a new set's frame 'estimated' at 0."""
+    old = calibrated.model
+    spec = old.spec
+    model = CalibrationModel(old.robot, replace(spec, sets=sets)).with_references(
+        R_ref_base, old.R_ref_cam if spec.cam_rotation else None
     )
-    old = model.layout
-    remap = np.full(len(spec.sets), -1, np.intp)
-    remap[used] = np.arange(used.size)
+    status = [
+        calibrated.status[old.layout.index(n)] if n in old.layout else "estimated"
+        for n in model.layout.names
+    ]
     return (
-        sub,
-        sub.layout.transfer(x, old),
-        [status[old.index(n)] for n in sub.layout.names],
-        sub.layout.transfer(std, old),
-        replace(meas, set_index=remap[meas.set_index], set_labels=keep),
+        model,
+        model.layout.transfer(calibrated.params, old.layout),
+        status,
+        model.layout.transfer(calibrated.std, old.layout),
     )
+
+
+def _present_sets(
+    calibrated: CalibratedModel, meas: Measurements, used: np.ndarray
+) -> tuple[CalibrationModel, Float, list[str], Float, Measurements]:
+    """The model restricted to the sets ``used`` (indices of the model's sets that
+    ``meas``, aligned to it, has rows of), and the data relabelled to it: a tool or
+    marker refit of the data of one session of a model calibrated on several needs no
+    frame of the others (their closed form failed on their empty rows: "set 'A' has 0
+    rows"). As a refit of the user frames does, the refitted model then holds the
+    data's sets."""
+    old = calibrated.model
+    keep = tuple(old.spec.sets[i] for i in used)
+    model, x, status, std = _on_sets(calibrated, keep, old.R_ref_base[used])
+    remap = np.full(len(old.spec.sets), -1, np.intp)
+    remap[used] = np.arange(used.size)
+    m = replace(meas, set_index=remap[meas.set_index], set_labels=keep)
+    return model, x, status, std, m
 
 
 REFIT_GROUPS = {"user": "base", "tool": "cam", "marker": "marker"}
