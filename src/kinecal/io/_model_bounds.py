@@ -72,10 +72,9 @@ def _wrap_deg(x: float) -> float:
 
 def _reach_mm(robot: RobotDescription) -> float:
     """Sum of the robot's link lengths and offsets [mm] (its reach, roughly)."""
-    rows = sum(abs(j.a) + abs(j.d) for j in robot.joints)
-    ends = float(np.linalg.norm(robot.T_n_flange[:3, 3]))
-    ends += float(np.linalg.norm(robot.T_flange_tool[:3, 3]))
-    return 1e3 * (rows + ends)
+    from kinecal.robot._unit_slips import arm_length_m
+
+    return 1e3 * arm_length_m(robot.joints, (robot.T_n_flange, robot.T_flange_tool))
 
 
 def check_value(model: CalibrationModel, i: int, v: float, where: str) -> None:

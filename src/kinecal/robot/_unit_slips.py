@@ -15,12 +15,19 @@ import numpy as np
 from kinecal.errors import ConfigError
 from kinecal.robot._description import JointSpec
 
-__all__ = ["check_unit_slips"]
+__all__ = ["arm_length_m", "check_unit_slips"]
 
 # Every revolute joint limited within one radian's worth of degrees around zero (6.3 deg
 # at most): no arm is; its limits are radians. A whole arm of under 10 mm: metres.
 _RAD_AS_DEG = np.radians(2 * np.pi + 1e-6)
 _ARM_MIN_M = 0.010
+
+
+def arm_length_m(joints: Sequence[JointSpec], ends: Sequence[np.ndarray]) -> float:
+    """The arm's lengths added up [m]: its DH ``a`` and ``d`` and the offsets of its
+    ``ends`` (flange and tool frames, 4 x 4): about its reach."""
+    rows = sum(abs(j.a) + abs(j.d) for j in joints)
+    return rows + sum(float(np.linalg.norm(T[:3, 3])) for T in ends)
 
 
 def check_unit_slips(
@@ -47,8 +54,7 @@ def check_unit_slips(
             f"+-{hi:.3g} deg; expected degrees (units.angle: deg): are they radians? "
             "Convert them, or set units.angle: rad."
         )
-    reach = sum(abs(j.a) + abs(j.d) for j in joints)
-    reach += sum(float(np.linalg.norm(T[:3, 3])) for T in ends)
+    reach = arm_length_m(joints, ends)
     if length == "mm" and 0.0 < reach < _ARM_MIN_M:
         raise ConfigError(
             f"{source}: joints[*].a, d: the arm's lengths (DH, flange, tool) add up to "
