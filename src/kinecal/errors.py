@@ -13,6 +13,7 @@ __all__ = [
     "IdentifiabilityError",
     "ModelError",
     "OutputClosed",
+    "described",
     "expect_type",
 ]
 
@@ -43,14 +44,21 @@ class OutputClosed(Exception):
     ``BrokenPipeError`` of the write, which click itself would turn into exit 1."""
 
 
-def expect_type(value: object, cls: type, name: str, how: str = "") -> None:
+def expect_type(
+    value: object, cls: type | tuple[type, ...], name: str, how: str = ""
+) -> None:
     """ConfigError naming the argument ``name`` unless ``value`` is a ``cls`` (what a
     script hands a public function; ``how``: where one comes from)."""
     if not isinstance(value, cls):
-        text = repr(value)
-        got = type(value).__name__ + (f" {text}" if len(text) <= 40 else "")
+        kinds = cls if isinstance(cls, tuple) else (cls,)
         raise ConfigError(
-            f"{name}: expected a {cls.__name__}"
+            f"{name}: expected a {' or '.join(k.__name__ for k in kinds)}"
             + (f" (from {how})" if how else "")
-            + f"; got {got}."
+            + f"; got {described(value)}."
         )
+
+
+def described(value: object) -> str:
+    """A value as a message names it: its type, and its repr when short."""
+    text = repr(value)
+    return type(value).__name__ + (f" {text}" if len(text) <= 40 else "")

@@ -16,7 +16,13 @@ from typing import Protocol
 
 import numpy as np
 
-from kinecal.errors import ConfigError, DataError, IdentifiabilityError, expect_type
+from kinecal.errors import (
+    ConfigError,
+    DataError,
+    IdentifiabilityError,
+    described,
+    expect_type,
+)
 from kinecal.identification._identifiability import Identifiability
 from kinecal.identification._lm import LMOptions, Prior
 from kinecal.identification._options import (
@@ -382,7 +388,7 @@ class Problem:
         if not isinstance(model, (str, ModelSpec)):
             raise ConfigError(
                 f"model: expected a preset name (kinematic, ntm, rfcm, full) or a "
-                f"ModelSpec; got {type(model).__name__} {model!r:.40}."
+                f"ModelSpec; got {described(model)}."
             )
         if meas.n_joints != robot.n_joints:
             raise DataError(

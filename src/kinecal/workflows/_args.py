@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from kinecal.errors import ConfigError
+from kinecal.errors import ConfigError, described, expect_type
 
 _HOW = {
     "RobotDescription": "kinecal.robot.load_robot(NAME or FILE)",
@@ -20,22 +20,10 @@ _HOW = {
 }
 
 
-def _got(value: Any) -> str:
-    text = repr(value)
-    return type(value).__name__ + (f" {text}" if len(text) <= 40 else "")
-
-
 def need(value: Any, cls: type | tuple[type, ...], name: str) -> None:
     """Refuse ``value`` unless it is a ``cls`` (naming how to make one)."""
-    if not isinstance(value, cls):
-        kinds = cls if isinstance(cls, tuple) else (cls,)
-        what = " or ".join(k.__name__ for k in kinds)
-        how = _HOW.get(what)
-        raise ConfigError(
-            f"{name}: expected a {what}"
-            + (f" (from {how})" if how else "")
-            + f"; got {_got(value)}."
-        )
+    kinds = cls if isinstance(cls, tuple) else (cls,)
+    expect_type(value, cls, name, _HOW.get(" or ".join(k.__name__ for k in kinds), ""))
 
 
 def need_robot(robot: Any, name: str = "robot") -> None:
@@ -68,7 +56,7 @@ def choice(value: Any, allowed: Iterable[str], name: str) -> str:
     options = tuple(allowed)
     if not isinstance(value, str) or value not in options:
         raise ConfigError(
-            f"{name}: expected one of {', '.join(options)}; got {_got(value)}."
+            f"{name}: expected one of {', '.join(options)}; got {described(value)}."
         )
     return value
 
@@ -82,12 +70,12 @@ def words(value: Any, allowed: Iterable[str], name: str) -> tuple[str, ...]:
         out = tuple(items)
     except TypeError:
         raise ConfigError(
-            f"{name}: expected some of {', '.join(options)}; got {_got(value)}."
+            f"{name}: expected some of {', '.join(options)}; got {described(value)}."
         ) from None
     for w in out:
         if not isinstance(w, str) or w not in options:
             raise ConfigError(
-                f"{name}: expected some of {', '.join(options)}; got {_got(w)}."
+                f"{name}: expected some of {', '.join(options)}; got {described(w)}."
             )
     return out
 
@@ -95,7 +83,9 @@ def words(value: Any, allowed: Iterable[str], name: str) -> tuple[str, ...]:
 def count(value: Any, name: str, low: int = 1) -> int:
     """An integer >= ``low`` (not a bool, a float or a string)."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise ConfigError(f"{name}: expected an integer >= {low}; got {_got(value)}.")
+        raise ConfigError(
+            f"{name}: expected an integer >= {low}; got {described(value)}."
+        )
     if value < low:
         raise ConfigError(f"{name}: expected an integer >= {low}; got {value}.")
     return int(value)
@@ -107,7 +97,7 @@ def joint_rows(q: Any, n_joints: int, name: str) -> np.ndarray:
         a = np.asarray(q, dtype=float)
     except (TypeError, ValueError):
         raise ConfigError(
-            f"{name}: expected an (N, {n_joints}) array of joint values; got {_got(q)}."
+            f"{name}: expected an (N, {n_joints}) array of joint values; got {described(q)}."
         ) from None
     if a.ndim != 2 or a.shape[1] != n_joints or a.shape[0] < 1:
         raise ConfigError(
@@ -179,7 +169,7 @@ def _joint_ranges(ranges: Any, robot: Any) -> None:
     if r.shape != (robot.n_joints, 2) or not np.all(r[:, 0] <= r[:, 1]):
         raise ConfigError(
             f"ranges: expected ({robot.n_joints}, 2) [low, high] per joint [rad, m] "
-            f"with low <= high; got {_got(ranges) if r.size == 0 else r.shape}."
+            f"with low <= high; got {described(ranges) if r.size == 0 else r.shape}."
         )
     lim, slack = robot.limits, _slack(robot)
     bad = np.flatnonzero((r[:, 0] < lim[:, 0] - slack) | (r[:, 1] > lim[:, 1] + slack))
