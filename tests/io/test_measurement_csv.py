@@ -74,9 +74,9 @@ def test_good_point_file(tmp_path):
             r"line 2, column 'sigma_mm': 0; expected a positive standard deviation in mm",
         ),
         (
-            HEAD + ",payload_kg\n" + "1,2,3,4,5,6,700,800,900,0\n",
-            r"line 2, column 'payload_kg': 0; expected a positive mass in kg .*leave the "
-            r"column out",
+            HEAD + ",payload_kg\n" + "1,2,3,4,5,6,700,800,900,-0.5\n",
+            r"line 2, column 'payload_kg': -0.5; expected a mass in kg, 0 or more .*0: "
+            r"no payload",
         ),
         (HEAD + ",x_mm\n" + "1,2,3,4,5,6,7,8,9,1\n", r"duplicate column 'x_mm'"),
     ],

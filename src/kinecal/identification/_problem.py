@@ -400,6 +400,14 @@ class Problem:
             # The link masses' nominal ratios are per unit of the reference payload.
             robot = replace(robot, payload_kg=data_payload)
         spec = spec_for(robot, meas, model)
+        if spec.load and meas.payload_kg is not None and data_payload is None:
+            raise DataError(
+                f"{meas.source}: column 'payload_kg' is 0 in every row, so the "
+                f"'{spec.name}' model's payload compliance cannot be calibrated; "
+                "expected some rows with a payload (0 kg rows beside them are fine), "
+                "or leave the column out (the compliance is then per unit of the "
+                "load the robot carried), or a model without it (kinematic, ntm)."
+            )
         cm = CalibrationModel(robot, spec)
         c = meas.components
         if meas.n * c <= cm.size:

@@ -330,8 +330,8 @@ MAX_POSITION_MM = 1e6
 # error (a payload of 1e300 kg overflowed the compliance terms).
 _MAX_OPTIONAL = {"sigma_mm": MAX_POSITION_MM, "sigma_deg": 360.0, "payload_kg": 1e5}
 _POSITIVE = {
-    "payload_kg": "a positive mass in kg (the payload at the tool; rows without one "
-    "cannot be mixed with rows with one: leave the column out if none has a payload)",
+    "payload_kg": "a mass in kg, 0 or more (the payload at the tool beyond the tool "
+    "itself; 0: no payload)",
     "sigma_mm": "a positive standard deviation in mm",
     "sigma_deg": "a positive standard deviation in deg",
 }
@@ -409,8 +409,9 @@ def _optional_columns(t: Table) -> dict[str, np.ndarray | None]:
             out[name] = None
             continue
         v = t.numbers(col)
-        if np.any(v <= 0):
-            i = int(np.flatnonzero(v <= 0)[0])
+        low = v < 0 if col == "payload_kg" else v <= 0
+        if np.any(low):
+            i = int(np.flatnonzero(low)[0])
             raise DataError(
                 f"{t.path}: line {t.lines[i]}, column '{col}': {v[i]:.6g}; expected "
                 + _POSITIVE.get(col, "a positive value")

@@ -181,7 +181,16 @@ def robot_yaml_text(robot: RobotDescription, *, comments: list[str]) -> str:
     doc["flange"] = _frame_dict_full(robot.T_n_flange)
     doc["tool"] = _frame_dict_full(robot.T_flange_tool)
     head = "".join(f"# {ln}".rstrip() + "\n" for ln in comments)
-    return head + yaml.dump(doc, sort_keys=False, width=100)
+    return head + yaml.dump(_no_negative_zero(doc), sort_keys=False, width=100)
+
+
+def _no_negative_zero(v: Any) -> Any:
+    """``v`` with every -0.0 made 0.0 (a rounded -1e-12 mm is not a negative length)."""
+    if isinstance(v, dict):
+        return {k: _no_negative_zero(x) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_no_negative_zero(x) for x in v]
+    return v + 0.0 if isinstance(v, float) else v
 
 
 def joint_rates(robot: RobotDescription, chain: ExportedChain):

@@ -116,10 +116,10 @@ class Measurements:
             raw = getattr(self, name)
             if raw is not None:
                 fv = np.asarray(raw, dtype=np.float64).reshape(N)
-                if np.any(~np.isfinite(fv)) or np.any(fv <= 0):
-                    raise DataError(
-                        f"{self.source}: {name} must be positive and finite."
-                    )
+                low = fv < 0 if name == "payload_kg" else fv <= 0  # 0 kg: no payload
+                if np.any(~np.isfinite(fv)) or np.any(low):
+                    what = ">= 0" if name == "payload_kg" else "positive"
+                    raise DataError(f"{self.source}: {name} must be {what} and finite.")
                 object.__setattr__(self, name, fv)
         for name in ("q_ctrl", "p"):
             if not np.all(np.isfinite(getattr(self, name))):
@@ -172,8 +172,11 @@ class Measurements:
         )
 
     def reference_payload(self) -> float | None:
-        """The payload that defines the unit weight of lambda* (median of the rows)."""
-        return None if self.payload_kg is None else median(self.payload_kg)
+        """The payload that defines the unit weight of lambda*: the median of the rows
+        with a payload (rows of 0 kg have none; None if no row has one)."""
+        if self.payload_kg is None or not np.any(self.payload_kg > 0):
+            return None
+        return median(self.payload_kg[self.payload_kg > 0])
 
     def model_inputs(self, reference_payload_kg: float | None = None) -> ModelInputs:
         """Per-sample inputs of the calibration model."""
