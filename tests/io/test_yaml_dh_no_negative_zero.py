@@ -21,6 +21,8 @@ def test_no_negative_zero_in_the_robot_yaml():
     joints[2] = replace(joints[2], limits=(float(limits[0]), float(limits[1])))
     T = robot.T_n_flange.copy()
     T[:3, 3] = [-0.0, 0.0, -0.0]
-    text = robot_yaml_text(replace(robot, joints=tuple(joints), T_n_flange=T), comments=[])
+    text = robot_yaml_text(
+        replace(robot, joints=tuple(joints), T_n_flange=T), comments=[]
+    )
     assert not re.search(r"-0\.0\b(?![0-9]*[1-9])", text), text
     assert "alpha: 0.0" in text

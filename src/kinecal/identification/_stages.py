@@ -113,9 +113,8 @@ class Register:
         x = res.x
         if problem.meas.kind == "pose" and problem.estimate_noise:
             state = estimate_noise(problem, state, x, frames, None)
-            state, res = run_lm(
-                problem, state, self.name, x, frames, warm, evaluate=fit
-            )
+            again = f"{self.name} (noise weights)"  # with the weights just estimated
+            state, res = run_lm(problem, state, again, x, frames, warm, evaluate=fit)
             x = res.x
         if fit is not None:  # the model's own Jacobian where the next stage starts
             problem.evaluations(model, x, state.weights, jacobian=True)
