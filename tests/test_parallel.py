@@ -232,3 +232,52 @@ def _three(out: subprocess.CompletedProcess[str]) -> list:
 
     assert out.returncode == 0, out.stderr
     return json.loads(out.stdout.splitlines()[-1])
+
+
+def _slow_first(x: int) -> int:
+    import time
+
+    time.sleep(0.2 if x == 0 else 0.0)
+    return x + 100
+
+
+def _dies(x: int) -> int:
+    if x == 2:
+        os._exit(3)  # a worker killed (out of memory, kill -9)
+    return x
+
+
+def _unpicklable(x: int):
+    return lambda: x
+
+
+def test_workers_take_the_next_item_when_they_answer():
+    """A slow item does not hold the others back, and the order is kept."""
+    assert parallel_map(_slow_first, range(9), jobs=2) == [x + 100 for x in range(9)]
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="serial without fork")
+def test_a_worker_that_dies_is_an_error_and_no_worker_is_left():
+    before = _children()
+    with pytest.raises(RuntimeError, match="ended without its result"):
+        parallel_map(_dies, range(6), jobs=2)
+    assert _children() == before
+    with pytest.raises(RuntimeError, match="cannot be sent back"):
+        parallel_map(_unpicklable, range(3), jobs=2)
+    assert _children() == before
+
+
+def _children() -> set[int]:
+    """This process's live child processes (Linux), else an empty set."""
+    from pathlib import Path
+
+    me, out = os.getpid(), set()
+    for d in Path("/proc").glob("[0-9]*"):
+        try:
+            stat = (d / "stat").read_text()
+        except OSError:
+            continue
+        fields = stat[stat.rindex(")") + 2 :].split()
+        if int(fields[1]) == me and fields[0] != "Z":
+            out.add(int(d.name))
+    return out

@@ -26,7 +26,8 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from typing import TypeVar
 
 from kinecal._blas import (
@@ -79,36 +80,75 @@ def single_thread_blas() -> bool:
 
 def _one_blas_thread() -> None:
     """Worker initializer: one thread for every loaded BLAS and for the compiled
-    model kernel (the workers already use every core)."""
+    model kernel (the workers already use every core). Ctrl-C is the parent's to
+    handle (a terminal sends it to every process of the command: each worker printed its
+    own traceback), and SIGTERM ends a worker at once (it inherited the command's
+    handler, which unwinds the parent's staged outputs)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    # Both were blocked while the parent forked it (see parallel_map).
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, (signal.SIGINT, signal.SIGTERM))
     set_blas_threads(1)
     set_kernel_threads(1)
 
 
 def _can_fork() -> bool:
-    import multiprocessing as mp
-
-    return sys.platform != "darwin" and "fork" in mp.get_all_start_methods()
+    return sys.platform != "darwin" and hasattr(os, "fork")
 
 
 def parallel_map(fn: Callable[[T], R], items: Iterable[T], jobs: int = 1) -> list[R]:
-    """``[fn(x) for x in items]``, on up to ``jobs`` forked worker processes.
+    """``[fn(x) for x in items]``, on up to ``jobs`` forked worker processes
+    (:func:`kinecal._forkmap.fork_map`).
 
     Results come back in the order of ``items`` and are the same as the serial ones (each
-    run is deterministic). ``fn`` and the items must be picklable (a module-level function
-    and plain data); an exception in ``fn`` is raised here. Serial when ``jobs <= 1``,
-    for a single item, or where processes cannot be forked.
+    run is deterministic). The results must be picklable (the items and ``fn`` are in
+    the forked workers' memory); an exception in ``fn`` is raised here. Serial when
+    ``jobs <= 1``, for a single item, or where processes cannot be forked. A Ctrl-C or
+    an error stops every worker before it propagates.
     """
     todo = list(items)
     workers = min(int(jobs), len(todo))
     if workers <= 1 or not _can_fork():
         return [fn(x) for x in todo]
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor
+    from kinecal._forkmap import fork_map
 
-    with ProcessPoolExecutor(
-        workers, mp_context=mp.get_context("fork"), initializer=_one_blas_thread
-    ) as pool:
-        return list(pool.map(fn, todo))
+    return fork_map(fn, todo, workers, _one_blas_thread, _signals_held)
+
+
+@contextmanager
+def _signals_held() -> Iterator[None]:
+    """Ctrl-C and SIGTERM wait until the block has run, then act as they would have.
+
+    For forks: a signal handled during a fork runs its handler in the parent's at-fork
+    hooks (logging's), where Python drops the handler's exception, so that Ctrl-C was
+    lost and the run went on to write its result. Meanwhile the signals are recorded
+    (any thread may take them) and blocked in this thread, so that a child forked here
+    starts with them pending, not handled (its initializer sets what they do there).
+    """
+    import signal
+    import threading
+
+    stop = (signal.SIGINT, signal.SIGTERM)
+    if threading.current_thread() is not threading.main_thread():
+        yield  # only the main thread handles signals (and may set handlers)
+        return
+    came: list[int] = []
+    old = {sig: signal.signal(sig, lambda sig, frame: came.append(sig)) for sig in stop}
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, stop)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # pending ones are recorded
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+    for num in dict.fromkeys(came):  # once each, in the order they came
+        handler = old[signal.Signals(num)]
+        if callable(handler):
+            handler(num, None)  # raises KeyboardInterrupt or the command's Terminated
+        elif handler == signal.SIG_DFL:
+            os.kill(os.getpid(), num)
 
 
 def thread_map(fn: Callable[[T], R], items: Iterable[T], jobs: int = 0) -> list[R]:
