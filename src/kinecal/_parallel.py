@@ -38,8 +38,8 @@ from kinecal._blas import (
 )
 from kinecal._cpu import available_cpus, set_kernel_threads
 
-# multiprocessing and concurrent.futures are imported where used: the kinecal command
-# imports this module at start (single_thread_blas), and they cost ~40 ms to load.
+# The worker processes (kinecal._forkmap) and concurrent.futures' thread pool are imported
+# where used: the kinecal command imports this module at start (single_thread_blas).
 
 __all__ = [
     "available_cpus",
