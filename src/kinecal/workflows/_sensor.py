@@ -79,7 +79,17 @@ def reconstruct_scan(
             f"{source or 'file'}."
         )
     read = SameSize(read_scan_image, (cam.width, cam.height), source)
-    return sensor.scan(LazyImages(list(files), read), idx, jobs=jobs, method=method)
+    cloud = sensor.scan(LazyImages(list(files), read), idx, jobs=jobs, method=method)
+    if cloud.points.shape[0] == 0:  # an empty cloud is a result, but not a silent one
+        import warnings
+
+        warnings.warn(
+            f"{folder}: no laser stripe found in any of its {len(files)} images (laser "
+            "off, over- or under-exposed, the object out of view, or images of "
+            "another sensor): the cloud is empty.",
+            stacklevel=2,
+        )
+    return cloud
 
 
 def fit_cloud_sphere(
