@@ -40,6 +40,7 @@ from kinecal.io._checks import (
     frozen_orientations,
     near_miss,
 )
+from kinecal.io._csv_hints import named_joints_hint
 from kinecal.io._table import Table, read_table
 from kinecal.measurement import Diagnostic, Measurements
 from kinecal.robot import RobotDescription
@@ -214,7 +215,9 @@ def _joint_columns(
     n = robot.n_joints
     if not found:
         raise DataError(
-            f"{t.path}: no joint columns; expected j1_deg .. j{n}_deg for {robot.name}."
+            f"{t.path}: no joint columns; expected j1_deg .. j{n}_deg for {robot.name}"
+            + named_joints_hint(t.header, robot)
+            + "."
         )
     if max(found) != n or len(found) != n:
         have = ", ".join(found[k] for k in sorted(found))
