@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from kinecal._stats import distinct_rows
-from kinecal.errors import CalibError, ConfigError, IdentifiabilityError
+from kinecal.errors import CalibError, ConfigError, DataError, IdentifiabilityError
 from kinecal.identification import (
     CalibrationOptions,
     CalibrationResult,
@@ -307,6 +307,7 @@ def _checks(
     command (which refused it only when writing model.yaml, after the cross-validation;
     a script got it with success True)."""
     from kinecal.identification._gravity_check import gravity_check
+    from kinecal.identification._mirror import mirrored_frame
     from kinecal.io._checks import lone_labels
     from kinecal.io._model_bounds import check_result
 
@@ -317,6 +318,9 @@ def _checks(
     found = gravity_check(result, meas)
     if found is not None:
         result.diagnostics.append(found)
+    mirror = mirrored_frame(result, meas)
+    if mirror is not None:
+        raise DataError(mirror)
     check_result(result.calibrated, str(meas.source))
 
 
