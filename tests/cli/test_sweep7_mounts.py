@@ -69,3 +69,15 @@ def test_gravity_follows_the_mount(tmp_path, run_cli_here, rpy, gravity):
     )
     # the base stays base_link: a pose of the arm is unchanged by the mount
     assert robot.fk_flange(np.zeros(6))[:3, 3] == pytest.approx([0.88, 0.0, 1.2])
+
+
+@pytest.mark.filterwarnings("ignore:.*movable joints")
+def test_vendor_dual_arm_hangs_from_its_frame():
+    """denso_dual.urdf: two arms hung from a frame 1.9 m up (rpy 3.14 0 -1.57): each
+    arm's gravity points up its base link's z axis (it was -z, an arm on the floor)."""
+    from pathlib import Path
+
+    urdf = Path(__file__).resolve().parents[1] / "data/vendor_urdf/denso_dual.urdf"
+    for tip in ("J6_1", "J6_2"):
+        g = robot_from_urdf(urdf, tip=tip).gravity
+        assert g[2] > 0.999 * G, (tip, g)
