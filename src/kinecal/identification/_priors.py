@@ -291,17 +291,27 @@ def evidence_prior(
             v[groups == g] *= f * f
         return v
 
+    def change(g: str, f: float) -> dict[str, float]:
+        # The link terms act only through the compliances (deflection = lambda * their
+        # torque): shrinking the compliances takes them along, or, linearised, the link
+        # terms would stand in for compliances the refit then leaves at zero.
+        out = {g: f}
+        if g == "load" and "link" in factors:
+            tied = float(np.clip(factors["link"] * f / factors[g], 0.01, 3.0))
+            out["link"] = float(f"{tied:.12g}")
+        return out
+
     for _ in range(2):  # coordinate ascent
         for g in tune:
             cands = _GEOMETRY_FACTORS if g.startswith("joint") else _EVIDENCE_FACTORS
             le = log_evidence(
-                np.array([variance()] + [variance({g: f}) for f in cands])
+                np.array([variance()] + [variance(change(g, f)) for f in cands])
             )
             best = (le[0], factors[g])
             for f, value in zip(cands, le[1:]):
                 if value > best[0] + 1e-9:
                     best = (value, f)
-            factors[g] = best[1]
+            factors.update(change(g, best[1]))
     sigma = prior.sigma.copy()
     all_groups = np.array([evidence_group(sp) for sp in cm.layout.specs])
     for g, f in factors.items():
