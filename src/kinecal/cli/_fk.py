@@ -111,8 +111,8 @@ def import_urdf(
     The DH table reproduces the URDF's forward kinematics exactly. The links' inertials
     become link_masses (mass and centre of mass of each body), the layout of the general
     link self-weight model that the rfcm, full and auto models then use. Edit the YAML
-    to add couplings, gravity (default: along -z of the base link), the payload or
-    priors.
+    to add couplings, gravity (default: -z of the root link, a mount's world), the
+    payload or priors.
     """
 
     from kinecal.io import atomic_write_text

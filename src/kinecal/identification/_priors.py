@@ -38,6 +38,9 @@ _EVIDENCE_GROUPS = ("ntm", "load", "link", "joint:length", "joint:angle")
 _EVIDENCE_FACTORS = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
 # The joint geometry: its prior may narrow to a tenth (or widen 3x) where the data say so.
 _GEOMETRY_FACTORS = (0.1, 0.3, 1.0, 3.0)
+# The link priors of a robot with link masses are at least this fraction of the file's
+# values (a URDF's CAD inertials are rarely closer).
+LINK_REL = 0.2
 
 
 def build_prior(
@@ -57,15 +60,27 @@ def build_prior(
     groups = PRIOR_GROUPS[options.priors]
     table = {**PRIOR_SIGMA, **model.robot.prior_sigma}  # the robot file may override
     lam = compliance_priors(model.robot)  # per joint, from the link masses
+    floor = _link_floor(model)
     for i, s in enumerate(model.layout.specs):
         if s.group in groups:
             sd = table.get((s.group, s.kind), np.inf)
             if (s.group, s.kind) == ("load", "compliance"):
                 sd = lam.get(s.joint or 0, sd)
+            if s.group == "link" and (s.group, s.kind) not in model.robot.prior_sigma:
+                sd = max(sd, floor[i])
             sigma[i] = sd * options.prior_scale
     for name, value in (options.prior_sigma or {}).items():
         sigma[model.layout.index(name)] = float(value)
     return Prior(start.copy(), sigma)
+
+
+def _link_floor(model: CalibrationModel) -> Float:
+    """The least prior std of each general link term: :data:`LINK_REL` of the file's
+    value (a body's mass per reference payload mass, a component of its first moment
+    per reference payload weight); 0 elsewhere. A 1000 kg link of a 1 kg reference
+    payload (ratio 1000) is known to some 100 kg, not to the table's 10 (Eq. (T-6b))."""
+    link = [s.group == "link" and s.joint is not None for s in model.layout.specs]
+    return np.where(link, LINK_REL * np.abs(model.nominal), 0.0)
 
 
 @dataclass(frozen=True)
@@ -276,17 +291,27 @@ def evidence_prior(
             v[groups == g] *= f * f
         return v
 
+    def change(g: str, f: float) -> dict[str, float]:
+        # The link terms act only through the compliances (deflection = lambda * their
+        # torque): shrinking the compliances takes them along, or, linearised, the link
+        # terms would stand in for compliances the refit then leaves at zero.
+        out = {g: f}
+        if g == "load" and "link" in factors:
+            tied = float(np.clip(factors["link"] * f / factors[g], 0.01, 3.0))
+            out["link"] = float(f"{tied:.12g}")
+        return out
+
     for _ in range(2):  # coordinate ascent
         for g in tune:
             cands = _GEOMETRY_FACTORS if g.startswith("joint") else _EVIDENCE_FACTORS
             le = log_evidence(
-                np.array([variance()] + [variance({g: f}) for f in cands])
+                np.array([variance()] + [variance(change(g, f)) for f in cands])
             )
             best = (le[0], factors[g])
             for f, value in zip(cands, le[1:]):
                 if value > best[0] + 1e-9:
                     best = (value, f)
-            factors[g] = best[1]
+            factors.update(change(g, best[1]))
     sigma = prior.sigma.copy()
     all_groups = np.array([evidence_group(sp) for sp in cm.layout.specs])
     for g, f in factors.items():

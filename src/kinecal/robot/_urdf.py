@@ -23,7 +23,7 @@ from __future__ import annotations
 import re
 import warnings
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -459,8 +459,11 @@ def robot_from_urdf(
         if link is None and not _on_z(*w.lines[0]):
             # no link on the first axis: the one the arm stands on, moved onto it
             link = w.fixed_above[-1][0]
-        if link is not None:
-            return robot_from_urdf(path, base=link, tip=tip, name=name)
+        if link is not None:  # gravity stays the root's -z (a ceiling or wall mount)
+            R_root_link = dict(w.fixed_above)[link][:3, :3]
+            below = robot_from_urdf(path, base=link, tip=tip, name=name)
+            g = R_root_link.T @ below.gravity
+            return replace(below, gravity=np.where(abs(g) < 1e-9, 0.0, g))
     F0 = _onto_first_axis(w, base, src) if len(w.lines) > 1 else np.eye(4)
     _check_first_axis(w, base, tip, src)
     joints, frames, T_n_flange = _dh_joints(w, offsets, src)

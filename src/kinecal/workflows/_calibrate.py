@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from kinecal._stats import distinct_rows
-from kinecal.errors import CalibError, ConfigError, IdentifiabilityError
+from kinecal.errors import CalibError, ConfigError, DataError, IdentifiabilityError
 from kinecal.identification import (
     CalibrationOptions,
     CalibrationResult,
@@ -307,6 +307,7 @@ def _checks(
     command (which refused it only when writing model.yaml, after the cross-validation;
     a script got it with success True)."""
     from kinecal.identification._gravity_check import gravity_check
+    from kinecal.identification._mirror import mirrored_frame
     from kinecal.io._checks import lone_labels
     from kinecal.io._model_bounds import check_result
 
@@ -317,7 +318,51 @@ def _checks(
     found = gravity_check(result, meas)
     if found is not None:
         result.diagnostics.append(found)
-    check_result(result.calibrated, str(meas.source))
+    mirror = mirrored_frame(result, meas)
+    if mirror is not None:
+        raise DataError(mirror)
+    try:
+        check_result(result.calibrated, str(meas.source))
+    except DataError as exc:
+        raise DataError(
+            _loose_beyond(result, opts, str(meas.source)) or str(exc)
+        ) from None
+
+
+def _loose_beyond(
+    result: CalibrationResult, opts: CalibrationOptions, source: str
+) -> str | None:
+    """The fit's parameters beyond a model file's bounds that the data hardly determine
+    without their priors (``loose_parameters``, or where a fit that did not converge
+    drifts): a fit without the priors, not the data of another robot."""
+    from kinecal.identification._options import PRIOR_GROUPS
+    from kinecal.io._model_bounds import check_value
+
+    cal = result.calibrated
+    layout = cal.model.layout
+    values = np.asarray(cal.params, float) * layout.to_file
+    codes = ("loose_parameters", "not_converged")  # the latter: where the fit drifts
+    loose = {p for d in result.diagnostics if d.code in codes for p in d.parameters}
+    beyond = []
+    held = PRIOR_GROUPS[opts.priors]
+    for name in sorted(loose, key=layout.index):
+        i = layout.index(name)
+        if layout.specs[i].group in held:  # it had a prior: the data are at fault
+            continue
+        try:
+            check_value(cal.model, i, float(values[i]), name)
+        except ConfigError:
+            beyond.append(f"{name} {values[i]:.6g} {layout.specs[i].unit.file_unit}")
+    if not beyond:
+        return None
+    return (
+        f"{source}: with --priors "
+        f"{opts.priors}, {', '.join(beyond)} end{'s' if len(beyond) == 1 else ''} "
+        "beyond what a model file holds: without a prior, these poses hardly determine "
+        f"{'it' if len(beyond) == 1 else 'them'} (the data need not be wrong). Keep the "
+        "priors (--priors all), or measure poses that determine "
+        f"{'it' if len(beyond) == 1 else 'them'} (kinecal plan)."
+    )
 
 
 def check_distinct_poses(

@@ -135,7 +135,59 @@ def evaluate_measurements(
     for d in ev.diagnostics:
         if d.severity == "warning":
             emit(f"warning   {d.message}")
+    hint = _setup_changed(cal, meas, refit, ev.metrics.rms_mm)
+    if hint:
+        emit(f"warning   {data_name or meas.source}: {hint}")
     return ModelEvaluation(ev, meas, refit, tuple(lines))
+
+
+# A set-up change is looked for above this RMS [mm] (a calibrated robot's held-out
+# error is below it), and named when refitting frames cuts the RMS this many times.
+SETUP_MM = 0.1
+_SETUP_FACTOR = 3.0
+_MEANS = {
+    "user": "the instrument or the part moved",
+    "tool": "the tool, probe or reflector nest re-mounted",
+}
+
+
+def _setup_changed(
+    cal: CalibratedModel, meas: Measurements, refit: tuple[str, ...], rms_mm: float
+) -> str | None:
+    """The frames whose refit on ``meas`` cuts its RMS ``_SETUP_FACTOR`` times (the
+    fewest that do, a larger set only where it does 1.2x better): errors of a set-up
+    that differs from the calibration's, printed as the robot's accuracy unsaid."""
+    import warnings
+
+    from kinecal.errors import CalibError
+    from kinecal.identification import evaluate
+
+    if not rms_mm > SETUP_MM:
+        return None
+    best: tuple[tuple[str, ...], float] | None = None
+    for extra in (("tool",), ("user",), ("user", "tool")):
+        what = tuple(dict.fromkeys((*refit, *extra)))
+        if set(what) == set(refit):
+            continue
+        try:
+            check_refit_poses(meas, what)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                got = evaluate(cal, meas, refit=what).metrics.rms_mm
+        except (CalibError, ValueError, np.linalg.LinAlgError):
+            continue
+        if got * _SETUP_FACTOR < rms_mm and (best is None or got * 1.2 < best[1]):
+            best = (what, got)
+    if best is None:
+        return None
+    what, got = best
+    new = [w for w in what if w not in refit]
+    return (
+        f"refitting the {' and '.join(new)} frame{'s' if len(new) > 1 else ''} on these "
+        f"rows brings the RMS from {rms_mm:.4f} to {got:.4f} mm: the set-up differs "
+        f"from the calibration's ({'; '.join(_MEANS[w] for w in new)}?). These errors "
+        f"are the set-up's, not the robot's; for a new session: --refit {','.join(what)}."
+    )
 
 
 def check_payload_column(
