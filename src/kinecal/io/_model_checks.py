@@ -1,10 +1,9 @@
 """Checks of a model file's fields beside the values' physical bounds
 (:mod:`._model_bounds`): the texts kinecal prints back (``kinecal_version``,
-``info.source``), each parameter's ``std`` against its ``status`` and its value's range,
-and the robot fingerprint as written.
+``info.source``), each parameter's ``std`` against its ``status``, and the robot
+fingerprint as written.
 
-A hand-edited file is input like any other: a ``std`` of 1e300 mm made ``plan --add``
-fail with an internal error (a singular information matrix); a ``std`` beside status
+A hand-edited file is input like any other: a ``std`` beside status
 ``unidentifiable`` or ``fixed`` (parameters the data did not determine: kinecal writes
 null) claimed an uncertainty no fit gave; ``info.source`` given as a list or a
 "billion laughs" alias was quoted in full in warnings.
@@ -16,7 +15,6 @@ import re
 from typing import Any
 
 from kinecal.errors import ConfigError
-from kinecal.io._model_bounds import value_bound
 from kinecal.models import CalibrationModel
 
 __all__ = ["check_std", "check_text", "stamp_as_written"]
@@ -56,8 +54,8 @@ def check_text(doc: dict[str, Any], key: str, where: str, longest: int) -> None:
 def check_std(
     model: CalibrationModel, i: int, sd: float, status: str, where: str
 ) -> None:
-    """A parameter's std (file units): >= 0, within its value's range, and given only
-    for an estimated parameter."""
+    """A parameter's std (file units): >= 0, and given only for an estimated parameter
+    (a large one is kinecal's own: a marker seen in one pose, 9e6 mm)."""
     ps = model.layout.specs[i]
     unit = ps.unit.file_unit
     if sd < 0:
@@ -69,10 +67,4 @@ def check_std(
             f"{where}: {sd:g} {unit}, but status is {status!r} (the data did not "
             "determine it: no standard deviation); expected null, or status "
             "'estimated'."
-        )
-    bound, what = value_bound(model, i)
-    if bound is not None and sd > bound:
-        raise ConfigError(
-            f"{where}: {sd:g} {unit}; expected a standard deviation within {bound:g} "
-            f"{unit} (the range of {what}; a typing error or a damaged file?)."
         )
