@@ -91,6 +91,7 @@ def test_damaged_targets_are_refused(tmp_path, name, text, needles):
         ("a.src", SRC),
         # a variable or an expression in a list is not a damaged value
         ("b.script", SCRIPT + "  movej([infeed, -1.2, 1.4, -1.8, -1.5, nano])\n"),
+        ("c.script", SCRIPT.replace("a=1.4, v=1.05)", "a=1.4, v=inf)", 1)),
     ],
 )
 def test_sound_programs_still_read(tmp_path, name, text):

@@ -21,9 +21,10 @@ from kinecal.errors import DataError
 __all__ = ["check_positions", "check_values"]
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
-# nan / inf where a value stands: after '[', ',', '{', '=' or a KRL axis name.
+# nan / inf where a value stands: in a list ('[', ',', '{'), after a FANUC 'Jn =' or a
+# KRL axis name (not after a URScript keyword argument: v=inf is no joint value).
 _NON_FINITE = re.compile(
-    r"(?:[\[,{=]|\b[AE]\d)[ \t]*([-+]?(?:nan|inf(?:inity)?))"
+    r"(?:[\[,{]|\bJ\d+[ \t]*=|\b[AE]\d)[ \t]*([-+]?(?:nan|inf(?:inity)?))"
     r"(?=[ \t]*(?:[,\]};]|deg\b|mm\b|$))",
     re.I | re.M,
 )
