@@ -71,3 +71,31 @@ def test_a_link_mass_beyond_the_robot_files_bound_is_refused(capsys, tmp_path, c
     f = _write(tmp_path, text)
     res = run_kinecal(capsys, *_commands(f, tmp_path)[command])
     failed_with(res, str(f), "link 'J2_link' inertial mass", "0..10000 kg", "9e+09")
+
+
+def test_like_a_vendor_revolute_joint_without_limits_is_refused(capsys, tmp_path):
+    """import-urdf refused it; export-urdf --like wrote the calibrated copy, a URDF
+    that urdfdom refuses (a revolute joint needs its limits)."""
+    from tests.cli_contract import make_point_data
+
+    data = make_point_data(tmp_path)
+    text = URDF.read_text()
+    i = text.index('<joint name="J2"')
+    a = text.index("<limit", i)
+    b = text.index("/>", a) + 2
+    f = _write(tmp_path, text[:a] + text[b:])
+    out = tmp_path / "cal.urdf"
+    res = run_kinecal(capsys, "export-urdf", data["model"], "--like", f, "--out", out)
+    failed_with(res, str(f), "joint 'J2' (revolute): no <limit>", "continuous")
+    assert not out.exists()
+
+
+def test_like_the_vendor_file_as_it_is(capsys, tmp_path):
+    from tests.cli_contract import make_point_data
+
+    data = make_point_data(tmp_path)
+    out = tmp_path / "cal.urdf"
+    res = run_kinecal(
+        capsys, "export-urdf", data["model"], "--like", URDF, "--out", out
+    )
+    assert res.code == 0, str(res)

@@ -177,3 +177,23 @@ def test_an_old_fingerprint_that_looks_like_a_number_still_matches(data, tmp_pat
     doc = {"robot_sha256": 1.234e300}
     text = "robot_sha256: 1234e300\nx: 1\n"
     assert stamp_as_written(doc, text)["robot_sha256"] == "1234e300"
+
+
+@pytest.mark.parametrize("pair", ["[-1000.0, 1000.0]", "[-600, 10]", "[10, 900]"])
+def test_calibrated_range_beyond_the_limits_is_refused(data, tmp_path, pair):
+    """A range a turn beyond the joint's limits (the data may hold at most that, with
+    --allow-out-of-limits) silenced the warnings for poses outside the calibrated
+    ranges; J1 of the LR Mate turns within [-170, 170] deg."""
+    doc = yaml.load(_text(data))
+    doc["info"]["calibrated_joint_range"][0] = yaml.load(pair)
+    m = _write(tmp_path, yaml.dump(doc, sort_keys=False))
+    with pytest.raises(ConfigError) as err:
+        load_model(m)
+    for n in [str(m), "info.calibrated_joint_range[0]", "limits [-170, 170] deg"]:
+        assert n in str(err.value), str(err.value)
+
+
+def test_calibrated_range_a_little_beyond_the_limits_reads(data, tmp_path):
+    doc = yaml.load(_text(data))
+    doc["info"]["calibrated_joint_range"][0] = [-175.0, 172.0]
+    load_model(_write(tmp_path, yaml.dump(doc, sort_keys=False)))

@@ -278,6 +278,29 @@ def _check_range(rng: Any, robot: RobotDescription, where: str) -> None:
                 f"with finite lo <= hi [{units[i]}] (the joint's range in the "
                 "calibration data)."
             )
+        _check_in_limits(pair, robot, i, f"{where}[{i}] ({robot.joint_names[i]})")
+
+
+def _check_in_limits(
+    pair: list[float], robot: RobotDescription, i: int, w: str
+) -> None:
+    """A calibrated range reaches at most a turn (a stroke, and 100 mm, for a slide)
+    beyond the joint's limits: what the data may hold with --allow-out-of-limits. One
+    beyond (a range in another unit, a typing error) silenced or faked the warnings
+    for poses outside the calibrated ranges."""
+    lo, hi = robot.limits[i]
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return
+    pris = bool(robot.prismatic[i])
+    f, unit = (1e3, "mm") if pris else (180.0 / np.pi, "deg")
+    far = max(hi - lo, 0.1) * f if pris else 360.0
+    if pair[0] < lo * f - far or pair[1] > hi * f + far:
+        raise ConfigError(
+            f"{w}: {pair!r} {unit}; expected a range within the joint's limits "
+            f"[{lo * f:.6g}, {hi * f:.6g}] {unit} (at most "
+            f"{'a stroke' if pris else 'a turn'} beyond them: the range of the "
+            "calibration data)."
+        )
 
 
 def check_result(cal: Any, source: str) -> None:
