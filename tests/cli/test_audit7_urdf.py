@@ -99,3 +99,22 @@ def test_like_the_vendor_file_as_it_is(capsys, tmp_path):
         capsys, "export-urdf", data["model"], "--like", URDF, "--out", out
     )
     assert res.code == 0, str(res)
+
+
+@pytest.mark.parametrize(
+    "args, needles",
+    [
+        (["--tip", "tool0"], ["no link 'tool0' (--tip)", "12 links: J1_link, J2_link"]),
+        (["--base", "base"], ["no link 'base' (--base)", "expected one of"]),
+        (
+            ["--base", "J3_link", "--tip", "J1_link"],
+            ["'J1_link' is not below link 'J3_link'", "goes up to 'world'"],
+        ),
+    ],
+)
+def test_a_wrong_base_or_tip_link_names_the_links(capsys, tmp_path, args, needles):
+    """The message named the missing link only ("no link 'tool0' (tip).")."""
+    out = tmp_path / "robot.yaml"
+    res = run_kinecal(capsys, "import-urdf", URDF, *args, "--out", out)
+    failed_with(res, str(URDF), *needles)
+    assert not out.exists()

@@ -248,12 +248,19 @@ def _chain(
         tip = link
     for name, what in ((base, "base"), (tip, "tip")):
         if name not in links:
-            raise ConfigError(f"{src}: no link {name!r} ({what}).")
+            some = sorted(links)
+            raise ConfigError(
+                f"{src}: no link {name!r} (--{what}); expected one of the file's "
+                f"{len(some)} links: {', '.join(some[:12])}{' ...' * (len(some) > 12)}."
+            )
     chain = []
     link = tip
     while link != base:
         if link not in by_child:
-            raise ConfigError(f"{src}: link {tip!r} is not below link {base!r}.")
+            raise ConfigError(
+                f"{src}: link {tip!r} is not below link {base!r}; expected a tip link "
+                f"below the base (the chain from {tip!r} goes up to {link!r})."
+            )
         j = by_child[link]
         chain.append(j)
         link = j.find("parent").get("link", "")  # type: ignore[union-attr]
