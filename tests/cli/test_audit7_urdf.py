@@ -118,3 +118,22 @@ def test_a_wrong_base_or_tip_link_names_the_links(capsys, tmp_path, args, needle
     res = run_kinecal(capsys, "import-urdf", URDF, *args, "--out", out)
     failed_with(res, str(URDF), *needles)
     assert not out.exists()
+
+
+@pytest.mark.parametrize("encoding", ["utf-16", "latin-1"])
+def test_like_a_vendor_file_not_in_utf8_says_so(capsys, tmp_path, encoding):
+    """The message was the codec's ("'utf-8' codec can't decode byte 0xff ...")."""
+    from tests.cli_contract import make_point_data
+
+    data = make_point_data(tmp_path)
+    text = URDF.read_text().replace("<!-- links -->", "<!-- caf\xe9 -->")
+    if encoding == "utf-16":
+        text = text.replace(
+            '<?xml version="1.0" ?>', '<?xml version="1.0" encoding="UTF-16"?>'
+        )
+    f = tmp_path / "robot.urdf"
+    f.write_bytes(text.encode(encoding))
+    out = tmp_path / "cal.urdf"
+    res = run_kinecal(capsys, "export-urdf", data["model"], "--like", f, "--out", out)
+    failed_with(res, str(f), "not UTF-8 text", "save it as UTF-8")
+    assert not out.exists()
