@@ -53,5 +53,5 @@ def test_a_cell_that_is_no_number_names_its_column(capsys, tmp_path, cal):
     res = run_kinecal(capsys, "report", d, "--out", tmp_path / "r.html")
     col = lines[0].split(",")[2]
     failed_with(
-        res, "residuals.csv", f"line 2, column '{col}'", "'abc' is not a number"
+        res, "residuals.csv", "line 2: 'abc' is not a number", f"(column '{col}')"
     )

@@ -327,8 +327,8 @@ def _bad_line(p: Path, head: list[str]) -> str | None:
                     float(cell)
                 except ValueError:
                     return (
-                        f"{p}: line {line_no}, column '{name}': {cell.strip()[:40]!r} "
-                        "is not a number."
+                        f"{p}: line {line_no}: {cell.strip()[:40]!r} is not a number "
+                        f"(column '{name}'); expected a number in every column."
                     )
     return None
 
