@@ -182,7 +182,7 @@ def _old_result(final: Path, names: list[str]) -> set[str]:
         files = doc.get("files") if isinstance(doc, dict) else None
         if isinstance(files, list):
             listed = [f for f in files if isinstance(f, str) and "/" not in f]
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):  # a damaged manifest lists nothing
         pass
     out = set(clashes(final, names))
     out.update(f for f in listed if f not in (".", "..") and (final / f).exists())

@@ -16,6 +16,7 @@ from typing import Any
 
 from kinecal._outputs import new_file_mode, refuse_input
 from kinecal.errors import DataError
+from kinecal.io._output_paths import output_file
 
 __all__ = [
     "atomic_write_bytes",
@@ -77,14 +78,14 @@ def atomic_write_bytes(
     OSError
         The file cannot be written (permissions, read-only or full file system).
     """
-    p = Path(path)
+    name, p = Path(path), output_file(path)
     if p.is_dir():
         raise IsADirectoryError(
-            f"{p}: is a folder; expected the name of a file to write."
+            f"{name}: is a folder; expected the name of a file to write."
         )
     refuse_input(p)
     if p.exists() and not force:
-        raise FileExistsError(f"{p}: exists; use --force to overwrite it.")
+        raise FileExistsError(f"{name}: exists; use --force to overwrite it.")
     p.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = _temp_file(p)
     try:
@@ -103,7 +104,7 @@ def atomic_write_bytes(
             # A failed write or fsync names no file: name the one being written.
             raise type(exc)(exc.errno, exc.strerror, str(p)) from exc
         raise
-    return p
+    return name  # (a link: the file it points to is written)
 
 
 def _temp_file(p: Path) -> tuple[int, str]:
@@ -137,7 +138,7 @@ def atomic_write_files(
     """
     from kinecal._outputs import signals_held
 
-    paths = [Path(p) for p in files]
+    paths = [output_file(p) for p in files]
     check_distinct_outputs(paths)
     for p in paths:
         if p.is_dir():
@@ -173,7 +174,7 @@ def atomic_write_files(
         for tmp in temps:
             if os.path.exists(tmp):
                 os.unlink(tmp)
-    return paths
+    return [Path(p) for p in files]  # the names given
 
 
 def check_distinct_outputs(paths: Iterable[str | Path | None]) -> None:

@@ -37,6 +37,7 @@ __all__ = [
     "document_fingerprint",
     "max_payload_kg",
     "robot_fingerprint",
+    "value_bound",
 ]
 
 # (kind, group) -> (bound on |value| in file units, what it is). Geometry rows are
@@ -82,23 +83,7 @@ def check_value(model: CalibrationModel, i: int, v: float, where: str) -> None:
     is beyond its physical range; ``where`` names the file and key."""
     ps = model.layout.specs[i]
     unit = ps.unit.file_unit
-    kind = ps.kind
-    bound: float | None = None
-    what = ""
-    if unit == "mm":
-        bound, what = _MAX_MM, "a length"
-    elif kind == "ntm":
-        bound, what = _MAX_NTM_DEG, "a transmission error amplitude"
-    elif kind == "compliance":
-        bound = compliance_bound(model.robot, ps.joint or 0)
-        what = (
-            "a joint compliance (rad per m of lever: at most 0.1 rad of deflection "
-            "at the joint's largest gravity torque)"
-        )
-    elif kind == "ratio":
-        bound, what = _MAX_RATIO, "a link mass per unit payload mass"
-    elif unit == "deg":
-        bound, what = _MAX_FRAME_DEG, "an angle of at most two turns"
+    bound, what = value_bound(model, i)
     if bound is not None and abs(v) > bound:
         raise ConfigError(
             f"{where}: {v:g} {unit}; expected {what} within {bound:g} {unit} (from "
@@ -128,6 +113,26 @@ def check_value(model: CalibrationModel, i: int, v: float, where: str) -> None:
                 f"{nominal + lim:g} mm (a calibration corrects by far less: a typing "
                 "error, or a model of another robot?)."
             )
+
+
+def value_bound(model: CalibrationModel, i: int) -> tuple[float | None, str]:
+    """(the bound on |value| of parameter ``i`` in file units or None, what it is)."""
+    ps = model.layout.specs[i]
+    unit, kind = ps.unit.file_unit, ps.kind
+    if unit == "mm":
+        return _MAX_MM, "a length"
+    if kind == "ntm":
+        return _MAX_NTM_DEG, "a transmission error amplitude"
+    if kind == "compliance":
+        return compliance_bound(model.robot, ps.joint or 0), (
+            "a joint compliance (rad per m of lever: at most 0.1 rad of deflection "
+            "at the joint's largest gravity torque)"
+        )
+    if kind == "ratio":
+        return _MAX_RATIO, "a link mass per unit payload mass"
+    if unit == "deg":
+        return _MAX_FRAME_DEG, "an angle of at most two turns"
+    return None, ""
 
 
 # The largest gravity deflection of a joint a model can hold [rad] (5.7 deg): the
@@ -273,6 +278,29 @@ def _check_range(rng: Any, robot: RobotDescription, where: str) -> None:
                 f"with finite lo <= hi [{units[i]}] (the joint's range in the "
                 "calibration data)."
             )
+        _check_in_limits(pair, robot, i, f"{where}[{i}] ({robot.joint_names[i]})")
+
+
+def _check_in_limits(
+    pair: list[float], robot: RobotDescription, i: int, w: str
+) -> None:
+    """A calibrated range reaches at most a turn (a stroke, and 100 mm, for a slide)
+    beyond the joint's limits: what the data may hold with --allow-out-of-limits. One
+    beyond (a range in another unit, a typing error) silenced or faked the warnings
+    for poses outside the calibrated ranges."""
+    lo, hi = robot.limits[i]
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return
+    pris = bool(robot.prismatic[i])
+    f, unit = (1e3, "mm") if pris else (180.0 / np.pi, "deg")
+    far = max(hi - lo, 0.1) * f if pris else 360.0
+    if pair[0] < lo * f - far or pair[1] > hi * f + far:
+        raise ConfigError(
+            f"{w}: {pair!r} {unit}; expected a range within the joint's limits "
+            f"[{lo * f:.6g}, {hi * f:.6g}] {unit} (at most "
+            f"{'a stroke' if pris else 'a turn'} beyond them: the range of the "
+            "calibration data)."
+        )
 
 
 def check_result(cal: Any, source: str) -> None:

@@ -26,6 +26,7 @@ from kinecal.io._model_bounds import (
     document_fingerprint,
     robot_fingerprint,
 )
+from kinecal.io._model_checks import check_std, check_text, stamp_as_written
 from kinecal.io._parameters import parameter_records
 from kinecal.io._yaml_plain import dump as dump_plain
 from kinecal.measurement import CalibratedModel
@@ -309,16 +310,16 @@ def _read_doc(p: Path) -> dict[str, Any]:
     from kinecal import _yaml as yaml
 
     try:
-        doc = yaml.load(text, exponents=False)  # its own writing: YAML 1.1 numbers
+        doc = yaml.load(text)  # hand-typed numbers: 1e-3 as YAML 1.2 reads it
     except yaml.YAMLError as exc:
         raise ConfigError(f"{p}: not valid YAML ({exc}).".replace("\n", " ")) from None
-    return _checked_doc(doc, p)
+    return _checked_doc(stamp_as_written(doc, text), p)
 
 
 def _checked_doc(doc: Any, p: Path) -> dict[str, Any]:
     if not isinstance(doc, dict) or "kinecal_model" not in doc:
         raise ConfigError(f"{p}: not a kinecal model file (no 'kinecal_model' key).")
-    if doc["kinecal_model"] != FORMAT_VERSION:
+    if type(doc["kinecal_model"]) is not int or doc["kinecal_model"] != FORMAT_VERSION:
         raise ConfigError(
             f"{p}: model format {doc['kinecal_model']!r} is not supported; expected "
             f"{FORMAT_VERSION}."
@@ -333,6 +334,7 @@ def _checked_doc(doc: Any, p: Path) -> dict[str, Any]:
             raise ConfigError(f"{p}: missing key {key!r}.")
     if not isinstance(doc.get("info") or {}, dict):
         raise ConfigError(f"{p}: info: expected a mapping; got {doc['info']!r}.")
+    check_text(doc, "kinecal_version", f"{p}: kinecal_version", 100)
     return doc
 
 
@@ -390,6 +392,7 @@ def _model_from_doc(doc: dict[str, Any], p: Path) -> CalibratedModel:
         Rc = _rotations(refs, "cam", len(spec.markers), where)
         model = model.with_references(Rb, Rc)
     check_info(doc.get("info"), robot, spec.cam_rotation, p)
+    check_text(doc.get("info") or {}, "source", f"{p}: info.source", 4096)
     values, std, status = _parameters(doc["parameters"], model, p, why)
     cal = CalibratedModel(
         model,
@@ -460,18 +463,14 @@ def _parameters(
         v = _finite(entry["value"], f"{where}.value")
         check_value(model, i, v, f"{where}.value")
         values[i] = v / to_file[i]
-        if entry.get("std") is not None:
-            sd = _finite(entry["std"], f"{where}.std")
-            if sd < 0:
-                raise ConfigError(
-                    f"{where}.std: expected a standard deviation >= 0 (or null); "
-                    f"got {sd!r}."
-                )
-            std[i] = sd / abs(to_file[i])
         st = entry.get("status", "estimated")
         if st not in STATUSES:
             raise ConfigError(
                 f"{where}.status: expected one of {', '.join(STATUSES)}; got {st!r}."
             )
+        if entry.get("std") is not None:
+            sd = _finite(entry["std"], f"{where}.std")
+            check_std(model, i, sd, st, f"{where}.std")
+            std[i] = sd / abs(to_file[i])
         status.append(st)
     return values, std, status

@@ -35,6 +35,7 @@ import numpy as np
 
 from kinecal.errors import DataError
 from kinecal.io._cartesian_base import code_only
+from kinecal.io._program_checks import check_positions, check_values
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float
 
@@ -374,8 +375,10 @@ def read_program(path: str | Path, fmt: str | None = None) -> Program:
     text = raw.decode("utf-8", errors="surrogateescape")
     try:
         code = code_only(text, fmt)
+        check_values(code, fmt)  # nan, a unit: before the reader's own messages
         points, skipped = _READERS[fmt](code)  # its own messages first
         check_complete(code, fmt)
+        check_positions(code, fmt)
     except DataError as exc:
         raise DataError(f"{p}: {exc}") from None
     if not points:

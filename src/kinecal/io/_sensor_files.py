@@ -222,7 +222,7 @@ def load_sensor(path: str | Path, *, need_planes: bool = True) -> Sensor | Camer
     if not isinstance(doc, dict) or "camera" not in doc:
         raise ConfigError(f"{p}: expected a sensor file with a 'camera' section.")
     fmt = doc.get("format", SENSOR_FORMAT)
-    if fmt != SENSOR_FORMAT:
+    if type(fmt) is not int or fmt != SENSOR_FORMAT:  # true == 1 in Python
         raise ConfigError(
             f"{p}: format: expected {SENSOR_FORMAT} (the sensor files this kinecal "
             f"reads); got {fmt!r}"

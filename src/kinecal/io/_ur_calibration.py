@@ -61,7 +61,8 @@ def ur_calibration_text(cal, *, set_label: str | None = None, comments=()) -> st
     ]
     lines = ['<robot name="ur">', '  <link name="base_link_inertia"/>']
     parent = "base_link_inertia"
-    for part, row in zip(_UR_PARTS, org):
+    lims = np.where(np.isfinite(robot.limits), robot.limits, [-2 * np.pi, 2 * np.pi])
+    for part, row, (lo, hi) in zip(_UR_PARTS, org, lims):
         o = [float(v) for v in row]
         lines += [
             f'  <link name="{part}_link"/>',
@@ -69,6 +70,7 @@ def ur_calibration_text(cal, *, set_label: str | None = None, comments=()) -> st
             f'    <parent link="{parent}"/><child link="{part}_link"/>',
             f'    <origin xyz="{o[0]!r} {o[1]!r} {o[2]!r}" rpy="{o[3]!r} {o[4]!r} {o[5]!r}"/>',
             '    <axis xyz="0 0 1"/>',
+            f'    <limit lower="{float(lo)!r}" upper="{float(hi)!r}"/>',
             "  </joint>",
         ]
         parent = f"{part}_link"

@@ -206,6 +206,11 @@ class _VendorChain:
                 )
         for k, name, kind in zip(movable, names, kinds):  # kept in the copy: checked
             lim = path[k].find("limit")
+            if kind != "continuous" and lim is None:  # as import-urdf (and urdfdom)
+                raise ConfigError(
+                    f"{src}: joint {name!r} ({kind}): no <limit>; expected <limit "
+                    "lower=.. upper=..> (a joint without limits is type 'continuous')."
+                )
             if kind != "continuous" and lim is not None:
                 lo, hi = _limits(lim, f"{src}: joint {name!r} limit")
                 check_travel(

@@ -100,7 +100,13 @@ def read_vendor(vendor: str | Path, text: str | None) -> tuple[str, ET.Element]:
     try:
         raw = Path(vendor).read_bytes().decode("utf-8") if text is None else text
         root_el = ET.fromstring(raw.lstrip("\ufeff"))
-    except (OSError, UnicodeDecodeError, ET.ParseError) as exc:
+    except UnicodeDecodeError as exc:  # UTF-16, Latin-1: written back as it was read
+        raise ConfigError(
+            f"{src}: not UTF-8 text (byte {exc.start}); expected a UTF-8 URDF for "
+            "--like (its text is written back with the calibrated joints): save it as "
+            "UTF-8."
+        ) from None
+    except (OSError, ET.ParseError) as exc:
         raise ConfigError(f"{src}: cannot read URDF ({exc}).") from exc
     if root_el.tag.rpartition("}")[2] != "robot":
         raise ConfigError(f"{src}: expected a <robot> document; got <{root_el.tag}>.")

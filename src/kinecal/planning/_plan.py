@@ -221,7 +221,8 @@ def _information_before(
     std = np.asarray(calibrated_std, np.float64)[pb.free]
     known = np.isfinite(std) & (std > 0)
     prec = pb.prior_precision.copy()
-    prec[known] = (pb.scales[known] / std[known]) ** 2
+    # at least the prior's (a std of 1e300: no information, a singular matrix)
+    prec[known] = np.maximum(prec[known], (pb.scales[known] / std[known]) ** 2)
     warnings.append(
         "without the poses measured before, their information is taken from the "
         "calibrated standard deviations alone (correlations ignored)."

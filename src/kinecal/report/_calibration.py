@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from kinecal.io._json_read import loads
 from kinecal.report import _figures as F
 from kinecal.report._certificate import certificate_html
 from kinecal.report._format import details, e, figure, num, page, ratio, table
@@ -510,7 +511,7 @@ def write_report(
     js = d / "report.json"
     check_manifest(d)
     try:
-        summary = json.loads(js.read_text(encoding="utf-8"))
+        summary = loads(js.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise DataError(
             f"{js}: not found; is {d} a folder written by kinecal calibrate?"

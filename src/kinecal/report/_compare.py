@@ -10,6 +10,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from kinecal.io._json_read import loads
 from kinecal.report._format import e, num, page, pm, ratio, table
 from kinecal.report._tables import SIGNIFICANT, name_cell
 
@@ -24,7 +25,7 @@ def _load(d: Path) -> dict[str, Any]:
         raise DataError(f"{d}: no such folder; expected a folder of kinecal calibrate.")
     man_path = d / "manifest.json"
     try:
-        man = json.loads(man_path.read_text(encoding="utf-8"))
+        man = loads(man_path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         man = {}
     except json.JSONDecodeError as exc:

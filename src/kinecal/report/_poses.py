@@ -276,7 +276,7 @@ def read_pose_errors(path: str | Path, sample: int | None = None) -> PoseErrors:
     """
     p = Path(path)
     try:
-        with open(p, encoding="utf-8") as fh:
+        with open(p, encoding="utf-8-sig") as fh:  # a byte-order mark is fine
             first = fh.readline()
     except FileNotFoundError:
         raise DataError(f"{p}: file not found.") from None
@@ -302,14 +302,15 @@ def read_pose_errors(path: str | Path, sample: int | None = None) -> PoseErrors:
         # str and a StringIO, took 0.7 GB.
         a = np.loadtxt(p, delimiter=",", skiprows=1, ndmin=2, encoding="utf-8")
     except ValueError as exc:
-        bad = _bad_line(p, len(head))
+        bad = _bad_line(p, head)
         raise DataError(bad or f"{p}: {exc}".replace("\n", " ")) from None
     return _table(p, a, head, np.arange(a.shape[0]) + 2)
 
 
-def _bad_line(p: Path, width: int) -> str | None:
-    """The message for the first line of a residuals file that is not ``width``
-    numbers (after a failed read: numpy's own text counts rows its way)."""
+def _bad_line(p: Path, head: list[str]) -> str | None:
+    """The message for the first line of a residuals file that is not a number per
+    column of ``head`` (after a failed read: numpy's own text counts rows its way)."""
+    width = len(head)
     with open(p, encoding="utf-8", errors="replace") as fh:
         next(fh, None)
         for line_no, line in enumerate(fh, start=2):
@@ -321,12 +322,13 @@ def _bad_line(p: Path, width: int) -> str | None:
                     f"{p}: line {line_no}: {len(cells)} values; expected {width}, as "
                     "the header has."
                 )
-            for cell in cells:
+            for name, cell in zip(head, cells):
                 try:
                     float(cell)
                 except ValueError:
                     return (
-                        f"{p}: line {line_no}: {cell.strip()[:40]!r} is not a number."
+                        f"{p}: line {line_no}: {cell.strip()[:40]!r} is not a number "
+                        f"(column '{name}'); expected a number in every column."
                     )
     return None
 

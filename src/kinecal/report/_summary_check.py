@@ -12,12 +12,12 @@ lists of them alike.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
 
 from kinecal.errors import DataError
+from kinecal.io._json_read import loads
 
 __all__ = ["check_manifest", "check_summary"]
 
@@ -86,7 +86,7 @@ def check_manifest(d: Path) -> None:
     from kinecal.report._poses import RESIDUALS_CSV
 
     try:
-        doc = json.loads((d / "manifest.json").read_text(encoding="utf-8"))
+        doc = loads((d / "manifest.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return
     outputs = doc.get("outputs") if isinstance(doc, dict) else None

@@ -147,8 +147,10 @@ def _mass(data: Mapping[str, Any], key: str, source: str) -> float | None:
     if data.get(key) is None:
         return None
     m = _number(data[key], f"{source}: {key}")
-    if m <= 0:
-        raise _err(f"{source}: {key}", f"expected a positive mass; got {m}.")
+    if not 0 < m <= 1e4:  # the heaviest robots carry 2.3 t; beyond: g or lb for kg
+        raise _err(
+            f"{source}: {key}", f"expected a positive mass up to 10000 kg; got {m:g}."
+        )
     return m
 
 
@@ -196,6 +198,15 @@ def _frame(d: Any, where: str, lu: float, au: float) -> np.ndarray:
             f"{where}.{k}",
             f"{v[far[0]]:g} is not a plausible offset (over {_MAX_LENGTH_M:g} m).",
         )
+    for k, x in zip("rwp", v[3:] * au):  # an Euler angle: at most 2 turns
+        if abs(x) > 4 * np.pi + 1e-9:
+            angle = "rad" if au == 1.0 else "deg"
+            also = "; did you mean 'deg'?" if angle == "rad" else "."
+            raise _err(
+                f"{where}.{k}",
+                f"{d[k]:g} {angle} is not a plausible angle (over 2 turns; units.angle "
+                f"is {angle!r}){also}",
+            )
     v[:3] *= lu
     v[3:] *= au
     return euler_transform(v)
@@ -213,13 +224,6 @@ def _frame0(d: Any, where: str, length: str, angle: str, au: float) -> np.ndarra
                 f"{where}.{k}",
                 f"{d[k]:g} {length} is not a plausible offset of a robot's frame 0 "
                 f"from its base (over 100 m; units.length is {length!r}){also}",
-            )
-        if k in "rwp" and v * au > 4 * np.pi + 1e-9:
-            also = "; did you mean 'deg'?" if angle == "rad" else "."
-            raise _err(
-                f"{where}.{k}",
-                f"{d[k]:g} {angle} is not a plausible angle (over 2 turns; units.angle "
-                f"is {angle!r}){also}",
             )
     return T
 

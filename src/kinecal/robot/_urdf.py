@@ -90,8 +90,8 @@ def _inertial(link: ET.Element | None, where: str) -> tuple[float, np.ndarray] |
         raise ConfigError(
             f"{where} mass: expected a number; got {m_el.get('value')!r}."
         ) from None
-    if not (np.isfinite(m) and m >= 0):
-        raise ConfigError(f"{where} mass: expected a mass >= 0 kg; got {m}.")
+    if not (np.isfinite(m) and 0 <= m <= 1e4):  # the robot file's bound (import)
+        raise ConfigError(f"{where} mass: expected a mass 0..10000 kg; got {m:g}.")
     o = el.find("origin")
     c = (
         _floats(o.get("xyz", "0 0 0"), 3, f"{where} origin xyz")
@@ -320,6 +320,8 @@ def _read(path: str | Path, tip: str | None) -> tuple[ET.Element, str, str | Non
             "first: xacro FILE.xacro > FILE.urdf)."
         )
     root = _plain(root)
+    if root.tag != "robot":  # an SDF, a launch file: read as a robot without joints
+        raise ConfigError(f"{p}: expected a URDF <robot> document; got <{root.tag}>.")
     text = p.read_text(errors="replace")
     if tip is None:
         m = re.search(r"kinecal tip link: (\S+)", text)

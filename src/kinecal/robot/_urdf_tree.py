@@ -45,6 +45,22 @@ def _exact_quarters(text: str, rpy: np.ndarray) -> np.ndarray:
     return out
 
 
+# A fixed rotation needs no angle beyond a turn; a URDF's angles are radians, and one
+# beyond (90, 180: 14 and 29 turns) is a degree typed as a radian (it read as another
+# rotation without a word). A turn rounded up (6.2832) is still one.
+_TURN = 2 * np.pi + 0.01
+
+
+def _check_turn(rpy: np.ndarray, where: str) -> None:
+    big = np.abs(rpy) > _TURN
+    if big.any():
+        v = float(rpy[np.argmax(big)])
+        raise ConfigError(
+            f"{where}: {v:g} rad; expected angles in radians within +-{_TURN:.4g} "
+            "(a turn; degrees given as radians?)."
+        )
+
+
 def _origin(joint: ET.Element, where: str, *, quarters: bool = False) -> np.ndarray:
     """The joint's origin; ``quarters``: rounded multiples of pi/2 made exact (import,
     :func:`_exact_quarters`)."""
@@ -53,6 +69,7 @@ def _origin(joint: ET.Element, where: str, *, quarters: bool = False) -> np.ndar
     if el is not None:
         text = el.get("rpy", "0 0 0")
         rpy = _floats(text, 3, f"{where} rpy")
+        _check_turn(rpy, f"{where} rpy")
         T[:3, :3] = rpy_to_matrix(_exact_quarters(text, rpy) if quarters else rpy)
         T[:3, 3] = _floats(el.get("xyz", "0 0 0"), 3, f"{where} xyz")
     return T
@@ -231,12 +248,19 @@ def _chain(
         tip = link
     for name, what in ((base, "base"), (tip, "tip")):
         if name not in links:
-            raise ConfigError(f"{src}: no link {name!r} ({what}).")
+            some = sorted(links)
+            raise ConfigError(
+                f"{src}: no link {name!r} (--{what}); expected one of the file's "
+                f"{len(some)} links: {', '.join(some[:12])}{' ...' * (len(some) > 12)}."
+            )
     chain = []
     link = tip
     while link != base:
         if link not in by_child:
-            raise ConfigError(f"{src}: link {tip!r} is not below link {base!r}.")
+            raise ConfigError(
+                f"{src}: link {tip!r} is not below link {base!r}; expected a tip link "
+                f"below the base (the chain from {tip!r} goes up to {link!r})."
+            )
         j = by_child[link]
         chain.append(j)
         link = j.find("parent").get("link", "")  # type: ignore[union-attr]

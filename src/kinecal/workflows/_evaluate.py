@@ -218,15 +218,15 @@ def _training_data(data: str | None, model_path: str) -> str | None:
     """The data file is the very file the model was calibrated on (its SHA-256 is the
     one manifest.json beside the model records): its figures are training errors,
     printed as if held out."""
-    import json
     from pathlib import Path
 
     from kinecal.io import file_sha256
+    from kinecal.io._json_read import loads
 
     if data is None:
         return None
     try:
-        man = json.loads((Path(model_path).parent / "manifest.json").read_text())
+        man = loads((Path(model_path).parent / "manifest.json").read_text())
         sha = man["inputs"]["data"]["sha256"]
         same = isinstance(sha, str) and file_sha256(data) == sha
     except (OSError, ValueError, KeyError, TypeError):

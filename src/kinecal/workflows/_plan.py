@@ -179,13 +179,13 @@ def joint_ranges(text: str | None, robot: RobotDescription) -> np.ndarray | None
 def calibration_noise_mm(model_file: str) -> tuple[float | None, Path]:
     """The noise per axis [mm] that the calibration of ``model_file`` found (its
     report.json beside it), and that file; None when there is none."""
-    import json
+    from kinecal.io._json_read import loads
 
     rep = Path(model_file).with_name("report.json")
     if not rep.is_file():
         return None, rep
     try:
-        noise = json.loads(rep.read_text())["noise_sigma_mm"]
+        noise = loads(rep.read_text())["noise_sigma_mm"]
         if noise is not None and not 0 < float(noise) < 1e3:  # nan too
             raise ValueError(noise)
     except (ValueError, TypeError, KeyError) as exc:  # an edited or damaged file

@@ -23,11 +23,11 @@ Say = Callable[[str], None]
 def _check_planned_robot(path: str, robot: RobotDescription) -> None:
     """A plan written by ``kinecal plan`` for another robot (its PLAN.report.json beside
     it names that robot): its poses are not ``robot``'s, even where they fit its limits."""
-    import json
+    from kinecal.io._json_read import loads
 
     rep = Path(path).with_suffix(".report.json")
     try:
-        planned = json.loads(rep.read_text(encoding="utf-8")).get("robot")
+        planned = loads(rep.read_text(encoding="utf-8")).get("robot")
     except (OSError, ValueError, AttributeError):  # no report, or not a plan's
         return
     if isinstance(planned, str) and planned != robot.name:

@@ -1,0 +1,94 @@
+"""Checks of a robot program's targets beside what its reader parses
+(:mod:`._programs`): damage the readers would pass over without a word.
+
+- A joint value written ``nan`` or ``inf`` is not a number the readers match: the
+  target (a URScript ``movej([nan, ...])``, a RAPID ``jointtarget``) was skipped as if
+  it were an expression, and the program was written back with that target
+  uncorrected and unreported.
+- A FANUC position whose joint value has another unit than ``deg`` / ``mm`` (``rad``,
+  none) was named as "joints [1, 2, 3, 4, 6] not in order".
+- A FANUC ``/POS`` section with ``P[n]`` twice (both were corrected: which one the
+  controller keeps is not said), or a move to a ``P[n]`` that ``/POS`` lacks (the
+  controller stops there: "uninitialized position").
+"""
+
+from __future__ import annotations
+
+import re
+
+from kinecal.errors import DataError
+
+__all__ = ["check_positions", "check_values"]
+
+_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+# nan / inf where a value stands: in a list ('[', ',', '{'), after a FANUC 'Jn =' or a
+# KRL axis name (not after a URScript keyword argument: v=inf is no joint value).
+_NON_FINITE = re.compile(
+    r"(?:[\[,{]|\bJ\d+[ \t]*=|\b[AE]\d)[ \t]*([-+]?(?:nan|inf(?:inity)?))"
+    r"(?=[ \t]*(?:[,\]};]|deg\b|mm\b|$))",
+    re.I | re.M,
+)
+
+
+def _line(text: str, pos: int) -> int:
+    return text.count("\n", 0, pos) + 1
+
+
+def check_values(code: str, fmt: str) -> None:
+    """Raise :class:`DataError` (``line N: ...``) for a value ``nan`` / ``inf`` or a
+    FANUC joint value in another unit; ``code``: the program without its comments."""
+    m = _NON_FINITE.search(code)
+    if m is not None:
+        raise DataError(
+            f"line {_line(code, m.start(1))}: {m.group(1)!r} is not a value a robot "
+            "can move to; expected a finite number."
+        )
+    if fmt != "fanuc-ls":
+        return
+    for n, at, body in _positions(code):
+        for j in re.finditer(rf"\bJ(\d+)\s*=\s*({_NUM})[ \t]*([A-Za-z/]*)", body):
+            if j.group(3) not in ("deg", "mm"):
+                unit = f" {j.group(3)}" if j.group(3) else " without a unit"
+                raise DataError(
+                    f"line {_line(code, at + j.start())}: P[{n}] J{j.group(1)} = "
+                    f"{j.group(2)}{unit}; expected deg (mm for a linear axis), as a "
+                    "controller writes it."
+                )
+
+
+def check_positions(code: str, fmt: str) -> None:
+    """Raise :class:`DataError` for a FANUC ``P[n]`` defined twice, or moved to but not
+    defined (checked once the program is known to be complete)."""
+    if fmt != "fanuc-ls":
+        return
+    defined: dict[int, int] = {}
+    for n, at, _ in _positions(code):
+        if n in defined:
+            raise DataError(
+                f"line {_line(code, at)}: P[{n}] is defined twice in /POS (first on "
+                f"line {defined[n]}); expected each position once."
+            )
+        defined[n] = _line(code, at)
+    pos = re.search(r"^/POS\b", code, re.M)
+    moves = r"^\s*\d+\s*:\s*[JLCA]\s+([^;\n]*)"
+    for mv in re.finditer(moves, code[: pos.start() if pos else len(code)], re.M):
+        for ref in re.finditer(r"(?<![A-Za-z])P\[\s*(\d+)", mv.group(1)):
+            if int(ref.group(1)) not in defined:
+                have = ", ".join(f"P[{k}]" for k in sorted(defined)) or "none"
+                raise DataError(
+                    f"line {_line(code, mv.start(1) + ref.start())}: a move to "
+                    f"P[{ref.group(1)}], which /POS does not define (it has {have}); "
+                    "expected every position the program moves to."
+                )
+
+
+def _positions(code: str) -> list[tuple[int, int, str]]:
+    """(n, offset, body) of each ``P[n]{ body }`` of the /POS section."""
+    pos = re.search(r"^/POS\b", code, re.M)
+    if pos is None:
+        return []
+    rec = r"\bP\[\s*(\d+)[^\]]*\]\s*\{(.*?)\}"
+    return [
+        (int(m.group(1)), pos.end() + m.start(), m.group(2))
+        for m in re.finditer(rec, code[pos.end() :], re.S)
+    ]
