@@ -457,7 +457,7 @@ def evaluate(
         if count == 1:
             _ckernel.evaluate(*args, 0, N)
         else:  # whole blocks of lanes per thread; the first part on this thread
-            lanes = _ckernel.LANES
+            lanes = _ckernel.lanes()  # the vector width in use
             bounds = [N * i // count // lanes * lanes for i in range(count)] + [N]
             pool = _executor(count - 1)
             futures = [
