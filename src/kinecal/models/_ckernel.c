@@ -559,6 +559,18 @@ PyMODINIT_FUNC PyInit__ckernel(void)
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
     __builtin_cpu_init();
 #endif
+    PyObject *built = PyTuple_New(N_WIDTHS); /* WIDTHS: the lanes of this build's widths */
+    for (int i = 0; built && i < N_WIDTHS; i++) {
+        PyObject *v = PyLong_FromLong(widths[i].lanes);
+        if (!v || PyTuple_SetItem(built, i, v) < 0) {
+            Py_CLEAR(built);
+        }
+    }
+    if (!built || PyModule_AddObject(mod, "WIDTHS", built) < 0) {
+        Py_XDECREF(built);
+        Py_DECREF(mod);
+        return NULL;
+    }
     for (int i = 0; i < N_WIDTHS; i++) { /* the widest this CPU runs */
         width_ok[i] = widths[i].cpu == NULL;
 #ifdef HAVE_WIDE
