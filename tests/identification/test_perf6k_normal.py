@@ -25,7 +25,7 @@ SPEC = ModelSpec(
 )
 
 
-@pytest.fixture(autouse=True)
+@pytest.fixture
 def _gram() -> None:
     require_compiled_kernel()
     if not getattr(_kernel._ckernel, "GRAM", 0):
@@ -63,6 +63,7 @@ def _close(a: np.ndarray, b: np.ndarray) -> None:
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * float(np.abs(b).max()))
 
 
+@pytest.mark.usefixtures("_gram")
 @pytest.mark.parametrize("weighted", [False, True])
 def test_the_compiled_products_of_a_model_jacobian_equal_blas(weighted, rng):
     J, r = _case(1001, rng)
@@ -80,6 +81,7 @@ def test_the_compiled_products_of_a_model_jacobian_equal_blas(weighted, rng):
     assert not np.tril(G, -1).any()
 
 
+@pytest.mark.usefixtures("_gram")
 @pytest.mark.parametrize(
     "pick", ["all", "a span", "some", "one"], ids=lambda s: s.replace(" ", "_")
 )
@@ -110,6 +112,7 @@ def test_normal_equations_equal_blas_for_every_choice_of_columns(
     _close(g, Xm.T @ (r * w[:, None]).reshape(-1))
 
 
+@pytest.mark.usefixtures("_gram")
 def test_a_block_of_zeros_and_zero_residuals_add_nothing(rng):
     """A column of zeros, a block of poses whose rows are all zero, and residuals of
     zero: the same as BLAS (zeros where they belong)."""
@@ -124,3 +127,20 @@ def test_a_block_of_zeros_and_zero_residuals_add_nothing(rng):
     A0, _ = _products(r, J, 0, P, None)
     _close(np.triu(G[:P, :P]), np.triu(A0))
     assert not G[2].any() and not G[:, 2].any() and not G[:, P].any()
+
+
+@pytest.mark.parametrize("cols", [[0, 1, 2, 3, 4, 5], [1, 2, 3], [0, 2, 5], [3]])
+def test_normal_equations_without_the_compiled_kernel(cols, rng, monkeypatch):
+    """An installation without the compiled kernel: BLAS's products, every column of a
+    span scaled in place or a choice of them, equal to the definition."""
+    monkeypatch.setattr(_kernel, "_ckernel", None)
+    N, c, P = 40, 3, 6
+    J = np.ascontiguousarray(rng.normal(size=(P, c, N))).transpose(2, 1, 0)
+    r = rng.normal(size=(N, c))
+    sel = np.array(cols)
+    scales = rng.uniform(0.5, 2.0, sel.size)
+    assert _kernel.gram(J, r, 0, P, None) is None
+    A, g = normal_equations(r, J, sel, scales)
+    Xm = (J[:, :, sel] * scales).reshape(-1, sel.size)
+    _close(A, Xm.T @ Xm)
+    _close(g, Xm.T @ r.reshape(-1))

@@ -133,7 +133,8 @@ def test_the_widest_width_the_cpu_runs_is_chosen(ck):
     cpuinfo = Path("/proc/cpuinfo")
     if platform.machine() != "x86_64" or not cpuinfo.is_file():
         pytest.skip("the CPU's features are read from Linux's /proc/cpuinfo on x86-64")
-    if "GCC" in platform.python_compiler():  # setuptools builds with Python's compiler
+    # setuptools builds with Python's compiler; -DKINECAL_SCALAR_KERNEL: one lane only.
+    if "GCC" in platform.python_compiler() and ck.WIDTHS != (1,):
         assert {2, 4, 8} <= set(ck.WIDTHS)
     flags = set(cpuinfo.read_text().split())
     for lanes, flag in ((4, "avx2"), (8, "avx512f")):
