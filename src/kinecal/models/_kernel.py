@@ -18,7 +18,9 @@ applies), ``numpy`` (never C), ``c`` (C required: an error where it is not built
 
 The kernel releases the interpreter lock; large batches are split over threads
 (:func:`kinecal._cpu.set_kernel_threads`; one per CPU by default, one in kinecal's worker
-processes).
+processes). It evaluates 2 poses a vector, or 4 (AVX2) or 8 (AVX-512F) where the build
+has those widths and the CPU runs them (``_ckernel.lanes()``, the widest by default):
+the same numbers on every width.
 """
 
 from __future__ import annotations
