@@ -54,7 +54,7 @@
 #define PMAX 256            /* link products */
 #define LMAX (3 + 4 * NMAX) /* link parameters */
 
-#ifndef KC_SUFFIX /* the module (the kernel's widths: at the end) */
+#ifndef KC_SUFFIX /* the module's tables and the kernel's widths (this file again) */
 
 /* Integer header: the names exported as FIELDS, in this order. */
 enum {
@@ -119,11 +119,10 @@ typedef struct {
     double *p_user, *R_uc, *theta, *J;
 } Args;
 
-
 /* ------------------------------------------------------------------ the kernel's widths */
-/* The kernel below (after the module's code, where KC_SUFFIX is defined) is compiled once
-   per vector width: this file includes itself with LANES, KC_TARGET (the instruction set
-   of its functions) and KC_SUFFIX (appended to its names) set. */
+/* The kernel (below, where KC_SUFFIX is defined) is compiled once per vector width: this
+   file includes itself with LANES, KC_TARGET (the instruction set of its functions) and
+   KC_SUFFIX (appended to its names) set. */
 #define KC_CAT_(a, b) a##b
 #define KC_CAT(a, b) KC_CAT_(a, b)
 #define KC_NAME(name) KC_CAT(name, KC_SUFFIX)
@@ -174,433 +173,9 @@ static const Width widths[] = {
 #define N_WIDTHS ((int)(sizeof widths / sizeof widths[0]))
 static int width_ok[N_WIDTHS]; /* this CPU runs it (set when the module loads) */
 static int width = 0;          /* index of the width in use */
-
-
-/* ------------------------------------------------------------------ checks, module */
-static int in_range(long long v, long long lo, long long hi) { return v >= lo && v < hi; }
-
-/* The tables lie inside their buffers and every index they hold is in range (the
-   kernel trusts them afterwards). */
-static int tables_valid(const long long *h, Py_ssize_t n_ints, Py_ssize_t n_reals)
-{
-    long long n = h[H_N], S = h[H_SETS], M = h[H_MARKERS], P = h[H_P], c = h[H_C];
-    long long nprod = h[H_NPROD], nlink = h[H_NLINK], nntm = h[H_NNTM], nb = h[H_NB];
-    if (!in_range(n, 1, NMAX + 1) || S < 1 || M < 1 || (c != 3 && c != 6) ||
-        !in_range(nprod, 0, PMAX + 1) || !in_range(nlink, 0, LMAX + 1) ||
-        !in_range(h[H_K], 0, nprod + 1) || nntm < 0 || nb < 0 || h[H_NBODIES] < 0)
-        return -1;
-    long long ints[][2] = {
-        {h[H_I_ROWIDX], 5 * n}, {h[H_I_CAMIDX], 6 * M},        {h[H_I_BASEIDX], 6 * S},
-        {h[H_I_NTMJ], nntm},    {h[H_I_BODIES], h[H_NBODIES]}, {h[H_I_PROD], 5 * nprod},
-    };
-    long long reals[][2] = {
-        {h[H_R_ROWS], 8 * n}, {h[H_R_BASE], 24 * S}, {h[H_R_CAM], 21 * M},
-        {h[H_R_LAM], n},      {h[H_R_LINK], nlink},  {h[H_R_NTM], nntm * nb},
-        {h[H_R_XSIGN], 1},
-    };
-    for (size_t i = 0; i < sizeof ints / sizeof ints[0]; i++)
-        if (ints[i][0] < H_COUNT || ints[i][0] + ints[i][1] > n_ints)
-            return -1;
-    for (size_t i = 0; i < sizeof reals / sizeof reals[0]; i++)
-        if (reals[i][0] < 0 || reals[i][0] + reals[i][1] > n_reals)
-            return -1;
-    for (long long i = 0; i < 5 * n; i++)
-        if (!in_range(h[h[H_I_ROWIDX] + i], -1, P))
-            return -1;
-    for (long long i = 0; i < 6 * M; i++) {
-        long long v = h[h[H_I_CAMIDX] + i];
-        if (!in_range(v, (i % 6 < 3 || h[H_CAM_ROT]) ? 0 : -1, P))
-            return -1;
-    }
-    for (long long i = 0; i < 6 * S; i++)
-        if (!in_range(h[h[H_I_BASEIDX] + i], 0, P))
-            return -1;
-    for (long long i = 0; i < nntm; i++)
-        if (!in_range(h[h[H_I_NTMJ] + i], 0, n))
-            return -1;
-    if (nntm && (h[H_NTM_START] < 0 || h[H_NTM_START] + nntm * nb > P))
-        return -1;
-    if (!h[H_LOAD])
-        return (nprod || nlink || h[H_LINK] || h[H_NBODIES]) ? -1 : 0;
-    if (h[H_LAM_START] < 0 || h[H_LAM_START] + n > P || h[H_LINK_START] < 0 ||
-        h[H_LINK_START] + nlink > P || !in_range(h[H_LINK], 0, 3))
-        return -1;
-    long long n_lump = h[H_LINK] == 0 ? 0 : (h[H_LINK] == 1 ? 2 : 3);
-    if (n_lump && (!in_range(h[H_SHOULDER], 1, n + 1) || !in_range(h[H_ELBOW], 1, n + 1) ||
-                   !in_range(h[H_WRIST], 0, n + 1)))
-        return -1;
-    if (n_lump + 4 * h[H_NBODIES] != nlink)
-        return -1;
-    for (long long i = 0; i < h[H_NBODIES]; i++)
-        if (!in_range(h[h[H_I_BODIES] + i], 1, n + 1))
-            return -1;
-    for (long long p = 0; p < nprod; p++) {
-        const long long *d = h + h[H_I_PROD] + 5 * p;
-        if (!in_range(d[0], 0, n) || !in_range(d[1], 0, nlink) || !in_range(d[2], 0, 4) ||
-            !in_range(d[3], 0, n + 1) || !in_range(d[4], 0, 3) || (d[2] < 2 && !n_lump))
-            return -1;
-    }
-    return 0;
-}
-
-static int need(const Py_buffer *b, Py_ssize_t count, const char *name)
-{
-    if (b->len != count * (Py_ssize_t)sizeof(double)) {
-        PyErr_Format(PyExc_ValueError, "_ckernel.evaluate: %s has %zd bytes; expected %zd",
-                     name, b->len, count * (Py_ssize_t)sizeof(double));
-        return -1;
-    }
-    return 0;
-}
-
-PyDoc_STRVAR(evaluate_doc,
-"evaluate(ints, reals, theta_c, cos_c, sin_c, basis, set_index, marker_index, p_cam,\n"
-"         load_scale, p_user, R_user_cam, theta, J, k0, k1)\n"
-"\n"
-"Evaluate poses k0 <= k < k1 in place. Inputs: the int64 header and tables, the float64\n"
-"tables, the coupled angles with their cos and sin (n, N), the NTM bases (n_ntm, nb, N),\n"
-"set and marker indices (N,) int64, p_cam (N, 3), load_scale (N,). Outputs: p_user\n"
-"(N, 3), R_user_cam (N, 3, 3) or empty, theta (n, N), J (P + K, c, N) or empty. All\n"
-"C-contiguous. Raises IndexError for a set or marker index out of range, ValueError for\n"
-"tables or arrays that do not match.");
-
-static PyObject *evaluate(PyObject *Py_UNUSED(self), PyObject *args)
-{
-    Py_buffer b[14];
-    Py_ssize_t k0, k1;
-    memset(b, 0, sizeof b);
-    if (!PyArg_ParseTuple(args, "y*y*y*y*y*y*y*y*y*y*w*w*w*w*nn", &b[0], &b[1], &b[2],
-                          &b[3], &b[4], &b[5], &b[6], &b[7], &b[8], &b[9], &b[10], &b[11],
-                          &b[12], &b[13], &k0, &k1))
-        return NULL;
-    PyObject *result = NULL;
-    Args a;
-    const long long *h = (const long long *)b[0].buf;
-    Py_ssize_t N = b[9].len / (Py_ssize_t)sizeof(double);
-    if (b[0].len < H_COUNT * (Py_ssize_t)sizeof(long long) ||
-        tables_valid(h, b[0].len / (Py_ssize_t)sizeof(long long),
-                     b[1].len / (Py_ssize_t)sizeof(double))) {
-        PyErr_SetString(PyExc_ValueError, "_ckernel.evaluate: inconsistent tables");
-        goto done;
-    }
-    long long n = h[H_N], c = h[H_C];
-    if (k0 < 0 || k1 > N || k0 > k1) {
-        PyErr_SetString(PyExc_ValueError, "_ckernel.evaluate: bad pose range");
-        goto done;
-    }
-    if (need(&b[2], n * N, "theta_c") || need(&b[3], n * N, "cos_c") ||
-        need(&b[4], n * N, "sin_c") || need(&b[5], h[H_NNTM] * h[H_NB] * N, "basis") ||
-        need(&b[6], N, "set_index") || need(&b[7], N, "marker_index") ||
-        need(&b[8], 3 * N, "p_cam") || need(&b[10], 3 * N, "p_user") ||
-        need(&b[12], n * N, "theta"))
-        goto done;
-    if (b[11].len != 0 && need(&b[11], 9 * N, "R_user_cam"))
-        goto done;
-    if (h[H_JACOBIAN] && need(&b[13], (h[H_P] + h[H_K]) * c * N, "J"))
-        goto done;
-    a.h = h;
-    a.r = (const double *)b[1].buf;
-    a.N = N;
-    a.thc = b[2].buf;
-    a.cq = b[3].buf;
-    a.sq = b[4].buf;
-    a.basis = b[5].buf;
-    a.set_index = b[6].buf;
-    a.marker_index = b[7].buf;
-    a.p_cam = b[8].buf;
-    a.load_scale = b[9].buf;
-    a.p_user = b[10].buf;
-    a.R_uc = b[11].len ? b[11].buf : NULL;
-    a.theta = b[12].buf;
-    a.J = b[13].buf;
-    for (Py_ssize_t k = k0; k < k1; k++) { /* checked first: the blocks trust them */
-        long long s = a.set_index[k], m = a.marker_index[k];
-        if (s < 0 || s >= h[H_SETS] || m < 0 || m >= h[H_MARKERS]) {
-            PyErr_Format(PyExc_IndexError,
-                         "pose %zd: set index %lld or marker index %lld out of range "
-                         "(the model has %lld sets and %lld markers)",
-                         k, s, m, h[H_SETS], h[H_MARKERS]);
-            goto done;
-        }
-    }
-    int status;
-    Py_BEGIN_ALLOW_THREADS
-    status = widths[width].run(&a, k0, k1);
-    Py_END_ALLOW_THREADS
-    if (status) {
-        PyErr_NoMemory();
-        goto done;
-    }
-    result = Py_NewRef(Py_None);
-done:
-    for (int i = 0; i < 14; i++)
-        if (b[i].obj)
-            PyBuffer_Release(&b[i]);
-    return result;
-}
-
-/* ------------------------------------------------------------------ normal equations */
-/* The products of the normal equations of a held Jacobian (kinecal.identification.
-   _normal): the upper triangle of [X; r] [X; r]^T, X the rows lo .. hi - 1 of a
-   parameter-major Jacobian J (P', c, N) (a row per parameter, its columns in (component,
-   pose) order), r (N, c) the residuals, both weighted by w (N,) per pose when given. The
-   columns are copied by blocks of GRAM_ROWS into a scratch of k + 1 contiguous rows (hot
-   in cache), whose products are summed four columns a vector in tiles of 2 x 4 outputs,
-   multiplies and adds apart (no fused multiply-adds, as the kernel). For the tall, narrow
-   products of a calibration this beats BLAS dsyrk on the same Jacobian (2000 poses x 50
-   parameters, one AVX core: 0.49-0.51 against 0.58-0.60 ms): dsyrk reads the 48
-   kB-strided rows of the Jacobian in place. AVX only (GCC and Clang on x86), chosen at run time; GRAM
-   says whether it serves, and the caller uses BLAS otherwise. The sums are in a fixed
-   order: the same numbers on every run and thread count. */
-#if (defined(__GNUC__) || defined(__clang__)) && (defined(__x86_64__) || defined(__i386__))
-#define HAVE_GRAM 1
-#include <immintrin.h>
-#define GRAM_ROWS 192 /* columns per block: (k + 1) x 192 doubles, 77 kB at k = 50 */
-
-/* A (ld, ld), row-major, upper triangle: A[idx[a], idx[b]] += (S S^T)[a, b], S (k,
-   GRAM_ROWS), idx increasing. */
-__attribute__((target("avx"))) static void gram_tiles(const double *S, Py_ssize_t k,
-                                                      const Py_ssize_t *idx, Py_ssize_t ld,
-                                                      double *A)
-{
-    for (Py_ssize_t i = 0; i < k; i += 2) {
-        const double *a0 = S + i * GRAM_ROWS, *a1 = S + (i + 1 < k ? i + 1 : i) * GRAM_ROWS;
-        for (Py_ssize_t j = i; j < k; j += 4) {
-            const double *b[4];
-            for (int v = 0; v < 4; v++)
-                b[v] = S + (j + v < k ? j + v : k - 1) * GRAM_ROWS;
-            __m256d s[2][4];
-            for (int v = 0; v < 4; v++)
-                s[0][v] = s[1][v] = _mm256_setzero_pd();
-            for (int q = 0; q < GRAM_ROWS; q += 4) {
-                __m256d x0 = _mm256_loadu_pd(a0 + q), x1 = _mm256_loadu_pd(a1 + q);
-                for (int v = 0; v < 4; v++) {
-                    __m256d y = _mm256_loadu_pd(b[v] + q);
-                    s[0][v] = _mm256_add_pd(s[0][v], _mm256_mul_pd(x0, y));
-                    s[1][v] = _mm256_add_pd(s[1][v], _mm256_mul_pd(x1, y));
-                }
-            }
-            double t[4];
-            for (int u = 0; u < 2 && i + u < k; u++)
-                for (int v = 0; v < 4 && j + v < k; v++) {
-                    if (j + v < i + u)
-                        continue; /* below the diagonal */
-                    _mm256_storeu_pd(t, s[u][v]);
-                    A[idx[i + u] * ld + idx[j + v]] += (t[0] + t[1]) + (t[2] + t[3]);
-                }
-        }
-    }
-}
-
-/* out (k + 1, k + 1) += the products of the rows lo .. lo + k - 1 of J and r. A block's
-   rows of zeros are left out of its products (they add nothing): a frame's translation in
-   its other components, the columns of the user frames and markers of other poses. idx
-   (k + 1) is scratch. */
-static void gram_run(const double *J, Py_ssize_t c, Py_ssize_t N, Py_ssize_t lo,
-                     Py_ssize_t k, const double *r, const double *w, double *S,
-                     Py_ssize_t *idx, double *out)
-{
-    for (Py_ssize_t q = 0; q < c; q++)
-        for (Py_ssize_t s0 = 0; s0 < N; s0 += GRAM_ROWS) {
-            Py_ssize_t m = N - s0 < GRAM_ROWS ? N - s0 : GRAM_ROWS, rows = 0;
-            for (Py_ssize_t i = 0; i <= k; i++) {
-                double *dst = S + rows * GRAM_ROWS;
-                if (i == k) /* the residuals, last */
-                    for (Py_ssize_t t = 0; t < m; t++)
-                        dst[t] = w ? r[(s0 + t) * c + q] * w[s0 + t] : r[(s0 + t) * c + q];
-                else if (w)
-                    for (Py_ssize_t t = 0; t < m; t++)
-                        dst[t] = J[((lo + i) * c + q) * N + s0 + t] * w[s0 + t];
-                else
-                    memcpy(dst, J + ((lo + i) * c + q) * N + s0, (size_t)m * sizeof(double));
-                if (m < GRAM_ROWS)
-                    memset(dst + m, 0, (size_t)(GRAM_ROWS - m) * sizeof(double));
-                for (Py_ssize_t t = 0; t < m; t++)
-                    if (dst[t] != 0.0) { /* NaN too */
-                        idx[rows++] = i;
-                        break;
-                    }
-            }
-            if (rows)
-                gram_tiles(S, rows, idx, k + 1, out);
-        }
-}
 #endif
 
-PyDoc_STRVAR(gram_doc,
-"gram(J, r, w, out, c, lo, hi)\n"
-"\n"
-"Add the upper triangle of [X; r] [X; r]^T to out (k + 1, k + 1), k = hi - lo: X the\n"
-"rows lo <= p < hi of the parameter-major Jacobian J (P', c, N), r (N, c) the residuals,\n"
-"both weighted by w (N,) per pose (empty: none). All float64, C-contiguous. Only where\n"
-"GRAM is 1 (RuntimeError otherwise).");
-
-static int gram_ok = 0; /* built with the AVX code and this CPU runs it */
-
-static PyObject *gram(PyObject *Py_UNUSED(self), PyObject *args)
-{
-    Py_buffer b[4];
-    Py_ssize_t c, lo, hi;
-    memset(b, 0, sizeof b);
-    if (!PyArg_ParseTuple(args, "y*y*y*w*nnn", &b[0], &b[1], &b[2], &b[3], &c, &lo, &hi))
-        return NULL;
-    PyObject *result = NULL;
-    Py_ssize_t d = (Py_ssize_t)sizeof(double), N = c > 0 ? b[1].len / d / c : 0;
-    Py_ssize_t k = hi - lo, P = c > 0 && N > 0 ? b[0].len / d / c / N : 0;
-    if (!gram_ok) {
-        PyErr_SetString(PyExc_RuntimeError, "_ckernel.gram: not available here");
-        goto done;
-    }
-    if (c < 1 || N < 1 || b[1].len != N * c * d || b[0].len != P * c * N * d || lo < 0 ||
-        hi > P || k < 1 || (b[2].len != 0 && b[2].len != N * d) ||
-        b[3].len != (k + 1) * (k + 1) * d) {
-        PyErr_SetString(PyExc_ValueError, "_ckernel.gram: arrays that do not match");
-        goto done;
-    }
-#ifdef HAVE_GRAM
-    /* The scratch on a cache line: a vector load across two lines costs twice (0.67
-       against 0.46 ms on the 16-byte boundaries of malloc). */
-    size_t row = GRAM_ROWS * sizeof(double) + sizeof(Py_ssize_t); /* and its index */
-    void *mem = malloc((size_t)(k + 1) * row + 64);
-    if (!mem) {
-        PyErr_NoMemory();
-        goto done;
-    }
-    double *S = (double *)(((uintptr_t)mem + 63) & ~(uintptr_t)63);
-    Py_ssize_t *idx = (Py_ssize_t *)(S + (k + 1) * GRAM_ROWS);
-    Py_BEGIN_ALLOW_THREADS
-    gram_run(b[0].buf, c, N, lo, k, b[1].buf, b[2].len ? b[2].buf : NULL, S, idx, b[3].buf);
-    Py_END_ALLOW_THREADS
-    free(mem);
-#endif
-    result = Py_NewRef(Py_None);
-done:
-    for (int i = 0; i < 4; i++)
-        if (b[i].obj)
-            PyBuffer_Release(&b[i]);
-    return result;
-}
-
-PyDoc_STRVAR(lanes_doc,
-"lanes(n=0)\n"
-"\n"
-"The poses per vector of evaluate() (2 the baseline; 4 with AVX2, 8 with AVX-512F where\n"
-"built and the CPU runs them: the widest is chosen when the module loads). With n > 0,\n"
-"use that width from now on (ValueError where this build or CPU has not it). Every\n"
-"width gives the same numbers.");
-
-static PyObject *lanes(PyObject *Py_UNUSED(self), PyObject *args)
-{
-    int n = 0;
-    if (!PyArg_ParseTuple(args, "|i", &n))
-        return NULL;
-    if (n > 0) {
-        int found = -1;
-        for (int i = 0; i < N_WIDTHS; i++)
-            if (widths[i].lanes == n && width_ok[i])
-                found = i;
-        if (found < 0) {
-            PyErr_Format(PyExc_ValueError, "_ckernel.lanes: %d lanes not available here", n);
-            return NULL;
-        }
-        width = found;
-    }
-    return PyLong_FromLong(widths[width].lanes);
-}
-
-static PyMethodDef methods[] = {
-    {"evaluate", evaluate, METH_VARARGS, evaluate_doc},
-    {"lanes", lanes, METH_VARARGS, lanes_doc},
-    {"gram", gram, METH_VARARGS, gram_doc},
-    {NULL, NULL, 0, NULL},
-};
-
-static struct PyModuleDef module = {
-    PyModuleDef_HEAD_INIT,
-    "_ckernel",
-    "The calibration model's forward kinematics and parameter Jacobian in compiled code "
-    "(see kinecal.models._kernel).",
-    -1,
-    methods,
-    NULL,
-    NULL,
-    NULL,
-    NULL,
-};
-
-PyMODINIT_FUNC PyInit__ckernel(void)
-{
-    PyObject *mod = PyModule_Create(&module);
-    if (!mod)
-        return NULL;
-    PyObject *fields = PyTuple_New(H_COUNT);
-    if (!fields) {
-        Py_DECREF(mod);
-        return NULL;
-    }
-    for (int i = 0; i < H_COUNT; i++) {
-        PyObject *name = PyUnicode_FromString(FIELDS[i]);
-        if (!name) {
-            Py_DECREF(fields);
-            Py_DECREF(mod);
-            return NULL;
-        }
-        if (PyTuple_SetItem(fields, i, name) < 0) { /* steals name, even on failure */
-            Py_DECREF(fields);
-            Py_DECREF(mod);
-            return NULL;
-        }
-    }
-    if (PyModule_AddObject(mod, "FIELDS", fields) < 0) {
-        Py_DECREF(fields);
-        Py_DECREF(mod);
-        return NULL;
-    }
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
-    __builtin_cpu_init();
-#endif
-    PyObject *built = PyTuple_New(N_WIDTHS); /* WIDTHS: the lanes of this build's widths */
-    for (int i = 0; built && i < N_WIDTHS; i++) {
-        PyObject *v = PyLong_FromLong(widths[i].lanes);
-        if (!v || PyTuple_SetItem(built, i, v) < 0) {
-            Py_CLEAR(built);
-        }
-    }
-    if (!built || PyModule_AddObject(mod, "WIDTHS", built) < 0) {
-        Py_XDECREF(built);
-        Py_DECREF(mod);
-        return NULL;
-    }
-    for (int i = 0; i < N_WIDTHS; i++) { /* the widest this CPU runs */
-        width_ok[i] = widths[i].cpu == NULL;
-#ifdef HAVE_WIDE
-        if (widths[i].lanes == 4)
-            width_ok[i] = __builtin_cpu_supports("avx2") != 0;
-        else if (widths[i].lanes == 8)
-            width_ok[i] = __builtin_cpu_supports("avx512f") != 0;
-#endif
-        if (width_ok[i])
-            width = i;
-    }
-    if (PyModule_AddIntConstant(mod, "MAX_JOINTS", NMAX) < 0 ||
-        PyModule_AddIntConstant(mod, "MAX_PRODUCTS", PMAX) < 0 ||
-        PyModule_AddIntConstant(mod, "MAX_LINK", LMAX) < 0 ||
-        PyModule_AddIntConstant(mod, "LANES", widths[width].lanes) < 0) {
-        Py_DECREF(mod);
-        return NULL;
-    }
-#ifdef HAVE_GRAM
-    __builtin_cpu_init();
-    gram_ok = __builtin_cpu_supports("avx") != 0;
-#endif
-    if (PyModule_AddIntConstant(mod, "GRAM", gram_ok) < 0) {
-        Py_DECREF(mod);
-        return NULL;
-    }
-    return mod;
-}
-
-#else /* KC_SUFFIX: one width of the kernel */
+#ifdef KC_SUFFIX /* one width of the kernel, included by the code above */
 /* ================================================================== the kernel */
 /* One width of the kernel (included by the code above with LANES, KC_TARGET and
    KC_SUFFIX set): its names get the suffix, so that the widths live side by side. */
@@ -1368,7 +943,6 @@ KC_TARGET static int run_blocks(const Args *in, Py_ssize_t k0, Py_ssize_t k1)
     return 0;
 }
 
-
 #undef vd
 #undef vm
 #undef vload
@@ -1396,4 +970,430 @@ KC_TARGET static int run_blocks(const Args *in, Py_ssize_t k0, Py_ssize_t k1)
 #undef LANES
 #undef KC_TARGET
 #undef KC_SUFFIX
+#else /* the module */
+
+/* ------------------------------------------------------------------ checks, module */
+static int in_range(long long v, long long lo, long long hi) { return v >= lo && v < hi; }
+
+/* The tables lie inside their buffers and every index they hold is in range (the
+   kernel trusts them afterwards). */
+static int tables_valid(const long long *h, Py_ssize_t n_ints, Py_ssize_t n_reals)
+{
+    long long n = h[H_N], S = h[H_SETS], M = h[H_MARKERS], P = h[H_P], c = h[H_C];
+    long long nprod = h[H_NPROD], nlink = h[H_NLINK], nntm = h[H_NNTM], nb = h[H_NB];
+    if (!in_range(n, 1, NMAX + 1) || S < 1 || M < 1 || (c != 3 && c != 6) ||
+        !in_range(nprod, 0, PMAX + 1) || !in_range(nlink, 0, LMAX + 1) ||
+        !in_range(h[H_K], 0, nprod + 1) || nntm < 0 || nb < 0 || h[H_NBODIES] < 0)
+        return -1;
+    long long ints[][2] = {
+        {h[H_I_ROWIDX], 5 * n}, {h[H_I_CAMIDX], 6 * M},        {h[H_I_BASEIDX], 6 * S},
+        {h[H_I_NTMJ], nntm},    {h[H_I_BODIES], h[H_NBODIES]}, {h[H_I_PROD], 5 * nprod},
+    };
+    long long reals[][2] = {
+        {h[H_R_ROWS], 8 * n}, {h[H_R_BASE], 24 * S}, {h[H_R_CAM], 21 * M},
+        {h[H_R_LAM], n},      {h[H_R_LINK], nlink},  {h[H_R_NTM], nntm * nb},
+        {h[H_R_XSIGN], 1},
+    };
+    for (size_t i = 0; i < sizeof ints / sizeof ints[0]; i++)
+        if (ints[i][0] < H_COUNT || ints[i][0] + ints[i][1] > n_ints)
+            return -1;
+    for (size_t i = 0; i < sizeof reals / sizeof reals[0]; i++)
+        if (reals[i][0] < 0 || reals[i][0] + reals[i][1] > n_reals)
+            return -1;
+    for (long long i = 0; i < 5 * n; i++)
+        if (!in_range(h[h[H_I_ROWIDX] + i], -1, P))
+            return -1;
+    for (long long i = 0; i < 6 * M; i++) {
+        long long v = h[h[H_I_CAMIDX] + i];
+        if (!in_range(v, (i % 6 < 3 || h[H_CAM_ROT]) ? 0 : -1, P))
+            return -1;
+    }
+    for (long long i = 0; i < 6 * S; i++)
+        if (!in_range(h[h[H_I_BASEIDX] + i], 0, P))
+            return -1;
+    for (long long i = 0; i < nntm; i++)
+        if (!in_range(h[h[H_I_NTMJ] + i], 0, n))
+            return -1;
+    if (nntm && (h[H_NTM_START] < 0 || h[H_NTM_START] + nntm * nb > P))
+        return -1;
+    if (!h[H_LOAD])
+        return (nprod || nlink || h[H_LINK] || h[H_NBODIES]) ? -1 : 0;
+    if (h[H_LAM_START] < 0 || h[H_LAM_START] + n > P || h[H_LINK_START] < 0 ||
+        h[H_LINK_START] + nlink > P || !in_range(h[H_LINK], 0, 3))
+        return -1;
+    long long n_lump = h[H_LINK] == 0 ? 0 : (h[H_LINK] == 1 ? 2 : 3);
+    if (n_lump && (!in_range(h[H_SHOULDER], 1, n + 1) || !in_range(h[H_ELBOW], 1, n + 1) ||
+                   !in_range(h[H_WRIST], 0, n + 1)))
+        return -1;
+    if (n_lump + 4 * h[H_NBODIES] != nlink)
+        return -1;
+    for (long long i = 0; i < h[H_NBODIES]; i++)
+        if (!in_range(h[h[H_I_BODIES] + i], 1, n + 1))
+            return -1;
+    for (long long p = 0; p < nprod; p++) {
+        const long long *d = h + h[H_I_PROD] + 5 * p;
+        if (!in_range(d[0], 0, n) || !in_range(d[1], 0, nlink) || !in_range(d[2], 0, 4) ||
+            !in_range(d[3], 0, n + 1) || !in_range(d[4], 0, 3) || (d[2] < 2 && !n_lump))
+            return -1;
+    }
+    return 0;
+}
+
+static int need(const Py_buffer *b, Py_ssize_t count, const char *name)
+{
+    if (b->len != count * (Py_ssize_t)sizeof(double)) {
+        PyErr_Format(PyExc_ValueError, "_ckernel.evaluate: %s has %zd bytes; expected %zd",
+                     name, b->len, count * (Py_ssize_t)sizeof(double));
+        return -1;
+    }
+    return 0;
+}
+
+PyDoc_STRVAR(evaluate_doc,
+"evaluate(ints, reals, theta_c, cos_c, sin_c, basis, set_index, marker_index, p_cam,\n"
+"         load_scale, p_user, R_user_cam, theta, J, k0, k1)\n"
+"\n"
+"Evaluate poses k0 <= k < k1 in place. Inputs: the int64 header and tables, the float64\n"
+"tables, the coupled angles with their cos and sin (n, N), the NTM bases (n_ntm, nb, N),\n"
+"set and marker indices (N,) int64, p_cam (N, 3), load_scale (N,). Outputs: p_user\n"
+"(N, 3), R_user_cam (N, 3, 3) or empty, theta (n, N), J (P + K, c, N) or empty. All\n"
+"C-contiguous. Raises IndexError for a set or marker index out of range, ValueError for\n"
+"tables or arrays that do not match.");
+
+static PyObject *evaluate(PyObject *Py_UNUSED(self), PyObject *args)
+{
+    Py_buffer b[14];
+    Py_ssize_t k0, k1;
+    memset(b, 0, sizeof b);
+    if (!PyArg_ParseTuple(args, "y*y*y*y*y*y*y*y*y*y*w*w*w*w*nn", &b[0], &b[1], &b[2],
+                          &b[3], &b[4], &b[5], &b[6], &b[7], &b[8], &b[9], &b[10], &b[11],
+                          &b[12], &b[13], &k0, &k1))
+        return NULL;
+    PyObject *result = NULL;
+    Args a;
+    const long long *h = (const long long *)b[0].buf;
+    Py_ssize_t N = b[9].len / (Py_ssize_t)sizeof(double);
+    if (b[0].len < H_COUNT * (Py_ssize_t)sizeof(long long) ||
+        tables_valid(h, b[0].len / (Py_ssize_t)sizeof(long long),
+                     b[1].len / (Py_ssize_t)sizeof(double))) {
+        PyErr_SetString(PyExc_ValueError, "_ckernel.evaluate: inconsistent tables");
+        goto done;
+    }
+    long long n = h[H_N], c = h[H_C];
+    if (k0 < 0 || k1 > N || k0 > k1) {
+        PyErr_SetString(PyExc_ValueError, "_ckernel.evaluate: bad pose range");
+        goto done;
+    }
+    if (need(&b[2], n * N, "theta_c") || need(&b[3], n * N, "cos_c") ||
+        need(&b[4], n * N, "sin_c") || need(&b[5], h[H_NNTM] * h[H_NB] * N, "basis") ||
+        need(&b[6], N, "set_index") || need(&b[7], N, "marker_index") ||
+        need(&b[8], 3 * N, "p_cam") || need(&b[10], 3 * N, "p_user") ||
+        need(&b[12], n * N, "theta"))
+        goto done;
+    if (b[11].len != 0 && need(&b[11], 9 * N, "R_user_cam"))
+        goto done;
+    if (h[H_JACOBIAN] && need(&b[13], (h[H_P] + h[H_K]) * c * N, "J"))
+        goto done;
+    a.h = h;
+    a.r = (const double *)b[1].buf;
+    a.N = N;
+    a.thc = b[2].buf;
+    a.cq = b[3].buf;
+    a.sq = b[4].buf;
+    a.basis = b[5].buf;
+    a.set_index = b[6].buf;
+    a.marker_index = b[7].buf;
+    a.p_cam = b[8].buf;
+    a.load_scale = b[9].buf;
+    a.p_user = b[10].buf;
+    a.R_uc = b[11].len ? b[11].buf : NULL;
+    a.theta = b[12].buf;
+    a.J = b[13].buf;
+    for (Py_ssize_t k = k0; k < k1; k++) { /* checked first: the blocks trust them */
+        long long s = a.set_index[k], m = a.marker_index[k];
+        if (s < 0 || s >= h[H_SETS] || m < 0 || m >= h[H_MARKERS]) {
+            PyErr_Format(PyExc_IndexError,
+                         "pose %zd: set index %lld or marker index %lld out of range "
+                         "(the model has %lld sets and %lld markers)",
+                         k, s, m, h[H_SETS], h[H_MARKERS]);
+            goto done;
+        }
+    }
+    int status;
+    Py_BEGIN_ALLOW_THREADS
+    status = widths[width].run(&a, k0, k1);
+    Py_END_ALLOW_THREADS
+    if (status) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    result = Py_NewRef(Py_None);
+done:
+    for (int i = 0; i < 14; i++)
+        if (b[i].obj)
+            PyBuffer_Release(&b[i]);
+    return result;
+}
+
+/* ------------------------------------------------------------------ normal equations */
+/* The products of the normal equations of a held Jacobian (kinecal.identification.
+   _normal): the upper triangle of [X; r] [X; r]^T, X the rows lo .. hi - 1 of a
+   parameter-major Jacobian J (P', c, N) (a row per parameter, its columns in (component,
+   pose) order), r (N, c) the residuals, both weighted by w (N,) per pose when given. The
+   columns are copied by blocks of GRAM_ROWS into a scratch of k + 1 contiguous rows (hot
+   in cache), whose products are summed four columns a vector in tiles of 2 x 4 outputs,
+   multiplies and adds apart (no fused multiply-adds, as the kernel). For the tall, narrow
+   products of a calibration this beats BLAS dsyrk on the same Jacobian (2000 poses x 50
+   parameters, one AVX core: 0.49-0.51 against 0.58-0.60 ms): dsyrk reads the 48
+   kB-strided rows of the Jacobian in place. AVX only (GCC and Clang on x86), chosen at run time; GRAM
+   says whether it serves, and the caller uses BLAS otherwise. The sums are in a fixed
+   order: the same numbers on every run and thread count. */
+#if (defined(__GNUC__) || defined(__clang__)) && (defined(__x86_64__) || defined(__i386__))
+#define HAVE_GRAM 1
+#include <immintrin.h>
+#define GRAM_ROWS 192 /* columns per block: (k + 1) x 192 doubles, 77 kB at k = 50 */
+
+/* A (ld, ld), row-major, upper triangle: A[idx[a], idx[b]] += (S S^T)[a, b], S (k,
+   GRAM_ROWS), idx increasing. */
+__attribute__((target("avx"))) static void gram_tiles(const double *S, Py_ssize_t k,
+                                                      const Py_ssize_t *idx, Py_ssize_t ld,
+                                                      double *A)
+{
+    for (Py_ssize_t i = 0; i < k; i += 2) {
+        const double *a0 = S + i * GRAM_ROWS, *a1 = S + (i + 1 < k ? i + 1 : i) * GRAM_ROWS;
+        for (Py_ssize_t j = i; j < k; j += 4) {
+            const double *b[4];
+            for (int v = 0; v < 4; v++)
+                b[v] = S + (j + v < k ? j + v : k - 1) * GRAM_ROWS;
+            __m256d s[2][4];
+            for (int v = 0; v < 4; v++)
+                s[0][v] = s[1][v] = _mm256_setzero_pd();
+            for (int q = 0; q < GRAM_ROWS; q += 4) {
+                __m256d x0 = _mm256_loadu_pd(a0 + q), x1 = _mm256_loadu_pd(a1 + q);
+                for (int v = 0; v < 4; v++) {
+                    __m256d y = _mm256_loadu_pd(b[v] + q);
+                    s[0][v] = _mm256_add_pd(s[0][v], _mm256_mul_pd(x0, y));
+                    s[1][v] = _mm256_add_pd(s[1][v], _mm256_mul_pd(x1, y));
+                }
+            }
+            double t[4];
+            for (int u = 0; u < 2 && i + u < k; u++)
+                for (int v = 0; v < 4 && j + v < k; v++) {
+                    if (j + v < i + u)
+                        continue; /* below the diagonal */
+                    _mm256_storeu_pd(t, s[u][v]);
+                    A[idx[i + u] * ld + idx[j + v]] += (t[0] + t[1]) + (t[2] + t[3]);
+                }
+        }
+    }
+}
+
+/* out (k + 1, k + 1) += the products of the rows lo .. lo + k - 1 of J and r. A block's
+   rows of zeros are left out of its products (they add nothing): a frame's translation in
+   its other components, the columns of the user frames and markers of other poses. idx
+   (k + 1) is scratch. */
+static void gram_run(const double *J, Py_ssize_t c, Py_ssize_t N, Py_ssize_t lo,
+                     Py_ssize_t k, const double *r, const double *w, double *S,
+                     Py_ssize_t *idx, double *out)
+{
+    for (Py_ssize_t q = 0; q < c; q++)
+        for (Py_ssize_t s0 = 0; s0 < N; s0 += GRAM_ROWS) {
+            Py_ssize_t m = N - s0 < GRAM_ROWS ? N - s0 : GRAM_ROWS, rows = 0;
+            for (Py_ssize_t i = 0; i <= k; i++) {
+                double *dst = S + rows * GRAM_ROWS;
+                if (i == k) /* the residuals, last */
+                    for (Py_ssize_t t = 0; t < m; t++)
+                        dst[t] = w ? r[(s0 + t) * c + q] * w[s0 + t] : r[(s0 + t) * c + q];
+                else if (w)
+                    for (Py_ssize_t t = 0; t < m; t++)
+                        dst[t] = J[((lo + i) * c + q) * N + s0 + t] * w[s0 + t];
+                else
+                    memcpy(dst, J + ((lo + i) * c + q) * N + s0, (size_t)m * sizeof(double));
+                if (m < GRAM_ROWS)
+                    memset(dst + m, 0, (size_t)(GRAM_ROWS - m) * sizeof(double));
+                for (Py_ssize_t t = 0; t < m; t++)
+                    if (dst[t] != 0.0) { /* NaN too */
+                        idx[rows++] = i;
+                        break;
+                    }
+            }
+            if (rows)
+                gram_tiles(S, rows, idx, k + 1, out);
+        }
+}
+#endif
+
+PyDoc_STRVAR(gram_doc,
+"gram(J, r, w, out, c, lo, hi)\n"
+"\n"
+"Add the upper triangle of [X; r] [X; r]^T to out (k + 1, k + 1), k = hi - lo: X the\n"
+"rows lo <= p < hi of the parameter-major Jacobian J (P', c, N), r (N, c) the residuals,\n"
+"both weighted by w (N,) per pose (empty: none). All float64, C-contiguous. Only where\n"
+"GRAM is 1 (RuntimeError otherwise).");
+
+static int gram_ok = 0; /* built with the AVX code and this CPU runs it */
+
+static PyObject *gram(PyObject *Py_UNUSED(self), PyObject *args)
+{
+    Py_buffer b[4];
+    Py_ssize_t c, lo, hi;
+    memset(b, 0, sizeof b);
+    if (!PyArg_ParseTuple(args, "y*y*y*w*nnn", &b[0], &b[1], &b[2], &b[3], &c, &lo, &hi))
+        return NULL;
+    PyObject *result = NULL;
+    Py_ssize_t d = (Py_ssize_t)sizeof(double), N = c > 0 ? b[1].len / d / c : 0;
+    Py_ssize_t k = hi - lo, P = c > 0 && N > 0 ? b[0].len / d / c / N : 0;
+    if (!gram_ok) {
+        PyErr_SetString(PyExc_RuntimeError, "_ckernel.gram: not available here");
+        goto done;
+    }
+    if (c < 1 || N < 1 || b[1].len != N * c * d || b[0].len != P * c * N * d || lo < 0 ||
+        hi > P || k < 1 || (b[2].len != 0 && b[2].len != N * d) ||
+        b[3].len != (k + 1) * (k + 1) * d) {
+        PyErr_SetString(PyExc_ValueError, "_ckernel.gram: arrays that do not match");
+        goto done;
+    }
+#ifdef HAVE_GRAM
+    /* The scratch on a cache line: a vector load across two lines costs twice (0.67
+       against 0.46 ms on the 16-byte boundaries of malloc). */
+    size_t row = GRAM_ROWS * sizeof(double) + sizeof(Py_ssize_t); /* and its index */
+    void *mem = malloc((size_t)(k + 1) * row + 64);
+    if (!mem) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    double *S = (double *)(((uintptr_t)mem + 63) & ~(uintptr_t)63);
+    Py_ssize_t *idx = (Py_ssize_t *)(S + (k + 1) * GRAM_ROWS);
+    Py_BEGIN_ALLOW_THREADS
+    gram_run(b[0].buf, c, N, lo, k, b[1].buf, b[2].len ? b[2].buf : NULL, S, idx, b[3].buf);
+    Py_END_ALLOW_THREADS
+    free(mem);
+#endif
+    result = Py_NewRef(Py_None);
+done:
+    for (int i = 0; i < 4; i++)
+        if (b[i].obj)
+            PyBuffer_Release(&b[i]);
+    return result;
+}
+
+PyDoc_STRVAR(lanes_doc,
+"lanes(n=0)\n"
+"\n"
+"The poses per vector of evaluate() (2 the baseline; 4 with AVX2, 8 with AVX-512F where\n"
+"built and the CPU runs them: the widest is chosen when the module loads). With n > 0,\n"
+"use that width from now on (ValueError where this build or CPU has not it). Every\n"
+"width gives the same numbers.");
+
+static PyObject *lanes(PyObject *Py_UNUSED(self), PyObject *args)
+{
+    int n = 0;
+    if (!PyArg_ParseTuple(args, "|i", &n))
+        return NULL;
+    if (n > 0) {
+        int found = -1;
+        for (int i = 0; i < N_WIDTHS; i++)
+            if (widths[i].lanes == n && width_ok[i])
+                found = i;
+        if (found < 0) {
+            PyErr_Format(PyExc_ValueError, "_ckernel.lanes: %d lanes not available here", n);
+            return NULL;
+        }
+        width = found;
+    }
+    return PyLong_FromLong(widths[width].lanes);
+}
+
+static PyMethodDef methods[] = {
+    {"evaluate", evaluate, METH_VARARGS, evaluate_doc},
+    {"lanes", lanes, METH_VARARGS, lanes_doc},
+    {"gram", gram, METH_VARARGS, gram_doc},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT,
+    "_ckernel",
+    "The calibration model's forward kinematics and parameter Jacobian in compiled code "
+    "(see kinecal.models._kernel).",
+    -1,
+    methods,
+    NULL,
+    NULL,
+    NULL,
+    NULL,
+};
+
+PyMODINIT_FUNC PyInit__ckernel(void)
+{
+    PyObject *mod = PyModule_Create(&module);
+    if (!mod)
+        return NULL;
+    PyObject *fields = PyTuple_New(H_COUNT);
+    if (!fields) {
+        Py_DECREF(mod);
+        return NULL;
+    }
+    for (int i = 0; i < H_COUNT; i++) {
+        PyObject *name = PyUnicode_FromString(FIELDS[i]);
+        if (!name) {
+            Py_DECREF(fields);
+            Py_DECREF(mod);
+            return NULL;
+        }
+        if (PyTuple_SetItem(fields, i, name) < 0) { /* steals name, even on failure */
+            Py_DECREF(fields);
+            Py_DECREF(mod);
+            return NULL;
+        }
+    }
+    if (PyModule_AddObject(mod, "FIELDS", fields) < 0) {
+        Py_DECREF(fields);
+        Py_DECREF(mod);
+        return NULL;
+    }
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+    __builtin_cpu_init();
+#endif
+    PyObject *built = PyTuple_New(N_WIDTHS); /* WIDTHS: the lanes of this build's widths */
+    for (int i = 0; built && i < N_WIDTHS; i++) {
+        PyObject *v = PyLong_FromLong(widths[i].lanes);
+        if (!v || PyTuple_SetItem(built, i, v) < 0) {
+            Py_CLEAR(built);
+        }
+    }
+    if (!built || PyModule_AddObject(mod, "WIDTHS", built) < 0) {
+        Py_XDECREF(built);
+        Py_DECREF(mod);
+        return NULL;
+    }
+    for (int i = 0; i < N_WIDTHS; i++) { /* the widest this CPU runs */
+        width_ok[i] = widths[i].cpu == NULL;
+#ifdef HAVE_WIDE
+        if (widths[i].lanes == 4)
+            width_ok[i] = __builtin_cpu_supports("avx2") != 0;
+        else if (widths[i].lanes == 8)
+            width_ok[i] = __builtin_cpu_supports("avx512f") != 0;
+#endif
+        if (width_ok[i])
+            width = i;
+    }
+    if (PyModule_AddIntConstant(mod, "MAX_JOINTS", NMAX) < 0 ||
+        PyModule_AddIntConstant(mod, "MAX_PRODUCTS", PMAX) < 0 ||
+        PyModule_AddIntConstant(mod, "MAX_LINK", LMAX) < 0 ||
+        PyModule_AddIntConstant(mod, "LANES", widths[width].lanes) < 0) {
+        Py_DECREF(mod);
+        return NULL;
+    }
+#ifdef HAVE_GRAM
+    __builtin_cpu_init();
+    gram_ok = __builtin_cpu_supports("avx") != 0;
+#endif
+    if (PyModule_AddIntConstant(mod, "GRAM", gram_ok) < 0) {
+        Py_DECREF(mod);
+        return NULL;
+    }
+    return mod;
+}
+
 #endif /* KC_SUFFIX */
