@@ -328,6 +328,8 @@ def per_pass(record: Callable[..., None], train: Path) -> None:
     times: dict[str, list[float]] = {
         k: [] for k in ("kernel", "jtj", "product", "syrk", "blocks", "forward", "gram")
     }
+    # CPU time of this thread beside the wall time: the VM's two cores are shared.
+    cpu: dict[str, list[float]] = {"kernel": [], "jtj": []}
     # The bare product numpy's matmul forms (it calls BLAS dsyrk for X @ X.T),
     # scipy's dsyrk on the same memory (Fortran order, one triangle), and dsyrk summed
     # over blocks of 256 poses (each block contiguous and cache-sized): the same work.
@@ -339,12 +341,14 @@ def per_pass(record: Callable[..., None], train: Path) -> None:
     try:
         with one_blas_thread():
             for _ in range(50):
-                t = time.perf_counter()
+                t, c = time.perf_counter(), time.thread_time()
                 model.evaluate(x, inputs, jacobian=True)
                 times["kernel"].append(time.perf_counter() - t)
-                t = time.perf_counter()
+                cpu["kernel"].append(time.thread_time() - c)
+                t, c = time.perf_counter(), time.thread_time()
                 normal_equations(r, out.J_p, cols, np.ones(model.size))
                 times["jtj"].append(time.perf_counter() - t)
+                cpu["jtj"].append(time.thread_time() - c)
                 t = time.perf_counter()
                 X @ X.T
                 times["product"].append(time.perf_counter() - t)
@@ -369,6 +373,7 @@ def per_pass(record: Callable[..., None], train: Path) -> None:
     kernel, jtj, product, syrk, by_blocks, forward, gram_s = (
         statistics.median(v) for v in times.values()
     )
+    kernel_cpu, jtj_cpu = (statistics.median(v) for v in cpu.values())
     floor = jtj_floor_seconds(3 * meas.n, model.size, rate)
     practical = min(product, syrk, by_blocks, gram_s)
     record(
@@ -386,6 +391,14 @@ def per_pass(record: Callable[..., None], train: Path) -> None:
         floor_flops=3 * meas.n * model.size * (model.size + 1),
         matmul_gflops=rate / 1e9,
         ratio_to_floor=(kernel + jtj) / floor,
+        kernel_cpu_seconds=kernel_cpu,
+        jtj_cpu_seconds=jtj_cpu,
+        cpu_ratio_to_floor=(kernel_cpu + jtj_cpu) / floor,
+        # Poses per vector of the compiled kernel (the widest the CPU runs).
+        kernel_lanes=_kernel._ckernel.lanes()
+        if hasattr(_kernel._ckernel, "lanes")
+        else None,
+        load_average=os.getloadavg()[0],
         jtj_ratio_to_floor=jtj / floor,
         # Not the target: the fastest measured JᵀJ of the same J on this core.
         jtj_practical_floor_seconds=practical,

@@ -68,13 +68,17 @@ def normal_equations(
     G = _kernel.gram(J, r, lo, hi, row_weights)
     if G is not None:  # the compiled products: one triangle, Xᵀ r its last column
         k = hi - lo
-        A = np.triu(G[:k, :k])
-        A += np.triu(A, 1).T
+        U = G[:k, :k]
+        A = U + U.T  # (G has zeros below its diagonal) and the diagonal once:
+        A.ravel()[:: k + 1] = U.diagonal()
         g = G[:k, k]
     else:
         A, g = _products(r, J, lo, hi, row_weights)
     sel = cols - lo
-    return A[np.ix_(sel, sel)] * np.outer(scales, scales), g[sel] * scales
+    outer = np.outer(scales, scales)
+    if sel.size == A.shape[0] and (sel.size < 2 or bool((np.diff(sel) == 1).all())):
+        return A * outer, g * scales  # every column of the span, in order
+    return A[np.ix_(sel, sel)] * outer, g[sel] * scales
 
 
 def _products(

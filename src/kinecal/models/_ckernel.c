@@ -17,9 +17,13 @@
  * pose with other compilers), so each arithmetic operation serves several poses, as
  * numpy's do, without numpy's temporaries. Two lanes are the width of the baseline SIMD
  * of x86-64 (SSE2) and ARM64 (NEON); four lanes built for baseline x86-64 ran 2x slower
- * (7 against 4 ms for the full model's Jacobian on 6855 poses) and gained 10-15 % only
- * where built for AVX2, which a portable build cannot assume. setup.py turns off fused
- * multiply-adds, so that every build rounds alike.
+ * (7 against 4 ms for the full model's Jacobian on 6855 poses). With GCC on x86-64 the
+ * kernel is also compiled for four lanes of AVX2 and eight of AVX-512F, and the widest
+ * that the CPU runs is chosen when the module loads (lanes()): the full model's Jacobian
+ * of 2000 poses took 0.76 ms on two lanes, 0.50 on four and 0.43 on eight (one AMD EPYC
+ * core). Each pose's arithmetic is the same operations in the same order on every width:
+ * the same numbers to the last bit. setup.py turns off fused multiply-adds, so that
+ * every build rounds alike.
  *
  * Conventions: a 3-vector is vd[3]; a frame's rotation is stored by columns,
  * R[a][comp] = component comp of axis a (x, y, z), as the numpy ChainFrames.cols.
@@ -50,23 +54,7 @@
 #define PMAX 256            /* link products */
 #define LMAX (3 + 4 * NMAX) /* link parameters */
 
-#if (defined(__GNUC__) || defined(__clang__)) && !defined(KINECAL_SCALAR_KERNEL)
-#define LANES 2
-typedef double vd __attribute__((vector_size(LANES * sizeof(double))));
-typedef long long vm __attribute__((vector_size(LANES * sizeof(double)))); /* lane masks */
-#define LANE(v, l) ((v)[l])
-#define INLINE static inline __attribute__((always_inline))
-#else /* one pose per operation: other compilers, or -DKINECAL_SCALAR_KERNEL */
-#define LANES 1
-typedef double vd;
-typedef long long vm;
-#define LANE(v, l) (v)
-#ifdef _MSC_VER
-#define INLINE static __forceinline
-#else
-#define INLINE static inline
-#endif
-#endif
+#ifndef KC_SUFFIX /* the module's tables and the kernel's widths (this file again) */
 
 /* Integer header: the names exported as FIELDS, in this order. */
 enum {
@@ -130,6 +118,105 @@ typedef struct {
     /* outputs */
     double *p_user, *R_uc, *theta, *J;
 } Args;
+
+/* ------------------------------------------------------------------ the kernel's widths */
+/* The kernel (below, where KC_SUFFIX is defined) is compiled once per vector width: this
+   file includes itself with LANES, KC_TARGET (the instruction set of its functions) and
+   KC_SUFFIX (appended to its names) set. */
+#define KC_CAT_(a, b) a##b
+#define KC_CAT(a, b) KC_CAT_(a, b)
+#define KC_NAME(name) KC_CAT(name, KC_SUFFIX)
+
+typedef int (*RunBlocks)(const Args *in, Py_ssize_t k0, Py_ssize_t k1);
+
+#if (defined(__GNUC__) || defined(__clang__)) && !defined(KINECAL_SCALAR_KERNEL)
+#define LANES 2
+#define KC_TARGET
+#define KC_SUFFIX _2
+#include "_ckernel.c"
+#define BASE_LANES 2
+#define BASE_RUN run_blocks_2
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+#define HAVE_WIDE 1
+#define LANES 4
+#define KC_TARGET __attribute__((target("avx2")))
+#define KC_SUFFIX _4
+#include "_ckernel.c"
+#define LANES 8
+#define KC_TARGET __attribute__((target("avx512f")))
+#define KC_SUFFIX _8
+#include "_ckernel.c"
+#endif
+#else /* one pose per operation: other compilers, or -DKINECAL_SCALAR_KERNEL */
+#define LANES 1
+#define KC_TARGET
+#define KC_SUFFIX _1
+#include "_ckernel.c"
+#define BASE_LANES 1
+#define BASE_RUN run_blocks_1
+#endif
+
+/* The widths this build has, narrowest first, and the one in use (lanes()). */
+typedef struct {
+    int lanes;
+    RunBlocks run;
+    const char *cpu; /* the CPU feature it needs (NULL: none) */
+} Width;
+
+static const Width widths[] = {
+    {BASE_LANES, BASE_RUN, NULL},
+#ifdef HAVE_WIDE
+    {4, run_blocks_4, "avx2"},
+    {8, run_blocks_8, "avx512f"},
+#endif
+};
+#define N_WIDTHS ((int)(sizeof widths / sizeof widths[0]))
+static int width_ok[N_WIDTHS]; /* this CPU runs it (set when the module loads) */
+static int width = 0;          /* index of the width in use */
+#endif
+
+#ifdef KC_SUFFIX /* one width of the kernel, included by the code above */
+/* ================================================================== the kernel */
+/* One width of the kernel (included by the code above with LANES, KC_TARGET and
+   KC_SUFFIX set): its names get the suffix, so that the widths live side by side. */
+#define vd KC_NAME(vd)
+#define vm KC_NAME(vm)
+#define vload KC_NAME(vload)
+#define vstore KC_NAME(vstore)
+#define vsplat KC_NAME(vsplat)
+#define vsel KC_NAME(vsel)
+#define vsqrt KC_NAME(vsqrt)
+#define gather KC_NAME(gather)
+#define cross KC_NAME(cross)
+#define dot KC_NAME(dot)
+#define scale3 KC_NAME(scale3)
+#define shift KC_NAME(shift)
+#define Chain KC_NAME(Chain)
+#define chain KC_NAME(chain)
+#define Adjoint KC_NAME(Adjoint)
+#define add_term KC_NAME(add_term)
+#define mat_apply KC_NAME(mat_apply)
+#define mat_apply_add KC_NAME(mat_apply_add)
+#define du_terms KC_NAME(du_terms)
+#define block KC_NAME(block)
+#define run_full KC_NAME(run_full)
+#define run_blocks KC_NAME(run_blocks)
+
+#if LANES > 1
+typedef double vd __attribute__((vector_size(LANES * sizeof(double))));
+typedef long long vm __attribute__((vector_size(LANES * sizeof(double)))); /* lane masks */
+#define LANE(v, l) ((v)[l])
+#define INLINE static inline __attribute__((always_inline)) KC_TARGET
+#else
+typedef double vd;
+typedef long long vm;
+#define LANE(v, l) (v)
+#ifdef _MSC_VER
+#define INLINE static __forceinline
+#else
+#define INLINE static inline
+#endif
+#endif
 
 /* ------------------------------------------------------------------ lane helpers */
 INLINE vd vload(const double *p)
@@ -780,7 +867,7 @@ INLINE void block(const Args *in, Py_ssize_t k, const int c)
 }
 
 /* Poses k0 <= k < k1, k1 - k0 a multiple of LANES. */
-static void run_full(const Args *in, Py_ssize_t k0, Py_ssize_t k1)
+KC_TARGET static void run_full(const Args *in, Py_ssize_t k0, Py_ssize_t k1)
 {
     int c = (int)in->h[H_C];
     for (Py_ssize_t k = k0; k + LANES <= k1; k += LANES) {
@@ -793,7 +880,7 @@ static void run_full(const Args *in, Py_ssize_t k0, Py_ssize_t k1)
 
 /* Poses k0 <= k < k1 in blocks of LANES; a last partial block runs on copies of its
    poses padded with the last one, and only its own lanes are copied back. */
-static int run_blocks(const Args *in, Py_ssize_t k0, Py_ssize_t k1)
+KC_TARGET static int run_blocks(const Args *in, Py_ssize_t k0, Py_ssize_t k1)
 {
     const long long *h = in->h;
     Py_ssize_t full = k0 + (k1 - k0) / LANES * LANES, N = in->N, rest = k1 - full;
@@ -855,6 +942,35 @@ static int run_blocks(const Args *in, Py_ssize_t k0, Py_ssize_t k1)
     free(buf);
     return 0;
 }
+
+#undef vd
+#undef vm
+#undef vload
+#undef vstore
+#undef vsplat
+#undef vsel
+#undef vsqrt
+#undef gather
+#undef cross
+#undef dot
+#undef scale3
+#undef shift
+#undef Chain
+#undef chain
+#undef Adjoint
+#undef add_term
+#undef mat_apply
+#undef mat_apply_add
+#undef du_terms
+#undef block
+#undef run_full
+#undef run_blocks
+#undef LANE
+#undef INLINE
+#undef LANES
+#undef KC_TARGET
+#undef KC_SUFFIX
+#else /* the module */
 
 /* ------------------------------------------------------------------ checks, module */
 static int in_range(long long v, long long lo, long long hi) { return v >= lo && v < hi; }
@@ -1005,7 +1121,7 @@ static PyObject *evaluate(PyObject *Py_UNUSED(self), PyObject *args)
     }
     int status;
     Py_BEGIN_ALLOW_THREADS
-    status = run_blocks(&a, k0, k1);
+    status = widths[width].run(&a, k0, k1);
     Py_END_ALLOW_THREADS
     if (status) {
         PyErr_NoMemory();
@@ -1037,8 +1153,10 @@ done:
 #include <immintrin.h>
 #define GRAM_ROWS 192 /* columns per block: (k + 1) x 192 doubles, 77 kB at k = 50 */
 
-/* A (k, k), row-major, upper triangle += S S^T, S (k, GRAM_ROWS). */
+/* A (ld, ld), row-major, upper triangle: A[idx[a], idx[b]] += (S S^T)[a, b], S (k,
+   GRAM_ROWS), idx increasing. */
 __attribute__((target("avx"))) static void gram_tiles(const double *S, Py_ssize_t k,
+                                                      const Py_ssize_t *idx, Py_ssize_t ld,
                                                       double *A)
 {
     for (Py_ssize_t i = 0; i < k; i += 2) {
@@ -1064,21 +1182,25 @@ __attribute__((target("avx"))) static void gram_tiles(const double *S, Py_ssize_
                     if (j + v < i + u)
                         continue; /* below the diagonal */
                     _mm256_storeu_pd(t, s[u][v]);
-                    A[(i + u) * k + j + v] += (t[0] + t[1]) + (t[2] + t[3]);
+                    A[idx[i + u] * ld + idx[j + v]] += (t[0] + t[1]) + (t[2] + t[3]);
                 }
         }
     }
 }
 
-/* out (k + 1, k + 1) += the products of the rows lo .. lo + k - 1 of J and r. */
+/* out (k + 1, k + 1) += the products of the rows lo .. lo + k - 1 of J and r. A block's
+   rows of zeros are left out of its products (they add nothing): a frame's translation in
+   its other components, the columns of the user frames and markers of other poses. idx
+   (k + 1) is scratch. */
 static void gram_run(const double *J, Py_ssize_t c, Py_ssize_t N, Py_ssize_t lo,
-                     Py_ssize_t k, const double *r, const double *w, double *S, double *out)
+                     Py_ssize_t k, const double *r, const double *w, double *S,
+                     Py_ssize_t *idx, double *out)
 {
     for (Py_ssize_t q = 0; q < c; q++)
         for (Py_ssize_t s0 = 0; s0 < N; s0 += GRAM_ROWS) {
-            Py_ssize_t m = N - s0 < GRAM_ROWS ? N - s0 : GRAM_ROWS;
+            Py_ssize_t m = N - s0 < GRAM_ROWS ? N - s0 : GRAM_ROWS, rows = 0;
             for (Py_ssize_t i = 0; i <= k; i++) {
-                double *dst = S + i * GRAM_ROWS;
+                double *dst = S + rows * GRAM_ROWS;
                 if (i == k) /* the residuals, last */
                     for (Py_ssize_t t = 0; t < m; t++)
                         dst[t] = w ? r[(s0 + t) * c + q] * w[s0 + t] : r[(s0 + t) * c + q];
@@ -1089,8 +1211,14 @@ static void gram_run(const double *J, Py_ssize_t c, Py_ssize_t N, Py_ssize_t lo,
                     memcpy(dst, J + ((lo + i) * c + q) * N + s0, (size_t)m * sizeof(double));
                 if (m < GRAM_ROWS)
                     memset(dst + m, 0, (size_t)(GRAM_ROWS - m) * sizeof(double));
+                for (Py_ssize_t t = 0; t < m; t++)
+                    if (dst[t] != 0.0) { /* NaN too */
+                        idx[rows++] = i;
+                        break;
+                    }
             }
-            gram_tiles(S, k + 1, out);
+            if (rows)
+                gram_tiles(S, rows, idx, k + 1, out);
         }
 }
 #endif
@@ -1128,14 +1256,16 @@ static PyObject *gram(PyObject *Py_UNUSED(self), PyObject *args)
 #ifdef HAVE_GRAM
     /* The scratch on a cache line: a vector load across two lines costs twice (0.67
        against 0.46 ms on the 16-byte boundaries of malloc). */
-    void *mem = malloc((size_t)(k + 1) * GRAM_ROWS * sizeof(double) + 64);
+    size_t row = GRAM_ROWS * sizeof(double) + sizeof(Py_ssize_t); /* and its index */
+    void *mem = malloc((size_t)(k + 1) * row + 64);
     if (!mem) {
         PyErr_NoMemory();
         goto done;
     }
     double *S = (double *)(((uintptr_t)mem + 63) & ~(uintptr_t)63);
+    Py_ssize_t *idx = (Py_ssize_t *)(S + (k + 1) * GRAM_ROWS);
     Py_BEGIN_ALLOW_THREADS
-    gram_run(b[0].buf, c, N, lo, k, b[1].buf, b[2].len ? b[2].buf : NULL, S, b[3].buf);
+    gram_run(b[0].buf, c, N, lo, k, b[1].buf, b[2].len ? b[2].buf : NULL, S, idx, b[3].buf);
     Py_END_ALLOW_THREADS
     free(mem);
 #endif
@@ -1147,8 +1277,36 @@ done:
     return result;
 }
 
+PyDoc_STRVAR(lanes_doc,
+"lanes(n=0)\n"
+"\n"
+"The poses per vector of evaluate() (2 the baseline; 4 with AVX2, 8 with AVX-512F where\n"
+"built and the CPU runs them: the widest is chosen when the module loads). With n > 0,\n"
+"use that width from now on (ValueError where this build or CPU has not it). Every\n"
+"width gives the same numbers.");
+
+static PyObject *lanes(PyObject *Py_UNUSED(self), PyObject *args)
+{
+    int n = 0;
+    if (!PyArg_ParseTuple(args, "|i", &n))
+        return NULL;
+    if (n > 0) {
+        int found = -1;
+        for (int i = 0; i < N_WIDTHS; i++)
+            if (widths[i].lanes == n && width_ok[i])
+                found = i;
+        if (found < 0) {
+            PyErr_Format(PyExc_ValueError, "_ckernel.lanes: %d lanes not available here", n);
+            return NULL;
+        }
+        width = found;
+    }
+    return PyLong_FromLong(widths[width].lanes);
+}
+
 static PyMethodDef methods[] = {
     {"evaluate", evaluate, METH_VARARGS, evaluate_doc},
+    {"lanes", lanes, METH_VARARGS, lanes_doc},
     {"gram", gram, METH_VARARGS, gram_doc},
     {NULL, NULL, 0, NULL},
 };
@@ -1194,10 +1352,36 @@ PyMODINIT_FUNC PyInit__ckernel(void)
         Py_DECREF(mod);
         return NULL;
     }
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+    __builtin_cpu_init();
+#endif
+    PyObject *built = PyTuple_New(N_WIDTHS); /* WIDTHS: the lanes of this build's widths */
+    for (int i = 0; built && i < N_WIDTHS; i++) {
+        PyObject *v = PyLong_FromLong(widths[i].lanes);
+        if (!v || PyTuple_SetItem(built, i, v) < 0) {
+            Py_CLEAR(built);
+        }
+    }
+    if (!built || PyModule_AddObject(mod, "WIDTHS", built) < 0) {
+        Py_XDECREF(built);
+        Py_DECREF(mod);
+        return NULL;
+    }
+    for (int i = 0; i < N_WIDTHS; i++) { /* the widest this CPU runs */
+        width_ok[i] = widths[i].cpu == NULL;
+#ifdef HAVE_WIDE
+        if (widths[i].lanes == 4)
+            width_ok[i] = __builtin_cpu_supports("avx2") != 0;
+        else if (widths[i].lanes == 8)
+            width_ok[i] = __builtin_cpu_supports("avx512f") != 0;
+#endif
+        if (width_ok[i])
+            width = i;
+    }
     if (PyModule_AddIntConstant(mod, "MAX_JOINTS", NMAX) < 0 ||
         PyModule_AddIntConstant(mod, "MAX_PRODUCTS", PMAX) < 0 ||
         PyModule_AddIntConstant(mod, "MAX_LINK", LMAX) < 0 ||
-        PyModule_AddIntConstant(mod, "LANES", LANES) < 0) {
+        PyModule_AddIntConstant(mod, "LANES", widths[width].lanes) < 0) {
         Py_DECREF(mod);
         return NULL;
     }
@@ -1211,3 +1395,5 @@ PyMODINIT_FUNC PyInit__ckernel(void)
     }
     return mod;
 }
+
+#endif /* KC_SUFFIX */

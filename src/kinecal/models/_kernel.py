@@ -18,7 +18,9 @@ applies), ``numpy`` (never C), ``c`` (C required: an error where it is not built
 
 The kernel releases the interpreter lock; large batches are split over threads
 (:func:`kinecal._cpu.set_kernel_threads`; one per CPU by default, one in kinecal's worker
-processes).
+processes). It evaluates 2 poses a vector, or 4 (AVX2) or 8 (AVX-512F) where the build
+has those widths and the CPU runs them (``_ckernel.lanes()``, the widest by default):
+the same numbers on every width.
 """
 
 from __future__ import annotations
@@ -457,7 +459,7 @@ def evaluate(
         if count == 1:
             _ckernel.evaluate(*args, 0, N)
         else:  # whole blocks of lanes per thread; the first part on this thread
-            lanes = _ckernel.LANES
+            lanes = _ckernel.lanes()  # the vector width in use
             bounds = [N * i // count // lanes * lanes for i in range(count)] + [N]
             pool = _executor(count - 1)
             futures = [
