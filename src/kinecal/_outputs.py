@@ -407,6 +407,22 @@ def _rmtree(path: Path) -> None:
     place is gone already)."""
     if not os.path.lexists(path):
         return
+    try:  # without shutil (~2 ms with bz2 and lzma) unless something fails
+        if not os.path.islink(path):  # (rmtree refuses a link)
+            _remove(path)
+            return
+    except OSError:
+        pass
     import shutil
 
     shutil.rmtree(path, ignore_errors=True)
+
+
+def _remove(path: str | Path) -> None:
+    """Remove a folder, its files and folders (links themselves, not what they name)."""
+    for entry in os.scandir(path):
+        if entry.is_dir(follow_symlinks=False):
+            _remove(entry.path)
+        else:
+            os.unlink(entry.path)
+    os.rmdir(path)

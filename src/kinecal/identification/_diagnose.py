@@ -3,11 +3,11 @@ parameters the priors determine, parameters the poses hardly determine, overfitt
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal._log import Logger
 from kinecal.identification._options import PriorSettings, RejectSettings
 from kinecal.identification._priors import build_prior
 from kinecal.identification._problem import Problem, State
@@ -21,7 +21,7 @@ from kinecal.typing import Float
 
 __all__ = ["Diagnose"]
 
-log = logging.getLogger(__name__)
+log = Logger(__name__)
 
 
 @dataclass(frozen=True)

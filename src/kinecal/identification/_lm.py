@@ -19,13 +19,13 @@ baseline.
 
 from __future__ import annotations
 
-import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from kinecal._log import Logger
 from kinecal.identification._lm_entry import check_first_evaluation, checked_start
 from kinecal.identification._normal import NormalSource, normal_equations, normal_of
 from kinecal.typing import Float
@@ -45,7 +45,7 @@ __all__ = [
     "spd_solve",
 ]
 
-log = logging.getLogger(__name__)
+log = Logger(__name__)
 
 LOSSES = ("linear", "huber", "soft_l1")
 

@@ -9,11 +9,11 @@ them.
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal._log import Logger
 from kinecal._stats import median
 from kinecal.identification._lm import Prior, loss_weights, psd_inverse
 from kinecal.identification._noise import estimate_noise
@@ -32,7 +32,7 @@ from kinecal.typing import Float
 
 __all__ = ["EvidencePriors", "Priors", "build_prior", "evidence_group"]
 
-log = logging.getLogger(__name__)
+log = Logger(__name__)
 
 _EVIDENCE_GROUPS = ("ntm", "load", "link", "joint:length", "joint:angle")
 _EVIDENCE_FACTORS = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0)

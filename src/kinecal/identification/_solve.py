@@ -8,12 +8,12 @@ where the estimate still drifts.
 
 from __future__ import annotations
 
-import logging
 import time
 from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal._log import Logger
 from kinecal.identification._frame_fit import FrameFit
 from kinecal.identification._lift import lifted_start
 from kinecal.identification._lm import (
@@ -35,7 +35,7 @@ from kinecal.typing import Float
 
 __all__ = ["SolverRun", "active_prior", "lift_kept", "run_lm", "warm_options"]
 
-log = logging.getLogger(__name__)
+log = Logger(__name__)
 
 
 def run_lm(

@@ -18,6 +18,7 @@ poses whenever a product is needed (``normal``), with the same numbers to roundi
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,8 +26,11 @@ from kinecal.geometry import so3_log, so3_right_jacobian_inv
 from kinecal.measurement import _blocks
 from kinecal.measurement._blocks import BlockJacobian
 from kinecal.measurement._measurements import Measurements
-from kinecal.models import CalibrationModel, ForwardState, ModelInputs, ModelOutput
+from kinecal.models import CalibrationModel, ModelInputs, ModelOutput
 from kinecal.typing import Float
+
+if TYPE_CHECKING:  # loaded by the numpy code only (not by the compiled kernel's)
+    from kinecal.models import ForwardState
 
 __all__ = ["ResidualBlock", "Weights", "errors_mm", "residuals"]
 
