@@ -174,7 +174,7 @@ def _apply(R: Float, v: Float) -> Float:
     return v @ R.T if R.ndim == 2 else np.einsum("nij,nj->ni", R, v)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)
 class _FrameNormal:
     """The normal equations of the frames' Jacobian columns (N, c, K) at ``cols`` of
     the model's P parameters (:class:`~kinecal.identification._normal.NormalSource`)."""
@@ -201,7 +201,7 @@ class _FrameNormal:
         return Xm.T @ Xm, Xm.T @ r.reshape(-1)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class FrameBlock:
     """A :class:`~kinecal.measurement._residuals.ResidualBlock` of a fit of the frames:
     whitened residuals, raw errors, and the normal equations of the frames' columns

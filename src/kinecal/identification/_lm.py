@@ -93,7 +93,7 @@ class LMOptions:
             raise ValueError(f"f_scale must be positive; got {self.f_scale}.")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class LMCheckpoint:
     """Where a :func:`solve_lm` run stopped on its statistical tolerance ``stol``: the
     state a run from the same start with a smaller ``stol`` continues from (its
@@ -197,7 +197,7 @@ def objective(r: Float, opts: LMOptions) -> tuple[float, Float]:
     return 0.5 * f2 * float(np.sum(rho)), drho
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Prior:
     """Independent Gaussian priors ``x_k ~ N(mean_k, sigma_k^2)``; ``inf``: no prior."""
 
@@ -289,7 +289,7 @@ def solve_lm(
     return run.result(time.perf_counter() - t0)
 
 
-@dataclass
+@dataclass(eq=False, repr=False)
 class _Objective:
     """What :func:`solve_lm` minimises: the data term of ``fun``'s residuals and the
     prior, over the free parameters ``fidx`` in scaled variables (``x = x0 + s z``)."""

@@ -85,7 +85,7 @@ _STAGE = "nominal check"
 SCREEN_FIT = FullStage(screen=True)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)
 class _FromFit:
     """The nominal check's start: the calibration's solution, with the noise its
     residuals give (pose data without sigmas), for stage 3 without the geometry priors;

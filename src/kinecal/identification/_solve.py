@@ -140,7 +140,7 @@ def run_lm(
     return out, res
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SolverRun:
     """A :func:`run_lm` run without priors that stopped on its statistical tolerance,
     for a run of the same fit with a smaller one to continue (issue 36: the stage-1

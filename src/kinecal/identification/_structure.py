@@ -35,7 +35,7 @@ _RHO_SYSTEMATIC = 0.5
 _GATHERED = 2.0 / 3.0
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Structure:
     """How the largest residuals follow the pose (:func:`residual_structure`)."""
 
@@ -100,7 +100,7 @@ def _sample(n: int, flagged: np.ndarray) -> np.ndarray:
     return np.flatnonzero(keep | flagged)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)
 class _Score:
     """A linearised fit of the full model's extra terms on some rows."""
 
