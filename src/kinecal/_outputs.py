@@ -34,6 +34,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from kinecal._record import MutableRecord
+
 __all__ = [
     "OutputTransaction",
     "begin_transaction",
@@ -213,8 +215,8 @@ def signals_held(late: list[int]) -> Iterator[None]:
             signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
-@dataclass
-class _Staged:
+@dataclass(eq=False, repr=False)
+class _Staged(MutableRecord):
     final: Path
     staging: Path
     names: list[str]
@@ -222,8 +224,8 @@ class _Staged:
     inside: bool  # staging is inside final (final existed)
 
 
-@dataclass
-class OutputTransaction:
+@dataclass(eq=False, repr=False)
+class OutputTransaction(MutableRecord):
     """Result folders staged by :func:`prepare_output_dir`, committed or discarded as a
     whole."""
 

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinecal._log import Logger
+from kinecal._record import MutableRecord, Record
 from kinecal.identification._lm_entry import check_first_evaluation, checked_start
 from kinecal.identification._normal import NormalSource, normal_equations, normal_of
 from kinecal.typing import Float
@@ -52,8 +53,8 @@ LOSSES = ("linear", "huber", "soft_l1")
 ResidualFn = Callable[[Float, bool], tuple[Float, "Float | NormalSource | None"]]
 
 
-@dataclass(frozen=True)
-class LMOptions:
+@dataclass(frozen=True, eq=False, repr=False)
+class LMOptions(Record):
     """Solver settings.
 
     Attributes
@@ -118,8 +119,8 @@ class LMCheckpoint:
     dcost: float = 0.0
 
 
-@dataclass
-class LMResult:
+@dataclass(eq=False, repr=False)
+class LMResult(MutableRecord):
     """Outcome of :func:`solve_lm`.
 
     ``normal_matrix`` is ``J_s^T W J_s`` of the free parameters in scaled variables at the

@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from kinecal._log import Logger
+from kinecal._record import Record
 from kinecal._stats import median, present
 from kinecal.identification._lm import Prior
 from kinecal.identification._press import loo_position_errors, rms_mm
@@ -234,8 +235,8 @@ def _split_z(factor: Float, red: Float) -> float:
     return best
 
 
-@dataclass(frozen=True)
-class NoiseModel:
+@dataclass(frozen=True, eq=False, repr=False)
+class NoiseModel(Record):
     """For pose data without sigmas: the orientation weight that predicts positions best
     (module docs), and stage 3 again when it changes; a ``noise_model`` diagnostic with
     the variance components either way."""

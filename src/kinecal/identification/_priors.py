@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from kinecal._log import Logger
+from kinecal._record import Record
 from kinecal._stats import median
 from kinecal.identification._lm import Prior, loss_weights, psd_inverse
 from kinecal.identification._noise import estimate_noise
@@ -68,8 +69,8 @@ def build_prior(
     return Prior(start.copy(), sigma)
 
 
-@dataclass(frozen=True)
-class Priors:
+@dataclass(frozen=True, eq=False, repr=False)
+class Priors(Record):
     """Set the priors, centred on the registered parameters.
 
     When the joint geometry has priors (or pose data need their noise), a first stage-1
@@ -175,8 +176,8 @@ def adapt_prior(
     return Prior(prior.mean, sigma), widened
 
 
-@dataclass(frozen=True)
-class EvidencePriors:
+@dataclass(frozen=True, eq=False, repr=False)
+class EvidencePriors(Record):
     """Scale the priors of the transmission, payload and link-weight terms and of the
     joint geometry (lengths, angles) by maximum evidence (:func:`evidence_prior`) and,
     when a scale changed, fit again with them (every free parameter)."""

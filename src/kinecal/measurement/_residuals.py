@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal.geometry import so3_log, so3_right_jacobian_inv
 from kinecal.measurement import _blocks
 from kinecal.measurement._blocks import BlockJacobian
@@ -35,8 +36,8 @@ if TYPE_CHECKING:  # loaded by the numpy code only (not by the compiled kernel's
 __all__ = ["ResidualBlock", "Weights", "errors_mm", "residuals"]
 
 
-@dataclass(frozen=True)
-class Weights:
+@dataclass(frozen=True, eq=False, repr=False)
+class Weights(Record):
     """Standard deviations used to whiten the residuals.
 
     Attributes
@@ -69,8 +70,8 @@ class Weights:
         )
 
 
-@dataclass(frozen=True)
-class ResidualBlock:
+@dataclass(frozen=True, eq=False, repr=False)
+class ResidualBlock(Record):
     """Whitened residuals ``r`` (N, c) and Jacobian ``J`` (N, c, P) of one evaluation.
 
     ``J`` is None when not asked for, and for large data (``blocks``, then, gives its

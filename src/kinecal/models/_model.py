@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal.errors import DataError, ModelError
 from kinecal.models import _kernel
 from kinecal.models._definition import ModelDefinition
@@ -56,8 +57,8 @@ def pass_counts() -> dict[str, int]:
     return dict(_PASSES)
 
 
-@dataclass(frozen=True)
-class ModelOutput:
+@dataclass(frozen=True, eq=False, repr=False)
+class ModelOutput(Record):
     """Model prediction for N poses.
 
     Attributes
