@@ -9,7 +9,8 @@ for ``__eq__``, ``__hash__`` and ``__repr__`` that almost nothing calls. A class
 same results, as ``dataclass`` would have written (its fields in order; ``repr`` of the
 fields with ``repr=True``, ``==`` of the same class over the fields with
 ``compare=True``, ``hash`` over ``compare`` or ``hash=True`` fields; a mutable record
-unhashable; ``...`` for a record inside its own repr).
+unhashable; ``...`` for a record inside its own repr). A dataclass with ``eq=False`` gets
+its repr alone from :class:`ReprRecord`.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import dataclasses
 import reprlib
 from typing import Any, ClassVar
 
-__all__ = ["MutableRecord", "Record"]
+__all__ = ["MutableRecord", "Record", "ReprRecord"]
 
 
 _NAMES: dict[tuple[Any, str], tuple[str, ...]] = {}
@@ -41,9 +42,9 @@ def _names(cls: Any, what: str) -> tuple[str, ...]:
     return names
 
 
-class Record:
-    """Base of a frozen ``@dataclass(frozen=True, eq=False, repr=False)``: the
-    ``__eq__``, ``__hash__`` and ``__repr__`` of ``@dataclass(frozen=True)``."""
+class ReprRecord:
+    """Base of a ``@dataclass(eq=False, repr=False)`` compared as an object (the
+    identity's ``==`` and hash): the ``__repr__`` of ``@dataclass(eq=False)``."""
 
     __slots__ = ()
 
@@ -52,6 +53,13 @@ class Record:
         names = _names(self.__class__, "repr")
         inner = ", ".join(f"{n}={getattr(self, n)!r}" for n in names)
         return f"{self.__class__.__qualname__}({inner})"
+
+
+class Record(ReprRecord):
+    """Base of a frozen ``@dataclass(frozen=True, eq=False, repr=False)``: the
+    ``__eq__``, ``__hash__`` and ``__repr__`` of ``@dataclass(frozen=True)``."""
+
+    __slots__ = ()
 
     def __eq__(self, other: object) -> bool:
         if other.__class__ is self.__class__:

@@ -94,8 +94,8 @@ class LMOptions(Record):
             raise ValueError(f"f_scale must be positive; got {self.f_scale}.")
 
 
-@dataclass(frozen=True, eq=False)
-class LMCheckpoint:
+@dataclass(frozen=True, eq=False, repr=False)
+class LMCheckpoint(Record):
     """Where a :func:`solve_lm` run stopped on its statistical tolerance ``stol``: the
     state a run from the same start with a smaller ``stol`` continues from (its
     iterates up to there are the same; ``solve_lm(..., resume=)``, issue 36).
@@ -198,8 +198,8 @@ def objective(r: Float, opts: LMOptions) -> tuple[float, Float]:
     return 0.5 * f2 * float(np.sum(rho)), drho
 
 
-@dataclass(frozen=True, eq=False)
-class Prior:
+@dataclass(frozen=True, eq=False, repr=False)
+class Prior(Record):
     """Independent Gaussian priors ``x_k ~ N(mean_k, sigma_k^2)``; ``inf``: no prior."""
 
     mean: Float
@@ -291,7 +291,7 @@ def solve_lm(
 
 
 @dataclass(eq=False, repr=False)
-class _Objective:
+class _Objective(MutableRecord):
     """What :func:`solve_lm` minimises: the data term of ``fun``'s residuals and the
     prior, over the free parameters ``fidx`` in scaled variables (``x = x0 + s z``)."""
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal._stats import quantiles
 from kinecal.identification._problem import Problem, State
 from kinecal.measurement._diagnostics import Diagnostic
@@ -35,8 +36,8 @@ _RHO_SYSTEMATIC = 0.5
 _GATHERED = 2.0 / 3.0
 
 
-@dataclass(frozen=True, eq=False)
-class Structure:
+@dataclass(frozen=True, eq=False, repr=False)
+class Structure(Record):
     """How the largest residuals follow the pose (:func:`residual_structure`)."""
 
     variable: str  # e.g. "J2's gravity load"
@@ -101,7 +102,7 @@ def _sample(n: int, flagged: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False, repr=False)
-class _Score:
+class _Score(Record):
     """A linearised fit of the full model's extra terms on some rows."""
 
     rows: np.ndarray
