@@ -273,3 +273,46 @@ def test_issue_36_main_keeps_the_callers_garbage_collection(capsys):
     before = gc.get_threshold()
     assert main(["robots"]) == 0
     assert gc.get_threshold() == before
+
+
+def test_issue_36_kinecal_messages_reach_logging_once_it_is_loaded(caplog):
+    import logging
+
+    from kinecal._log import Logger
+
+    caplog.set_level(logging.DEBUG, logger="kinecal.issue36")
+
+    def emit():
+        Logger("kinecal.issue36").debug("%s it %d", "stage", 3)
+        Logger("kinecal.issue36").info("done")
+
+    emit()
+    debug, info = caplog.records[-2:]
+    assert (debug.getMessage(), debug.levelno, debug.name) == (
+        "stage it 3",
+        logging.DEBUG,
+        "kinecal.issue36",
+    )
+    assert (info.getMessage(), info.levelno) == ("done", logging.INFO)
+    assert debug.funcName == info.funcName == "emit"  # the caller, not kinecal._log
+    assert debug.pathname == __file__
+
+
+def test_issue_36_result_trash_removed_as_shutil_would(tmp_path):
+    from kinecal._outputs import _rmtree
+
+    trash = tmp_path / "staging"
+    (trash / ".replaced" / "deeper").mkdir(parents=True)
+    for f in ("a.txt", ".replaced/manifest.json", ".replaced/deeper/b"):
+        (trash / f).write_text("x")
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (outside / "keep.txt").write_text("x")
+    (trash / "link").symlink_to(outside)  # a link inside: removed, not followed
+    _rmtree(trash)
+    assert not trash.exists() and (outside / "keep.txt").is_file()
+    linked = tmp_path / "linked"
+    linked.symlink_to(outside)  # the folder itself a link: left alone (as rmtree)
+    _rmtree(linked)
+    assert linked.is_symlink() and (outside / "keep.txt").is_file()
+    _rmtree(tmp_path / "missing")  # nothing there: quietly nothing
