@@ -316,3 +316,20 @@ def test_issue_36_result_trash_removed_as_shutil_would(tmp_path):
     _rmtree(linked)
     assert linked.is_symlink() and (outside / "keep.txt").is_file()
     _rmtree(tmp_path / "missing")  # nothing there: quietly nothing
+
+
+def test_issue_36_the_full_model_lacks_no_terms_without_a_second_build(monkeypatch):
+    from kinecal.identification import _structure
+    from kinecal.models import CalibrationModel
+    from kinecal.robot import load_robot
+
+    robot = load_robot("fanuc-lrmate200id")
+    kinematic = CalibrationModel(robot, _structure.ModelSpec.preset("kinematic"))
+    full = CalibrationModel(robot, _structure._full_spec(kinematic))
+    assert _structure._lacks_terms(kinematic)  # built: the full model has more
+
+    def build(*args):
+        raise AssertionError("built again")
+
+    monkeypatch.setattr(_structure, "CalibrationModel", build)
+    assert not _structure._lacks_terms(full)

@@ -83,6 +83,8 @@ def _full_spec(model: CalibrationModel) -> ModelSpec:
 def _lacks_terms(model: CalibrationModel) -> bool:
     """Whether the full model has terms this one lacks."""
     full = _full_spec(model)
+    if full == model.spec:  # the full model itself (no second build of its layout)
+        return False
     return not set(CalibrationModel(model.robot, full).layout.names) <= set(
         model.layout.names
     )
