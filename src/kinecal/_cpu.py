@@ -10,11 +10,13 @@ without importing one another.
 from __future__ import annotations
 
 import os
-import queue
 import threading
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import queue
 
 __all__ = [
     "DaemonPool",
@@ -85,6 +87,8 @@ class DaemonPool:
     """
 
     def __init__(self, size: int, name: str = "kinecal-kernel") -> None:
+        import queue  # here: a command on one thread starts no pool (heapq with it)
+
         self.size = size
         self._queue: queue.SimpleQueue[Call | None] = queue.SimpleQueue()
         for i in range(size):

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from kinecal._blas import one_blas_thread
+from kinecal._record import MutableRecord
 from kinecal.identification._diagnose import Diagnose
 from kinecal.identification._identifiability import (
     Identifiability,
@@ -169,8 +170,8 @@ def calibrate_problem(
         )
 
 
-@dataclass
-class CalibrationResult:
+@dataclass(eq=False, repr=False)
+class CalibrationResult(MutableRecord):
     """Everything :func:`calibrate` found.
 
     Attributes

@@ -3,11 +3,12 @@ parameters the priors determine, parameters the poses hardly determine, overfitt
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal._log import Logger
+from kinecal._record import Record
 from kinecal.identification._options import PriorSettings, RejectSettings
 from kinecal.identification._priors import build_prior
 from kinecal.identification._problem import Problem, State
@@ -21,11 +22,11 @@ from kinecal.typing import Float
 
 __all__ = ["Diagnose"]
 
-log = logging.getLogger(__name__)
+log = Logger(__name__)
 
 
-@dataclass(frozen=True)
-class Diagnose:
+@dataclass(frozen=True, eq=False, repr=False)
+class Diagnose(Record):
     """Findings about the solution: ``outliers`` (rows improbable under the noise of the
     others, by their file lines) or ``systematic_residuals`` (when the largest errors
     follow the pose), ``loose_parameters`` and ``overfit_risk`` (``prior_dominated``:

@@ -17,6 +17,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal._record import Record, ReprRecord
 from kinecal.geometry import so3_right_jacobian_inv
 from kinecal.measurement import _blocks
 from kinecal.measurement._measurements import Measurements
@@ -27,8 +28,8 @@ from kinecal.typing import Float
 __all__ = ["FrameBlock", "FrameFit"]
 
 
-@dataclass(frozen=True, eq=False)
-class FrameFit:
+@dataclass(frozen=True, eq=False, repr=False)
+class FrameFit(ReprRecord):
     """Residual blocks of one model's data with only its frames moving, from the flange
     frames at ``x``: what :class:`~kinecal.identification._problem.EvaluationCache`
     gives, with the normal equations of the frames' columns alone (no other column
@@ -174,8 +175,8 @@ def _apply(R: Float, v: Float) -> Float:
     return v @ R.T if R.ndim == 2 else np.einsum("nij,nj->ni", R, v)
 
 
-@dataclass(frozen=True)
-class _FrameNormal:
+@dataclass(frozen=True, eq=False, repr=False)
+class _FrameNormal(Record):
     """The normal equations of the frames' Jacobian columns (N, c, K) at ``cols`` of
     the model's P parameters (:class:`~kinecal.identification._normal.NormalSource`)."""
 
@@ -201,8 +202,8 @@ class _FrameNormal:
         return Xm.T @ Xm, Xm.T @ r.reshape(-1)
 
 
-@dataclass(frozen=True)
-class FrameBlock:
+@dataclass(frozen=True, eq=False, repr=False)
+class FrameBlock(Record):
     """A :class:`~kinecal.measurement._residuals.ResidualBlock` of a fit of the frames:
     whitened residuals, raw errors, and the normal equations of the frames' columns
     (``jacobian``, when asked for)."""

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kinecal._record import MutableRecord, Record
 from kinecal.models import ParameterLayout
 from kinecal.typing import Float
 
@@ -54,8 +55,8 @@ def priority_order(layout: ParameterLayout) -> np.ndarray:
     return np.array(sorted(range(layout.size), key=key), dtype=np.intp)
 
 
-@dataclass(frozen=True)
-class DroppedParameter:
+@dataclass(frozen=True, eq=False, repr=False)
+class DroppedParameter(Record):
     """An unidentifiable parameter and the kept parameters it is a combination of."""
 
     name: str
@@ -132,8 +133,8 @@ def grouped_dropped(dropped: list[DroppedParameter]) -> list[str]:
     return head + lines
 
 
-@dataclass
-class Identifiability:
+@dataclass(eq=False, repr=False)
+class Identifiability(MutableRecord):
     """Result of :func:`analyse_identifiability`.
 
     Attributes

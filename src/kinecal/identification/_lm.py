@@ -19,13 +19,14 @@ baseline.
 
 from __future__ import annotations
 
-import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from kinecal._log import Logger
+from kinecal._record import MutableRecord, Record
 from kinecal.identification._lm_entry import check_first_evaluation, checked_start
 from kinecal.identification._normal import NormalSource, normal_equations, normal_of
 from kinecal.typing import Float
@@ -45,15 +46,15 @@ __all__ = [
     "spd_solve",
 ]
 
-log = logging.getLogger(__name__)
+log = Logger(__name__)
 
 LOSSES = ("linear", "huber", "soft_l1")
 
 ResidualFn = Callable[[Float, bool], tuple[Float, "Float | NormalSource | None"]]
 
 
-@dataclass(frozen=True)
-class LMOptions:
+@dataclass(frozen=True, eq=False, repr=False)
+class LMOptions(Record):
     """Solver settings.
 
     Attributes
@@ -93,8 +94,8 @@ class LMOptions:
             raise ValueError(f"f_scale must be positive; got {self.f_scale}.")
 
 
-@dataclass(frozen=True)
-class LMCheckpoint:
+@dataclass(frozen=True, eq=False, repr=False)
+class LMCheckpoint(Record):
     """Where a :func:`solve_lm` run stopped on its statistical tolerance ``stol``: the
     state a run from the same start with a smaller ``stol`` continues from (its
     iterates up to there are the same; ``solve_lm(..., resume=)``, issue 36).
@@ -118,8 +119,8 @@ class LMCheckpoint:
     dcost: float = 0.0
 
 
-@dataclass
-class LMResult:
+@dataclass(eq=False, repr=False)
+class LMResult(MutableRecord):
     """Outcome of :func:`solve_lm`.
 
     ``normal_matrix`` is ``J_s^T W J_s`` of the free parameters in scaled variables at the
@@ -197,8 +198,8 @@ def objective(r: Float, opts: LMOptions) -> tuple[float, Float]:
     return 0.5 * f2 * float(np.sum(rho)), drho
 
 
-@dataclass(frozen=True)
-class Prior:
+@dataclass(frozen=True, eq=False, repr=False)
+class Prior(Record):
     """Independent Gaussian priors ``x_k ~ N(mean_k, sigma_k^2)``; ``inf``: no prior."""
 
     mean: Float
@@ -289,8 +290,8 @@ def solve_lm(
     return run.result(time.perf_counter() - t0)
 
 
-@dataclass
-class _Objective:
+@dataclass(eq=False, repr=False)
+class _Objective(MutableRecord):
     """What :func:`solve_lm` minimises: the data term of ``fun``'s residuals and the
     prior, over the free parameters ``fidx`` in scaled variables (``x = x0 + s z``)."""
 

@@ -25,12 +25,13 @@ the UR10 motion capture data orientations keep their weight.
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal._log import Logger
+from kinecal._record import Record
 from kinecal._stats import median, present
 from kinecal.identification._lm import Prior
 from kinecal.identification._press import loo_position_errors, rms_mm
@@ -43,7 +44,7 @@ from kinecal.typing import Float
 
 __all__ = ["NoiseModel", "estimate_noise", "helmert"]
 
-log = logging.getLogger(__name__)
+log = Logger(__name__)
 
 _FACTORS = (0.25, 0.5, 1.0, 2.0, 4.0, 10.0)
 _SPLIT_Z = 3.0
@@ -234,8 +235,8 @@ def _split_z(factor: Float, red: Float) -> float:
     return best
 
 
-@dataclass(frozen=True)
-class NoiseModel:
+@dataclass(frozen=True, eq=False, repr=False)
+class NoiseModel(Record):
     """For pose data without sigmas: the orientation weight that predicts positions best
     (module docs), and stage 3 again when it changes; a ``noise_model`` diagnostic with
     the variance components either way."""

@@ -35,6 +35,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from kinecal._blas import one_blas_thread
+from kinecal._record import Record
 from kinecal.identification._calibrate import (
     CalibrationResult,
     build_prior,
@@ -85,8 +86,8 @@ _STAGE = "nominal check"
 SCREEN_FIT = FullStage(screen=True)
 
 
-@dataclass(frozen=True)
-class _FromFit:
+@dataclass(frozen=True, eq=False, repr=False)
+class _FromFit(Record):
     """The nominal check's start: the calibration's solution, with the noise its
     residuals give (pose data without sigmas), for stage 3 without the geometry priors;
     for a model with only kinematic terms, stage 1 from there (stage 3 has nothing to

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal.identification._lm import LMOptions
 
 __all__ = [
@@ -59,8 +60,8 @@ STOL = 1e-4
 STOL_PRE = 1e-2
 
 
-@dataclass(frozen=True)
-class Tuning:
+@dataclass(frozen=True, eq=False, repr=False)
+class Tuning(Record):
     """What the stages read beyond the command line's options (issue 32): each stage's
     settings (:class:`FitSettings`, :class:`IdentifySettings`, :class:`PriorSettings`,
     :class:`RejectSettings`) take theirs from here. Defaults are what ``kinecal
@@ -121,8 +122,8 @@ class Tuning:
             raise ValueError(f"prior_scale must be positive; got {self.prior_scale!r}.")
 
 
-@dataclass(frozen=True)
-class CalibrationOptions:
+@dataclass(frozen=True, eq=False, repr=False)
+class CalibrationOptions(Record):
     """Settings of :func:`~kinecal.identification.calibrate`: what ``kinecal calibrate``
     maps from its command line, and the stages' :class:`Tuning` beyond it.
 
@@ -191,8 +192,8 @@ class CalibrationOptions:
 # (``Identify()``) reads them from the problem's options when it runs.
 
 
-@dataclass(frozen=True)
-class FitSettings:
+@dataclass(frozen=True, eq=False, repr=False)
+class FitSettings(Record):
     """What the fitting stages read: the data term's loss, where a robust loss bends
     (mm; None: three times a robust noise estimate) and the iteration limit."""
 
@@ -206,8 +207,8 @@ class FitSettings:
         return cls(options.loss, t.f_scale_mm, t.max_iter)
 
 
-@dataclass(frozen=True)
-class IdentifySettings:
+@dataclass(frozen=True, eq=False, repr=False)
+class IdentifySettings(Record):
     """The identifiability analysis' tolerances (:func:`analyse_identifiability`)."""
 
     drop_tol: float = 1e-6
@@ -218,8 +219,8 @@ class IdentifySettings:
         return cls(options.tuning.drop_tol, options.tuning.weak_tol)
 
 
-@dataclass(frozen=True)
-class PriorSettings:
+@dataclass(frozen=True, eq=False, repr=False)
+class PriorSettings(Record):
     """Which groups carry priors, per-parameter overrides, a common scale and whether
     the data adapt them (see :class:`CalibrationOptions`)."""
 
@@ -234,8 +235,8 @@ class PriorSettings:
         return cls(options.priors, t.prior_sigma, t.prior_scale, t.adapt_priors)
 
 
-@dataclass(frozen=True)
-class RejectSettings:
+@dataclass(frozen=True, eq=False, repr=False)
+class RejectSettings(Record):
     """Gross-error rejection and outlier reporting (see :class:`CalibrationOptions`):
     the fit's loss names what a kept outlier met."""
 

@@ -9,11 +9,12 @@ them.
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal._log import Logger
+from kinecal._record import Record
 from kinecal._stats import median
 from kinecal.identification._lm import Prior, loss_weights, psd_inverse
 from kinecal.identification._noise import estimate_noise
@@ -32,7 +33,7 @@ from kinecal.typing import Float
 
 __all__ = ["EvidencePriors", "Priors", "build_prior", "evidence_group"]
 
-log = logging.getLogger(__name__)
+log = Logger(__name__)
 
 _EVIDENCE_GROUPS = ("ntm", "load", "link", "joint:length", "joint:angle")
 _EVIDENCE_FACTORS = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
@@ -83,8 +84,8 @@ def _link_floor(model: CalibrationModel) -> Float:
     return np.where(link, LINK_REL * np.abs(model.nominal), 0.0)
 
 
-@dataclass(frozen=True)
-class Priors:
+@dataclass(frozen=True, eq=False, repr=False)
+class Priors(Record):
     """Set the priors, centred on the registered parameters.
 
     When the joint geometry has priors (or pose data need their noise), a first stage-1
@@ -190,8 +191,8 @@ def adapt_prior(
     return Prior(prior.mean, sigma), widened
 
 
-@dataclass(frozen=True)
-class EvidencePriors:
+@dataclass(frozen=True, eq=False, repr=False)
+class EvidencePriors(Record):
     """Scale the priors of the transmission, payload and link-weight terms and of the
     joint geometry (lengths, angles) by maximum evidence (:func:`evidence_prior`) and,
     when a scale changed, fit again with them (every free parameter)."""

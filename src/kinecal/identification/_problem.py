@@ -16,6 +16,7 @@ from typing import Protocol
 
 import numpy as np
 
+from kinecal._record import ReprRecord
 from kinecal.errors import (
     ConfigError,
     DataError,
@@ -323,8 +324,8 @@ class Workspace:
         return sub
 
 
-@dataclass(frozen=True, eq=False)
-class Problem:
+@dataclass(frozen=True, eq=False, repr=False)
+class Problem(ReprRecord):
     """What a calibration works on: constant (its caches are in its :class:`Workspace`).
 
     Attributes
@@ -495,8 +496,8 @@ class Problem:
         return state.but(weights=Weights.default(root.on(state).meas))
 
 
-@dataclass(frozen=True, eq=False)
-class State:
+@dataclass(frozen=True, eq=False, repr=False)
+class State(ReprRecord):
     """What the stages have found so far.
 
     Attributes

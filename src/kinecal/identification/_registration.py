@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal.errors import IdentifiabilityError
 from kinecal.geometry import project_to_so3, rigid_fit_nearest, so3_log
 from kinecal.identification._init import closed_form_frames, euler_with_reference
@@ -121,8 +122,8 @@ def initial_registration(
     return model, out, [_undetermined(model, meas, s) for s in loose]
 
 
-@dataclass(frozen=True)
-class Registration:
+@dataclass(frozen=True, eq=False, repr=False)
+class Registration(Record):
     """Outcome of :func:`register`."""
 
     model: CalibrationModel

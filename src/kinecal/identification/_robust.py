@@ -34,6 +34,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal._stats import present
 from kinecal.identification._options import RejectSettings
 from kinecal.identification._press import loo_position_errors, rms_mm
@@ -115,8 +116,8 @@ def gross(
     return z > max(t0, cap)
 
 
-@dataclass(frozen=True)
-class RobustRejection:
+@dataclass(frozen=True, eq=False, repr=False)
+class RobustRejection(Record):
     """Reject gross errors and repeat the fit without them (module docstring).
 
     Attributes

@@ -8,12 +8,13 @@ where the estimate still drifts.
 
 from __future__ import annotations
 
-import logging
 import time
 from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal._log import Logger
+from kinecal._record import Record
 from kinecal.identification._frame_fit import FrameFit
 from kinecal.identification._lift import lifted_start
 from kinecal.identification._lm import (
@@ -35,7 +36,7 @@ from kinecal.typing import Float
 
 __all__ = ["SolverRun", "active_prior", "lift_kept", "run_lm", "warm_options"]
 
-log = logging.getLogger(__name__)
+log = Logger(__name__)
 
 
 def run_lm(
@@ -140,8 +141,8 @@ def run_lm(
     return out, res
 
 
-@dataclass(frozen=True)
-class SolverRun:
+@dataclass(frozen=True, eq=False, repr=False)
+class SolverRun(Record):
     """A :func:`run_lm` run without priors that stopped on its statistical tolerance,
     for a run of the same fit with a smaller one to continue (issue 36: the stage-1
     fit without priors of the rejection's robust probe and of the nominal check goes on

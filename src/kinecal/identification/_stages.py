@@ -26,6 +26,7 @@ from functools import partial
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal._stats import median
 from kinecal.errors import IdentifiabilityError
 from kinecal.identification._frame_fit import FrameFit
@@ -74,8 +75,8 @@ def robust_sigma(r: Float) -> float:
     return med / _CHI_MEDIAN.get(c, np.sqrt(c - 0.5))
 
 
-@dataclass(frozen=True)
-class Register:
+@dataclass(frozen=True, eq=False, repr=False)
+class Register(Record):
     """User and cam frames from nominal kinematics (:mod:`._registration`), then LM on
     them; for pose data without sigmas, the position and orientation noise from its
     residuals and the LM once more with those weights."""
@@ -140,8 +141,8 @@ def _generic_point(model: CalibrationModel, x: Float) -> Float:
     return g
 
 
-@dataclass(frozen=True)
-class Identify:
+@dataclass(frozen=True, eq=False, repr=False)
+class Identify(Record):
     """The identifiability analysis (:func:`analyse_identifiability`) at a generic point:
     parameters the poses cannot determine are held at their start values.
 
@@ -231,8 +232,8 @@ def _few_targets(problem: Problem, cm: CalibrationModel) -> list[Diagnostic]:
     return found
 
 
-@dataclass(frozen=True)
-class KinematicStage:
+@dataclass(frozen=True, eq=False, repr=False)
+class KinematicStage(Record):
     """Paper stage 1: the unified kinematic parameters by LM, with the joint-geometry
     priors (MAP). Without a pre-fit by :class:`Priors`, this is the first fit, and its
     residuals give the noise. With a robust loss, once more with the loss bending at
@@ -275,8 +276,8 @@ class KinematicStage:
         return state.but(x=res.x)
 
 
-@dataclass(frozen=True)
-class TransmissionStage:
+@dataclass(frozen=True, eq=False, repr=False)
+class TransmissionStage(Record):
     """Paper stage 2: the Fourier coefficients of the transmission errors by linear least
     squares ('direct': on the whitened residuals; 'project': the residuals projected to
     joints by Eq. (29), then a Fourier fit per joint). Kept only if it lowers the error."""
@@ -359,8 +360,8 @@ def _stage2_project(problem: Problem, state: State, cols: np.ndarray) -> Float:
     return out
 
 
-@dataclass(frozen=True)
-class FullStage:
+@dataclass(frozen=True, eq=False, repr=False)
+class FullStage(Record):
     """Paper stage 3: every identifiable parameter together, from the lifted start of the
     link products, with all priors. Without sigmas in the data, the noise is estimated
     again from its residuals (Helmert, per set or marker where they differ); while a

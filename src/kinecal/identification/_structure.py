@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal._stats import quantiles
 from kinecal.identification._problem import Problem, State
 from kinecal.measurement._diagnostics import Diagnostic
@@ -35,8 +36,8 @@ _RHO_SYSTEMATIC = 0.5
 _GATHERED = 2.0 / 3.0
 
 
-@dataclass(frozen=True)
-class Structure:
+@dataclass(frozen=True, eq=False, repr=False)
+class Structure(Record):
     """How the largest residuals follow the pose (:func:`residual_structure`)."""
 
     variable: str  # e.g. "J2's gravity load"
@@ -82,6 +83,8 @@ def _full_spec(model: CalibrationModel) -> ModelSpec:
 def _lacks_terms(model: CalibrationModel) -> bool:
     """Whether the full model has terms this one lacks."""
     full = _full_spec(model)
+    if full == model.spec:  # the full model itself (no second build of its layout)
+        return False
     return not set(CalibrationModel(model.robot, full).layout.names) <= set(
         model.layout.names
     )
@@ -100,8 +103,8 @@ def _sample(n: int, flagged: np.ndarray) -> np.ndarray:
     return np.flatnonzero(keep | flagged)
 
 
-@dataclass(frozen=True)
-class _Score:
+@dataclass(frozen=True, eq=False, repr=False)
+class _Score(Record):
     """A linearised fit of the full model's extra terms on some rows."""
 
     rows: np.ndarray

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal.identification._lm import loss_weights, psd_inverse
 from kinecal.identification._problem import Problem, State
 from kinecal.measurement._diagnostics import Diagnostic
@@ -17,8 +18,8 @@ from kinecal.typing import Float
 __all__ = ["Uncertainty"]
 
 
-@dataclass(frozen=True)
-class Uncertainty:
+@dataclass(frozen=True, eq=False, repr=False)
+class Uncertainty(Record):
     """Covariance ``s0^2 (J^T W J + P)^-1`` of the free parameters at the solution
     (``W``: robust row weights, ``P``: prior precision; Eq. (T-3)), their standard
     deviations and the a-posteriori standard deviation of unit weight ``s0``.

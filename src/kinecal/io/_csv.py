@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal._stats import median
 from kinecal.errors import DataError, expect_type
 from kinecal.geometry import quat_wxyz_to_matrix, wpr_to_matrix
@@ -69,8 +70,8 @@ LIMIT_MARGIN_DEG, LIMIT_MARGIN_MM = 1.0, 1.0
 _TO_FILE = {"deg": 180.0 / np.pi, "rad": 1.0, "mm": 1e3, "m": 1.0}
 
 
-@dataclass(frozen=True)
-class Targets:
+@dataclass(frozen=True, eq=False, repr=False)
+class Targets(Record):
     """Targets known in the user frame (sensor data)."""
 
     labels: tuple[str, ...]

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kinecal._record import ReprRecord
 from kinecal.errors import DataError
 
 __all__ = ["LABEL_COLUMNS", "Table", "read_table"]
@@ -26,8 +27,8 @@ LABEL_COLUMNS = frozenset({"set", "marker", "target", "name", "label", "point"})
 _ODD_BREAKS = "\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029"
 
 
-@dataclass(frozen=True, eq=False)
-class Table:
+@dataclass(frozen=True, eq=False, repr=False)
+class Table(ReprRecord):
     """A CSV file as text: header, data lines and the file line of each.
 
     Attributes

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kinecal._record import MutableRecord
 from kinecal.errors import DataError
 from kinecal.measurement._measurements import Measurements
 from kinecal.measurement._metrics import Metrics, metrics_from_errors
@@ -19,8 +20,8 @@ __all__ = ["STATUSES", "CalibratedModel"]
 STATUSES = ("estimated", "unidentifiable", "fixed")
 
 
-@dataclass
-class CalibratedModel:
+@dataclass(eq=False, repr=False)
+class CalibratedModel(MutableRecord):
     """Model structure plus identified parameters.
 
     Attributes

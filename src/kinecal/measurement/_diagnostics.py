@@ -10,6 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from kinecal._record import MutableRecord, Record
+
 __all__ = ["CODES", "Diagnostic", "Outlier", "StageLog"]
 
 CODES: dict[str, str] = {
@@ -59,8 +61,8 @@ CODES: dict[str, str] = {
 }
 
 
-@dataclass(frozen=True)
-class Diagnostic:
+@dataclass(frozen=True, eq=False, repr=False)
+class Diagnostic(Record):
     """One finding of a calibration stage.
 
     Attributes
@@ -102,8 +104,8 @@ class Diagnostic:
         }
 
 
-@dataclass
-class StageLog:
+@dataclass(eq=False, repr=False)
+class StageLog(MutableRecord):
     """What one stage (one solver run) did."""
 
     name: str
@@ -117,8 +119,8 @@ class StageLog:
     iteration_log: list[dict[str, float]] = field(default_factory=list)
 
 
-@dataclass(frozen=True)
-class Outlier:
+@dataclass(frozen=True, eq=False, repr=False)
+class Outlier(Record):
     """A row whose error is improbable under the fitted noise."""
 
     row: int

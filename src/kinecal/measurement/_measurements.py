@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal._stats import median
 from kinecal.errors import DataError
 from kinecal.models import ModelInputs
@@ -27,8 +28,8 @@ __all__ = ["KINDS", "Measurements"]
 KINDS = ("point", "pose", "sensor")
 
 
-@dataclass(frozen=True)
-class Measurements:
+@dataclass(frozen=True, eq=False, repr=False)
+class Measurements(Record):
     """A calibration or test data set (SI units).
 
     Attributes

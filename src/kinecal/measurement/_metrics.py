@@ -10,13 +10,14 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal.typing import Float
 
 __all__ = ["Metrics", "metrics_from_errors"]
 
 
-@dataclass(frozen=True)
-class Metrics:
+@dataclass(frozen=True, eq=False, repr=False)
+class Metrics(Record):
     """Error statistics of a set of poses (mm, deg).
 
     Attributes

@@ -18,21 +18,26 @@ poses whenever a product is needed (``normal``), with the same numbers to roundi
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal.geometry import so3_log, so3_right_jacobian_inv
 from kinecal.measurement import _blocks
 from kinecal.measurement._blocks import BlockJacobian
 from kinecal.measurement._measurements import Measurements
-from kinecal.models import CalibrationModel, ForwardState, ModelInputs, ModelOutput
+from kinecal.models import CalibrationModel, ModelInputs, ModelOutput
 from kinecal.typing import Float
+
+if TYPE_CHECKING:  # loaded by the numpy code only (not by the compiled kernel's)
+    from kinecal.models import ForwardState
 
 __all__ = ["ResidualBlock", "Weights", "errors_mm", "residuals"]
 
 
-@dataclass(frozen=True)
-class Weights:
+@dataclass(frozen=True, eq=False, repr=False)
+class Weights(Record):
     """Standard deviations used to whiten the residuals.
 
     Attributes
@@ -65,8 +70,8 @@ class Weights:
         )
 
 
-@dataclass(frozen=True)
-class ResidualBlock:
+@dataclass(frozen=True, eq=False, repr=False)
+class ResidualBlock(Record):
     """Whitened residuals ``r`` (N, c) and Jacobian ``J`` (N, c, P) of one evaluation.
 
     ``J`` is None when not asked for, and for large data (``blocks``, then, gives its

@@ -24,11 +24,11 @@ if TYPE_CHECKING:
     from kinecal.models._layout import KINDS, ParameterLayout, ParamKind, ParamSpec
     from kinecal.models._model import (
         CalibrationModel,
-        ForwardState,
         ModelOutput,
         kernel_name,
         pass_counts,
     )
+    from kinecal.models._numpy_forward import ForwardState
     from kinecal.models._spec import PRESETS, ModelSpec, parallel_pairs
 
 __all__ = [
@@ -74,11 +74,11 @@ __getattr__, __dir__ = _lazy.exports(
         "_layout": ("KINDS", "ParameterLayout", "ParamKind", "ParamSpec"),
         "_model": (
             "CalibrationModel",
-            "ForwardState",
             "ModelOutput",
             "kernel_name",
             "pass_counts",
         ),
+        "_numpy_forward": ("ForwardState",),
         "_spec": ("PRESETS", "ModelSpec", "parallel_pairs"),
     },
 )

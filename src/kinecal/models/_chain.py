@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal.typing import Float
 
 __all__ = [
@@ -87,8 +88,8 @@ def shifted_trig_if_small(
     return shifted_trig(cos, sin, delta)
 
 
-@dataclass(frozen=True)
-class ChainFrames:
+@dataclass(frozen=True, eq=False, repr=False)
+class ChainFrames(Record):
     """Frames of a chain for N poses, pose axis last, in the chain's base frame (or the
     frame its base was placed in, see :func:`chain_frames`).
 

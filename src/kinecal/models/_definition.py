@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinecal._record import ReprRecord
 from kinecal.errors import ModelError
 from kinecal.geometry import (
     euler_zyx_to_matrix,
@@ -89,8 +90,8 @@ def _frame_axes(R_ref: Float, rwp: Float) -> Float:
     return out
 
 
-@dataclass(frozen=True, eq=False)
-class ModelDefinition:
+@dataclass(frozen=True, eq=False, repr=False)
+class ModelDefinition(ReprRecord):
     """A calibration model's parameters and the index tables its evaluators read.
 
     Built by :meth:`build` (what :class:`~kinecal.models.CalibrationModel` does); frozen,

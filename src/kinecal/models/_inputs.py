@@ -14,6 +14,7 @@ from typing import TypeVar, cast
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal.errors import DataError
 from kinecal.typing import ArrayLike, Float
 
@@ -44,8 +45,8 @@ def _rows(
     return np.asarray(a, dtype=dtype).reshape(shape)
 
 
-@dataclass(frozen=True)
-class ModelInputs:
+@dataclass(frozen=True, eq=False, repr=False)
+class ModelInputs(Record):
     """Per-sample inputs of the model (all SI).
 
     Attributes

@@ -19,14 +19,15 @@ from typing import Any
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal.errors import ModelError
 from kinecal.typing import ArrayLike, Float
 
 __all__ = ["KINDS", "ParamKind", "ParamSpec", "ParameterLayout"]
 
 
-@dataclass(frozen=True)
-class ParamKind:
+@dataclass(frozen=True, eq=False, repr=False)
+class ParamKind(Record):
     """Unit bookkeeping of one kind of parameter.
 
     Attributes
@@ -58,8 +59,8 @@ KINDS: dict[str, ParamKind] = {
 }
 
 
-@dataclass(frozen=True)
-class ParamSpec:
+@dataclass(frozen=True, eq=False, repr=False)
+class ParamSpec(Record):
     """One named parameter, with what its name says as fields of their own.
 
     The model builds every spec of its layout (:class:`~kinecal.models.CalibrationModel`);

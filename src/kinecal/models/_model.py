@@ -19,22 +19,25 @@ from __future__ import annotations
 import copy
 import dataclasses
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal.errors import DataError, ModelError
-from kinecal.models import _kernel, _numpy_forward, _numpy_jacobian
+from kinecal.models import _kernel
 from kinecal.models._definition import ModelDefinition
 from kinecal.models._inputs import ModelInputs
 from kinecal.models._layout import ParameterLayout
-from kinecal.models._numpy_forward import ForwardState
 from kinecal.models._spec import ModelSpec
 from kinecal.robot import RobotDescription
 from kinecal.typing import ArrayLike, Float
 
+if TYPE_CHECKING:  # the numpy code loads where the compiled kernel does not apply
+    from kinecal.models._numpy_forward import ForwardState
+
 __all__ = [
     "CalibrationModel",
-    "ForwardState",
     "ModelInputs",
     "ModelOutput",
     "kernel_name",
@@ -54,8 +57,8 @@ def pass_counts() -> dict[str, int]:
     return dict(_PASSES)
 
 
-@dataclass(frozen=True)
-class ModelOutput:
+@dataclass(frozen=True, eq=False, repr=False)
+class ModelOutput(Record):
     """Model prediction for N poses.
 
     Attributes
@@ -280,9 +283,7 @@ class CalibrationModel:
         kept = fw if keep else None
         if not jacobian:
             return ModelOutput(fw.p_user, R_uc, None, None, fw.theta, kept)
-        Jb = _numpy_jacobian.jacobian(
-            defn, fw, orientation=orientation, products=products, alloc=_alloc
-        )
+        Jb = _numpy_jacobian(defn, fw, orientation=orientation, products=products)
         return ModelOutput(
             fw.p_user,
             R_uc,
@@ -297,6 +298,8 @@ class CalibrationModel:
     ) -> ForwardState:
         """The numpy code's forward pass (checked inputs); one place, so that tests can
         count how often :meth:`evaluate` runs it."""
+        from kinecal.models import _numpy_forward
+
         return _numpy_forward.forward(self.definition, p, inputs, orientation)
 
     def flange_frames(
@@ -308,6 +311,8 @@ class CalibrationModel:
         """
         p = np.asarray(params, dtype=np.float64)
         out = self.evaluate(p, inputs)
+        from kinecal.models import _numpy_forward
+
         return _numpy_forward.flange_frames(self.definition, p, out.theta)
 
     def joint_jacobian(self, params: ArrayLike, inputs: ModelInputs) -> Float:
@@ -324,6 +329,8 @@ class CalibrationModel:
         """
         p = np.asarray(params, dtype=np.float64)
         out = self.evaluate(p, inputs)
+        from kinecal.models import _numpy_forward
+
         return _numpy_forward.joint_jacobian(self.definition, p, inputs, out.theta)
 
     # ------------------------------------------------------------------ variants
@@ -361,6 +368,18 @@ def kernel_name(model: CalibrationModel) -> str:
     """``'c'`` or ``'numpy'``: the code that evaluates ``model`` now."""
     static = _kernel.active_tables(model.definition, model._kernel_tables)
     return "c" if static is not None else "numpy"
+
+
+def _numpy_jacobian(
+    defn: ModelDefinition, fw: ForwardState, *, orientation: bool, products: bool
+) -> Float:
+    """The numpy code's Jacobian (:mod:`kinecal.models._numpy_jacobian`, loaded on first
+    use: the compiled kernel evaluates most models)."""
+    from kinecal.models import _numpy_jacobian as code
+
+    return code.jacobian(
+        defn, fw, orientation=orientation, products=products, alloc=_alloc
+    )
 
 
 def _alloc(shape: tuple[int, ...]) -> Float:

@@ -17,6 +17,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal.errors import ModelError
 from kinecal.robot import RobotDescription
 
@@ -26,8 +27,8 @@ PRESETS = ("kinematic", "ntm", "rfcm", "full")
 LINK_MODELS = ("none", "paper", "rfcm", "general")
 
 
-@dataclass(frozen=True)
-class ModelSpec:
+@dataclass(frozen=True, eq=False, repr=False)
+class ModelSpec(Record):
     """Terms and options of a calibration model.
 
     Attributes

@@ -9,13 +9,13 @@ same function. Figures are inline SVG (no matplotlib, no external files).
 from __future__ import annotations
 
 import json
-import logging
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from kinecal._log import Logger
 from kinecal.io._json_read import loads
 from kinecal.report import _figures as F
 from kinecal.report._certificate import certificate_html
@@ -37,7 +37,7 @@ from kinecal.report._tables import (
 
 __all__ = ["render_calibration_report", "write_calibration_report", "write_report"]
 
-log = logging.getLogger(__name__)
+log = Logger(__name__)
 
 
 # ---------------------------------------------------------------------- summary parts

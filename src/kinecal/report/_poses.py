@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal.errors import DataError
 from kinecal.typing import Float, Int
 
@@ -56,8 +57,8 @@ _BLOCK = 20000
 FIGURE_POSES = 20000
 
 
-@dataclass(frozen=True)
-class PoseErrors:
+@dataclass(frozen=True, eq=False, repr=False)
+class PoseErrors(Record):
     """Per-pose data of a calibration (file units).
 
     Attributes

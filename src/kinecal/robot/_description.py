@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal.errors import ConfigError
 from kinecal.geometry import make_transform, rot_x
 from kinecal.typing import ArrayLike, Float, Pose
@@ -38,8 +39,8 @@ __all__ = [
 NDArrayBool = np.ndarray  # (n,) bool
 
 
-@dataclass(frozen=True)
-class JointSpec:
+@dataclass(frozen=True, eq=False, repr=False)
+class JointSpec(Record):
     """One joint row, SI units.
 
     For ``convention='dh'`` the row is ``Rz(q + theta_offset) Tz(d) Tx(a) Rx(alpha)``;
@@ -58,8 +59,8 @@ class JointSpec:
     effort: float | None = None  # N m (N if prismatic), when stated
 
 
-@dataclass(frozen=True)
-class SelfWeightSpec:
+@dataclass(frozen=True, eq=False, repr=False)
+class SelfWeightSpec(Record):
     """Which joints carry the paper's lumped link self-weight model (Eq. 25-26).
 
     ``shoulder`` and ``elbow`` are 1-based joint numbers of the two parallel pitch axes
@@ -72,8 +73,8 @@ class SelfWeightSpec:
     wrist_frame: int = 4
 
 
-@dataclass(frozen=True)
-class LinkMass:
+@dataclass(frozen=True, eq=False, repr=False)
+class LinkMass(Record):
     """Mass and centre of mass of the body rigid with standard-DH frame ``frame``.
 
     The general link self-weight model (Eq. 25 for N links) starts from these: body k
@@ -87,8 +88,8 @@ class LinkMass:
     com: tuple[float, float, float]
 
 
-@dataclass(frozen=True)
-class DHChain:
+@dataclass(frozen=True, eq=False, repr=False)
+class DHChain(Record):
     """A robot as a standard-DH chain between two fixed frames (all SI).
 
     Attributes
@@ -144,8 +145,8 @@ def dh_transforms(
     return T
 
 
-@dataclass(frozen=True)
-class RobotDescription:
+@dataclass(frozen=True, eq=False, repr=False)
+class RobotDescription(Record):
     """A serial robot, SI units throughout.
 
     Attributes

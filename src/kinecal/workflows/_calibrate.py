@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from kinecal._record import Record
 from kinecal._stats import distinct_rows
 from kinecal.errors import CalibError, ConfigError, DataError, IdentifiabilityError
 from kinecal.identification import (
@@ -50,8 +51,8 @@ NOMINAL_CHECK_ROWS = 20000
 Progress = Callable[[str, str], None]
 
 
-@dataclass(frozen=True)
-class CalibrationRun:
+@dataclass(frozen=True, eq=False, repr=False)
+class CalibrationRun(Record):
     """What :func:`calibrate_measurements` found.
 
     Attributes
@@ -185,8 +186,8 @@ def calibrate_measurements(
     return CalibrationRun(result, spec, opts, sel, held, hay, nj)
 
 
-@dataclass(frozen=True)
-class CalibrationFiles:
+@dataclass(frozen=True, eq=False, repr=False)
+class CalibrationFiles(Record):
     """What ``kinecal calibrate`` writes of a :class:`CalibrationRun`.
 
     Attributes
