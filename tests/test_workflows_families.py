@@ -155,6 +155,7 @@ def test_sensor_workflows_are_the_commands(tmp_path, capsys):
     assert json.loads(res.out) == json.loads(json.dumps(want))
 
 
+@pytest.mark.slow  # 1.4-4.3 s: in test-slow, to keep make test within its budget
 def test_iso9283_program_workflow_is_the_command(tmp_path, capsys):
     from kinecal.workflows import iso_test_program
 

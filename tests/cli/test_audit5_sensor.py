@@ -81,6 +81,7 @@ def test_calibrate_planes_refuses_two_images_of_one_plane(capsys, tmp_path, scan
     assert not out.exists()
 
 
+@pytest.mark.slow  # 1.4-4.3 s: in test-slow, to keep make test within its budget
 def test_calibrate_planes_refuses_a_square_size_in_metres(capsys, tmp_path):
     """--square-mm 0.0025 (2.5 mm in metres) wrote light planes 0.065 mm from the
     camera, 1000 times too close, with exit 0."""

@@ -51,6 +51,7 @@ def _rms(capsys, d, model: str) -> float:
     return float(json.loads(out)["rms_mm"])
 
 
+@pytest.mark.slow  # 1.4-4.3 s: in test-slow, to keep make test within its budget
 def test_default_calibration_of_imported_urdf_as_good_as_hand_layout(results, capsys):
     d = results
     _cli(

@@ -195,6 +195,7 @@ def test_issue_25_pose_noise_from_the_residuals():
     assert np.median(noise.sigma_rot) == pytest.approx(3e-4, rel=0.15)
 
 
+@pytest.mark.slow  # 1.4-4.3 s: in test-slow, to keep make test within its budget
 def test_issue_25_rejected_rows_by_file_line_on_the_command_line(
     run_cli, simulated_exp2, tmp_path
 ):

@@ -58,6 +58,7 @@ def test_issue_22_planned_30_beat_random_30_on_the_twin(twin, plan30):
     assert np.mean(planned) == pytest.approx(plan30.planned.ratio, rel=0.2)
 
 
+@pytest.mark.slow  # 1.4-4.3 s: in test-slow, to keep make test within its budget
 def test_issue_22_sequential_design_adds_where_the_model_is_uncertain(twin):
     rng = np.random.default_rng(7)
     first = rng.choice(twin.meas.n, 20, replace=False)

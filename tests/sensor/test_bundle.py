@@ -202,6 +202,7 @@ def test_issue_24_std_from_residuals_match_monte_carlo():
     np.testing.assert_allclose(scatter[keep] / reported[keep], 1.0, atol=0.3)
 
 
+@pytest.mark.slow  # 1.4-4.3 s: in test-slow, to keep make test within its budget
 def test_issue_24_joint_adjustment_recovers_camera_planes_and_noise():
     """Corners and stripe centres together: the planes where the target was seen and the
     intrinsics within 4 std of the truth, each group's noise estimated from its

@@ -42,6 +42,7 @@ def _scenes():
     )
 
 
+@pytest.mark.slow  # 1.4-4.3 s: in test-slow, to keep make test within its budget
 def test_angular_index_finds_exactly_the_band_of_the_full_test(renderer):
     for scene in _scenes():
         prep = renderer.prepare(scene)
