@@ -71,13 +71,13 @@ def fork_map(
 
     out: list[Any] = [None] * len(items)
     pool: dict[int, _Worker] = {}
+    sel = selectors.DefaultSelector()
     try:
         with held():
             for _ in range(workers):
                 w = _fork(fn, items, initializer, pool.values())
                 pool[w.results] = w
         todo = iter(range(len(items)))
-        sel = selectors.DefaultSelector()
 
         def give(w: _Worker) -> None:
             """Its next item, or -1: it ends (and its pipe with it)."""
@@ -117,10 +117,14 @@ def fork_map(
                 pass
         raise
     finally:
+        sel.close()
         for w in pool.values():
             for fd in (w.tasks, w.results):
                 os.close(fd)
-            os.waitpid(w.pid, 0)
+            try:
+                os.waitpid(w.pid, 0)
+            except ChildProcessError:  # reaped already (SIGCHLD ignored by the caller)
+                pass
 
 
 def _fork(
@@ -132,7 +136,12 @@ def _fork(
     """Fork a worker (it never returns into the caller's code)."""
     task_r, task_w = os.pipe()
     res_r, res_w = os.pipe()
-    pid = os.fork()
+    try:
+        pid = os.fork()
+    except BaseException:
+        for fd in (task_r, task_w, res_r, res_w):
+            os.close(fd)
+        raise
     if pid:
         os.close(task_r)
         os.close(res_w)
