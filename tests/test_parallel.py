@@ -281,3 +281,11 @@ def _children() -> set[int]:
         if int(fields[1]) == me and fields[0] != "Z":
             out.add(int(d.name))
     return out
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="counts open files")
+def test_repeated_maps_leave_no_file_open():
+    before = len(os.listdir("/proc/self/fd"))
+    for _ in range(20):
+        assert parallel_map(_slow_first, [1, 2, 3], jobs=2) == [101, 102, 103]
+    assert len(os.listdir("/proc/self/fd")) == before
