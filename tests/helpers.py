@@ -65,3 +65,20 @@ def exact_pose_data(truth, meas):
         sigma=np.full(meas.n, 1e-5),
         sigma_rot=np.full(meas.n, 1e-4),
     )
+
+
+def live_processes() -> list[tuple[int, int, int]]:
+    """``(pid, parent pid, process group)`` of every live process (Linux /proc; zombies
+    left out), for tests that check no worker process outlives its command."""
+    from pathlib import Path
+
+    out = []
+    for d in Path("/proc").glob("[0-9]*"):
+        try:
+            stat = (d / "stat").read_text()
+        except OSError:
+            continue
+        fields = stat[stat.rindex(")") + 2 :].split()  # state, ppid, pgrp, ...
+        if fields[0] != "Z":
+            out.append((int(d.name), int(fields[1]), int(fields[2])))
+    return out

@@ -269,18 +269,9 @@ def test_a_worker_that_dies_is_an_error_and_no_worker_is_left():
 
 def _children() -> set[int]:
     """This process's live child processes (Linux), else an empty set."""
-    from pathlib import Path
+    from tests.helpers import live_processes
 
-    me, out = os.getpid(), set()
-    for d in Path("/proc").glob("[0-9]*"):
-        try:
-            stat = (d / "stat").read_text()
-        except OSError:
-            continue
-        fields = stat[stat.rindex(")") + 2 :].split()
-        if int(fields[1]) == me and fields[0] != "Z":
-            out.add(int(d.name))
-    return out
+    return {pid for pid, parent, _ in live_processes() if parent == os.getpid()}
 
 
 @pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="counts open files")

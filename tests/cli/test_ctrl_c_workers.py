@@ -19,25 +19,16 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers import live_processes
+
 pytestmark = pytest.mark.skipif(
     not Path("/proc/self/stat").exists(), reason="reads the process table in /proc"
 )
 
 
 def _group(pgid: int) -> list[int]:
-    """The live processes of process group ``pgid`` (zombies excluded)."""
-    out = []
-    for d in Path("/proc").iterdir():
-        if not d.name.isdigit():
-            continue
-        try:
-            stat = (d / "stat").read_text()
-        except OSError:
-            continue
-        fields = stat[stat.rindex(")") + 2 :].split()
-        if int(fields[2]) == pgid and fields[0] != "Z":
-            out.append(int(d.name))
-    return out
+    """The live processes of process group ``pgid``."""
+    return [pid for pid, _, group in live_processes() if group == pgid]
 
 
 def _default_signals() -> None:
