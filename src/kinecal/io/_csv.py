@@ -567,15 +567,13 @@ def read_measurements(
 def _payload(t: Table, robot: RobotDescription) -> np.ndarray:
     """The ``payload_kg`` column [kg]: finite, >= 0, and at most 10 x the robot's
     rated payload (a model file cannot hold more; a unit mistake: g, lb)."""
-    from kinecal.io._model_bounds import max_payload_kg
+    from kinecal.io._model_bounds import payload_limit
 
     v = t.numbers("payload_kg")
-    rated = robot.rated_payload_kg
-    hi = max_payload_kg(robot)
+    hi, also = payload_limit(robot)
     bad = np.flatnonzero(~((v >= 0) & (v <= hi)))
     if bad.size:
         i = int(bad[0])
-        also = "" if rated is None else f" (10 x the {rated:g} kg rated payload)"
         raise DataError(
             f"{t.path}: line {t.lines[i]}, column 'payload_kg': {v[i]:.6g}; expected "
             f"0 to {hi:.6g} kg{also}: a unit mistake (g, lb)?"

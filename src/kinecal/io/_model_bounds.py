@@ -36,6 +36,7 @@ __all__ = [
     "compliance_bound",
     "document_fingerprint",
     "max_payload_kg",
+    "payload_limit",
     "robot_fingerprint",
     "value_bound",
 ]
@@ -172,6 +173,14 @@ def max_payload_kg(robot: RobotDescription) -> float:
     :data:`MAX_PAYLOAD_KG` for a robot without one (beyond: a unit mistake, g or lb)."""
     rated = robot.rated_payload_kg
     return MAX_PAYLOAD_KG if rated is None else RATED_FACTOR * rated
+
+
+def payload_limit(robot: RobotDescription) -> tuple[float, str]:
+    """:func:`max_payload_kg` and the words for a message that gives it: " (10 x the
+    R kg rated payload)", or '' for a robot without a rating."""
+    rated = robot.rated_payload_kg
+    also = "" if rated is None else f" (10 x the {rated:g} kg rated payload)"
+    return max_payload_kg(robot), also
 
 
 def check_payload(payload: float, robot: RobotDescription, where: str) -> None:

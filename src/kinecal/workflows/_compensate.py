@@ -368,12 +368,10 @@ def load_scale(cal: CalibratedModel, payload_kg: float | None) -> float | None:
         raise DataError(f"--payload-kg: expected a number [kg]; got {payload_kg!r}.")
     if not payload_kg >= 0:
         raise DataError(f"--payload-kg must be >= 0; got {payload_kg}.")
-    from kinecal.io._model_bounds import max_payload_kg
+    from kinecal.io._model_bounds import payload_limit
 
-    rated = cal.model.robot.rated_payload_kg
-    hi = max_payload_kg(cal.model.robot)
+    hi, also = payload_limit(cal.model.robot)
     if payload_kg > hi:
-        also = "" if rated is None else f" (10 x the {rated:g} kg rated payload)"
         raise DataError(
             f"--payload-kg {payload_kg:g}: expected at most {hi:g} kg{also}: a unit "
             "mistake (g, lb)?"

@@ -197,16 +197,14 @@ def check_payload_column(
     the robot's rated payload, as ``--payload-kg`` and a calibration's reference
     payload (3000 kg on a 5 kg arm was a warning, and scored or compensated with exit
     0); between the rating and that, a warning says so."""
-    from kinecal.io._model_bounds import max_payload_kg
+    from kinecal.io._model_bounds import payload_limit
 
     if payload_kg is None:
         return
-    rated = robot.rated_payload_kg
-    hi = max_payload_kg(robot)
+    hi, also = payload_limit(robot)
     over = np.flatnonzero(np.asarray(payload_kg, float) > hi)
     if over.size:
         i = int(over[0])
-        also = "" if rated is None else f" (10 x the {rated:g} kg rated payload)"
         raise DataError(
             f"{path}: line {lines[i]}, column 'payload_kg': {payload_kg[i]:g} kg "
             f"({over.size} rows over); expected at most {hi:g} kg{also} for "
