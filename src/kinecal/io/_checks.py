@@ -55,6 +55,8 @@ ORDER_FACTOR = 4.0
 # Pose pairs of the quaternion check and poses of the orientation spread: a sample is
 # enough for a median and a spread, and keeps a million-row file fast.
 _MAX_PAIRS = 2_000
+# Rows the excitation check turns through the forward kinematics first.
+_FEW_ROWS = 32
 _STAGE = "data"
 
 
@@ -240,14 +242,21 @@ def quaternion_order(meas: Measurements, robot: RobotDescription) -> Diagnostic 
     )
 
 
-def _orientation_spread_deg(meas: Measurements, robot: RobotDescription) -> float:
+def _orientation_spread_deg(
+    meas: Measurements, robot: RobotDescription, first: int | None = None
+) -> float:
     """Largest angle of a nominal flange orientation from the first row's [deg]; on a
     sample of the rows first (the forward kinematics of a million rows takes a lot of
-    memory), all rows only when the sample stays within the limit."""
+    memory), all rows only when the sample stays within the limit. With ``first``, on
+    that many rows before (a lower bound: whether the spread reaches the limit is often
+    clear from a few rows, 2.5 ms less of a 2000-row check, issue 36)."""
     n = meas.n
     rows = np.linspace(0, n - 1, min(n, _MAX_PAIRS)).astype(np.intp)  # sorted
     rows = rows[np.r_[True, np.diff(rows) > 0]]  # (np.unique imports numpy.ma)
-    for idx in (rows, None) if rows.size < n else (rows,):
+    tries: tuple[np.ndarray | None, ...] = (rows, None) if rows.size < n else (rows,)
+    if first is not None and first < rows.size:
+        tries = (rows[np.linspace(0, rows.size - 1, first).astype(np.intp)], *tries)
+    for idx in tries:
         sel = np.arange(n) if idx is None else idx
         spread = 0.0
         for a in range(0, sel.size, _MAX_PAIRS):
@@ -312,8 +321,8 @@ def excitation(meas: Measurements, robot: RobotDescription) -> list[Diagnostic]:
                 stage=_STAGE,
             )
         )
-    if meas.n >= 2:
-        spread = _orientation_spread_deg(meas, robot)
+    if meas.n >= 2:  # (its value is said only below the limit: all rows then)
+        spread = _orientation_spread_deg(meas, robot, first=_FEW_ROWS)
         if spread < SAME_ORIENTATION_DEG:
             out.append(
                 Diagnostic(
