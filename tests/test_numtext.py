@@ -3,6 +3,8 @@ residuals.csv and the report's SVG paths), and the writers use it."""
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -128,3 +130,43 @@ def test_issue_36_residuals_csv_and_svg_paths_are_built_from_arrays(monkeypatch)
     panel = fig.panel(40, 20, 340, 250, (-1, 1), (-1, 1))
     panel.dots(rng.uniform(-1, 1, n), rng.uniform(-1, 1, n), "#000")
     assert calls == ["csv", "svg"]
+
+
+@pytest.mark.parametrize("n", [5, 3000])
+def test_int_row_groups_cut_the_text_at_the_rows(n):
+    rng = np.random.default_rng(n)
+    a = rng.integers(-5000, 90000, (n, 2))
+    bounds = sorted(set(rng.integers(0, n, 4).tolist()))
+    got = _numtext.int_row_groups("M%d %dh0", [a[:, 0], a[:, 1]], bounds)
+    edges = [0, *bounds, n]
+    assert got == [
+        ("M%d %dh0" * (hi - lo)) % tuple(a[lo:hi].ravel().tolist())
+        for lo, hi in itertools.pairwise(edges)
+    ]
+
+
+def test_issue_36_workspace_draws_each_projection_at_once(monkeypatch):
+    """fig_workspace maps and writes a projection's points once (one group per colour
+    level) where it drew 16 levels one by one: the same SVG, byte for byte."""
+    from kinecal.report import _figures, _svg
+
+    rng = np.random.default_rng(5)
+    P = rng.normal(0, 300, (2000, 3))
+    e = rng.gamma(2.0, 0.01, 2000)
+    svg = _figures.fig_workspace(P, e)
+
+    def one_by_one(self, x, y, counts, colors, size=3.0, alpha=0.8):
+        at = 0
+        for c, color in zip(counts, colors):
+            if c:
+                self.dots(x[at : at + c], y[at : at + c], color, size, alpha)
+            at += c
+
+    calls: list[int] = []
+    dots = _svg.Panel.dots
+    monkeypatch.setattr(_svg.Panel, "dot_groups", one_by_one)
+    monkeypatch.setattr(
+        _svg.Panel, "dots", lambda self, *a, **k: calls.append(1) or dots(self, *a, **k)
+    )
+    assert _figures.fig_workspace(P, e) == svg
+    assert len(calls) > 3 * 10  # the reference did draw level by level

@@ -14,13 +14,14 @@ do not hold (|x| of a million or more, not finite): ``%``.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 
 import numpy as np
 
 from kinecal.typing import ArrayLike
 
-__all__ = ["csv_lines", "int_fields", "int_rows", "join_rows"]
+__all__ = ["csv_lines", "int_fields", "int_row_groups", "int_rows", "join_rows"]
 
 Fields = np.ndarray  # (n, W) uint8: one right-aligned field per row, 0 = no byte
 
@@ -153,17 +154,31 @@ SMALL = 1000
 def int_rows(fmt: str, columns: Sequence[np.ndarray]) -> str:
     """``fmt`` (ASCII, one ``%d`` per column and no other ``%``) filled with each row
     of the integer ``columns`` (n,) in turn, the rows concatenated."""
+    return int_row_groups(fmt, columns, ())[0]
+
+
+def int_row_groups(
+    fmt: str, columns: Sequence[np.ndarray], bounds: Sequence[int]
+) -> list[str]:
+    """:func:`int_rows` of the rows ``[0, b0)``, ``[b0, b1)``, ... ``[bk, n)`` of the
+    ``columns`` (``bounds``: increasing row numbers), each group's text apart."""
     between = fmt.split("%d")
     if len(between) != len(columns) + 1 or "%" in "".join(between):
         raise ValueError(f"int_rows: {fmt!r} for {len(columns)} columns")
     a = np.column_stack([np.ravel(c) for c in columns])
     n, k = a.shape
+    edges = [0, *bounds, n]
     if a.size < SMALL or a.max() >= _LIMIT or a.min() <= -_LIMIT:
-        return (fmt * n) % tuple(a.ravel().tolist())
+        return [
+            (fmt * (hi - lo)) % tuple(a[lo:hi].ravel().tolist())
+            for lo, hi in itertools.pairwise(edges)
+        ]
     words = _int_words(np.abs(a).astype(np.float64), a < 0)
     if any(len(t) > 1 for t in between[:-1]):
         b = words.view(np.uint8)
-        return join_rows(between, [b[:, 8 * j : 8 * j + 8] for j in range(k)])
+        return _texts(
+            _layout(between, [b[:, 8 * j : 8 * j + 8] for j in range(k)]), edges
+        )
     # each text before a number in its word's first byte, the last one after them
     words |= np.array([_word((0, ord(t))) if t else 0 for t in between[:-1]], np.uint64)
     tail = between[-1].encode("ascii")
@@ -171,14 +186,23 @@ def int_rows(fmt: str, columns: Sequence[np.ndarray]) -> str:
     line = np.empty((n, k + len(tail) // 8), np.uint64)
     line[:, :k] = words
     line[:, k:] = np.frombuffer(tail, np.uint64)
-    flat = line.view(np.uint8).ravel()
-    return flat[flat != 0].tobytes().decode("ascii")
+    return _texts(line.view(np.uint8), edges)
 
 
-def join_rows(between: Sequence[str], fields: Sequence[Fields]) -> str:
-    """Every row's text: ``between[0] + fields[0][i] + between[1] + ... +
-    between[-1]`` for row i, the rows concatenated (``len(between) == len(fields) + 1``;
-    the text between the fields ASCII without NUL)."""
+def _texts(rows: np.ndarray, edges: Sequence[int] | None = None) -> list[str]:
+    """The text of the bytes ``rows`` (n, W) without their zero bytes, cut at the rows
+    ``edges`` (0, ..., n; None or two: one text)."""
+    keep = rows != 0
+    text = rows[keep].tobytes().decode("ascii")
+    if edges is None or len(edges) == 2:
+        return [text]
+    ends = np.concatenate([[0], np.cumsum(keep.sum(axis=1))])[list(edges)].tolist()
+    return [text[lo:hi] for lo, hi in itertools.pairwise(ends)]
+
+
+def _layout(between: Sequence[str], fields: Sequence[Fields]) -> np.ndarray:
+    """(n, W) bytes: each row's ``between[0]``, ``fields[0][i]``, ``between[1]``, ...,
+    ``between[-1]`` side by side (zero bytes in the fields are no text)."""
     if len(between) != len(fields) + 1:
         raise ValueError("join_rows: one text more than fields expected")
     n = fields[0].shape[0] if fields else 0
@@ -192,5 +216,11 @@ def join_rows(between: Sequence[str], fields: Sequence[Fields]) -> str:
         if f is not None:
             out[:, at : at + f.shape[1]] = f
             at += f.shape[1]
-    flat = out.ravel()
-    return flat[flat != 0].tobytes().decode("ascii")
+    return out
+
+
+def join_rows(between: Sequence[str], fields: Sequence[Fields]) -> str:
+    """Every row's text: ``between[0] + fields[0][i] + between[1] + ... +
+    between[-1]`` for row i, the rows concatenated (``len(between) == len(fields) + 1``;
+    the text between the fields ASCII without NUL)."""
+    return _texts(_layout(between, fields))[0]

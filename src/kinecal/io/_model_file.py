@@ -76,11 +76,12 @@ def model_to_dict(cal: CalibratedModel) -> dict[str, Any]:
         }
         for r in parameter_records(cal)
     }
+    robot = dump_robot(m.robot)
     return {
         "kinecal_model": FORMAT_VERSION,
         "kinecal_version": __version__,
-        "robot": dump_robot(m.robot),
-        "robot_sha256": robot_fingerprint(m.robot),
+        "robot": robot,
+        "robot_sha256": document_fingerprint(robot),  # robot_fingerprint(m.robot)
         "model": spec,
         "parameters": params,
         "frames_mm_deg": _frames(cal),
@@ -360,9 +361,10 @@ def load_model(path: str | Path) -> CalibratedModel:
 def _model_from_doc(doc: dict[str, Any], p: Path) -> CalibratedModel:
     robot = robot_from_dict(doc["robot"], source=f"{p}: robot")
     stamp = doc.get("robot_sha256")
-    if stamp is not None and stamp not in (
-        document_fingerprint(doc["robot"]),
-        robot_fingerprint(robot),
+    if (  # (the robot rebuilt and dumped again only when the text's does not match)
+        stamp is not None
+        and stamp != document_fingerprint(doc["robot"])
+        and stamp != robot_fingerprint(robot)
     ):
         raise ConfigError(
             f"{p}: robot_sha256: {stamp!r}, but the robot section's fingerprint is "

@@ -396,6 +396,8 @@ def fig_workspace(p_user_mm: Float, err_mm: Float, title: str = "") -> str:
         ((e[idx] - lo) / ((hi - lo) or 1.0) * levels).astype(int), 0, levels - 1
     )
     cols = colormap((np.arange(levels) + 0.5) / levels * (hi - lo) + lo, lo, hi)
+    counts = np.bincount(lev, minlength=levels).tolist()
+    runs = bool(np.all(lev[1:] >= lev[:-1]))  # (the errors sorted: unless NaN)
     centre = 0.5 * (P.min(axis=0) + P.max(axis=0)) if P.size else np.zeros(3)
     half = 0.52 * float(np.max(P.max(axis=0) - P.min(axis=0))) if P.size else 1.0
     half = half or 1.0
@@ -414,6 +416,9 @@ def fig_workspace(p_user_mm: Float, err_mm: Float, title: str = "") -> str:
             ylabel=f"{'xyz'[b]} [mm]",
             title=(title or "errors over the workspace (user frame)") if k == 0 else "",
         )
+        if runs:  # each level's points a run of idx: one path per level at once
+            p.dot_groups(P[idx, a], P[idx, b], counts, cols, 3.2, 0.9)
+            continue
         for level in range(levels):
             sel = idx[lev == level]
             if sel.size:

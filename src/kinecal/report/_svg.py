@@ -20,7 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal._numtext import int_rows
+from kinecal._numtext import int_row_groups, int_rows
 from kinecal.report._format import e
 from kinecal.typing import ArrayLike, Float, Int
 
@@ -209,6 +209,30 @@ class Panel:
             f'<path d="{d}" stroke="{color}" stroke-width="{size * S:g}" '
             f'stroke-linecap="round" stroke-opacity="{alpha}"/>'
         )
+
+    def dot_groups(
+        self,
+        x: ArrayLike,
+        y: ArrayLike,
+        counts: Sequence[int],
+        colors: Sequence[str],
+        size: float = 3.0,
+        alpha: float = 0.8,
+    ) -> None:
+        """:meth:`dots` of consecutive groups of the points: the first ``counts[0]``
+        in ``colors[0]``, the next ``counts[1]`` in ``colors[1]``, ... (empty groups
+        draw nothing); the points mapped and written at once (issue 36)."""
+        X, Y = _ints(self.px(x) * S), _ints(self.py(y) * S)
+        drawn = [(int(c), color) for c, color in zip(counts, colors) if c > 0]
+        if not drawn:
+            return
+        ends = np.cumsum([c for c, _ in drawn])
+        texts = int_row_groups("M%d %dh0", (X, Y), ends[:-1].tolist())
+        for (_, color), d in zip(drawn, texts):
+            self.marks.append(
+                f'<path d="{d}" stroke="{color}" stroke-width="{size * S:g}" '
+                f'stroke-linecap="round" stroke-opacity="{alpha}"/>'
+            )
 
     def line(
         self,
