@@ -35,6 +35,8 @@ NOT_IMPORTED = {
     "logging",  # kinecal._log: debug/info messages reach logging once it is loaded
     "string",
     "queue",  # the kernel's thread pool (none on one thread)
+    "hashlib",  # small files' SHA-256 by CPython's own (OpenSSL's load: 2.5-3 ms)
+    "_hashlib",
 }
 # ... nor these, for the full model replacing an earlier result (--force)
 NOT_IMPORTED_FULL = {

@@ -29,3 +29,37 @@ def test_issue_36_model_yaml_dumps_its_robot_once(tmp_path, monkeypatch):
     path, read = save_model_as_read(tmp_path / "model.yaml", cal)
     assert len(dumps) == 1
     assert read is not None and np.array_equal(read.params, load_model(path).params)
+
+
+def test_issue_36_sha256_is_hashlibs_with_or_without_openssl(tmp_path):
+    """Small inputs are hashed by CPython's own SHA-256 (no OpenSSL load), large ones
+    by hashlib's: the same digests."""
+    import hashlib
+
+    from kinecal.io._files import BUILTIN_SHA256_MAX, file_sha256, sha256
+
+    rng = np.random.default_rng(0)
+    for n in (0, 1, 63, 64, 1000, BUILTIN_SHA256_MAX + 1):
+        data = rng.bytes(n)
+        assert sha256(data).hexdigest() == hashlib.sha256(data).hexdigest()
+        f = tmp_path / f"f{n}"
+        f.write_bytes(data)
+        assert file_sha256(f) == hashlib.sha256(data).hexdigest()
+
+
+def test_issue_36_the_report_of_calibrate_hashes_nothing_again(tmp_path, monkeypatch):
+    """calibrate draws report.html from the files it has just written: their hashes
+    are not computed a second time for the check against its manifest."""
+    from kinecal.cli import main
+    from kinecal.io import _files, measurements_to_csv
+
+    exp = experiment2(3, tracker=LaserTracker(5e-6, 0.0), n_side=3)
+    data = tmp_path / "train.csv"
+    data.write_text(measurements_to_csv(exp.train, exp.truth.robot))
+    hashed: list[str] = []
+    f = _files.file_sha256
+    monkeypatch.setattr(_files, "file_sha256", lambda p: hashed.append(p) or f(p))
+    argv = ["calibrate", str(data), "--robot", "fanuc-lrmate200id", "--model"]
+    assert main([*argv, "kinematic", "--cv", "off", "--out", str(tmp_path / "o")]) == 0
+    names = sorted(str(p).rsplit("/", 1)[-1] for p in hashed)
+    assert names == ["model.yaml", "report.json", "residuals.csv", "train.csv"]

@@ -13,7 +13,6 @@ the range expected.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from pathlib import Path
@@ -22,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from kinecal.errors import ConfigError
+from kinecal.io._files import sha256
 from kinecal.models import CalibrationModel
 from kinecal.robot import RobotDescription, dump_robot
 
@@ -65,7 +65,7 @@ def document_fingerprint(doc: Any) -> str:
     metres and dumped again can change in its last bit, so a file is checked against
     its own text, not against the robot rebuilt from it)."""
     text = json.dumps(doc, sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+    return sha256(text.encode("utf-8")).hexdigest()[:16]
 
 
 def _wrap_deg(x: float) -> float:

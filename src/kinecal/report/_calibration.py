@@ -491,7 +491,8 @@ def write_report(
     ``folder/residuals.csv``; writes ``out`` (default ``folder/report.html``).
     ``poses``: the per-pose errors whose :meth:`~PoseErrors.to_csv` is the folder's
     residuals.csv, just written, and ``model`` what ``load_model`` returns for its
-    model.yaml: the same report without reading those files again.
+    model.yaml: the same report without reading those files again (nor hashing them
+    again for the check against the manifest written with them).
 
     Raises
     ------
@@ -509,7 +510,8 @@ def write_report(
     if target.exists() and not force:
         raise FileExistsError(f"{target} exists; use --force to overwrite it.")
     js = d / "report.json"
-    check_manifest(d)
+    if poses is None or model is None:  # else: files the caller has just written
+        check_manifest(d)
     try:
         summary = loads(js.read_text(encoding="utf-8"))
     except FileNotFoundError:
