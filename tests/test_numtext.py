@@ -145,15 +145,30 @@ def test_int_row_groups_cut_the_text_at_the_rows(n):
     ]
 
 
-def test_issue_36_workspace_draws_each_projection_at_once(monkeypatch):
+@pytest.mark.parametrize("name", ["fig_workspace", "fig_residuals_vs_joints"])
+def test_issue_36_figures_draw_their_dots_at_once(monkeypatch, name):
     """fig_workspace maps and writes a projection's points once (one group per colour
-    level) where it drew 16 levels one by one: the same SVG, byte for byte."""
+    level) where it drew 16 levels one by one, fig_residuals_vs_joints a joint's x, y
+    and z residuals once: the same SVG, byte for byte."""
     from kinecal.report import _figures, _svg
 
     rng = np.random.default_rng(5)
-    P = rng.normal(0, 300, (2000, 3))
-    e = rng.gamma(2.0, 0.01, 2000)
-    svg = _figures.fig_workspace(P, e)
+    if name == "fig_workspace":
+        args: tuple = (rng.normal(0, 300, (2000, 3)), rng.gamma(2.0, 0.01, 2000))
+    else:
+        names = [f"j{k + 1} [deg]" for k in range(6)]
+        args = (
+            rng.uniform(-170, 170, (2000, 6)),
+            rng.normal(0, 0.01, (2000, 3)),
+            names,
+        )
+    calls: list[int] = []
+    dots = _svg.Panel.dots
+    monkeypatch.setattr(
+        _svg.Panel, "dots", lambda self, *a, **k: calls.append(1) or dots(self, *a, **k)
+    )
+    svg = getattr(_figures, name)(*args)
+    assert calls == []  # no series drawn one by one
 
     def one_by_one(self, x, y, counts, colors, size=3.0, alpha=0.8):
         at = 0
@@ -162,11 +177,6 @@ def test_issue_36_workspace_draws_each_projection_at_once(monkeypatch):
                 self.dots(x[at : at + c], y[at : at + c], color, size, alpha)
             at += c
 
-    calls: list[int] = []
-    dots = _svg.Panel.dots
     monkeypatch.setattr(_svg.Panel, "dot_groups", one_by_one)
-    monkeypatch.setattr(
-        _svg.Panel, "dots", lambda self, *a, **k: calls.append(1) or dots(self, *a, **k)
-    )
-    assert _figures.fig_workspace(P, e) == svg
-    assert len(calls) > 3 * 10  # the reference did draw level by level
+    assert getattr(_figures, name)(*args) == svg
+    assert len(calls) >= 18  # the reference did draw group by group

@@ -292,6 +292,7 @@ def fig_residuals_vs_joints(q_deg: Float, res_mm: Float, names: Sequence[str]) -
     fig = Figure(W, h)
     idx = decimate(r, MAX_POINTS)
     ylim = limits(r[idx])
+    colors = [_color(a + 1) for a in range(3)]
     for j in range(n):
         row, col = divmod(j, cols)
         p = fig.panel(
@@ -307,8 +308,9 @@ def fig_residuals_vs_joints(q_deg: Float, res_mm: Float, names: Sequence[str]) -
             if j == 0
             else "",
         )
-        for a in range(3):
-            p.dots(q[idx, j], r[idx, a], _color(a + 1), 2.4, 0.55)
+        # x, y and z one after the other, mapped and written at once (issue 36)
+        x, m = np.tile(q[idx, j], 3), idx.size
+        p.dot_groups(x, r[idx].T.ravel(), [m] * 3, colors, 2.4, 0.55)
         if j == 0:
             p.legend(
                 [(f"{c} (user frame)", _color(a + 1)) for a, c in enumerate("xyz")]
