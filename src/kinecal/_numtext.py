@@ -196,8 +196,12 @@ def _texts(rows: np.ndarray, edges: Sequence[int] | None = None) -> list[str]:
     text = rows[keep].tobytes().decode("ascii")
     if edges is None or len(edges) == 2:
         return [text]
-    ends = np.concatenate([[0], np.cumsum(keep.sum(axis=1))])[list(edges)].tolist()
-    return [text[lo:hi] for lo, hi in itertools.pairwise(ends)]
+    out, at = [], 0
+    for lo, hi in itertools.pairwise(edges):
+        size = int(np.count_nonzero(rows[lo:hi]))  # the group's bytes of text
+        out.append(text[at : at + size])
+        at += size
+    return out
 
 
 def _layout(between: Sequence[str], fields: Sequence[Fields]) -> np.ndarray:

@@ -10,6 +10,7 @@ which also finds the file line and the value for the message.
 from __future__ import annotations
 
 import itertools
+import operator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -25,6 +26,9 @@ LABEL_COLUMNS = frozenset({"set", "marker", "target", "name", "label", "point"})
 # Line breaks that str.splitlines knows besides \n and \r: such a file takes the
 # cell-by-cell path, which treats them exactly as before.
 _ODD_BREAKS = "\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029"
+# Characters of a file in which the header is looked for first.
+_HEAD = 1 << 16
+_FIRST = operator.itemgetter(slice(0, 1))  # a line's first character ('' if empty)
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -153,10 +157,21 @@ def _comma_separated(text: str) -> str:
     """The text with commas between cells: a file whose header has no comma but
     semicolons (a spreadsheet in a decimal-comma locale: its commas are decimal
     points) or tabs is read as well."""
+    # the lines of a first part of the text (its last one may be cut: not looked at),
+    # or of all of it (splitting the whole text took 0.4 ms of a 2000-row file)
+    head = text[:_HEAD].splitlines()[:-1] if len(text) > _HEAD else []
     first = next(
-        (s for s in text.splitlines() if s.strip() and not s.lstrip().startswith("#")),
-        "",
+        (s for s in head if s.strip() and not s.lstrip().startswith("#")), None
     )
+    if first is None:
+        first = next(
+            (
+                s
+                for s in text.splitlines()
+                if s.strip() and not s.lstrip().startswith("#")
+            ),
+            "",
+        )
     if "," in first:
         return text
     for sep in (";", "\t"):
@@ -200,9 +215,14 @@ def read_table(path: str | Path) -> Table:
     if '"' in text or any(c in text for c in _ODD_BREAKS):
         return _read_quoted(p, text)
     all_lines = text.splitlines()
-    # Comments and blank lines start with '#', a comma or white space (or are empty).
-    clean = "#" not in text and not any(
-        not s or s[0] == "," or s[0].isspace() for s in all_lines
+    # Comments and blank lines start with '#', a comma or white space (or are empty):
+    # the first characters of the lines, taken and looked at without a Python loop.
+    firsts = "".join(map(_FIRST, all_lines))
+    clean = (
+        "#" not in text
+        and len(firsts) == len(all_lines)  # no empty line
+        and "," not in firsts
+        and len("".join(firsts.split())) == len(firsts)  # none is white space
     )
     if clean:
         numbers = np.arange(1, len(all_lines) + 1, dtype=np.intp)
