@@ -180,3 +180,38 @@ def test_issue_36_figures_draw_their_dots_at_once(monkeypatch, name):
     monkeypatch.setattr(_svg.Panel, "dot_groups", one_by_one)
     assert getattr(_figures, name)(*args) == svg
     assert len(calls) >= 18  # the reference did draw group by group
+
+
+def test_issue_36_heatmap_cells_are_written_at_once(monkeypatch):
+    """The correlation heat map writes its cells in one text cut into a path per
+    colour level (it wrote 21 levels one by one): the same SVG, byte for byte."""
+    from kinecal.report import _svg
+
+    rng = np.random.default_rng(2)
+    corr = np.clip(rng.normal(0, 0.5, (53, 53)), -1, 1)
+    corr[rng.random(corr.shape) < 0.05] = np.nan
+
+    def drawn() -> str:
+        fig = _svg.Figure(900, 900)
+        fig.heatmap(10, 10, 12, corr, -1.0, 1.0)
+        return fig.svg()
+
+    calls: list[int] = []
+    groups = _numtext.int_row_groups
+    monkeypatch.setattr(
+        _svg, "int_row_groups", lambda *a: calls.append(1) or groups(*a)
+    )
+    svg = drawn()
+    assert calls == [1]
+    # the reference: level by level, each level's cells in row order
+    levels = 21
+    t = np.clip((corr + 1.0) / 2.0, 0.0, 1.0)
+    lev = np.where(np.isfinite(corr), np.rint(t * (levels - 1)), -1).astype(int)
+    cols = _svg.colormap(np.linspace(-1.0, 1.0, levels), -1.0, 1.0, "diverging")
+    paths = []
+    for k in range(levels):
+        i, j = np.nonzero(lev == k)
+        if i.size:
+            d = ("M%d %dh1v1h-1z" * i.size) % tuple(np.column_stack([j, i]).ravel())
+            paths.append(f'<path d="{d}" fill="{cols[k]}"/>')
+    assert "".join(paths) in svg

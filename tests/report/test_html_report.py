@@ -268,3 +268,20 @@ def test_issue_26_orientation_errors_of_pose_data_in_the_accuracy_table(result):
     summary["after"].update(rot_rms_deg=0.0123456, rot_max_deg=0.0456)
     html = render_calibration_report(summary, result.calibrated, None)
     assert "orientation RMS [deg]" in html and "<td>0.01235</td>" in html
+
+
+def test_issue_36_headings_are_found_as_the_regular_expression_finds_them():
+    """with_toc finds the <h2> headings by str.find and a match there: the matches of
+    the expression's scan of the whole page."""
+    import re
+
+    from kinecal.report import _format
+
+    body = (
+        "<p>x</p><h2>One</h2><h2 class=x>not one</h2><h2 id=b-2>Two <small>s</small>"
+        "</h2><h2<h2>Three\nlines</h2><svg><h2></svg></h2><h2 id=>bad</h2><h2>Four</h2>"
+    )
+    want = list(_format._H2.finditer(body))
+    assert [m.span() for m in _format._heads(body)] == [m.span() for m in want]
+    assert len(want) == 5 and _format.with_toc(body).count("<li>") == 5
+    assert re.search("<nav class=toc>", _format.with_toc(body))

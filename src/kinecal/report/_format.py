@@ -145,10 +145,24 @@ def _slug(text: str, used: set[str]) -> str:
     return slug
 
 
+_H2 = re.compile(r"<h2( id=([\w-]+))?>(.*?)</h2>", flags=re.S)
+
+
+def _heads(body: str) -> list[re.Match[str]]:
+    """``list(_H2.finditer(body))``: a match starts at '<h2' only, found by str.find
+    (the regular expression's scan of a report's 0.6 MB took 0.35 ms, issue 36)."""
+    out, at = [], 0
+    while (p := body.find("<h2", at)) >= 0:
+        m = _H2.match(body, p)
+        out += [m] if m else []
+        at = m.end() if m else p + 1
+    return out
+
+
 def with_toc(body: str) -> str:
     """``body`` with an id on every <h2> that has none and a table of contents (links to
     every <h2>) before the first of them; unchanged when it has fewer than three."""
-    heads = list(re.finditer(r"<h2( id=([\w-]+))?>(.*?)</h2>", body, flags=re.S))
+    heads = _heads(body)
     if len(heads) < 3:
         return body
     used = {m.group(2) for m in heads if m.group(2)}
