@@ -215,3 +215,10 @@ def test_issue_36_heatmap_cells_are_written_at_once(monkeypatch):
             d = ("M%d %dh1v1h-1z" * i.size) % tuple(np.column_stack([j, i]).ravel())
             paths.append(f'<path d="{d}" fill="{cols[k]}"/>')
     assert "".join(paths) in svg
+
+
+def test_every_integer_the_words_hold_is_written_as_percent_d():
+    """All of -10^6 < v < 10^6 (the digit tables built from slices, issue 36)."""
+    v = np.arange(-(10**6) + 1, 10**6)
+    text = join_rows(["", "\n"], [int_fields(v)])
+    assert text.split("\n")[:-1] == [str(x) for x in v.tolist()]

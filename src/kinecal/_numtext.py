@@ -49,22 +49,29 @@ def _digit_tables() -> dict[str, np.ndarray]:
     """
     global _tables
     if _tables is None:
-        k = np.arange(10_000)
-        pad = np.stack([(k // 10**p) % 10 for p in (3, 2, 1, 0)], 1).astype(np.uint8)
-        pad += ord("0")
-        nd = 1 + (k >= 10) + (k >= 100) + (k >= 1000)
-        lead = np.where(np.arange(4)[None, :] < (4 - nd)[:, None], 0, pad)
+        # (slices and broadcasting only: arithmetic on 10^4 integers took 1.3 ms)
+        d = np.arange(ord("0"), ord("9") + 1, dtype=np.uint8)
+        pad = np.empty((10, 10, 10, 10, 4), np.uint8)  # 0000 ... 9999
+        for i, shape in enumerate(((10, 1, 1, 1), (10, 1, 1), (10, 1), (10,))):
+            pad[..., i] = d.reshape(shape)
+        pad = pad.reshape(10_000, 4)
+        lead = pad.copy()  # no leading zeros: 1, 2 and 3 digits
+        lead[:1000, 0], lead[:100, 1], lead[:10, 2] = 0, 0, 0
+        starts = (0, 10, 100, 1000, 10_000)  # of the numbers of 1, 2, 3, 4 digits
         lo = np.zeros((4, 10_000, 8), np.uint8)
-        lo[0, :, 4:] = lo[1, :, 4:] = lead
-        lo[1, k, 7 - nd] = ord("-")
-        lo[2, :, 4:] = lo[3, :, 4:] = pad
+        lo4 = lo.view(np.uint32)  # (copies of four bytes at once: 8x faster)
+        lo4[:2, :, 1] = lead.view(np.uint32)[:, 0]
+        lo4[2:, :, 1] = pad.view(np.uint32)[:, 0]
         hi = np.zeros((2, 100, 8), np.uint8)
         hi[:, 1:, :4] = lead[1:100]
-        hi[1, k[1:100], 3 - nd[1:100]] = ord("-")
+        for n, (a, b) in enumerate(itertools.pairwise(starts), start=1):
+            lo[1, a:b, 7 - n] = ord("-")  # the sign before the digits
+            if n <= 2:
+                hi[1, max(a, 1) : min(b, 100), 3 - n] = ord("-")
         dec = np.zeros((100, 8), np.uint8)
         dec[:, 0], dec[:, 1:3] = ord("."), pad[:100, 2:]
         dec4 = np.zeros((10_000, 8), np.uint8)
-        dec4[:, 3:7] = pad
+        np.ndarray((10_000,), np.uint32, dec4, 3, (8,))[:] = pad.view(np.uint32)[:, 0]
         _tables = {
             name: np.ascontiguousarray(t).view(np.uint64).ravel()
             for name, t in (("lo", lo), ("hi", hi), ("dec", dec), ("dec4", dec4))
