@@ -51,10 +51,10 @@ def _digit_tables() -> dict[str, np.ndarray]:
     if _tables is None:
         # (slices and broadcasting only: arithmetic on 10^4 integers took 1.3 ms)
         d = np.arange(ord("0"), ord("9") + 1, dtype=np.uint8)
-        pad = np.empty((10, 10, 10, 10, 4), np.uint8)  # 0000 ... 9999
+        digits = np.empty((10, 10, 10, 10, 4), np.uint8)  # 0000 ... 9999
         for i, shape in enumerate(((10, 1, 1, 1), (10, 1, 1), (10, 1), (10,))):
-            pad[..., i] = d.reshape(shape)
-        pad = pad.reshape(10_000, 4)
+            digits[..., i] = d.reshape(shape)
+        pad = digits.reshape(10_000, 4)
         lead = pad.copy()  # no leading zeros: 1, 2 and 3 digits
         lead[:1000, 0], lead[:100, 1], lead[:10, 2] = 0, 0, 0
         starts = (0, 10, 100, 1000, 10_000)  # of the numbers of 1, 2, 3, 4 digits
