@@ -113,3 +113,20 @@ def test_only_the_program_installs_it():
     )
     assert res.returncode == 0, res.stderr
     assert "LIB False" in res.stdout and "PROG kinecal._codecache" in res.stdout
+
+
+def test_beyond_the_limit_only_the_last_runs_texts_are_kept(cache, monkeypatch):
+    monkeypatch.setattr(_codecache, "_used", set())
+    monkeypatch.setattr(_codecache, "MAX_CODES", 3)
+    _codecache.install()
+    for i in range(5):
+        _codecache.exec_cached(f"x = {i}", {})
+    _codecache.save()  # (5 texts, all used: kept)
+    _codecache._used.clear()
+    _codecache._codes.clear()
+    _codecache.install()
+    _codecache.exec_cached("x = 1", {})
+    _codecache.exec_cached("y = 2", {})
+    _codecache.save()
+    _, codes = marshal.loads(cache.read_bytes())
+    assert sorted(codes) == ["x = 1", "y = 2"]

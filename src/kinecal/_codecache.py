@@ -31,12 +31,13 @@ from typing import Any
 __all__ = ["exec_cached", "install", "save"]
 
 _codes: dict[str, CodeType] = {}
+_used: set[str] = set()  # the texts this run compiled or found
 _added = 0
 # What the code depends on besides its text: the interpreter (marshal format and
 # bytecode) and the optimisation level (-O: asserts).
 _KEY = (sys.hexversion, sys.implementation.cache_tag, sys.flags.optimize)
-# At most this many texts are kept (kinecal's dataclasses need ~200; the rest of the
-# program's, a few more).
+# At most this many texts are kept (kinecal's dataclasses need ~200); beyond, those of
+# the last run (texts of classes since edited are not kept forever).
 MAX_CODES = 4000
 
 
@@ -61,9 +62,9 @@ def exec_cached(
         code = _codes.get(source)
         if code is None:
             code = compile(source, "<string>", "exec", dont_inherit=True)
-            if len(_codes) < MAX_CODES:
-                _codes[source] = code
-                _added += 1
+            _codes[source] = code
+            _added += 1
+        _used.add(source)
         source = code
     if locals is None:
         builtins.exec(source, globals)
@@ -102,9 +103,12 @@ def save() -> None:
     if not _added or path is None or sys.dont_write_bytecode:
         return
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    codes = _codes
+    if len(codes) > MAX_CODES:
+        codes = {k: v for k, v in codes.items() if k in _used}
     try:
         path.parent.mkdir(exist_ok=True)
-        tmp.write_bytes(marshal.dumps((_KEY, _codes)))
+        tmp.write_bytes(marshal.dumps((_KEY, codes)))
         os.replace(tmp, path)  # a reader sees the old file or the new one
         _added = 0
     except OSError:
