@@ -130,3 +130,22 @@ def test_beyond_the_limit_only_the_last_runs_texts_are_kept(cache, monkeypatch):
     _codecache.save()
     _, codes = marshal.loads(cache.read_bytes())
     assert sorted(codes) == ["x = 1", "y = 2"]
+
+
+def test_a_damaged_entry_is_compiled_again(cache, monkeypatch):
+    _codecache.install()
+    _pose_class()
+    _codecache.save()
+    key, codes = marshal.loads(cache.read_bytes())
+    cache.write_bytes(marshal.dumps((key, dict.fromkeys(codes, b"\x00damaged"))))
+    monkeypatch.setattr(_codecache, "_codes", {})
+    compiled: list[str] = []
+
+    def counted(source, *a, **k):
+        compiled.append(source)
+        return builtins.compile(source, *a, **k)
+
+    monkeypatch.setattr(_codecache, "compile", counted, raising=False)
+    _codecache.install()
+    assert _pose_class()("d").name == "d"
+    assert len(compiled) == len(codes)

@@ -6,11 +6,12 @@ text and compiles it with :func:`exec`: ~0.1 ms a method, 176 of them (63 classe
 2000-pose ``kinecal calibrate``, 17-19 ms of its CPU (8 %, issue 36). Python keeps a
 module's compiled code in ``__pycache__``; this keeps those texts' code the same way, in
 ``__pycache__/dataclass-methods.<cache tag>.bin`` beside kinecal's own bytecode: a text
-compiled once is not compiled again. The module's ``exec`` is looked up by name in
-:mod:`dataclasses`, so :func:`install` puts :func:`exec_cached` there (the builtin's
-behaviour, with the compile of a text remembered); the functions it makes are the ones
-the builtin makes (the same code: ``compile`` of the same text, with no inherited
-``__future__`` flags, as the builtin called from :mod:`dataclasses` compiles it).
+compiled once is not compiled again (the file holds each code's marshal bytes, made code
+when a run first uses it: ~0.4 ms to read the ~400 of all commands). :mod:`dataclasses`
+looks its ``exec`` up by name, so :func:`install` puts :func:`exec_cached` there (the
+builtin's behaviour, with the compile of a text remembered); the functions it makes are
+the ones the builtin makes (the same code: ``compile`` of the same text, with no
+inherited ``__future__`` flags, as the builtin called from :mod:`dataclasses` does).
 
 For the program only (:func:`kinecal._entry.run`): a Python program that imports kinecal
 keeps its :mod:`dataclasses` as it is. The file is written as bytecode is (not under
@@ -30,7 +31,9 @@ from typing import Any
 
 __all__ = ["exec_cached", "install", "save"]
 
-_codes: dict[str, CodeType] = {}
+# text -> its code, or the code's marshal bytes as read from the file (made into code
+# when first used: a command uses a part of the ~400 texts the file holds)
+_codes: dict[str, CodeType | bytes] = {}
 _used: set[str] = set()  # the texts this run compiled or found
 _added = 0
 # What the code depends on besides its text: the interpreter (marshal format and
@@ -60,10 +63,16 @@ def exec_cached(
         locals = frame.f_locals if locals is None else locals
     if type(source) is str:
         code = _codes.get(source)
+        if type(code) is bytes:
+            try:
+                code = marshal.loads(code)
+            except (ValueError, EOFError, TypeError):
+                code = None
+            code = code if type(code) is CodeType else None
         if code is None:
             code = compile(source, "<string>", "exec", dont_inherit=True)
-            _codes[source] = code
             _added += 1
+        _codes[source] = code
         _used.add(source)
         source = code
     if locals is None:
@@ -84,9 +93,7 @@ def install() -> bool:
         key, codes = marshal.loads(path.read_bytes())
         if key == _KEY and isinstance(codes, dict):
             _codes.update(
-                (k, v)
-                for k, v in codes.items()
-                if type(k) is str and type(v) is CodeType
+                (k, v) for k, v in codes.items() if type(k) is str and type(v) is bytes
             )
     except (OSError, ValueError, EOFError, TypeError):
         pass  # none yet, or not ours: compiled anew (and written again)
@@ -103,9 +110,12 @@ def save() -> None:
     if not _added or path is None or sys.dont_write_bytecode:
         return
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
-    codes = _codes
-    if len(codes) > MAX_CODES:
-        codes = {k: v for k, v in codes.items() if k in _used}
+    keep = _codes.keys() if len(_codes) <= MAX_CODES else _used
+    codes = {
+        k: v if type(v) is bytes else marshal.dumps(v)
+        for k, v in _codes.items()
+        if k in keep
+    }
     try:
         path.parent.mkdir(exist_ok=True)
         tmp.write_bytes(marshal.dumps((_KEY, codes)))
