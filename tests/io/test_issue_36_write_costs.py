@@ -66,3 +66,23 @@ def test_issue_36_the_report_of_calibrate_hashes_nothing_again(tmp_path, monkeyp
     assert main([*argv, "kinematic", "--cv", "off", "--out", str(tmp_path / "o")]) == 0
     names = sorted(str(p).rsplit("/", 1)[-1] for p in hashed)
     assert names == ["model.yaml", "report.json", "residuals.csv", "train.csv"]
+
+
+def test_issue_36_strong_correlations_are_every_pair_over_095_as_before():
+    """report.json's strong correlations, taken from the pairs at once (a loop over
+    the ~950 pairs of a full model): the same pairs, values and order."""
+    from kinecal.identification import calibrate
+    from kinecal.report import calibration_summary
+
+    exp = experiment2(3, tracker=LaserTracker(5e-6, 0.0), n_side=3)
+    res = calibrate(exp.truth.robot, exp.train, "full")
+    corr, names = res.correlation(), res.calibrated.model.layout.names
+    free = np.flatnonzero(res.identifiability.free)
+    want = []
+    for i, a in enumerate(free):
+        for b in free[i + 1 :]:
+            if abs(corr[a, b]) > 0.95:
+                want.append({"a": names[a], "b": names[b], "correlation": corr[a, b]})
+    want.sort(key=lambda d: -abs(d["correlation"]))
+    got = calibration_summary(res)["identifiability"]["strong_correlations"]
+    assert got == want and len(want) >= 1

@@ -60,15 +60,13 @@ def calibration_summary(
     ident = result.identifiability
     corr = result.correlation()
     names = result.calibrated.model.layout.names
-    strong = []
     free = np.flatnonzero(ident.free)
-    for a in range(free.size):
-        for b in range(a + 1, free.size):
-            c = corr[free[a], free[b]]
-            if abs(c) > 0.95:
-                strong.append(
-                    {"a": names[free[a]], "b": names[free[b]], "correlation": float(c)}
-                )
+    a, b = np.triu_indices(free.size, 1)  # every pair once, in the order of a loop
+    pairs = corr[free[a], free[b]]
+    strong = [
+        {"a": names[free[a[k]]], "b": names[free[b[k]]], "correlation": float(pairs[k])}
+        for k in np.flatnonzero(np.abs(pairs) > 0.95).tolist()
+    ]
     strong.sort(key=lambda d: -abs(d["correlation"]))
     return {
         "kinecal_version": __version__,
