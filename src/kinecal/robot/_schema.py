@@ -44,6 +44,7 @@ from kinecal.robot._description import (
     RobotDescription,
     SelfWeightSpec,
 )
+from kinecal.robot._joint_rates import check_rate
 from kinecal.robot._unit_slips import check_unit_slips
 from kinecal.units import ANGLE_UNITS, LENGTH_UNITS
 
@@ -327,9 +328,7 @@ def _joint(
     for key, scale in (("velocity", lim_scale), ("effort", 1.0)):
         if jr.get(key) is not None:
             v = _number(jr[key], f"{where}.{key}")
-            if not (np.isfinite(v) and v > 0):
-                raise _err(f"{where}.{key}", f"expected a positive number; got {v!r}.")
-            rates[key] = v * scale
+            rates[key] = check_rate(v, key, kind == "prismatic", scale, where)
     jname = jr.get("name", f"J{i + 1}")
     if not isinstance(jname, str) or not jname or not jname.isprintable():
         raise _err(
@@ -538,10 +537,10 @@ def dump_robot(robot: RobotDescription) -> dict[str, Any]:
             row["limits"] = [j.limits[0] * lim_scale, j.limits[1] * lim_scale]
         if j.kind != "revolute":
             row["type"] = j.kind
-        if j.velocity is not None:
-            row["velocity"] = round(j.velocity * lim_scale, 9)
+        if j.velocity is not None:  # 12 digits: a slow joint's speed is not rounded to 0
+            row["velocity"] = float(f"{j.velocity * lim_scale:.12g}")
         if j.effort is not None:
-            row["effort"] = round(float(j.effort), 9)
+            row["effort"] = float(f"{j.effort:.12g}")
         joints.append(row)
     coupling = [
         {"joint": int(r + 1), "from": int(c + 1), "factor": float(robot.coupling[r, c])}
