@@ -537,7 +537,7 @@ def dump_robot(robot: RobotDescription) -> dict[str, Any]:
             row["limits"] = [j.limits[0] * lim_scale, j.limits[1] * lim_scale]
         if j.kind != "revolute":
             row["type"] = j.kind
-        if j.velocity is not None:  # 12 digits: a slow joint's speed is not rounded to 0
+        if j.velocity is not None:  # 12 digits: a slow speed is not rounded to 0
             row["velocity"] = float(f"{j.velocity * lim_scale:.12g}")
         if j.effort is not None:
             row["effort"] = float(f"{j.effort:.12g}")

@@ -183,8 +183,15 @@ def _check_twin_size(robot: RobotDescription, n_train: int, n_test: int) -> None
 # The columns of a plan kept in train.csv (``simulate --plan``): an ISO 9283 test
 # program's point and cycle (and its command pose, for the operator), so that the
 # simulated test runs through ``evaluate --iso9283`` as a measured one would.
-PLAN_COLUMNS = ("iso_point", "iso_cycle", "point", "cycle", "cmd_x_mm", "cmd_y_mm")
-PLAN_COLUMNS += ("cmd_z_mm", "cmd_a_deg", "cmd_b_deg", "cmd_c_deg")
+PLAN_COLUMNS: tuple[str, ...] = ("iso_point", "iso_cycle", "point", "cycle")
+PLAN_COLUMNS += (
+    "cmd_x_mm",
+    "cmd_y_mm",
+    "cmd_z_mm",
+    "cmd_a_deg",
+    "cmd_b_deg",
+    "cmd_c_deg",
+)
 
 
 def write_simulation(
