@@ -107,6 +107,7 @@ def evaluate_measurements(
         if say is not None:
             say(line)
 
+    _refuse_compensated(data_name)
     set_units(meas, cal.model.robot)
     meas, found = check_data_for_model(meas, cal)
     check_payload_column(
@@ -290,3 +291,28 @@ def check_refit_poses(meas: Measurements, what: tuple[str, ...]) -> None:
                 f"joint angles); --refit {','.join(what)} needs at least 3 different "
                 "poses per set (or no --refit)."
             )
+
+
+def _refuse_compensated(data: str | None) -> None:
+    """DATA is a ``compensate`` output (CORRECTED.csv: the targets with the corrected
+    joints, ``jK_deg_program``, ``err_mm``, ``status``), not measurements: its
+    positions are the targets, which the model meets by construction (``evaluate``
+    printed an RMS of 3e-8 mm as the robot's accuracy)."""
+    import re
+
+    if data is None:
+        return
+    try:
+        with open(data, encoding="utf-8-sig", errors="replace") as f:
+            head = next((s for s in f if s.strip() and not s.startswith("#")), "")
+    except OSError:
+        return
+    cols = {c.strip().strip('"') for c in re.split(r"[,;\t]", head)}
+    program = sorted(c for c in cols if re.fullmatch(r"j\d+_(deg|mm|rad|m)_program", c))
+    if program and {"err_mm", "status"} <= cols:
+        raise DataError(
+            f"{data}: columns {program[0]}.., err_mm, status: a file kinecal compensate "
+            "wrote (the targets with the corrected joints), not measurements: its "
+            "x_mm, y_mm, z_mm are the targets, which the model meets by construction; "
+            "expected the positions measured with the robot at these joints."
+        )

@@ -1,0 +1,27 @@
+"""Audit 8: files of one session handed to the next command: compensate's CORRECTED.csv
+given to evaluate as if it were measured (it printed an RMS of 3e-8 mm, the model
+meeting its own targets, as the robot's accuracy)."""
+
+from __future__ import annotations
+
+from tests.cli_contract import failed_with, run_kinecal
+
+
+def test_evaluate_refuses_a_compensate_output(data, tmp_path, capsys):
+    out = tmp_path / "corrected.csv"
+    res = run_kinecal(
+        capsys, "compensate", data["targets"], "--model", data["model"], "--out", out
+    )
+    assert res.code == 0, str(res)
+    res = run_kinecal(capsys, "evaluate", out, "--model", data["model"], "--json")
+    failed_with(res, f"{out}: columns j1_deg_program.., err_mm, status", "compensate")
+    # the same rows as measured data (the program's joints and the measured points)
+    lines = out.read_text().splitlines()
+    head = lines[0].split(",")
+    keep = [k for k, c in enumerate(head) if c in ("x_mm", "y_mm", "z_mm") or
+            c.endswith("_deg_program")]  # fmt: skip
+    meas = tmp_path / "measured.csv"
+    rows = [",".join(r.split(",")[k] for k in keep) for r in lines]
+    meas.write_text("\n".join(rows).replace("_program", "") + "\n")
+    res = run_kinecal(capsys, "evaluate", meas, "--model", data["model"], "--json")
+    assert res.code == 0, str(res)
