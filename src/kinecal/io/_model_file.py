@@ -300,16 +300,16 @@ def _finite(v: Any, where: str) -> float:
 
 
 def _read_doc(p: Path) -> dict[str, Any]:
+    from kinecal.robot._robot_file import read_text_file
+
     try:
-        text = p.read_text(encoding="utf-8")
+        text = read_text_file(p, "a model.yaml")
     except FileNotFoundError:
         raise ConfigError(f"{p}: model file not found.") from None
     except IsADirectoryError:
         raise ConfigError(
             f"{p}: is a folder; expected a model.yaml (e.g. {p / 'model.yaml'})."
         ) from None
-    except UnicodeDecodeError:
-        raise ConfigError(f"{p}: not a text file; expected a model.yaml.") from None
     from kinecal import _yaml as yaml
 
     try:

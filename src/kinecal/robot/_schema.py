@@ -31,7 +31,6 @@ Frames use Eq. 8's ``Trans(x, y, z) Rz(r) Ry(w) Rx(p)``. Unknown keys are errors
 from __future__ import annotations
 
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -48,7 +47,7 @@ from kinecal.robot._joint_rates import check_rate
 from kinecal.robot._unit_slips import check_unit_slips
 from kinecal.units import ANGLE_UNITS, LENGTH_UNITS
 
-__all__ = ["dump_robot", "load_robot_file", "robot_from_dict"]
+__all__ = ["dump_robot", "robot_from_dict"]
 
 _TOP_KEYS = {
     "name",
@@ -489,28 +488,6 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
         link_masses=link_masses,
         T_base_0=T_base_0,
     )
-
-
-def load_robot_file(path: str | Path) -> RobotDescription:
-    """Load and validate a robot YAML file (see module docstring for the schema)."""
-    from kinecal import _yaml as yaml
-
-    p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"{p}: cannot read robot file ({exc.strerror}).") from exc
-    except UnicodeDecodeError:
-        raise ConfigError(
-            f"{p}: not a text file; expected a robot YAML (or a URDF)."
-        ) from None
-    try:
-        data = yaml.load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{p}: not valid YAML ({exc}).".replace("\n", " ")) from exc
-    if data is None:
-        raise ConfigError(f"{p}: the robot file is empty.")
-    return robot_from_dict(data, source=str(p))
 
 
 def _frame_dict(T: np.ndarray) -> dict[str, float]:
