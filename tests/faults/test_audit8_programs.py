@@ -60,3 +60,18 @@ def test_one_pose_near_zero_is_a_warning_a_home_pose_is_not(data, tmp_path, caps
         capsys, "compensate", prog, "--model", data["model"], "--out", out, "--force"
     )
     assert res.code == 0 and "radians" not in res.err, str(res)
+
+
+def test_extrapolation_names_the_program_line(data, tmp_path, capsys):
+    """A program's targets beyond the calibrated ranges were named 'row 1 J3' (their
+    order among the targets): the line and the target's name say where they are."""
+    prog = tmp_path / "p.mod"
+    prog.write_text(_module([10, -20, 35, 5, -60, 30], [0, 0, 0, 0, 30, 0]))
+    out = tmp_path / "out.mod"
+    res = run_kinecal(
+        capsys, "compensate", prog, "--model", data["model"], "--out", out
+    )
+    assert res.code == 0, str(res)
+    warned = [ln for ln in res.err.splitlines() if "outside the joint ranges" in ln]
+    assert warned and f"{prog}: " in warned[0], res.err
+    assert "line 3 (j1) J" in warned[0] and "row " not in warned[0], warned[0]

@@ -57,3 +57,12 @@ def test_a_csv_in_another_encoding_names_its_line(tmp_path, encoding, match):
     f.write_text("j1_deg,x_mm\n# at 20 °C\n1,2\n", encoding=encoding)
     with pytest.raises(CalibError, match=match):
         read_table(f)
+
+
+def test_a_quoted_decimal_comma_is_named(tmp_path):
+    """'"1,5"' between commas (a spreadsheet's export with a decimal comma): said so."""
+    f = tmp_path / "d.csv"
+    f.write_text('j1_deg,x_mm\n"1,5","2,25"\n')
+    with pytest.raises(CalibError, match=r"line 2, column 'j1_deg': expected a number; "
+                       r"got '1,5' \(a decimal comma: write 1\.5, or ';' between"):  # fmt: skip
+        read_table(f).numbers("j1_deg")

@@ -10,6 +10,7 @@ which also finds the file line and the value for the message.
 from __future__ import annotations
 
 import itertools
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -127,9 +128,15 @@ class Table(ReprRecord):
             try:
                 float(s)
             except ValueError:
+                comma = re.fullmatch(r"[-+]?\d*,\d+", s)  # "1,5" quoted between commas
+                hint = (
+                    " (a decimal comma: write 1.5, or ';' between cells)"
+                    if comma
+                    else ""
+                )
                 raise DataError(
                     f"{self.path}: line {line}, column '{name}': expected a number; "
-                    f"got {s!r}."
+                    f"got {s!r}{hint}."
                 ) from None
         raise AssertionError(
             "unreachable: a cell failed, then none did"

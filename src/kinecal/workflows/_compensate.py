@@ -286,9 +286,12 @@ def compensate_program(
         for i in range(q_all.shape[0])
         if i >= len(prog.points) or not prog.points[i].why_not
     ]
-    _warn_extrapolation(
-        cal, q_all[np.array(rows, int) - 1], rows, f"{path} (targets in order)", emit
-    )
+    pts = [
+        *prog.points,
+        *(p for p, q in zip(run.points, run.q_seed) if np.isfinite(q).all()),
+    ]
+    names = [f"line {pts[r - 1].line} ({pts[r - 1].name})" for r in rows]
+    _warn_extrapolation(cal, q_all[np.array(rows, int) - 1], rows, path, emit, names)
     keep = (res_j.status != "ok") if res_j is not None else np.zeros(0, bool)
     q_w_in = res_j.q_ctrl if res_j is not None else q_prog
     text = write_program(
@@ -444,12 +447,13 @@ def diagnostic_columns(res: CompensationResult) -> list[tuple[str, Any]]:
 
 
 def _warn_extrapolation(
-    cal: CalibratedModel, q: np.ndarray, rows: Any, source: str, emit: Say
-) -> None:
+    cal: CalibratedModel, q: np.ndarray, rows: Any, source: str, emit: Say,
+    labels: list[str] | None = None,
+) -> None:  # fmt: skip
     """Targets outside the joint ranges the model was calibrated on (a warning)."""
     from kinecal.io import extrapolation
 
-    found = extrapolation(cal, q, rows, source, what="targets")
+    found = extrapolation(cal, q, rows, source, what="targets", labels=labels)
     if found is not None and found.severity == "warning":
         emit(f"warning   {found.message}")
 
