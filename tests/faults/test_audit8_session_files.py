@@ -25,3 +25,29 @@ def test_evaluate_refuses_a_compensate_output(data, tmp_path, capsys):
     meas.write_text("\n".join(rows).replace("_program", "") + "\n")
     res = run_kinecal(capsys, "evaluate", meas, "--model", data["model"], "--json")
     assert res.code == 0, str(res)
+
+
+def test_evaluate_of_the_calibration_residuals_warns(data, tmp_path, capsys):
+    """residuals.csv beside the model (the calibration's own poses, with their errors)
+    evaluated as new data: its figures were printed as held-out errors, unsaid."""
+    import shutil
+
+    d = tmp_path / "cal"
+    d.mkdir()
+    shutil.copy(data["model"], d / "model.yaml")
+    lines = data["train"].read_text().splitlines()
+    res_csv = d / "residuals.csv"
+    rows = [f"{k + 2},{ln},0.1,0.01" for k, ln in enumerate(lines[1:])]
+    res_csv.write_text(
+        "\n".join([f"row,{lines[0]},err_before_mm,err_mm", *rows]) + "\n"
+    )
+    res = run_kinecal(
+        capsys, "evaluate", res_csv, "--model", d / "model.yaml", "--json"
+    )
+    assert res.code == 0, str(res)
+    assert f"{res_csv}: the residuals" in res.err and "training errors" in res.err
+    # the same rows under another name, elsewhere: held-out for all kinecal knows
+    other = tmp_path / "session2.csv"
+    shutil.copy(data["test"], other)
+    res = run_kinecal(capsys, "evaluate", other, "--model", d / "model.yaml", "--json")
+    assert res.code == 0 and "training errors" not in res.err, str(res)

@@ -107,7 +107,8 @@ def evaluate_measurements(
         if say is not None:
             say(line)
 
-    _refuse_compensated(data_name)
+    header = _header(data_name)
+    _refuse_compensated(data_name, header)
     set_units(meas, cal.model.robot)
     meas, found = check_data_for_model(meas, cal)
     check_payload_column(
@@ -124,7 +125,9 @@ def evaluate_measurements(
     for d in found:
         if d.severity == "warning":
             emit(f"warning   {d.message}")
-    note = _training_data(data_name, model_name)
+    note = _training_data(data_name, model_name) or _own_residuals(
+        data_name, header, model_name
+    )
     if note:
         emit(f"warning   {note}")
     check_refit_poses(meas, refit)
@@ -293,21 +296,27 @@ def check_refit_poses(meas: Measurements, what: tuple[str, ...]) -> None:
             )
 
 
-def _refuse_compensated(data: str | None) -> None:
+def _header(data: str | None) -> set[str]:
+    """The column names of the data file (its first line that is not a comment)."""
+    import re
+
+    if data is None:
+        return set()
+    try:
+        with open(data, encoding="utf-8-sig", errors="replace") as f:
+            head = next((s for s in f if s.strip() and not s.startswith("#")), "")
+    except OSError:
+        return set()
+    return {c.strip().strip('"') for c in re.split(r"[,;\t]", head)}
+
+
+def _refuse_compensated(data: str | None, cols: set[str]) -> None:
     """DATA is a ``compensate`` output (CORRECTED.csv: the targets with the corrected
     joints, ``jK_deg_program``, ``err_mm``, ``status``), not measurements: its
     positions are the targets, which the model meets by construction (``evaluate``
     printed an RMS of 3e-8 mm as the robot's accuracy)."""
     import re
 
-    if data is None:
-        return
-    try:
-        with open(data, encoding="utf-8-sig", errors="replace") as f:
-            head = next((s for s in f if s.strip() and not s.startswith("#")), "")
-    except OSError:
-        return
-    cols = {c.strip().strip('"') for c in re.split(r"[,;\t]", head)}
     program = sorted(c for c in cols if re.fullmatch(r"j\d+_(deg|mm|rad|m)_program", c))
     if program and {"err_mm", "status"} <= cols:
         raise DataError(
@@ -316,3 +325,21 @@ def _refuse_compensated(data: str | None) -> None:
             "x_mm, y_mm, z_mm are the targets, which the model meets by construction; "
             "expected the positions measured with the robot at these joints."
         )
+
+
+def _own_residuals(data: str | None, cols: set[str], model_path: str) -> str | None:
+    """DATA is the residuals.csv beside the model (``calibrate``'s per-pose errors):
+    its rows are the calibration's own poses, so its figures are training errors (the
+    manifest's check of the data file does not see this copy)."""
+    from pathlib import Path
+
+    if data is None or not {"err_before_mm", "err_mm"} <= cols:
+        return None
+    if Path(data).resolve().parent != Path(model_path).resolve().parent:
+        return None
+    return (
+        f"{data}: the residuals {model_path}'s calibration wrote (err_before_mm, "
+        "err_mm): its rows are the poses the model was fitted on, so these are "
+        "training errors, not held-out ones; evaluate on poses the model was not "
+        "fitted on."
+    )
