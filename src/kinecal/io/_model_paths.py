@@ -19,14 +19,16 @@ __all__ = ["source_as_read", "source_as_written"]
 
 
 def source_as_written(source: Any, model_path: str | Path) -> Any:
-    """``info.source`` as a model file at ``model_path`` holds it: a data file's path
-    (as the command was given it: from the current folder) relative to the model file's
-    folder (absolute where there is no relative path, another drive); anything else as
-    it is. ``model_path`` may be in a command's staged result folder: the path is
+    """``info.source`` as a model file at ``model_path`` holds it: a data file's
+    relative path (as the command was given it: from the current folder) made relative
+    to the model file's folder (absolute where there is none, another drive); an
+    absolute path, and anything else, as it is. ``model_path`` may be in a command's staged result folder: the path is
     relative to the folder the file will have once the result is in place."""
     from kinecal._outputs import user_path
 
-    if not isinstance(source, str) or not source or not Path(source).is_file():
+    if not isinstance(source, str) or not source or Path(source).is_absolute():
+        return source
+    if not Path(source).is_file():
         return source
     final = Path(user_path(str(Path(model_path).absolute())))
     data = os.path.abspath(source)
