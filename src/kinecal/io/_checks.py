@@ -449,7 +449,7 @@ def extrapolation(
     was calibrated on (its file's ``info: calibrated_joint_range``); the model's
     prediction there is an extrapolation and can be far off. None when every row is
     inside, or the model file does not say its ranges. ``labels``: how to name each
-    row (a program's ``line 12 (P[3])``; default ``row N``, ``rows`` being file lines)."""
+    row (a program's ``line 12 (P[3])``; default ``line N``: ``rows`` are file lines)."""
     robot = cal.model.robot
     got = cal.info.get("calibrated_joint_range")
     n = robot.n_joints
@@ -480,7 +480,7 @@ def extrapolation(
         j = int(np.flatnonzero(out[i])[0])
         # the data's column too where the robot names its joints otherwise (UR, URDF)
         col = "" if names[j] == f"J{j + 1}" else f" (j{j + 1}_{unit[j]})"
-        where = labels[i] if labels is not None else f"row {row_of[i]}"
+        where = labels[i] if labels is not None else f"line {row_of[i]}"
         parts.append(
             f"{where} {names[j]}{col} {q[i, j]:.1f} {unit[j]} (calibrated "
             f"{rng[j, 0]:.1f} .. {rng[j, 1]:.1f})"
