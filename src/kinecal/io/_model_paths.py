@@ -22,8 +22,9 @@ def source_as_written(source: Any, model_path: str | Path) -> Any:
     """``info.source`` as a model file at ``model_path`` holds it: a data file's
     relative path (as the command was given it: from the current folder) made relative
     to the model file's folder (absolute where there is none, another drive); an
-    absolute path, and anything else, as it is. ``model_path`` may be in a command's staged result folder: the path is
-    relative to the folder the file will have once the result is in place."""
+    absolute path, and anything else, as it is. ``model_path`` may be in a command's
+    staged result folder: the path is relative to the folder the file will have once
+    the result is in place."""
     from kinecal._outputs import user_path
 
     if not isinstance(source, str) or not source or Path(source).is_absolute():
