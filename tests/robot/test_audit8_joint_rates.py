@@ -77,3 +77,15 @@ def test_a_urdf_unlimited_rate_is_unknown(tmp_path):
     assert robot.joints[0].velocity is None and robot.joints[0].effort is None
     assert robot.joints[2].velocity == pytest.approx(1.0)
     robot_from_dict(dump_robot(robot), "dumped")  # loads back
+
+
+def test_a_coupling_factor_no_arm_has_is_named():
+    """1e30 was refused as a 'singular' coupling, naming no entry and no range."""
+    d = copy.deepcopy(GOOD)
+    d["coupling"] = [{"joint": 3, "from": 2, "factor": 1}, {"joint": 4, "from": 3,
+                     "factor": 1e30}]  # fmt: skip
+    with pytest.raises(ConfigError, match=r"coupling\[1\]\.factor: 1e\+30; expected a "
+                       r"coupling factor within ±100"):  # fmt: skip
+        robot_from_dict(d, "r.yaml")
+    d["coupling"][1]["factor"] = -0.5
+    assert robot_from_dict(d, "r.yaml").coupling[3, 2] == -0.5

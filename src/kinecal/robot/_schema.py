@@ -346,6 +346,12 @@ def _joint(
     )
 
 
+# The largest coupling factor (a joint's angle per unit of another motor's, SI): gear
+# couplings of real arms are 1 (FANUC J2/J3) or below; 1e30 was refused only as a
+# "singular" coupling, naming no entry.
+MAX_COUPLING = 100.0
+
+
 def _coupling(data: Mapping[str, Any], source: str, n: int) -> np.ndarray:
     """The coupling matrix ``C`` (theta = C q_ctrl) of the ``coupling`` list."""
     C = np.eye(n)
@@ -367,7 +373,14 @@ def _coupling(data: Mapping[str, Any], source: str, n: int) -> np.ndarray:
                 )
         if j == f:
             raise _err(where, "a joint cannot be coupled to itself.")
-        C[j - 1, f - 1] += _number(c["factor"], f"{where}.factor")
+        factor = _number(c["factor"], f"{where}.factor")
+        if not abs(factor) <= MAX_COUPLING:  # a joint turns with another's motor
+            raise _err(
+                f"{where}.factor",
+                f"{factor:g}; expected a coupling factor within ±{MAX_COUPLING:g} "
+                "(FANUC J2/J3: 1).",
+            )
+        C[j - 1, f - 1] += factor
     if coupling and not np.linalg.cond(C) < 1e8:
         raise _err(
             f"{source}: coupling",
