@@ -15,6 +15,19 @@ def test_evaluate_refuses_a_compensate_output(data, tmp_path, capsys):
     assert res.code == 0, str(res)
     res = run_kinecal(capsys, "evaluate", out, "--model", data["model"], "--json")
     failed_with(res, f"{out}: columns j1_deg_program.., err_mm, status", "compensate")
+    # the corrected joints measured: positions pasted into the file are evaluated
+    lines = out.read_text().splitlines()
+    head = lines[0].split(",")
+    k = head.index("x_mm")
+    shifted = [lines[0]]
+    for r in lines[1:]:
+        c = r.split(",")
+        c[k] = f"{float(c[k]) + 0.02:.6f}"  # a robot 20 um off along x
+        shifted.append(",".join(c))
+    pasted = tmp_path / "measured_corrected.csv"
+    pasted.write_text("\n".join(shifted) + "\n")
+    res = run_kinecal(capsys, "evaluate", pasted, "--model", data["model"], "--json")
+    assert res.code == 0, str(res)
     # the same rows as measured data (the program's joints and the measured points)
     lines = out.read_text().splitlines()
     head = lines[0].split(",")
