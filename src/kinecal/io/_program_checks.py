@@ -108,17 +108,17 @@ _DEGREE_FORMATS = {"rapid": "RAPID jointtarget", "krl": "KRL axis aggregate"}
 def check_degrees(prog: Any, values: np.ndarray, prismatic: np.ndarray) -> None:
     """A RAPID or KRL program (``prog``) whose joint targets ``values`` (N, n, as
     written) look like radians: every revolute value within +-2 pi on an arm of at least
-    6 revolute joints. Refused (DataError) where the targets differ (a program moving
-    the robot by under 12.6 deg per joint in all does not exist); one pose (or copies of
-    it) with a value that is not whole degrees is a warning: it may be a pose near the
-    zero of every joint, as a home or calibration position is (those are whole
-    degrees, [0, 0, 0, 0, 30, 0], and pass)."""
+    6 revolute joints, some not whole degrees (radians are, but for 0, never whole
+    numbers; a zero, home or mastering pose, [0, 0, 0, 0, 30, 0], a joint jogged 5 deg
+    from it, are whole degrees and pass). Refused (DataError) where the targets differ
+    (no program moves a robot by under 12.6 deg per joint in all); one pose (or copies
+    of it) is a warning: it may be a taught pose near every joint's zero."""
     kind = _DEGREE_FORMATS.get(prog.format)
     rev = ~np.asarray(prismatic, bool)
     if kind is None or np.count_nonzero(rev) < 6 or values.shape[0] == 0:
         return
     v = values[:, rev]
-    if np.abs(v).max() > 2 * np.pi + 1e-9:
+    if np.abs(v).max() > 2 * np.pi + 1e-9 or (np.abs(v - np.round(v)) <= 1e-6).all():
         return
     first = prog.points[0]
     text = (
@@ -129,8 +129,7 @@ def check_degrees(prog: Any, values: np.ndarray, prismatic: np.ndarray) -> None:
     )
     if np.ptp(v, axis=0).max() > 0.05:
         raise DataError(f"{text}: convert them (deg = rad x 180/pi).")
-    if (np.abs(v - np.round(v)) > 1e-6).any():
-        warnings.warn(
-            f"{text}: they are read as degrees; if they are radians, convert them.",
-            stacklevel=3,
-        )
+    warnings.warn(
+        f"{text}: they are read as degrees; if they are radians, convert them.",
+        stacklevel=3,
+    )
