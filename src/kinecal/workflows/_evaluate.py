@@ -342,7 +342,8 @@ def _own_residuals(data: str | None, cols: set[str], model_path: str) -> str | N
 
     if data is None or not {"err_before_mm", "err_mm"} <= cols:
         return None
-    if Path(data).resolve().parent != Path(model_path).resolve().parent:
+    model = Path(model_path)
+    if not model.is_file() or Path(data).resolve().parent != model.resolve().parent:
         return None
     return (
         f"{data}: the residuals {model_path}'s calibration wrote (err_before_mm, "
