@@ -220,6 +220,8 @@ def test_frame0_is_validated_strictly(frame0, angle, message, tmp_path, run_cli_
             for k in ("theta_offset", "alpha"):
                 row[k] = np.radians(row[k]).item()
             row["limits"] = np.radians(row["limits"]).tolist()
+            if "velocity" in row:  # deg/s -> rad/s (450 rad/s is no joint's speed)
+                row["velocity"] = np.radians(row["velocity"]).item()
         for key in ("flange", "tool"):
             doc[key] = {
                 k: np.radians(v).item() if k in "rwp" else v

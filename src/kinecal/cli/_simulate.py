@@ -339,7 +339,7 @@ def _simulate_robot(
         extras=extras, noise_um=noise_um, new_session=new_session, sensor=sensor,
     )  # fmt: skip
     exp = sim.experiment
-    written = write_simulation(sim, out, Path(out_dir), robot_file=sim.robot)
+    written = write_simulation(sim, out, Path(out_dir), sim.robot, plan_file)
     config: dict[str, Any] = {"seed": seed, "n_train": exp.train.n}
     config |= {"n_test": exp.test.n, "extras": list(extras), "noise_um": noise_um}
     config |= {"payload_kg": robot.payload_kg, "truth": sim.description}

@@ -53,6 +53,7 @@ class Uncertainty(Record):
         )
         A = A + np.diag(prec)
         cov = np.zeros((cm.size, cm.size))
+        std = np.full(cm.size, np.nan)  # no covariance: no std (null), not 0
         found = []
         try:
             Ai = psd_inverse(A, 1e-14)
@@ -71,6 +72,7 @@ class Uncertainty(Record):
             if jack is not None:  # never below the jackknife where it is clearly above
                 cov_f = _widen(cov_f, *jack)
             cov[np.ix_(fidx, fidx)] = cov_f * np.outer(scales, scales)
+            std[fidx] = np.sqrt(np.clip(np.diag(cov)[fidx], 0.0, None))
             found += _prior_dominated(
                 cm, fidx, np.diag(held), np.diag(cov_f), self.name
             )
@@ -82,8 +84,6 @@ class Uncertainty(Record):
                     stage=self.name,
                 )
             )
-        std = np.full(cm.size, np.nan)
-        std[fidx] = np.sqrt(np.clip(np.diag(cov)[fidx], 0.0, None))
         return state.but(covariance=cov, std=std, sigma0=sigma0).note(*found)
 
 

@@ -24,7 +24,7 @@ See docs/real-data-checklist.md.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -452,11 +452,13 @@ def extrapolation(
     rows: Iterable[int],
     source: str,
     what: str = "poses",
+    labels: Sequence[str] | None = None,
 ) -> Diagnostic | None:
     """``extrapolation``: rows whose joint values lie outside the joint ranges the model
     was calibrated on (its file's ``info: calibrated_joint_range``); the model's
     prediction there is an extrapolation and can be far off. None when every row is
-    inside, or the model file does not say its ranges."""
+    inside, or the model file does not say its ranges. ``labels``: how to name each
+    row (a program's ``line 12 (P[3])``; default ``line N``: ``rows`` are file lines)."""
     robot = cal.model.robot
     got = cal.info.get("calibrated_joint_range")
     n = robot.n_joints
@@ -487,8 +489,9 @@ def extrapolation(
         j = int(np.flatnonzero(out[i])[0])
         # the data's column too where the robot names its joints otherwise (UR, URDF)
         col = "" if names[j] == f"J{j + 1}" else f" (j{j + 1}_{unit[j]})"
+        where = labels[i] if labels is not None else f"line {row_of[i]}"
         parts.append(
-            f"row {row_of[i]} {names[j]}{col} {q[i, j]:.1f} {unit[j]} (calibrated "
+            f"{where} {names[j]}{col} {q[i, j]:.1f} {unit[j]} (calibrated "
             f"{rng[j, 0]:.1f} .. {rng[j, 1]:.1f})"
         )
     more = f" and {bad.size - 8} more" if bad.size > 8 else ""

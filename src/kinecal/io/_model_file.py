@@ -27,6 +27,7 @@ from kinecal.io._model_bounds import (
     robot_fingerprint,
 )
 from kinecal.io._model_checks import check_std, check_text, stamp_as_written
+from kinecal.io._model_paths import source_as_read, source_as_written
 from kinecal.io._parameters import parameter_records
 from kinecal.io._yaml_plain import dump as dump_plain
 from kinecal.measurement import CalibratedModel
@@ -119,6 +120,8 @@ def save_model_as_read(
     without PyYAML (a document that reads back as itself); None otherwise."""
     check_result(cal, str(cal.info.get("source") or path))
     doc = _plain(model_to_dict(cal))
+    if isinstance(doc.get("info"), dict) and "source" in doc["info"]:
+        doc["info"]["source"] = source_as_written(doc["info"]["source"], path)
     text = "# kinecal calibrated model: parameters in mm, deg, rad/m; std = 1 sigma\n"
     body = dump_plain(doc)
     if body is None:
@@ -298,16 +301,16 @@ def _finite(v: Any, where: str) -> float:
 
 
 def _read_doc(p: Path) -> dict[str, Any]:
+    from kinecal.robot._robot_file import read_text_file
+
     try:
-        text = p.read_text(encoding="utf-8")
+        text = read_text_file(p, "a model.yaml")
     except FileNotFoundError:
         raise ConfigError(f"{p}: model file not found.") from None
     except IsADirectoryError:
         raise ConfigError(
             f"{p}: is a folder; expected a model.yaml (e.g. {p / 'model.yaml'})."
         ) from None
-    except UnicodeDecodeError:
-        raise ConfigError(f"{p}: not a text file; expected a model.yaml.") from None
     from kinecal import _yaml as yaml
 
     try:
@@ -404,6 +407,8 @@ def _model_from_doc(doc: dict[str, Any], p: Path) -> CalibratedModel:
         None if payload is None else float(payload),
         info=dict(doc.get("info") or {}),
     )
+    if "source" in cal.info:  # relative to the model file's folder (_model_paths)
+        cal.info["source"] = source_as_read(cal.info["source"], p)
     check_frames(doc.get("frames_mm_deg"), _frames(cal), p)
     return cal
 

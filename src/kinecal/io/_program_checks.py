@@ -10,15 +10,23 @@
 - A FANUC ``/POS`` section with ``P[n]`` twice (both were corrected: which one the
   controller keeps is not said), or a move to a ``P[n]`` that ``/POS`` lacks (the
   controller stops there: "uninitialized position").
+- A RAPID ``jointtarget`` or KRL ``AXIS`` written in radians: both formats hold degrees
+  (RAPID ``robjoint``: each axis "in degrees from the calibration position"; mm for a
+  linear axis), and radians were read as degrees, a pose within 6.3 deg of zero on
+  every joint: "compensated" and written back (:func:`check_degrees`).
 """
 
 from __future__ import annotations
 
 import re
+import warnings
+from typing import Any
+
+import numpy as np
 
 from kinecal.errors import DataError
 
-__all__ = ["check_positions", "check_values"]
+__all__ = ["check_degrees", "check_positions", "check_values"]
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 # nan / inf where a value stands: in a list ('[', ',', '{'), after a FANUC 'Jn =' or a
@@ -92,3 +100,36 @@ def _positions(code: str) -> list[tuple[int, int, str]]:
         (int(m.group(1)), pos.end() + m.start(), m.group(2))
         for m in re.finditer(rec, code[pos.end() :], re.S)
     ]
+
+
+_DEGREE_FORMATS = {"rapid": "RAPID jointtarget", "krl": "KRL axis aggregate"}
+
+
+def check_degrees(prog: Any, values: np.ndarray, prismatic: np.ndarray) -> None:
+    """A RAPID or KRL program (``prog``) whose joint targets ``values`` (N, n, as
+    written) look like radians: every revolute value within +-2 pi on an arm of at least
+    6 revolute joints, some not whole degrees (radians are, but for 0, never whole
+    numbers; a zero, home or mastering pose, [0, 0, 0, 0, 30, 0], a joint jogged 5 deg
+    from it, are whole degrees and pass). Refused (DataError) where the targets differ
+    (no program moves a robot by under 12.6 deg per joint in all); one pose (or copies
+    of it) is a warning: it may be a taught pose near every joint's zero."""
+    kind = _DEGREE_FORMATS.get(prog.format)
+    rev = ~np.asarray(prismatic, bool)
+    if kind is None or np.count_nonzero(rev) < 6 or values.shape[0] == 0:
+        return
+    v = values[:, rev]
+    if np.abs(v).max() > 2 * np.pi + 1e-9 or (np.abs(v - np.round(v)) <= 1e-6).all():
+        return
+    first = prog.points[0]
+    text = (
+        f"{prog.path}: line {first.line}: {first.name}: every joint value of the "
+        f"program's {values.shape[0]} joint targets is within ±{2 * np.pi:.2f} "
+        f"({v.min():g} .. {v.max():g}), which looks like radians; a {kind} holds "
+        "degrees (mm for a linear axis)"
+    )
+    if np.ptp(v, axis=0).max() > 0.05:
+        raise DataError(f"{text}: convert them (deg = rad x 180/pi).")
+    warnings.warn(
+        f"{text}: they are read as degrees; if they are radians, convert them.",
+        stacklevel=3,
+    )

@@ -35,7 +35,7 @@ import numpy as np
 
 from kinecal.errors import DataError
 from kinecal.io._cartesian_base import code_only
-from kinecal.io._program_checks import check_positions, check_values
+from kinecal.io._program_checks import check_degrees, check_positions, check_values
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float
 
@@ -401,8 +401,12 @@ def _scale(prog: Program, robot: RobotDescription) -> Float:
     return np.where(pris, 1e-3, np.pi / 180.0)
 
 
-def program_joints(prog: Program, robot: RobotDescription) -> Float:
-    """The program's joint targets as controller values (N, n) [rad, m].
+def program_joints(
+    prog: Program, robot: RobotDescription, *, check: bool = True
+) -> Float:
+    """The program's joint targets as controller values (N, n) [rad, m]; ``check``:
+    RAPID and KRL targets that look like radians refused or warned about
+    (:func:`kinecal.io._program_checks.check_degrees`).
 
     Raises
     ------
@@ -422,6 +426,8 @@ def program_joints(prog: Program, robot: RobotDescription) -> Float:
                 f"{robot.name} has {n} joints."
             )
     q = np.array([pt.values[:n] for pt in prog.points], dtype=np.float64).reshape(-1, n)
+    if check:
+        check_degrees(prog, q, robot.prismatic)
     return q * _scale(prog, robot)
 
 
@@ -489,7 +495,7 @@ def written_joints(prog: Program, text: str, robot: RobotDescription) -> Float:
     if not points:
         return np.zeros((0, robot.n_joints))
     return program_joints(
-        Program(prog.path, prog.format, text, tuple(points), 0), robot
+        Program(prog.path, prog.format, text, tuple(points), 0), robot, check=False
     )
 
 

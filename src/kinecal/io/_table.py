@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 import operator
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -131,9 +132,15 @@ class Table(ReprRecord):
             try:
                 float(s)
             except ValueError:
+                comma = re.fullmatch(r"[-+]?\d*,\d+", s)  # "1,5" quoted between commas
+                hint = (
+                    " (a decimal comma: write 1.5, or ';' between cells)"
+                    if comma
+                    else ""
+                )
                 raise DataError(
                     f"{self.path}: line {line}, column '{name}': expected a number; "
-                    f"got {s!r}."
+                    f"got {s!r}{hint}."
                 ) from None
         raise AssertionError(
             "unreachable: a cell failed, then none did"
@@ -149,8 +156,25 @@ def _read_text(p: Path) -> str:
         raise DataError(f"{p}: is a folder, not a CSV file.") from None
     except OSError as exc:
         raise DataError(f"{p}: cannot read ({exc.strerror}).") from None
-    except UnicodeDecodeError:
-        raise DataError(f"{p}: not a text (UTF-8) CSV file.") from None
+    except UnicodeDecodeError as exc:
+        raise DataError(_not_utf8(p, exc)) from None
+
+
+def _not_utf8(p: Path, exc: UnicodeDecodeError) -> str:
+    """What is wrong with a CSV that is not UTF-8, naming its line: UTF-16 (Excel's
+    "Unicode text"), or a byte of another 8-bit encoding (Latin-1, Windows-1252)."""
+    raw = p.read_bytes()
+    if raw[:2] in (b"\xff\xfe", b"\xfe\xff") or b"\0" in raw[:4096]:
+        return (
+            f"{p}: UTF-16 encoded (or binary): not a text (UTF-8) CSV file; expected "
+            "UTF-8 (save it as 'CSV UTF-8')."
+        )
+    line = raw.count(b"\n", 0, exc.start) + 1
+    return (
+        f"{p}: line {line}: byte 0x{raw[exc.start]:02x} is not UTF-8 (a Latin-1 or "
+        "Windows-1252 file?): not a text (UTF-8) CSV file; expected UTF-8 (save it as "
+        "'CSV UTF-8')."
+    )
 
 
 def _comma_separated(text: str) -> str:

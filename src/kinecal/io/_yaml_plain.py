@@ -29,6 +29,7 @@ __all__ = ["dump"]
 # or a date); a version a.b.c (never a float).
 _PLAIN = re.compile(
     r"[A-Za-z_/][A-Za-z0-9_./@+-]{0,99}"
+    r"|\.\.?/[A-Za-z0-9_./@+-]{0,97}"  # a relative path: ./ or ../ first
     r"|(?!0[xb])(?=[0-9a-z]{0,100}$)[0-9]+[a-z][0-9a-z]*"
     r"|(?=.{0,100}$)[0-9]+(?:\.[0-9]+){2,}"
 )

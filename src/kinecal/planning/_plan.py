@@ -223,6 +223,13 @@ def _information_before(
     prec = pb.prior_precision.copy()
     # at least the prior's (a std of 1e300: no information, a singular matrix)
     prec[known] = np.maximum(prec[known], (pb.scales[known] / std[known]) ** 2)
+    if not known.any():  # std null throughout (a fit without covariance)
+        warnings.append(
+            "without the poses measured before, and without standard deviations in "
+            "the model file (std: null), nothing is known of them: planned as for a "
+            "new calibration."
+        )
+        return None, None
     warnings.append(
         "without the poses measured before, their information is taken from the "
         "calibrated standard deviations alone (correlations ignored)."

@@ -24,7 +24,8 @@ if TYPE_CHECKING:
         gravity_torques,
         random_joint_poses,
     )
-    from kinecal.robot._schema import dump_robot, load_robot_file, robot_from_dict
+    from kinecal.robot._robot_file import load_robot_file
+    from kinecal.robot._schema import dump_robot, robot_from_dict
     from kinecal.robot._urdf import robot_from_urdf
 
 __all__ = [
@@ -69,9 +70,9 @@ __getattr__, __dir__ = _lazy.exports(
             "gravity_torques",
             "random_joint_poses",
         ),
+        "_robot_file": ("load_robot_file",),
         "_schema": (
             "dump_robot",
-            "load_robot_file",
             "robot_from_dict",
         ),
         "_urdf": ("robot_from_urdf",),

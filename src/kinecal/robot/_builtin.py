@@ -16,7 +16,8 @@ from typing import Any
 
 from kinecal.errors import ConfigError
 from kinecal.robot._description import RobotDescription
-from kinecal.robot._schema import load_robot_file, robot_from_dict
+from kinecal.robot._robot_file import load_robot_file
+from kinecal.robot._schema import robot_from_dict
 
 __all__ = ["builtin_robot_names", "load_robot"]
 
@@ -107,9 +108,12 @@ def _not_a_robot_file(p: Path) -> None:
     measurement or pose CSV (was: "expected a mapping; got str")."""
     try:
         with p.open("rb") as f:
-            head = f.read(4096).decode("utf-8", "replace")
+            raw = f.read(4096)
     except OSError:
         return  # (the reader says why)
+    if b"\0" in raw:  # UTF-16 or binary: the reader says so
+        return
+    head = raw.decode("utf-8-sig", "replace")  # (a byte-order mark: Notepad)
     if any(ln.startswith("kinecal_model:") for ln in head.splitlines()):
         raise ConfigError(
             f"{p}: a calibrated model (kinecal_model), not a robot file; expected a "

@@ -31,7 +31,6 @@ Frames use Eq. 8's ``Trans(x, y, z) Rz(r) Ry(w) Rx(p)``. Unknown keys are errors
 from __future__ import annotations
 
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -44,10 +43,11 @@ from kinecal.robot._description import (
     RobotDescription,
     SelfWeightSpec,
 )
+from kinecal.robot._joint_rates import check_rate
 from kinecal.robot._unit_slips import check_unit_slips
 from kinecal.units import ANGLE_UNITS, LENGTH_UNITS
 
-__all__ = ["dump_robot", "load_robot_file", "robot_from_dict"]
+__all__ = ["dump_robot", "robot_from_dict"]
 
 _TOP_KEYS = {
     "name",
@@ -327,9 +327,7 @@ def _joint(
     for key, scale in (("velocity", lim_scale), ("effort", 1.0)):
         if jr.get(key) is not None:
             v = _number(jr[key], f"{where}.{key}")
-            if not (np.isfinite(v) and v > 0):
-                raise _err(f"{where}.{key}", f"expected a positive number; got {v!r}.")
-            rates[key] = v * scale
+            rates[key] = check_rate(v, key, kind == "prismatic", scale, where)
     jname = jr.get("name", f"J{i + 1}")
     if not isinstance(jname, str) or not jname or not jname.isprintable():
         raise _err(
@@ -346,6 +344,12 @@ def _joint(
         velocity=rates["velocity"],
         effort=rates["effort"],
     )
+
+
+# The largest coupling factor (a joint's angle per unit of another motor's, SI): gear
+# couplings of real arms are 1 (FANUC J2/J3) or below; 1e30 was refused only as a
+# "singular" coupling, naming no entry.
+MAX_COUPLING = 100.0
 
 
 def _coupling(data: Mapping[str, Any], source: str, n: int) -> np.ndarray:
@@ -369,7 +373,14 @@ def _coupling(data: Mapping[str, Any], source: str, n: int) -> np.ndarray:
                 )
         if j == f:
             raise _err(where, "a joint cannot be coupled to itself.")
-        C[j - 1, f - 1] += _number(c["factor"], f"{where}.factor")
+        factor = _number(c["factor"], f"{where}.factor")
+        if not abs(factor) <= MAX_COUPLING:  # a joint turns with another's motor
+            raise _err(
+                f"{where}.factor",
+                f"{factor:g}; expected a coupling factor within ±{MAX_COUPLING:g} "
+                "(FANUC J2/J3: 1).",
+            )
+        C[j - 1, f - 1] += factor
     if coupling and not np.linalg.cond(C) < 1e8:
         raise _err(
             f"{source}: coupling",
@@ -492,28 +503,6 @@ def robot_from_dict(data: Any, source: str = "<dict>") -> RobotDescription:
     )
 
 
-def load_robot_file(path: str | Path) -> RobotDescription:
-    """Load and validate a robot YAML file (see module docstring for the schema)."""
-    from kinecal import _yaml as yaml
-
-    p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"{p}: cannot read robot file ({exc.strerror}).") from exc
-    except UnicodeDecodeError:
-        raise ConfigError(
-            f"{p}: not a text file; expected a robot YAML (or a URDF)."
-        ) from None
-    try:
-        data = yaml.load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{p}: not valid YAML ({exc}).".replace("\n", " ")) from exc
-    if data is None:
-        raise ConfigError(f"{p}: the robot file is empty.")
-    return robot_from_dict(data, source=str(p))
-
-
 def _frame_dict(T: np.ndarray) -> dict[str, float]:
     v = transform_to_euler(T)
     v[:3] *= 1e3
@@ -538,10 +527,10 @@ def dump_robot(robot: RobotDescription) -> dict[str, Any]:
             row["limits"] = [j.limits[0] * lim_scale, j.limits[1] * lim_scale]
         if j.kind != "revolute":
             row["type"] = j.kind
-        if j.velocity is not None:
-            row["velocity"] = round(j.velocity * lim_scale, 9)
+        if j.velocity is not None:  # 12 digits: a slow speed is not rounded to 0
+            row["velocity"] = float(f"{j.velocity * lim_scale:.12g}")
         if j.effort is not None:
-            row["effort"] = round(float(j.effort), 9)
+            row["effort"] = float(f"{j.effort:.12g}")
         joints.append(row)
     coupling = [
         {"joint": int(r + 1), "from": int(c + 1), "factor": float(robot.coupling[r, c])}

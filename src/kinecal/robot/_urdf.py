@@ -223,7 +223,7 @@ def _walk(chain: list[ET.Element], base: str, src: str) -> _Walk:
                 )
             lo, hi = _limits(lim, f"{src}: joint {jn!r} limit")
             check_travel(lo, hi, kind == "prismatic", f"{src}: joint {jn!r} limit", "")
-        w.rates[jn] = rates_of(lim)
+        w.rates[jn] = rates_of(lim, kind == "prismatic")
         w.lines.append((T[:3, 3].copy(), T[:3, :3] @ axis))
         kind_ = "prismatic" if kind == "prismatic" else "revolute"
         w.specs.append((jn, kind_, (lo, hi)))

@@ -10,6 +10,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 
 from kinecal.errors import ConfigError
+from kinecal.robot._joint_rates import rate_or_none
 
 __all__ = ["declared_coupling", "merge_mimics", "mimic_of", "rates_of"]
 
@@ -41,16 +42,19 @@ def declared_coupling(text: str, n: int, src: str) -> np.ndarray:
     return C
 
 
-def rates_of(lim: ET.Element | None) -> tuple[float | None, float | None]:
-    """Velocity and effort of a ``<limit>`` (None where absent, not positive, or not a
-    number: ROS-Industrial writes effort 0 for unknown)."""
+def rates_of(
+    lim: ET.Element | None, prismatic: bool = False
+) -> tuple[float | None, float | None]:
+    """Velocity and effort of a ``<limit>`` (None where absent, not positive, not a
+    number, or beyond any joint's, :func:`kinecal.robot._joint_rates.rate_or_none`:
+    ROS-Industrial writes effort 0 for unknown, some files 1e30 for unlimited)."""
     out: list[float | None] = []
     for key in ("velocity", "effort"):
         try:
             v = float(lim.get(key, "nan")) if lim is not None else np.nan
         except ValueError:
             v = np.nan
-        out.append(v if np.isfinite(v) and v > 0 else None)
+        out.append(rate_or_none(v, key, prismatic))
     return out[0], out[1]
 
 

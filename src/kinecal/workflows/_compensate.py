@@ -279,16 +279,7 @@ def compensate_program(
         cal, prog, q_prog, uframes or {}, utools or {}, scale, tol_mm, decimals,
         registers,
     )  # fmt: skip
-    # (an incremental move's joints are a displacement: not a pose to warn about)
-    q_all = np.vstack([q_prog, run.q_seed[np.all(np.isfinite(run.q_seed), axis=1)]])
-    rows = [
-        i + 1
-        for i in range(q_all.shape[0])
-        if i >= len(prog.points) or not prog.points[i].why_not
-    ]
-    _warn_extrapolation(
-        cal, q_all[np.array(rows, int) - 1], rows, f"{path} (targets in order)", emit
-    )
+    _program_extrapolation(cal, prog, q_prog, run, str(path), emit)
     keep = (res_j.status != "ok") if res_j is not None else np.zeros(0, bool)
     q_w_in = res_j.q_ctrl if res_j is not None else q_prog
     text = write_program(
@@ -444,14 +435,30 @@ def diagnostic_columns(res: CompensationResult) -> list[tuple[str, Any]]:
 
 
 def _warn_extrapolation(
-    cal: CalibratedModel, q: np.ndarray, rows: Any, source: str, emit: Say
-) -> None:
+    cal: CalibratedModel, q: np.ndarray, rows: Any, source: str, emit: Say,
+    labels: list[str] | None = None,
+) -> None:  # fmt: skip
     """Targets outside the joint ranges the model was calibrated on (a warning)."""
     from kinecal.io import extrapolation
 
-    found = extrapolation(cal, q, rows, source, what="targets")
+    found = extrapolation(cal, q, rows, source, what="targets", labels=labels)
     if found is not None and found.severity == "warning":
         emit(f"warning   {found.message}")
+
+
+def _program_extrapolation(
+    cal: CalibratedModel, prog: Any, q_prog: np.ndarray, run: Any, path: str, emit: Say
+) -> None:
+    """Joint and Cartesian targets outside the calibrated ranges, named by line."""
+    # (an incremental move's joints are a displacement: not a pose to warn about)
+    seeded = np.all(np.isfinite(run.q_seed), axis=1)
+    q_all = np.vstack([q_prog, run.q_seed[seeded]])
+    pts = [*prog.points, *(p for p, ok in zip(run.points, seeded) if ok)]
+    rows = [
+        i + 1 for i, pt in enumerate(pts) if i >= len(prog.points) or not pt.why_not
+    ]
+    names = [f"line {pts[r - 1].line} ({pts[r - 1].name})" for r in rows]
+    _warn_extrapolation(cal, q_all[np.array(rows, int) - 1], rows, path, emit, names)
 
 
 def _joint_part(

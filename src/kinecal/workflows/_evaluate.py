@@ -107,6 +107,7 @@ def evaluate_measurements(
         if say is not None:
             say(line)
 
+    header = _header(data_name)
     set_units(meas, cal.model.robot)
     meas, found = check_data_for_model(meas, cal)
     check_payload_column(
@@ -123,11 +124,14 @@ def evaluate_measurements(
     for d in found:
         if d.severity == "warning":
             emit(f"warning   {d.message}")
-    note = _training_data(data_name, model_name)
+    note = _training_data(data_name, model_name) or _own_residuals(
+        data_name, header, model_name
+    )
     if note:
         emit(f"warning   {note}")
     check_refit_poses(meas, refit)
     ev = evaluate(cal, meas, refit=refit)
+    _refuse_compensated(data_name, header, ev.metrics.max_mm)
     _check_same_robot(
         ev.errors_mm, data_name or meas.source, model_name, cal.model.robot.name,
         _radian_like(meas, cal),
@@ -290,3 +294,60 @@ def check_refit_poses(meas: Measurements, what: tuple[str, ...]) -> None:
                 f"joint angles); --refit {','.join(what)} needs at least 3 different "
                 "poses per set (or no --refit)."
             )
+
+
+def _header(data: str | None) -> set[str]:
+    """The column names of the data file (its first line that is not a comment)."""
+    import re
+
+    if data is None:
+        return set()
+    try:
+        with open(data, encoding="utf-8-sig", errors="replace") as f:
+            head = next((s for s in f if s.strip() and not s.startswith("#")), "")
+    except OSError:
+        return set()
+    return {c.strip().strip('"') for c in re.split(r"[,;\t]", head)}
+
+
+# Below this largest error [mm] the positions are the model's own (no instrument
+# measures a robot to a micrometre over a session): compensate's targets, met to 1e-3 mm.
+MODEL_OWN_MM = 1e-3
+
+
+def _refuse_compensated(data: str | None, cols: set[str], max_mm: float) -> None:
+    """DATA is a ``compensate`` output (CORRECTED.csv: the targets with the corrected
+    joints, ``jK_deg_program``, ``err_mm``, ``status``) as written, not measurements:
+    its positions are the targets, which the model meets by construction (``evaluate``
+    printed an RMS of 3e-8 mm as the robot's accuracy). Measured positions pasted into
+    it (the corrected program measured) are evaluated."""
+    import re
+
+    program = sorted(c for c in cols if re.fullmatch(r"j\d+_(deg|mm|rad|m)_program", c))
+    if program and {"err_mm", "status"} <= cols and max_mm < MODEL_OWN_MM:
+        raise DataError(
+            f"{data}: columns {program[0]}.., err_mm, status: a file kinecal compensate "
+            "wrote (the targets with the corrected joints), not measurements: its "
+            f"x_mm, y_mm, z_mm are the targets, which the model meets by construction "
+            f"(largest error {max_mm:.1e} mm); expected the positions measured with "
+            "the robot at these joints."
+        )
+
+
+def _own_residuals(data: str | None, cols: set[str], model_path: str) -> str | None:
+    """DATA is the residuals.csv beside the model (``calibrate``'s per-pose errors):
+    its rows are the calibration's own poses, so its figures are training errors (the
+    manifest's check of the data file does not see this copy)."""
+    from pathlib import Path
+
+    if data is None or not {"err_before_mm", "err_mm"} <= cols:
+        return None
+    model = Path(model_path)
+    if not model.is_file() or Path(data).resolve().parent != model.resolve().parent:
+        return None
+    return (
+        f"{data}: the residuals {model_path}'s calibration wrote (err_before_mm, "
+        "err_mm): its rows are the poses the model was fitted on, so these are "
+        "training errors, not held-out ones; evaluate on poses the model was not "
+        "fitted on."
+    )

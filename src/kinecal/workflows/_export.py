@@ -409,7 +409,12 @@ def _loss_poses(
         meas = cal.align(read_measurements(data, cal.model.robot, targets))
     else:  # the calibration data, when the model names a file that reads
         source = cal.info.get("source")
-        if isinstance(source, str) and Path(source).is_file():
+        # a path the model file names (resolved from its folder by load_model)
+        if (
+            isinstance(source, str)
+            and Path(source).is_absolute()
+            and Path(source).is_file()
+        ):
             try:
                 meas = cal.align(read_measurements(source, cal.model.robot, targets))
             except CalibError:

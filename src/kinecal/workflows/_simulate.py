@@ -180,25 +180,48 @@ def _check_twin_size(robot: RobotDescription, n_train: int, n_test: int) -> None
         check_payload(robot.payload_kg, robot, "--payload-kg")
 
 
+# The columns of a plan kept in train.csv (``simulate --plan``): an ISO 9283 test
+# program's point and cycle (and its command pose, for the operator), so that the
+# simulated test runs through ``evaluate --iso9283`` as a measured one would.
+PLAN_COLUMNS: tuple[str, ...] = ("iso_point", "iso_cycle", "point", "cycle")
+PLAN_COLUMNS += (
+    "cmd_x_mm",
+    "cmd_y_mm",
+    "cmd_z_mm",
+    "cmd_a_deg",
+    "cmd_b_deg",
+    "cmd_c_deg",
+)
+
+
 def write_simulation(
     sim: SimulatedData,
     out: Path,
     final: Path,
-    *,
     robot_file: RobotDescription | None = None,
+    plan: str | None = None,
 ) -> dict[str, str]:
     """Write the simulation's files into ``out`` (the staged folder): train.csv,
     test.csv, targets.csv (when there are targets), truth.yaml and, with a
     ``robot_file`` (the robot simulated), robot.yaml; return them by role, named as
-    they will be in ``final`` (the --out folder)."""
+    they will be in ``final`` (the --out folder). ``plan``: the pose file whose rows
+    train.csv measures (``--plan``); its :data:`PLAN_COLUMNS` are kept in train.csv."""
     from kinecal.demo import truth_model
-    from kinecal.io import save_model, write_measurements, write_targets
+    from kinecal.io import (
+        atomic_write_text,
+        measurements_to_csv,
+        save_model,
+        write_measurements,
+        write_targets,
+    )
 
     exp = sim.experiment
     robot = exp.truth.robot
     names = {"train": "train.csv", "test": "test.csv", "truth": "truth.yaml"}
     # force: prepare_output_dir has checked the folder (the --force of the command)
-    write_measurements(out / "train.csv", exp.train, robot, force=True)
+    train = measurements_to_csv(exp.train, robot)
+    text = _with_plan_columns(train, plan) if plan is not None else train
+    atomic_write_text(out / "train.csv", text, force=True)
     write_measurements(out / "test.csv", exp.test, robot, force=True)
     if exp.targets is not None:
         labels, p, r = exp.targets
@@ -207,7 +230,6 @@ def write_simulation(
     save_model(out / "truth.yaml", truth_model(exp), force=True)
     if robot_file is not None:
         from kinecal import _yaml as yaml
-        from kinecal.io import atomic_write_text
         from kinecal.robot import dump_robot
 
         rf = robot_file
@@ -216,3 +238,28 @@ def write_simulation(
         atomic_write_text(out / "robot.yaml", text, force=True)
         names["robot"] = "robot.yaml"
     return {k: str(final / v) for k, v in names.items()}
+
+
+def _with_plan_columns(train: str, plan: str) -> str:
+    """train.csv's text with the plan's :data:`PLAN_COLUMNS` added after its own (the
+    rows are the plan's, in its order)."""
+    import csv
+    import io
+
+    from kinecal.io import read_table
+
+    t = read_table(plan)
+    keep = [c for c in t.header if c.strip().lower() in PLAN_COLUMNS]
+    lines = train.splitlines()
+    if not keep:
+        return train
+    if len(lines) != len(t) + 1:  # one measured row per plan row
+        raise DataError(
+            f"{plan}: {len(t)} rows, but the simulation measured {len(lines) - 1}."
+        )
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(keep)
+    w.writerows(zip(*(t.column(c) for c in keep)))
+    extra = buf.getvalue().splitlines()
+    return "".join(f"{a},{b}\n" for a, b in zip(lines, extra))
