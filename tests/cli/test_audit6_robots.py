@@ -49,7 +49,9 @@ def test_extrapolation_names_the_data_column_of_a_named_joint(capsys, tmp_path):
     )  # fmt: skip
     warned = [ln for ln in res.err.splitlines() if "lie outside the joint" in ln]
     assert warned, str(res)
-    assert "line 2 shoulder_pan (j1_deg) 359.0 deg (calibrated" in warned[0], warned[0]
+    assert "line 2 (row 1) shoulder_pan (j1_deg) 359.0 deg (calibrated" in warned[0], (
+        warned[0]
+    )
 
 
 def test_robot_option_given_a_model_or_a_data_file(capsys, tmp_path):

@@ -77,7 +77,7 @@ def test_cv_figures_and_extrapolation_warnings(run_cli, simulated_exp2, tmp_path
     )
     assert res.returncode == 0, res.stderr
     assert "outside the joint ranges the model was calibrated on" in res.stderr
-    assert "line 2 J1" in res.stderr or "line 2 j1" in res.stderr.lower()
+    assert "line 2 (row 1) J1" in res.stderr, res.stderr
     assert json.loads(res.stdout)["n"] == len(far)
     res = run_cli(
         "evaluate",

@@ -458,7 +458,8 @@ def extrapolation(
     was calibrated on (its file's ``info: calibrated_joint_range``); the model's
     prediction there is an extrapolation and can be far off. None when every row is
     inside, or the model file does not say its ranges. ``labels``: how to name each
-    row (a program's ``line 12 (P[3])``; default ``line N``: ``rows`` are file lines)."""
+    row (a program's ``line 12 (P[3])``; default ``line N (row K)``: ``rows``
+    are file lines, K counts the data rows from 1)."""
     robot = cal.model.robot
     got = cal.info.get("calibrated_joint_range")
     n = robot.n_joints
@@ -489,7 +490,8 @@ def extrapolation(
         j = int(np.flatnonzero(out[i])[0])
         # the data's column too where the robot names its joints otherwise (UR, URDF)
         col = "" if names[j] == f"J{j + 1}" else f" (j{j + 1}_{unit[j]})"
-        where = labels[i] if labels is not None else f"line {row_of[i]}"
+        # the file line, and the data row for a user counting rows (a data frame's)
+        where = labels[i] if labels is not None else f"line {row_of[i]} (row {i + 1})"
         parts.append(
             f"{where} {names[j]}{col} {q[i, j]:.1f} {unit[j]} (calibrated "
             f"{rng[j, 0]:.1f} .. {rng[j, 1]:.1f})"
