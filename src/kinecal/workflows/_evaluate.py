@@ -117,6 +117,10 @@ def evaluate_measurements(
         from kinecal.workflows._compensate import check_payload_scales
 
         check_payload_scales(cal, f"{data_name or meas.source}: column 'payload_kg'")
+    else:
+        said = _payload_assumed(cal)
+        if said:
+            emit(f"note      {data_name or meas.source}: {said}")
     if "marker" in refit:  # a marker of one row: its refitted offset matches it exactly
         from kinecal.io._checks import lone_labels
 
@@ -214,6 +218,19 @@ def check_payload_column(
             f"({over.size} rows over); expected at most {hi:g} kg{also} for "
             f"{robot.name}: a unit mistake (g, lb)?"
         )
+
+
+def _payload_assumed(cal: CalibratedModel) -> str | None:
+    """What data without a ``payload_kg`` column are scored at, for a model whose
+    payload compliance has a reference payload (the calibration's); None for models
+    whose predictions do not depend on the payload."""
+    ref = cal.reference_payload_kg
+    if not cal.model.spec.load or ref is None:
+        return None
+    return (
+        f"no payload_kg column: every pose is scored at the calibration's reference "
+        f"payload ({ref:g} kg); add the column where the payload differs."
+    )
 
 
 def _training_data(data: str | None, model_path: str) -> str | None:
