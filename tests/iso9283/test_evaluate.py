@@ -242,8 +242,13 @@ def test_issue_38_bad_iso_data_get_a_clear_error(case, capsys, tmp_path):
         if r[6] == "P2" and r[7] == "3":
             r[6] = "P9"
 
+    def line_of(point, cycle):  # the file line (the header is line 1)
+        rows = [r.split(",") for r in case["lines"][1:]]
+        return 2 + next(i for i, r in enumerate(rows) if r[6:8] == [point, cycle])
+
     res = run(_write(case, tmp_path / "e.csv", edit=rename))
     failed_with(res, "'P9' is not an ISO 9283 test point", "P1, P2, P3, P4, P5")
+    failed_with(res, f"e.csv: line {line_of('P2', '3')}: point label 'P9'")
 
     def twice(r):
         if r[6] == "P5" and r[7] == "4":
@@ -251,6 +256,7 @@ def test_issue_38_bad_iso_data_get_a_clear_error(case, capsys, tmp_path):
 
     res = run(_write(case, tmp_path / "f.csv", edit=twice))
     failed_with(res, "point P5 appears more than once in cycle 3")
+    failed_with(res, f"f.csv: line {line_of('P5', '3')}: point P5")
 
     def half(r):
         if r[7] == "2":

@@ -162,7 +162,7 @@ def _check_labels(
     for lab, row in zip(names, meas.rows):
         if lab not in POINT_LABELS:
             raise DataError(
-                f"{meas.source}: row {row}: point label {lab!r} is not an ISO 9283 "
+                f"{meas.source}: line {row}: point label {lab!r} is not an ISO 9283 "
                 f"test point; expected one of {', '.join(POINT_LABELS)}."
             )
     idx = np.array([POINT_LABELS.index(s) for s in names], np.intp)
@@ -190,7 +190,7 @@ def _check_labels(
     if np.any(count > 1):
         k = first[np.argmax(count > 1)]
         raise DataError(
-            f"{meas.source}: row {meas.rows[k]}: point {POINT_LABELS[idx[k]]} appears "
+            f"{meas.source}: line {meas.rows[k]}: point {POINT_LABELS[idx[k]]} appears "
             f"more than once in cycle {cyc[k]}; expected one row per point and cycle."
         )
     return idx, cyc.astype(np.intp)
