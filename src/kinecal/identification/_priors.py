@@ -18,6 +18,7 @@ from kinecal._record import Record
 from kinecal._stats import median
 from kinecal.identification._lm import Prior, loss_weights, psd_inverse
 from kinecal.identification._noise import estimate_noise
+from kinecal.identification._normal import block_normal
 from kinecal.identification._options import (
     PRIOR_GROUPS,
     PRIOR_SIGMA,
@@ -162,7 +163,7 @@ def adapt_prior(
     fidx = np.flatnonzero(free)
     blk = problem.evaluations(cm, x, state.weights, jacobian=True)
     scales = cm.layout.scales[fidx]
-    JtJ, _ = blk.normal(fidx, scales)
+    JtJ, _ = block_normal(blk, fidx, scales)
     dof = max(blk.r.size - fidx.size, 1)
     s0sq = float(np.sum(blk.r**2)) / dof
     var = s0sq * np.diag(psd_inverse(JtJ, 1e-12)) * scales**2
@@ -249,7 +250,7 @@ def evidence_prior(
     blk = problem.evaluations(cm, x, state.weights, jacobian=True)
     sc = cm.layout.scales[fidx]
     sw = np.sqrt(loss_weights(np.sum(blk.r**2, axis=1) / lm.f_scale**2, lm.loss)[1])
-    JtJ, Jtr = blk.normal(fidx, sc, sw)
+    JtJ, Jtr = block_normal(blk, fidx, sc, None if lm.loss == "linear" else sw)
     # b = r + J (m - x): the data about the prediction at the prior mean
     d = (prior.mean[fidx] - x[fidx]) / sc
     Jtb = Jtr + JtJ @ d

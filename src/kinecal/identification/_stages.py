@@ -35,6 +35,7 @@ from kinecal.identification._identifiability import (
 )
 from kinecal.identification._lm import LMOptions, spd_solve
 from kinecal.identification._noise import estimate_noise
+from kinecal.identification._normal import block_normal
 from kinecal.identification._options import (
     MU0_WARM,
     STOL,
@@ -174,7 +175,7 @@ class Identify(Record):
         every = np.ones(cm.size, bool)
         # From the normal matrix: of the held Jacobian, or summed by blocks of poses
         # for large data (the analysis is the same either way).
-        A, _ = blk.normal(np.arange(cm.size), np.ones(cm.size))
+        A, _ = block_normal(blk, np.arange(cm.size), np.ones(cm.size))
         ident = identifiability_from_normal(A, cm.layout, every, **tol)
         found = _few_targets(problem, cm)
         specs = cm.layout.specs
@@ -320,7 +321,7 @@ def _stage2_direct(problem: Problem, state: State, cols: np.ndarray) -> Float:
         A = blk.J[:, :, idx].reshape(-1, idx.size)
         delta, *_ = np.linalg.lstsq(A, -blk.r.reshape(-1), rcond=None)  # Eq. (T-1)
     else:  # large data: the same least squares by its normal equations
-        N_, g_ = blk.normal(idx, np.ones(idx.size))
+        N_, g_ = block_normal(blk, idx, np.ones(idx.size))
         delta = -spd_solve(N_, g_, rcond=1e-15)  # Eq. (T-1)
     out = state.x.copy()
     out[idx] += delta
