@@ -115,7 +115,14 @@ class Priors(Record):
         name = "stage 1: kinematic" + (" (no priors)" if use_prior_kin else "")
         lm_pre = replace(state.lm, stol=STOL_PRE)
         state, pre = run_lm(
-            problem, state, name, x_reg, state.free & kin, lm_pre, required=False
+            problem,
+            state,
+            name,
+            x_reg,
+            state.free & kin,
+            lm_pre,
+            required=False,
+            products=bool(state.model.link_products),  # stage 3 lifts from there
         )
         # Stage 1 without priors from the identified state (the rejection's probe, the
         # nominal check) continues this run instead of repeating it.

@@ -119,7 +119,11 @@ class Register(Record):
             state, res = run_lm(problem, state, again, x, frames, warm, evaluate=fit)
             x = res.x
         if fit is not None:  # the model's own Jacobian where the next stage starts
-            problem.evaluations(model, x, state.weights, jacobian=True)
+            # (with the product columns: stage 3 may lift from stage 1's solution)
+            products = bool(model.link_products)
+            problem.evaluations(
+                model, x, state.weights, jacobian=True, products=products
+            )
         return state.but(x=x, x_registered=x)
 
 
@@ -255,6 +259,7 @@ class KinematicStage(Record):
             state.lm,
             prior,
             resume=state.prefit,  # the priors' pre-fit, when this fit goes on from it
+            products=bool(state.model.link_products),  # stage 3 lifts from here
         )
         state = state.but(x=res.x)
         if problem.estimate_noise and not state.noise_estimated:
@@ -310,7 +315,8 @@ class TransmissionStage(Record):
             True,
             time.perf_counter() - t0,
         )
-        return state.but(x=x2, stages=(*state.stages, entry))
+        # Stage 3 lifts from stage 1's solution, where this fit is linear.
+        return state.but(x=x2, stages=(*state.stages, entry), linearised=state.x)
 
 
 def _stage2_direct(problem: Problem, state: State, cols: np.ndarray) -> Float:
@@ -382,8 +388,11 @@ class FullStage(Record):
             lm3 = replace(lm3, stol=max(lm3.stol, STOL_PRE))
         prior = state.active_prior()
         fit = partial(run_lm, lifted=True, final_jacobian=not self.screen)
-        state, res = fit(problem, state, self.name, state.x, state.free, lm3, prior)
-        state = state.but(x=res.x)
+        at = state.linearised  # stage 2's point: the lifted start's linearisation
+        state, res = fit(
+            problem, state, self.name, state.x, state.free, lm3, prior, lift_at=at
+        )
+        state = state.but(x=res.x, linearised=None)
         for _ in range(_NOISE_ROUNDS if problem.estimate_noise else 0):
             # Variance components iterated with the fit (Eq. (T-7)): the priors were
             # weighed against the noise of the earlier, smaller models.
