@@ -71,11 +71,8 @@ def run_lm(
     final_jacobian : bool
         False: no Jacobian at the solution unless asked for (:func:`solve_lm`).
     evaluate : FrameFit, optional, in place of the problem's evaluations.
-    products : bool
-        Jacobians with the product columns (a lifted stage after this one linearises
-        at its solution: ``lift_at``).
-    lift_at : the point where the lifted start linearises, when a Jacobian with the
-        product columns is kept there (default: ``x0``; :func:`lift_kept`).
+    products : Jacobians with product columns (a later lifted stage linearises here).
+    lift_at : where the lifted start linearises (:func:`lift_kept`; default ``x0``).
 
     Returns
     -------
@@ -126,14 +123,8 @@ def run_lm(
         time.perf_counter() - t0,
         res.log,
     )
-    log.info(
-        "%s: rms %.4f -> %.4f mm (%s, %d it)",
-        name,
-        before,
-        after,
-        res.status,
-        res.n_iter,
-    )
+    msg = "%s: rms %.4f -> %.4f mm (%s, %d it)"
+    log.info(msg, name, before, after, res.status, res.n_iter)
     out = state.but(stages=(*state.stages, entry))
     if not res.success and required:
         drift, where = _drift(cm, res, free, problem.options.priors)
