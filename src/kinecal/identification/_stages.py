@@ -167,19 +167,17 @@ class Identify(Record):
         problem.progress("identifiability", "scaled Jacobian")
         cm, meas = state.model, problem.meas
         opts = self.settings or IdentifySettings.of(problem.options)
-        blk = residuals(
-            cm,
-            _generic_point(cm, state.x),
-            meas,
-            state.weights,
-            inputs=problem.inputs,
-            jacobian=True,
-        )
+        g = _generic_point(cm, state.x)
+        A = _generic_normal(problem, state, g)
+        if A is None:
+            blk = residuals(
+                cm, g, meas, state.weights, inputs=problem.inputs, jacobian=True
+            )
+            # From the normal matrix: of the held Jacobian, or summed by blocks of
+            # poses for large data (the analysis is the same either way).
+            A, _ = block_normal(blk, np.arange(cm.size), np.ones(cm.size))
         tol = {"drop_tol": opts.drop_tol, "weak_tol": opts.weak_tol}
         every = np.ones(cm.size, bool)
-        # From the normal matrix: of the held Jacobian, or summed by blocks of poses
-        # for large data (the analysis is the same either way).
-        A, _ = block_normal(blk, np.arange(cm.size), np.ones(cm.size))
         ident = identifiability_from_normal(A, cm.layout, every, **tol)
         found = _few_targets(problem, cm)
         specs = cm.layout.specs
@@ -208,6 +206,32 @@ class Identify(Record):
             )
         out = state.but(free=ident.free, identifiability=ident).note(*found)
         return out.but(identified=out)
+
+
+def _generic_normal(problem: Problem, state: State, g: Float) -> Float | None:
+    """``JᵀJ`` at the generic point ``g`` from the Jacobian with the product columns
+    kept at the state's point (registration's), where ``g`` differs from it only in
+    compliances and link moments that are zero there (issue 36: one Jacobian pass
+    fewer). There the deflections vanish, the moments' columns with them, and at ``g``,
+    to first order in its tiny compliances, ``col(lambda_j) + sum_k s_k col(mu_jk)``
+    and ``col(s_k) = sum_j lambda_j col(mu_jk)`` (:mod:`._lift`): ``Tᵀ A T`` with
+    the products' normal matrix A (entries within ~1e-6 of the direct evaluation's,
+    the same analysis). None where that does not hold."""
+    cm, x = state.model, state.x
+    moved = np.flatnonzero(g != x)
+    kinds = {cm.layout.specs[i].kind for i in moved}
+    if not kinds <= {"compliance", "moment"} or np.any(x[moved] != 0.0):
+        return None
+    P, K = cm.size, len(cm.link_products)
+    blk = problem.evaluations.kept(cm, x, state.weights, P + K)
+    if blk is None:
+        return None
+    A, _ = block_normal(blk, np.arange(P + K), np.ones(P + K))
+    T = np.eye(P + K, P)
+    for i, (lam, s) in enumerate(cm.link_products):
+        T[P + i, lam] = g[s]
+        T[P + i, s] = g[lam]
+    return T.T @ A @ T
 
 
 def _few_targets(problem: Problem, cm: CalibrationModel) -> list[Diagnostic]:
