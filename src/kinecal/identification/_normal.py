@@ -104,7 +104,7 @@ def _span_products(
     products of an earlier call on the same arrays where there is one (a span that
     holds this one serves: its block), else by the compiled kernel or BLAS."""
     arrays = (J, r) if row_weights is None else (J, r, row_weights)
-    for refs, a, b, A0, g0 in reversed(_kept):
+    for refs, a, b, A0, g0 in reversed(_kept[:]):  # (a copy: another thread may add)
         if (
             a <= lo
             and hi <= b
