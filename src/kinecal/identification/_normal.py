@@ -7,14 +7,16 @@ parameters) where it serves, BLAS's otherwise; the two agree to rounding."""
 
 from __future__ import annotations
 
+import weakref
 from typing import Protocol
 
 import numpy as np
 
+from kinecal.measurement._residuals import ResidualBlock
 from kinecal.models import _kernel
 from kinecal.typing import Float
 
-__all__ = ["NormalSource", "normal_equations", "normal_of"]
+__all__ = ["NormalSource", "block_normal", "normal_equations", "normal_of"]
 
 
 class NormalSource(Protocol):
@@ -37,6 +39,19 @@ def normal_of(
     if isinstance(J, np.ndarray):
         return normal_equations(r, J, cols, scales, row_weights)
     return J.normal(cols, scales, row_weights)
+
+
+def block_normal(
+    blk: ResidualBlock,
+    cols: np.ndarray,
+    scales: Float,
+    row_weights: Float | None = None,
+) -> tuple[Float, Float]:
+    """:func:`normal_equations` of a residual block's Jacobian, held (the products of an
+    earlier call at the same point serve) or by blocks (:meth:`ResidualBlock.normal`)."""
+    if blk.J is not None:
+        return normal_equations(blk.r, blk.J, cols, scales, row_weights)
+    return blk.normal(cols, scales, row_weights)
 
 
 def normal_equations(
@@ -65,6 +80,43 @@ def normal_equations(
     if cols.size == 0:
         return np.zeros((0, 0)), np.zeros(0)
     lo, hi = int(cols.min()), int(cols.max()) + 1
+    A, g = _span_products(r, J, lo, hi, row_weights)
+    sel = cols - lo
+    outer = np.outer(scales, scales)
+    if sel.size == A.shape[0] and (sel.size < 2 or bool((np.diff(sel) == 1).all())):
+        return A * outer, g * scales  # every column of the span, in order
+    return A[np.ix_(sel, sel)] * outer, g[sel] * scales
+
+
+# The products of the last few held Jacobians (issue 36): the stages read the normal
+# equations of one Jacobian several times (the solver at a stage's last point, the prior
+# adaptation, the evidence, the uncertainty, the next stage's start there), each time
+# the same product of ~0.5 ms at 2000 poses x 50 parameters. Kept by the identity of
+# the arrays (a Jacobian is never written after its evaluation), as weak references.
+_KEEP = 8
+_kept: list[tuple[tuple[weakref.ref, ...], int, int, Float, Float]] = []
+
+
+def _span_products(
+    r: Float, J: Float, lo: int, hi: int, row_weights: Float | None
+) -> tuple[Float, Float]:
+    """``(Xᵀ X, Xᵀ r)`` of the columns ``lo:hi`` of ``J`` (rows weighted), from the
+    products of an earlier call on the same arrays where there is one (a span that
+    holds this one serves: its block), else by the compiled kernel or BLAS."""
+    arrays = (J, r) if row_weights is None else (J, r, row_weights)
+    for refs, a, b, A0, g0 in reversed(_kept[:]):  # (a copy: another thread may add)
+        if (
+            a <= lo
+            and hi <= b
+            and len(refs) == len(arrays)
+            and all(ref() is x for ref, x in zip(refs, arrays))
+        ):
+            return A0[lo - a : hi - a, lo - a : hi - a], g0[lo - a : hi - a]
+    lo0, hi0 = lo, hi
+    if lo == 0 and J.shape[-1] - hi <= hi // 8:
+        # The few columns beyond (the link products of a lifted stage's Jacobian) come
+        # along: the next stage's lifted start reads them at the same point.
+        hi = J.shape[-1]
     G = _kernel.gram(J, r, lo, hi, row_weights)
     if G is not None:  # the compiled products: one triangle, Xᵀ r its last column
         k = hi - lo
@@ -74,11 +126,14 @@ def normal_equations(
         g = G[:k, k]
     else:
         A, g = _products(r, J, lo, hi, row_weights)
-    sel = cols - lo
-    outer = np.outer(scales, scales)
-    if sel.size == A.shape[0] and (sel.size < 2 or bool((np.diff(sel) == 1).all())):
-        return A * outer, g * scales  # every column of the span, in order
-    return A[np.ix_(sel, sel)] * outer, g[sel] * scales
+    A.setflags(write=False)
+    g.setflags(write=False)
+    try:
+        refs = tuple(weakref.ref(x) for x in arrays)
+        _kept[:] = [*_kept[-(_KEEP - 1) :], (refs, lo, hi, A, g)]
+    except TypeError:  # (an array type without weak references: not kept)
+        pass
+    return A[lo0 - lo : hi0 - lo, lo0 - lo : hi0 - lo], g[lo0 - lo : hi0 - lo]
 
 
 def _products(

@@ -18,6 +18,7 @@ from kinecal._record import Record
 from kinecal._stats import median
 from kinecal.identification._lm import Prior, loss_weights, psd_inverse
 from kinecal.identification._noise import estimate_noise
+from kinecal.identification._normal import block_normal
 from kinecal.identification._options import (
     PRIOR_GROUPS,
     PRIOR_SIGMA,
@@ -114,7 +115,14 @@ class Priors(Record):
         name = "stage 1: kinematic" + (" (no priors)" if use_prior_kin else "")
         lm_pre = replace(state.lm, stol=STOL_PRE)
         state, pre = run_lm(
-            problem, state, name, x_reg, state.free & kin, lm_pre, required=False
+            problem,
+            state,
+            name,
+            x_reg,
+            state.free & kin,
+            lm_pre,
+            required=False,
+            products=bool(state.model.link_products),  # stage 3 lifts from there
         )
         # Stage 1 without priors from the identified state (the rejection's probe, the
         # nominal check) continues this run instead of repeating it.
@@ -162,7 +170,7 @@ def adapt_prior(
     fidx = np.flatnonzero(free)
     blk = problem.evaluations(cm, x, state.weights, jacobian=True)
     scales = cm.layout.scales[fidx]
-    JtJ, _ = blk.normal(fidx, scales)
+    JtJ, _ = block_normal(blk, fidx, scales)
     dof = max(blk.r.size - fidx.size, 1)
     s0sq = float(np.sum(blk.r**2)) / dof
     var = s0sq * np.diag(psd_inverse(JtJ, 1e-12)) * scales**2
@@ -249,7 +257,7 @@ def evidence_prior(
     blk = problem.evaluations(cm, x, state.weights, jacobian=True)
     sc = cm.layout.scales[fidx]
     sw = np.sqrt(loss_weights(np.sum(blk.r**2, axis=1) / lm.f_scale**2, lm.loss)[1])
-    JtJ, Jtr = blk.normal(fidx, sc, sw)
+    JtJ, Jtr = block_normal(blk, fidx, sc, None if lm.loss == "linear" else sw)
     # b = r + J (m - x): the data about the prediction at the prior mean
     d = (prior.mean[fidx] - x[fidx]) / sc
     Jtb = Jtr + JtJ @ d

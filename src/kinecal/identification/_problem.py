@@ -189,13 +189,17 @@ class EvaluationCache:
         key = np.asarray(x, np.float64).tobytes()
         self._blocks = [*self._blocks[-(self.keep - 1) :], (cm, key, w, blk)]
 
-    def kept(self, cm: CalibrationModel, x: Float, w: Weights) -> ResidualBlock | None:
-        """The block kept at ``x`` under the weights ``w`` with its Jacobian held, if
-        any (never evaluates)."""
+    def kept(
+        self, cm: CalibrationModel, x: Float, w: Weights, n_cols: int = 0
+    ) -> ResidualBlock | None:
+        """The block kept at ``x`` under the weights ``w`` with its Jacobian held (or,
+        given ``n_cols``, any that gives Jacobians of so many columns), if any (never
+        evaluates)."""
         key = np.asarray(x, np.float64).tobytes()
         for m, k, ww, blk in reversed(self._blocks):
-            if m is cm and k == key and ww is w and blk.J is not None:
-                return blk
+            if m is cm and k == key and ww is w:
+                if blk.has_jacobian(n_cols) if n_cols else blk.J is not None:
+                    return blk
         return None
 
     def raw_position(self, cm: CalibrationModel, x: Float, w: Weights) -> Float:
@@ -555,6 +559,8 @@ class State(ReprRecord):
     diagnostics: tuple[Diagnostic, ...] = ()
     identified: State | None = field(default=None, repr=False)
     prefit: object | None = field(default=None, repr=False)
+    # Stage 2's point of linearisation (stage 1's solution), where stage 3 lifts from.
+    linearised: Float | None = field(default=None, repr=False)
 
     def but(self, **changes: object) -> State:
         """A copy with some fields changed."""

@@ -53,6 +53,8 @@ def run_lm(
     resume: object | None = None,
     final_jacobian: bool = True,
     evaluate: FrameFit | None = None,
+    products: bool = False,
+    lift_at: Float | None = None,
 ) -> tuple[State, LMResult]:
     """Levenberg-Marquardt over ``free`` from ``x0`` with the state's model and weights.
 
@@ -69,6 +71,8 @@ def run_lm(
     final_jacobian : bool
         False: no Jacobian at the solution unless asked for (:func:`solve_lm`).
     evaluate : FrameFit, optional, in place of the problem's evaluations.
+    products : Jacobians with product columns (a later lifted stage linearises here).
+    lift_at : where the lifted start linearises (:func:`lift_kept`; default ``x0``).
 
     Returns
     -------
@@ -81,7 +85,7 @@ def run_lm(
     problem.progress(name, f"{int(free.sum())} parameters")
     t0 = time.perf_counter()
     if lifted:
-        x0 = lift_kept(problem, cm, x0, free, lm, w, prior)
+        x0 = lift_kept(problem, cm, x0, free, lm, w, prior, at=lift_at)
         lm = replace(lm, mu0=MU0_WARM)
 
     ck = None
@@ -92,7 +96,7 @@ def run_lm(
 
     def fun(x: Float, jac: bool) -> tuple[Float, Float | NormalSource | None]:
         # A lifted stage's Jacobians carry the product columns (served from the cache).
-        blk = ev(cm, x, w, jacobian=jac, products=lifted)
+        blk = ev(cm, x, w, jacobian=jac, products=lifted or products)
         return blk.r, blk.jacobian
 
     res = solve_lm(
@@ -119,14 +123,8 @@ def run_lm(
         time.perf_counter() - t0,
         res.log,
     )
-    log.info(
-        "%s: rms %.4f -> %.4f mm (%s, %d it)",
-        name,
-        before,
-        after,
-        res.status,
-        res.n_iter,
-    )
+    msg = "%s: rms %.4f -> %.4f mm (%s, %d it)"
+    log.info(msg, name, before, after, res.status, res.n_iter)
     out = state.but(stages=(*state.stages, entry))
     if not res.success and required:
         drift, where = _drift(cm, res, free, problem.options.priors)
@@ -208,18 +206,30 @@ def lift_kept(
     lm: LMOptions,
     w: Weights,
     prior: Prior | None,
+    *,
+    at: Float | None = None,
 ) -> Float:
-    """The lifted start (:mod:`._lift`), kept where it does not raise the cost."""
+    """The lifted start (:mod:`._lift`), kept where it does not raise the cost.
+
+    It linearises at ``at`` where a Jacobian with the product columns is kept there
+    (stage 2's point, stage 1's solution: stage 2 is linear there and the lifted
+    Gauss-Newton step takes its step in; issue 36, one Jacobian pass fewer), else at
+    ``x0``."""
     if not any(free[a] and free[b] for a, b in cm.link_products):
         return x0
     ev = problem.evaluations
-    blk = ev(cm, x0, w, jacobian=True, products=True)
+    n_all = cm.size + len(cm.link_products)
+    blk = None if at is None else ev.kept(cm, at, w, n_all)
+    x_lin = x0 if at is None else at
+    if blk is None:
+        x_lin, blk = x0, ev(cm, x0, w, jacobian=True, products=True)
     J = blk.jacobian
     assert J is not None
-    cost0, drho = objective(blk.r, lm)
+    drho = objective(blk.r, lm)[1]
+    cost0 = objective(ev(cm, x0, w).r, lm)[0]  # (blk's own where at is x0)
     sw = None if lm.loss == "linear" else np.sqrt(drho)
     s0sq = 2.0 * cost0 / max(blk.r.size - int(free.sum()), 1)
-    x1 = lifted_start(cm, x0, blk.r, J, free, prior, sw, stol=lm.stol, s0sq=s0sq)
+    x1 = lifted_start(cm, x_lin, blk.r, J, free, prior, sw, stol=lm.stol, s0sq=s0sq)
     # With the Jacobian the stage's LM starts with (served from the cache then).
     cost1 = objective(ev(cm, x1, w, jacobian=True, products=True).r, lm)[0]
     if prior is not None:

@@ -35,6 +35,7 @@ from kinecal.identification._identifiability import (
 )
 from kinecal.identification._lm import LMOptions, spd_solve
 from kinecal.identification._noise import estimate_noise
+from kinecal.identification._normal import block_normal
 from kinecal.identification._options import (
     MU0_WARM,
     STOL,
@@ -118,7 +119,11 @@ class Register(Record):
             state, res = run_lm(problem, state, again, x, frames, warm, evaluate=fit)
             x = res.x
         if fit is not None:  # the model's own Jacobian where the next stage starts
-            problem.evaluations(model, x, state.weights, jacobian=True)
+            # (with the product columns: stage 3 may lift from stage 1's solution)
+            products = bool(model.link_products)
+            problem.evaluations(
+                model, x, state.weights, jacobian=True, products=products
+            )
         return state.but(x=x, x_registered=x)
 
 
@@ -162,19 +167,17 @@ class Identify(Record):
         problem.progress("identifiability", "scaled Jacobian")
         cm, meas = state.model, problem.meas
         opts = self.settings or IdentifySettings.of(problem.options)
-        blk = residuals(
-            cm,
-            _generic_point(cm, state.x),
-            meas,
-            state.weights,
-            inputs=problem.inputs,
-            jacobian=True,
-        )
+        g = _generic_point(cm, state.x)
+        A = _generic_normal(problem, state, g)
+        if A is None:
+            blk = residuals(
+                cm, g, meas, state.weights, inputs=problem.inputs, jacobian=True
+            )
+            # From the normal matrix: of the held Jacobian, or summed by blocks of
+            # poses for large data (the analysis is the same either way).
+            A, _ = block_normal(blk, np.arange(cm.size), np.ones(cm.size))
         tol = {"drop_tol": opts.drop_tol, "weak_tol": opts.weak_tol}
         every = np.ones(cm.size, bool)
-        # From the normal matrix: of the held Jacobian, or summed by blocks of poses
-        # for large data (the analysis is the same either way).
-        A, _ = blk.normal(np.arange(cm.size), np.ones(cm.size))
         ident = identifiability_from_normal(A, cm.layout, every, **tol)
         found = _few_targets(problem, cm)
         specs = cm.layout.specs
@@ -203,6 +206,32 @@ class Identify(Record):
             )
         out = state.but(free=ident.free, identifiability=ident).note(*found)
         return out.but(identified=out)
+
+
+def _generic_normal(problem: Problem, state: State, g: Float) -> Float | None:
+    """``JᵀJ`` at the generic point ``g`` from the Jacobian with the product columns
+    kept at the state's point (registration's), where ``g`` differs from it only in
+    compliances and link moments that are zero there (issue 36: one Jacobian pass
+    fewer). There the deflections vanish, the moments' columns with them, and at ``g``,
+    to first order in its tiny compliances, ``col(lambda_j) + sum_k s_k col(mu_jk)``
+    and ``col(s_k) = sum_j lambda_j col(mu_jk)`` (:mod:`._lift`): ``Tᵀ A T`` with
+    the products' normal matrix A (entries within ~1e-6 of the direct evaluation's,
+    the same analysis). None where that does not hold."""
+    cm, x = state.model, state.x
+    moved = np.flatnonzero(g != x)
+    kinds = {cm.layout.specs[i].kind for i in moved}
+    if not kinds <= {"compliance", "moment"} or np.any(x[moved] != 0.0):
+        return None
+    P, K = cm.size, len(cm.link_products)
+    blk = problem.evaluations.kept(cm, x, state.weights, P + K)
+    if blk is None:
+        return None
+    A, _ = block_normal(blk, np.arange(P + K), np.ones(P + K))
+    T = np.eye(P + K, P)
+    for i, (lam, s) in enumerate(cm.link_products):
+        T[P + i, lam] = g[s]
+        T[P + i, s] = g[lam]
+    return T.T @ A @ T
 
 
 def _few_targets(problem: Problem, cm: CalibrationModel) -> list[Diagnostic]:
@@ -254,6 +283,7 @@ class KinematicStage(Record):
             state.lm,
             prior,
             resume=state.prefit,  # the priors' pre-fit, when this fit goes on from it
+            products=bool(state.model.link_products),  # stage 3 lifts from here
         )
         state = state.but(x=res.x)
         if problem.estimate_noise and not state.noise_estimated:
@@ -309,7 +339,8 @@ class TransmissionStage(Record):
             True,
             time.perf_counter() - t0,
         )
-        return state.but(x=x2, stages=(*state.stages, entry))
+        # Stage 3 lifts from stage 1's solution, where this fit is linear.
+        return state.but(x=x2, stages=(*state.stages, entry), linearised=state.x)
 
 
 def _stage2_direct(problem: Problem, state: State, cols: np.ndarray) -> Float:
@@ -320,7 +351,7 @@ def _stage2_direct(problem: Problem, state: State, cols: np.ndarray) -> Float:
         A = blk.J[:, :, idx].reshape(-1, idx.size)
         delta, *_ = np.linalg.lstsq(A, -blk.r.reshape(-1), rcond=None)  # Eq. (T-1)
     else:  # large data: the same least squares by its normal equations
-        N_, g_ = blk.normal(idx, np.ones(idx.size))
+        N_, g_ = block_normal(blk, idx, np.ones(idx.size))
         delta = -spd_solve(N_, g_, rcond=1e-15)  # Eq. (T-1)
     out = state.x.copy()
     out[idx] += delta
@@ -381,8 +412,11 @@ class FullStage(Record):
             lm3 = replace(lm3, stol=max(lm3.stol, STOL_PRE))
         prior = state.active_prior()
         fit = partial(run_lm, lifted=True, final_jacobian=not self.screen)
-        state, res = fit(problem, state, self.name, state.x, state.free, lm3, prior)
-        state = state.but(x=res.x)
+        at = state.linearised  # stage 2's point: the lifted start's linearisation
+        state, res = fit(
+            problem, state, self.name, state.x, state.free, lm3, prior, lift_at=at
+        )
+        state = state.but(x=res.x, linearised=None)
         for _ in range(_NOISE_ROUNDS if problem.estimate_noise else 0):
             # Variance components iterated with the fit (Eq. (T-7)): the priors were
             # weighed against the noise of the earlier, smaller models.

@@ -9,6 +9,7 @@ import numpy as np
 
 from kinecal._record import Record
 from kinecal.identification._lm import loss_weights, psd_inverse
+from kinecal.identification._normal import block_normal
 from kinecal.identification._problem import Problem, State
 from kinecal.measurement._diagnostics import Diagnostic
 from kinecal.measurement._residuals import ResidualBlock
@@ -46,7 +47,7 @@ class Uncertainty(Record):
                 sigma0=sigma0,
             )
         sw = None if lm.loss == "linear" else np.sqrt(wr)
-        A, _ = blk.normal(fidx, scales, sw)
+        A, _ = block_normal(blk, fidx, scales, sw)
         prior = state.active_prior()
         prec = (
             np.zeros(fidx.size) if prior is None else prior.precision[fidx] * scales**2
