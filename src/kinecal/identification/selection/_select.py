@@ -42,6 +42,14 @@ from kinecal.identification.selection._crossval import (
     make_folds,
 )
 from kinecal.identification.selection._foldfit import Score, run_folds
+from kinecal.identification.selection._fourier import (
+    FoldCoefficients,
+    fold_fourier,
+    fourier_terms,
+    jackknife_z2,
+    null_z2,
+    same_physics,
+)
 from kinecal.measurement._measurements import Measurements
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import RobotDescription
@@ -72,6 +80,8 @@ class Candidate:
     chosen: bool = False
     fold_rms_mm: tuple[float, ...] = ()
     cv: CrossValidation | None = field(default=None, repr=False, compare=False)
+    # its free Fourier coefficients in every fold's fit (:mod:`._fourier`)
+    fold_fourier: FoldCoefficients = field(default_factory=dict, repr=False)
 
 
 @dataclass
@@ -344,10 +354,12 @@ class _Scorer:
                 out.append(_Scored(run, error=failed))
                 continue
             cv = CrossValidation(run[1].name, unit=folds.unit, notes=folds.notes)
-            for tr, te in scores:  # type: ignore[misc]
+            xs = []
+            for tr, te, x in scores:  # type: ignore[misc]
                 cv.train.append(tr)
                 cv.folds.append(te)
-            out.append(_Scored(run, cv=cv))
+                xs.append(x)
+            out.append(_Scored(run, cv, fourier=fold_fourier(got.layout, got.free, xs)))
         return out
 
 
@@ -358,6 +370,7 @@ class _Scored:
     run: Run
     cv: CrossValidation | None = None
     error: ValueError | None = None
+    fourier: FoldCoefficients = field(default_factory=dict)
 
     @property
     def result(self) -> CrossValidation | ValueError:
@@ -370,10 +383,11 @@ def _folds_of(task: tuple[CandidateFit, Folds]) -> list[Score]:
     return run_folds(fit, folds.test, folds.always_train, folds.unit)
 
 
-def _candidate(robot: RobotDescription, run: Run, cv: CrossValidation) -> Candidate:
+def _candidate(robot: RobotDescription, got: _Scored) -> Candidate:
     from kinecal.models import CalibrationModel
 
-    label, spec, scale = run
+    (label, spec, scale), cv = got.run, got.cv
+    assert cv is not None
     train = float(np.sqrt(np.mean([m.rms_mm**2 for m in cv.train])))
     return Candidate(
         label,
@@ -385,6 +399,7 @@ def _candidate(robot: RobotDescription, run: Run, cv: CrossValidation) -> Candid
         train,
         fold_rms_mm=tuple(f.rms_mm for f in cv.folds),
         cv=cv,
+        fold_fourier=got.fourier,
     )
 
 
@@ -490,7 +505,7 @@ def select_model(
                     "auto",
                     f"{label} (priors x{scale:g}): held-out RMS {got.cv.rms_mm:.4f} mm",
                 )
-                cands.append(_candidate(robot, got.run, got.cv))
+                cands.append(_candidate(robot, got))
 
     run([(label, spec, 1.0) for label, spec in layouts])
     if not cands:
@@ -515,13 +530,39 @@ def select_model(
 
 def choose_candidate(cands: list[Candidate]) -> Candidate:
     """The candidate the rule of :func:`select_model` chooses from a scored table
-    (marked ``chosen``)."""
+    (marked ``chosen``): the smallest within :data:`_SE_FACTOR` paired standard errors
+    of the best, but none whose Fourier terms are not reproducible across the folds
+    (:func:`_fourier_reproducible`); without those, the best of the others may admit
+    smaller candidates too."""
     best = min(cands, key=lambda c: c.cv_rms_mm)
     eligible = [c for c in cands if _within_one_se(c, best)]
+    kept = [c for c in cands if _fourier_reproducible(c, cands)]
+    if len(kept) < len(cands):
+        best = min(kept, key=lambda c: c.cv_rms_mm)
+        eligible = [
+            c for c in kept if any(c is e for e in eligible) or _within_one_se(c, best)
+        ]
     # The smallest model; among equal sizes the strongest priors (the simplest fit).
     chosen = min(eligible, key=lambda c: (c.size, -1.0 / c.prior_scale, c.cv_rms_mm))
     chosen.chosen = True
     return chosen
+
+
+def _fourier_reproducible(c: Candidate, cands: list[Candidate]) -> bool:
+    """Whether the Fourier terms ``c`` has beyond each candidate with the same physical
+    terms and fewer Fourier terms are reproducible across the folds: the mean z^2 of
+    their coefficients (delete-one-fold jackknife, :func:`._fourier.jackknife_z2`) at
+    least what noise gives (:func:`._fourier.null_z2`: 2 for 5 folds)."""
+    n = fourier_terms(c.spec)
+    if n == 0 or not c.fold_fourier:
+        return True
+    floor = null_z2(len(c.fold_rms_mm))
+    for o in cands:
+        if fourier_terms(o.spec) < n and same_physics(o.spec, c.spec):
+            extra = [k for k in c.fold_fourier if k not in o.fold_fourier]
+            if jackknife_z2(c.fold_fourier, extra) < floor:
+                return False
+    return True
 
 
 def _warnings(cands: list[Candidate]) -> list[str]:
