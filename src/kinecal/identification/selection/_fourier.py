@@ -6,7 +6,7 @@ regions well and still not carry over to a new session (issue 31: the FR3 halves
 real UR10). What its region folds do show is whether its coefficients are reproducible:
 fitted without each region in turn, a term the arm really has keeps its value, a term
 that follows the pose distribution swings with it. The test is a delete-one-region
-jackknife (docs/theory.md, "Accuracy on a new session").
+jackknife (docs/theory.md, "Accuracy on a new session", Eq. (T-12)).
 """
 
 from __future__ import annotations

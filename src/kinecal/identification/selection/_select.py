@@ -7,7 +7,8 @@ per fold when there are several (their user frames are refitted, as for a new se
 else whole regions of the workspace. The choice follows the one-standard-error rule:
 the smallest model whose validation RMS is within 1.75 standard errors of the best (the
 error taken on the paired per-fold log ratios of the RMS: the folds are the same for
-every candidate). The table behind
+every candidate), among those whose Fourier terms' coefficients are reproducible across
+the folds (:mod:`._fourier`). The table behind
 the choice goes into the report. ``--cv`` scores by the same path
 (:func:`cross_validate_models`): the same folds give the same figures.
 """
@@ -135,7 +136,8 @@ class Selection:
             "fold_unit": self.unit,
             "rule": "smallest model within 1.75 standard errors (of the log ratios of the "
             "fold RMS, paired over folds), or "
-            "1 %, of the best validation RMS",
+            "1 %, of the best validation RMS; Fourier terms only when their "
+            "coefficients are reproducible across the folds",
             "candidates": [
                 {
                     "label": c.label,
