@@ -33,6 +33,20 @@ Rules:
   finds eligible only.
 - ``shrink``: the current choice with its Fourier terms multiplied by c in [0, 1], c the
   held-out optimal blend of the choice and its nest without Fourier terms.
+
+Fourier terms on a new session (:func:`table_rules`; results under ``fourier_study``):
+- ``arc_gate0``/``arc_gate1``: a Fourier candidate must beat every candidate with the
+  same physical terms and fewer Fourier terms on folds of contiguous arcs of each of its
+  Fourier joints (on the mean / by 1 paired standard error); ``arc_union``: the arcs
+  and the regions in one table.
+- ``bar3``, ``bar_pC``: it must beat them on the region folds by 3 paired standard
+  errors, or by C x (extra parameters / poses) in log RMS.
+- ``coefT``: the mean jackknife z^2 of its extra Fourier coefficients over the region
+  folds' fits at least T (``coef2_u`` is what ships: Eq. (T-12) of docs/theory.md).
+- ``_u``: the best of the candidates not barred admits smaller candidates too.
+More cases: the xArm 6 of tests/data/vendor_urdf in the matrix, truth ``session``
+(transmission errors that change between sessions), ``vendor`` twins measured from a
+second tracker station, and FR3 b -> a.
 """
 
 from __future__ import annotations
