@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import replace
+from typing import Protocol
 
 import numpy as np
 
@@ -21,8 +22,11 @@ from kinecal.typing import Float
 
 __all__ = [
     "FoldCoefficients",
+    "Scored",
     "fold_fourier",
+    "fourier_notes",
     "fourier_terms",
+    "fourier_z2",
     "jackknife_z2",
     "null_z2",
     "same_physics",
@@ -82,3 +86,54 @@ def null_z2(k: int) -> float:
     coefficients are noise: (k - 1) / (k - 3); 0 below 4 folds (not defined: no
     test)."""
     return (k - 1) / (k - 3) if k >= 4 else 0.0
+
+
+class Scored(Protocol):
+    """What the test needs of a candidate (:class:`._select.Candidate`)."""
+
+    label: str
+    spec: ModelSpec
+    cv_rms_mm: float
+    fold_rms_mm: tuple[float, ...]
+    fold_fourier: FoldCoefficients
+
+
+def fourier_z2(c: Scored, cands: Sequence[Scored]) -> float:
+    """The least mean z^2 (:func:`jackknife_z2`) of the Fourier terms ``c`` has beyond
+    a candidate with the same physical terms and fewer Fourier terms (inf: none, or no
+    fold coefficients)."""
+    n = fourier_terms(c.spec)
+    if n == 0 or not c.fold_fourier:
+        return float("inf")
+    return min(
+        (
+            jackknife_z2(
+                c.fold_fourier, [k for k in c.fold_fourier if k not in o.fold_fourier]
+            )
+            for o in cands
+            if fourier_terms(o.spec) < n and same_physics(o.spec, c.spec)
+        ),
+        default=float("inf"),
+    )
+
+
+def fourier_notes(cands: Sequence[Scored], chosen: Scored) -> list[str]:
+    """A note on the candidates that validated better than ``chosen`` and were left out
+    because their Fourier coefficients are not reproducible across the folds (those
+    with the same figures in one note)."""
+    floor = null_z2(len(chosen.fold_rms_mm))
+    left: dict[tuple[str, str], list[str]] = {}
+    for c in sorted(cands, key=lambda c: c.cv_rms_mm):
+        z2 = fourier_z2(c, cands)
+        if c.cv_rms_mm < chosen.cv_rms_mm and z2 < floor:
+            labels = left.setdefault((f"{c.cv_rms_mm:.4f}", f"{z2:.2f}"), [])
+            if c.label not in labels:  # (one note per layout, not per prior strength)
+                labels.append(c.label)
+    return [
+        f"{', '.join(labels)}: validated better ({rms} mm against "
+        f"{chosen.cv_rms_mm:.4f}) but the Fourier coefficients change with the region "
+        f"left out (mean z^2 {z2}; noise gives {floor:.2f}): not chosen, as such terms "
+        "did not carry over to a new session. A second session scored with evaluate "
+        "--refit user,tool tells."
+        for (rms, z2), labels in left.items()
+    ]

@@ -46,10 +46,9 @@ from kinecal.identification.selection._foldfit import Score, run_folds
 from kinecal.identification.selection._fourier import (
     FoldCoefficients,
     fold_fourier,
-    fourier_terms,
-    jackknife_z2,
+    fourier_notes,
+    fourier_z2,
     null_z2,
-    same_physics,
 )
 from kinecal.measurement._measurements import Measurements
 from kinecal.models import CalibrationModel, ModelSpec
@@ -523,9 +522,8 @@ def select_model(
         run([(best.label, best.spec, s) for s in prior_scales if s != 1.0])
     chosen = choose_candidate(cands)
     spec = replace(chosen.spec, name=f"auto:{chosen.label}")
-    sel = Selection(
-        spec, chosen.prior_scale, cands, _warnings(cands), len(folds.test), shared
-    )
+    notes = _warnings(cands) + fourier_notes(cands, chosen)
+    sel = Selection(spec, chosen.prior_scale, cands, notes, len(folds.test), shared)
     sel.unit, sel.fold_sets, sel.scorer = folds.unit, folds, scorer
     return sel
 
@@ -553,18 +551,9 @@ def choose_candidate(cands: list[Candidate]) -> Candidate:
 def _fourier_reproducible(c: Candidate, cands: list[Candidate]) -> bool:
     """Whether the Fourier terms ``c`` has beyond each candidate with the same physical
     terms and fewer Fourier terms are reproducible across the folds: the mean z^2 of
-    their coefficients (delete-one-fold jackknife, :func:`._fourier.jackknife_z2`) at
+    their coefficients (delete-one-fold jackknife, :func:`._fourier.fourier_z2`) at
     least what noise gives (:func:`._fourier.null_z2`: 2 for 5 folds)."""
-    n = fourier_terms(c.spec)
-    if n == 0 or not c.fold_fourier:
-        return True
-    floor = null_z2(len(c.fold_rms_mm))
-    for o in cands:
-        if fourier_terms(o.spec) < n and same_physics(o.spec, c.spec):
-            extra = [k for k in c.fold_fourier if k not in o.fold_fourier]
-            if jackknife_z2(c.fold_fourier, extra) < floor:
-                return False
-    return True
+    return fourier_z2(c, cands) >= null_z2(len(c.fold_rms_mm))
 
 
 def _warnings(cands: list[Candidate]) -> list[str]:
