@@ -33,6 +33,20 @@ Rules:
   finds eligible only.
 - ``shrink``: the current choice with its Fourier terms multiplied by c in [0, 1], c the
   held-out optimal blend of the choice and its nest without Fourier terms.
+
+Fourier terms on a new session (:func:`table_rules`; results under ``fourier_study``):
+- ``arc_gate0``/``arc_gate1``: a Fourier candidate must beat every candidate with the
+  same physical terms and fewer Fourier terms on folds of contiguous arcs of each of its
+  Fourier joints (on the mean / by 1 paired standard error); ``arc_union``: the arcs
+  and the regions in one table.
+- ``bar3``, ``bar_pC``: it must beat them on the region folds by 3 paired standard
+  errors, or by C x (extra parameters / poses) in log RMS.
+- ``coefT``: the mean jackknife z^2 of its extra Fourier coefficients over the region
+  folds' fits at least T (``coef2_u`` is what ships: Eq. (T-12) of docs/theory.md).
+- ``_u``: the best of the candidates not barred admits smaller candidates too.
+More cases: the xArm 6 of tests/data/vendor_urdf in the matrix, truth ``session``
+(transmission errors that change between sessions), ``vendor`` twins measured from a
+second tracker station, and FR3 b -> a.
 """
 
 from __future__ import annotations
@@ -77,6 +91,8 @@ ROBOTS = ("ur5e", "generic-6r", "franka-fr3", "fanuc-lrmate200id-7l")
 # --- the held-out errors the selection's folds saw --------------------------------
 _REC: dict[str, list[np.ndarray]] = {}
 _CUR: list[list[np.ndarray]] = []
+_XCUR: list[list[np.ndarray]] = []
+_XS: dict[str, tuple[object, np.ndarray]] = {}  # the fold solutions per layout
 
 
 @contextmanager
@@ -85,6 +101,19 @@ def recording() -> Iterator[None]:
     folds are kept in ``_REC`` (by ``repr`` of the layout); the selection's own
     functions are put back after."""
     mfe, folds_of = _foldfit.metrics_from_errors, _select._folds_of
+    step_fold, run_lm = _foldfit.FoldStep.fold, _foldfit.run_lm
+
+    def fold(self, *a, **k):
+        got = step_fold(self, *a, **k)
+        if got[0] is not None and _XCUR:
+            _XCUR[-1].append(np.array(got[0]))
+        return got
+
+    def lm(*a, **k):
+        got = run_lm(*a, **k)
+        if _XCUR and len(a) > 2 and a[2] == "auto: fold":
+            _XCUR[-1].append(np.array(got[1].x))
+        return got
 
     def record(e_p, e_r=None):
         if _CUR:
@@ -93,16 +122,23 @@ def recording() -> Iterator[None]:
 
     def folds(task):
         _CUR.append([])
+        _XCUR.append([])
         out = folds_of(task)
         _REC[repr(task[0].spec)] = _CUR.pop()[1::2]  # (training, held-out) per fold
+        xs = _XCUR.pop()
+        if len(xs) == len(task[1].test):  # the region folds' solutions
+            _XS.setdefault(repr(task[0].spec), (task[0].layout, np.array(xs)))
         return out
 
     _REC.clear()
+    _XS.clear()
+    _foldfit.FoldStep.fold, _foldfit.run_lm = fold, lm
     _foldfit.metrics_from_errors, _select._folds_of = record, folds
     try:
         yield
     finally:
         _foldfit.metrics_from_errors, _select._folds_of = mfe, folds_of
+        _foldfit.FoldStep.fold, _foldfit.run_lm = step_fold, run_lm
 
 
 # --- cases ------------------------------------------------------------------------
@@ -111,13 +147,38 @@ def _moved(test):
     return replace(test, p=test.p @ R.T + [0.2, -0.3, 0.05])
 
 
+def _load(name: str):
+    if name.endswith(".urdf"):
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the gripper's joints left out
+            return load_robot(str(ROOT / "tests" / "data" / "vendor_urdf" / name))
+    return load_robot(name)
+
+
 def twin(name: str, truth: str, split: str, n: int, seed: int):
-    robot = load_robot(name)
+    """A twin of ``name``; ``truth`` one of TRUTHS or 'session' (transmission errors
+    that change between sessions: the test session's Fourier coefficients are
+    0.5 x the training session's plus a fresh draw of 0.87 x their size, as a joint
+    whose error depends on temperature, direction or re-homing rather than on the
+    angle alone)."""
+    robot = _load(name)
+    tr_truth = robot_truth(robot, seed=seed, **TRUTHS.get(truth, {}))
     e = robot_experiment(
-        robot_truth(robot, seed=seed, **TRUTHS[truth]), seed, n_train=10, n_test=3000,
-        tracker=LaserTracker(10e-6, 0.0),
-    )  # fmt: skip
+        tr_truth, seed, n_train=10, n_test=3000, tracker=LaserTracker(10e-6, 0.0)
+    )
     pool, rng = e.test, np.random.default_rng(seed)
+    if truth == "session":
+        ntm = np.array([s.group == "ntm" for s in tr_truth.model.layout.specs])
+        x = tr_truth.params.copy()
+        fresh = np.random.default_rng(seed + 100).normal(size=x.shape) * 1e-4
+        x[ntm] = 0.5 * x[ntm] + 0.87 * np.where(x[ntm] != 0, fresh[ntm], 0.0)
+        p_new, _ = replace(tr_truth, params=x).evaluate(pool.q_ctrl)
+        p_meas, _ = LaserTracker(10e-6, 0.0).measure(p_new, rng)
+        pool_new = replace(pool, p=p_meas)
+    else:
+        pool_new = pool
     if split == "region":
         f = pose_features(pool.q_ctrl, robot)
         c = f - f.mean(axis=0)
@@ -128,7 +189,7 @@ def twin(name: str, truth: str, split: str, n: int, seed: int):
     else:
         perm = rng.permutation(pool.n)
         tr, te = np.sort(perm[:n]), np.sort(perm[n : n + 800])
-    return robot, pool.subset(tr), _moved(pool.subset(te))
+    return robot, pool.subset(tr), _moved(pool_new.subset(te))
 
 
 def exp2(seed: int):
@@ -234,6 +295,17 @@ class Case:
             < 1e-7
         ]
         self.own = own
+        self.coef = {}  # per label: {param name: fold values} of its Fourier terms
+        for c in self.cands:
+            got = _XS.get(repr(fitted[(c.label, 1.0)].spec))
+            if got is not None:
+                lay, xs = got
+                self.coef[c.label] = {
+                    sp.name: xs[:, i].tolist()
+                    for i, sp in enumerate(lay.specs)
+                    if sp.group == "ntm"
+                }
+        self.arcs = arc_scores(self.sel, self.cands, train)
 
     def in_big(self, label) -> np.ndarray:
         c = self.cal[label]
@@ -287,6 +359,194 @@ class Case:
         return float(1e3 * np.sqrt(np.mean(np.sum((avg - mean) ** 2, 1)))), float(
             1e3 * spread
         )
+
+
+# --- hypothesis (a): folds blocked in the angle of each Fourier joint --------------
+def arc_folds(meas, joint: int, k: int, always: np.ndarray):
+    """k folds, each a contiguous arc of joint ``joint`` (1-based; poses kept whole)."""
+    from kinecal._stats import first_rows
+    from kinecal.identification import Folds
+
+    g = meas.pose_groups()
+    first = first_rows(g)
+    order = np.argsort(meas.q_ctrl[first, joint - 1], kind="stable")
+    test = [np.flatnonzero(np.isin(g, ch) & ~always) for ch in np.array_split(order, k)]
+    return Folds(test, "region", always)
+
+
+def arc_scores(sel, cands, meas) -> dict[int, dict[str, tuple[float, ...]]]:
+    """Per Fourier joint, every candidate's fold RMS on that joint's arc folds."""
+    joints = sorted({j for c in cands for j in (c.spec.ntm_joints or ())})
+    k = len(sel.fold_sets.test)
+    out: dict[int, dict[str, tuple[float, ...]]] = {}
+    runs = [(c.label, c.spec, 1.0) for c in cands]
+    for j in joints:
+        folds = arc_folds(meas, j, k, sel.fold_sets.always_train)
+        out[j] = {}
+        for got in sel.scorer.score(runs, folds):
+            if got.cv is not None:
+                out[j][got.run[0]] = tuple(f.rms_mm for f in got.cv.folds)
+    return out
+
+
+def _paired(a, b) -> tuple[float, float]:
+    """Mean and standard error of log(a / b) over paired folds."""
+    d = np.log(np.asarray(a) / np.asarray(b))
+    return float(d.mean()), float(d.std(ddof=1) / np.sqrt(d.size))
+
+
+def _lower(c, cands):
+    """The candidates with the same physical terms as ``c`` and fewer Fourier terms."""
+    s = c.spec
+    return [
+        o
+        for o in cands
+        if _fourier(o) < _fourier(c) and (o.spec.load, o.spec.link) == (s.load, s.link)
+    ]
+
+
+def _survivors(cands, keep, union: bool):
+    """The current rule with some candidates barred: the best among the survivors
+    decides eligibility (``union``: or the best of all, whichever admits more)."""
+    el = _eligible(keep, _select._SE_FACTOR)
+    if union:
+        el += [c for c in _eligible(cands, _select._SE_FACTOR) if c in keep]
+    return _smallest(el)
+
+
+def arc_gate(cands, arcs, factor: float, union: bool = False):
+    """Fourier candidates must beat every nest with fewer Fourier terms on the arc folds
+    of each of their Fourier joints by ``factor`` paired standard errors (0: on the
+    mean); the current rule on the survivors."""
+    keep = []
+    for c in cands:
+        ok = True
+        for o in _lower(c, cands):
+            for j in c.spec.ntm_joints or ():
+                a, b = arcs[j].get(c.label), arcs[j].get(o.label)
+                if a is None or b is None:
+                    continue
+                m, se = _paired(a, b)
+                ok &= m < -factor * se
+        if ok:
+            keep.append(c)
+    return _survivors(cands, keep, union)
+
+
+def arc_union(cands, arcs, factor: float = _select._SE_FACTOR):
+    """The current rule on the region folds and every Fourier joint's arc folds
+    together (log fold ratios, paired)."""
+    tab = []
+    for c in cands:
+        if any(c.label not in v for v in arcs.values()):
+            continue
+        f = list(c.fold_rms_mm)
+        for j in sorted(arcs):
+            f += list(arcs[j][c.label])
+        rms = float(np.sqrt(np.mean(np.square(f))))
+        tab.append(replace(c, fold_rms_mm=tuple(f), cv_rms_mm=rms, cv=None))
+    return _smallest(_eligible(tab, factor))
+
+
+def fourier_bar(cands, n: int, factor: float, per_param: float, union: bool = False):
+    """Hypothesis (b): a Fourier candidate must beat every nest with fewer Fourier
+    terms on the region folds by ``factor`` paired standard errors and by a margin of
+    ``per_param`` x (extra parameters / poses) in log RMS; the current rule on the
+    survivors."""
+    keep = []
+    for c in cands:
+        ok = True
+        for o in _lower(c, cands):
+            m, se = _paired(c.fold_rms_mm, o.fold_rms_mm)
+            ok &= m < -max(factor * se, per_param * (c.size - o.size) / n)
+        if ok:
+            keep.append(c)
+    return _survivors(cands, keep, union)
+
+
+def coef_z2(coef: dict[str, list[float]], names) -> float:
+    """Hypothesis (c): the mean squared jackknife z of the Fourier coefficients
+    ``names`` over the region folds' solutions (|mean| / the jackknife standard error
+    sqrt((k - 1) / k sum (x_i - mean)^2)); coefficients the folds held fixed left
+    out."""
+    z2 = []
+    for nm in names:
+        v = np.asarray(coef.get(nm, ()))
+        if v.size < 2:
+            continue
+        m = v.mean()
+        se = np.sqrt((v.size - 1) / v.size * np.sum((v - m) ** 2))
+        if se <= 1e-12 * max(abs(m), 1e-300) or se == 0.0:
+            continue
+        z2.append((m / se) ** 2)
+    return float(np.mean(z2)) if z2 else np.inf
+
+
+def coef_gate(cands, coefs, threshold: float, union: bool = True):
+    """Fourier candidates whose extra Fourier coefficients (over every nest with fewer)
+    are not stable across the region folds (mean z^2 below ``threshold``) are barred;
+    the current rule on the survivors."""
+    keep = []
+    for c in cands:
+        ok = True
+        mine = coefs.get(c.label, {})
+        for o in _lower(c, cands):
+            extra = [nm for nm in mine if nm not in coefs.get(o.label, {})]
+            ok &= coef_z2(mine, extra) >= threshold
+        if ok:
+            keep.append(c)
+    return _survivors(cands, keep, union)
+
+
+def table_rules(cands, arcs, n: int, coefs=None) -> dict[str, object]:
+    """The new rules' picks from a selection table (``arcs``: the arc-fold RMS per
+    Fourier joint and label; ``n``: poses)."""
+    f = _select._SE_FACTOR
+    return {
+        "arc_gate0": arc_gate(cands, arcs, 0.0),
+        "arc_gate1": arc_gate(cands, arcs, 1.0),
+        "arc_gate1_u": arc_gate(cands, arcs, 1.0, True),
+        "arc_union": arc_union(cands, arcs),
+        "bar3": fourier_bar(cands, n, 3.0, 0.0),
+        "bar_p0.25_u": fourier_bar(cands, n, f, 0.25, True),
+        "bar_p0.5": fourier_bar(cands, n, f, 0.5),
+        "bar_p0.5_u": fourier_bar(cands, n, f, 0.5, True),
+        "bar_p0.75_u": fourier_bar(cands, n, f, 0.75, True),
+        "bar_p1": fourier_bar(cands, n, f, 1.0),
+        "bar_p1_u": fourier_bar(cands, n, f, 1.0, True),
+    } | (
+        {}
+        if coefs is None
+        else {
+            f"coef{t:g}{'_u' if u else ''}": coef_gate(cands, coefs, t, u)
+            for t in (1.0, 2.0, 3.0, 4.0, 6.0)
+            for u in (False, True)
+        }
+    )
+
+
+def candidates_from(row: dict) -> list:
+    """The selection table of a result row (offline: the rules again)."""
+    from kinecal.models import ModelSpec
+
+    out = []
+    for lb, t in row["table"].items():
+        spec = ModelSpec(
+            name=lb,
+            ntm_joints=tuple(t["ntm_joints"]),
+            ntm_order=t["ntm_order"],
+            load=t["load"],
+            link=t["link"],
+            link_bodies=(2,) if t["link"] == "general" else (),  # (not compared)
+        )
+        f = row["regions"][lb]
+        rms = float(np.sqrt(np.mean(np.square(f))))
+        out.append(
+            _select.Candidate(
+                lb, spec, 1.0, t["size"], rms, 0.0, 0.0, fold_rms_mm=tuple(f)
+            )
+        )
+    return out
 
 
 def rules(case: Case) -> dict[str, object]:
@@ -343,6 +603,27 @@ def rules(case: Case) -> dict[str, object]:
         x[ntm] *= c
         out["shrink"] = case.score(replace(cal, params=x))
         out["shrink_c"] = round(c, 3)
+    n = len(set(map(tuple, np.round(case.train.q_ctrl, 9))))
+    for name, c in table_rules(cands, case.arcs, n, case.coef).items():
+        out[name] = case.new[c.label]
+        out[name + "_pick"] = c.label
+    out["n_poses"] = n
+    out["coef"] = case.coef
+    out["table"] = {
+        c.label: {
+            "size": c.size,
+            "ntm_joints": list(c.spec.ntm_joints or ()),
+            "ntm_order": c.spec.ntm_order,
+            "load": c.spec.load,
+            "link": c.spec.link,
+        }
+        for c in cands
+    }
+    out["arcs"] = {
+        str(j): {lb: [round(x, 5) for x in v] for lb, v in d.items()}
+        for j, d in case.arcs.items()
+    }
+    out["regions"] = {c.label: [round(x, 5) for x in c.fold_rms_mm] for c in cands}
     out["chosen"] = cur.label
     out["new"] = {k: round(v, 5) for k, v in case.new.items()}
     return out
@@ -375,6 +656,15 @@ def fixed(robot, train, test) -> dict[str, float]:
 def run_case(key):
     if key == ("fr3", "a->b"):
         robot, train, test = fr3()
+    elif key == ("fr3", "b->a"):
+        robot, test, train = fr3()
+    elif key[0] == "vendor":  # a vendor URDF's own twin, a second tracker station
+        robot = _load(key[1])
+        e = robot_experiment(
+            robot_truth(robot, seed=key[3]), key[3], n_train=key[2], n_test=800,
+            tracker=LaserTracker(10e-6, 0.0), new_session=True,
+        )  # fmt: skip
+        train, test = e.train, e.test
     elif key[0] == "exp2":
         robot, train, test = exp2(key[1])
     else:
@@ -409,9 +699,12 @@ def cases(quick: bool):
     for n in (40, 150):
         for split in ("region", "random"):
             for s in seeds:
-                for r in ROBOTS:
-                    for t in TRUTHS:
+                for r in (*ROBOTS, "xarm6_gripper.urdf"):
+                    for t in (*TRUTHS, "session"):
                         out.append((r, t, split, n, s))
+    out.append(("fr3", "b->a"))
+    vendors = ("xarm6_gripper.urdf", "kinova_gen3_lite.urdf", "kuka_kr210.urdf")
+    out += [("vendor", v, n, s) for v in vendors for n in (40, 150) for s in range(3)]
     return out
 
 
@@ -424,7 +717,7 @@ def main(argv=None) -> None:
     p.add_argument("--real", action="store_true", help="the shipped real sets, nested")
     a = p.parse_args(argv)
     if a.real:
-        real_main(a.out)
+        real_main(a.out, a.only)
         return
     i, m = map(int, a.part.split("/"))
     todo = [c for c in cases(a.quick) if a.only in " ".join(map(str, c))][i::m]
@@ -475,9 +768,9 @@ def nested(name: str, k: int | None) -> dict[str, float]:
     return {key: round(float(np.sqrt(v / den)), 4) for key, v in num.items()}
 
 
-def real_main(out: str) -> None:
+def real_main(out: str, only: str = "") -> None:
     with open(out, "a") as f:
-        for name in REAL_SETS:
+        for name in (n for n in REAL_SETS if only in n):
             for k in (5, None):
                 row = {"set": name, "k": k or "loo", "rms_mm": nested(name, k)}
                 f.write(json.dumps(row) + "\n")

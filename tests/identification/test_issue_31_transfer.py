@@ -164,7 +164,8 @@ def test_default_on_the_shipped_real_sets_five_fold(name):
     """5-fold, the selection inside every fold: the default no worse than the kinematic
     model and within 2 % of the better of the kinematic and the full model (TIAGo: 4.276
     mm, the kinematic model's, 4.332 with the rule on fold differences in mm; UR10e equal
-    to kinematic; FR3 1.184 against kinematic 1.247, full 1.178)."""
+    to kinematic; FR3 1.202 against kinematic 1.247, full 1.178: 3 % on FR3, see
+    :data:`_IN_SESSION`)."""
     f, rb = REAL_SETS[name]
     robot = load_robot(rb)
     meas = read_measurements(REAL / f, robot, check=False)
@@ -172,16 +173,26 @@ def test_default_on_the_shipped_real_sets_five_fold(name):
     kin = cross_validate(robot, meas, "kinematic", k=5).rms_mm
     full = cross_validate(robot, meas, "full", k=5).rms_mm
     assert got <= 1.001 * kin, (got, kin)
-    assert got <= 1.02 * min(kin, full), (got, kin, full)
+    assert got <= _IN_SESSION.get(name, 1.02) * min(kin, full), (got, kin, full)
+
+
+# In session a of FR3 the order-2 transmission terms of J1-J3 predict new poses better
+# (the full model 1.178 mm 5-fold, 1.153 leave-one-out) but lose 9 % on session b; their
+# coefficients are not reproducible across session a's regions and the default keeps
+# order 1 (Eq. (T-12) of docs/theory.md): 1.202 and 1.185 mm here (1.184 and 1.166 with
+# the order-2 terms), still 4-6 % better than the kinematic model. The in-session figure
+# is what the issue says overstates a model; session b is the check
+# (test_issue_31_fourier_stability.py).
+_IN_SESSION = {"fr3": 1.03}
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(REAL_SETS))
 def test_default_on_the_shipped_real_sets_leave_one_out(name):
     """Leave one pose out (the selection inside every fold): no worse than the kinematic
-    model (to 0.1 %) and within 2 % of the better of kinematic and full (TIAGo 4.187
+    model (to 0.1 %) and within 2 % of the better of kinematic and full (TIAGo 4.186
     against kinematic 4.186 mm, 4.217 with the rule on fold differences in mm; FR3
-    1.166 against full 1.153; UR10e equal to kinematic)."""
+    1.185 against full 1.153, 3 %: :data:`_IN_SESSION`; UR10e equal to kinematic)."""
     f, rb = REAL_SETS[name]
     robot = load_robot(rb)
     meas = read_measurements(REAL / f, robot, check=False)
@@ -192,7 +203,7 @@ def test_default_on_the_shipped_real_sets_leave_one_out(name):
     kin = cross_validate(robot, meas, "kinematic", k=poses).rms_mm
     full = cross_validate(robot, meas, "full", k=poses).rms_mm
     assert got <= 1.001 * kin, (got, kin)
-    assert got <= 1.02 * min(kin, full), (got, kin, full)
+    assert got <= _IN_SESSION.get(name, 1.02) * min(kin, full), (got, kin, full)
 
 
 def _table(folds: dict[str, list[float]]) -> list[Candidate]:

@@ -26,15 +26,17 @@ from kinecal.typing import Float
 
 __all__ = ["FoldStep", "Score", "every_row", "run_folds"]
 
-Score = tuple[Metrics, Metrics] | ValueError  # training and held-out metrics
+# training and held-out metrics and the fold's solution
+Score = tuple[Metrics, Metrics, Float] | ValueError
 
 
 def run_folds(
     fit: CandidateFit, test: list[np.ndarray], always_train: np.ndarray, unit: str
 ) -> list[Score]:
-    """The training and held-out metrics of the candidate in every fold (a
-    ``ValueError`` for a fold whose training rows cannot determine it; a held-out set
-    scored by :func:`~kinecal.identification.selection._crossval.held_out_metrics`)."""
+    """The training and held-out metrics of the candidate in every fold, and its
+    solution there (a ``ValueError`` for a fold whose training rows cannot determine
+    it; a held-out set scored by
+    :func:`~kinecal.identification.selection._crossval.held_out_metrics`)."""
     problem, cm = fit.problem()
     meas, shared = fit.meas, fit.shared
     lm = warm_options(shared.lm)
@@ -101,7 +103,7 @@ def run_folds(
             held_out = metrics_from_errors(
                 e_p[mask], None if e_r is None else e_r[mask]
             )
-        scores.append((trained, held_out))
+        scores.append((trained, held_out, x))
     return scores
 
 

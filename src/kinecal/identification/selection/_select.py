@@ -7,7 +7,8 @@ per fold when there are several (their user frames are refitted, as for a new se
 else whole regions of the workspace. The choice follows the one-standard-error rule:
 the smallest model whose validation RMS is within 1.75 standard errors of the best (the
 error taken on the paired per-fold log ratios of the RMS: the folds are the same for
-every candidate). The table behind
+every candidate), among those whose Fourier terms' coefficients are reproducible across
+the folds (:mod:`._fourier`). The table behind
 the choice goes into the report. ``--cv`` scores by the same path
 (:func:`cross_validate_models`): the same folds give the same figures.
 """
@@ -42,6 +43,13 @@ from kinecal.identification.selection._crossval import (
     make_folds,
 )
 from kinecal.identification.selection._foldfit import Score, run_folds
+from kinecal.identification.selection._fourier import (
+    FoldCoefficients,
+    fold_fourier,
+    fourier_notes,
+    fourier_z2,
+    null_z2,
+)
 from kinecal.measurement._measurements import Measurements
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import RobotDescription
@@ -72,6 +80,8 @@ class Candidate:
     chosen: bool = False
     fold_rms_mm: tuple[float, ...] = ()
     cv: CrossValidation | None = field(default=None, repr=False, compare=False)
+    # its free Fourier coefficients in every fold's fit (:mod:`._fourier`)
+    fold_fourier: FoldCoefficients = field(default_factory=dict, repr=False)
 
 
 @dataclass
@@ -125,7 +135,8 @@ class Selection:
             "fold_unit": self.unit,
             "rule": "smallest model within 1.75 standard errors (of the log ratios of the "
             "fold RMS, paired over folds), or "
-            "1 %, of the best validation RMS",
+            "1 %, of the best validation RMS; Fourier terms only when their "
+            "coefficients are reproducible across the folds",
             "candidates": [
                 {
                     "label": c.label,
@@ -344,10 +355,12 @@ class _Scorer:
                 out.append(_Scored(run, error=failed))
                 continue
             cv = CrossValidation(run[1].name, unit=folds.unit, notes=folds.notes)
-            for tr, te in scores:  # type: ignore[misc]
+            xs = []
+            for tr, te, x in scores:  # type: ignore[misc]
                 cv.train.append(tr)
                 cv.folds.append(te)
-            out.append(_Scored(run, cv=cv))
+                xs.append(x)
+            out.append(_Scored(run, cv, fourier=fold_fourier(got.layout, got.free, xs)))
         return out
 
 
@@ -358,6 +371,7 @@ class _Scored:
     run: Run
     cv: CrossValidation | None = None
     error: ValueError | None = None
+    fourier: FoldCoefficients = field(default_factory=dict)
 
     @property
     def result(self) -> CrossValidation | ValueError:
@@ -370,10 +384,11 @@ def _folds_of(task: tuple[CandidateFit, Folds]) -> list[Score]:
     return run_folds(fit, folds.test, folds.always_train, folds.unit)
 
 
-def _candidate(robot: RobotDescription, run: Run, cv: CrossValidation) -> Candidate:
+def _candidate(robot: RobotDescription, got: _Scored) -> Candidate:
     from kinecal.models import CalibrationModel
 
-    label, spec, scale = run
+    (label, spec, scale), cv = got.run, got.cv
+    assert cv is not None
     train = float(np.sqrt(np.mean([m.rms_mm**2 for m in cv.train])))
     return Candidate(
         label,
@@ -385,6 +400,7 @@ def _candidate(robot: RobotDescription, run: Run, cv: CrossValidation) -> Candid
         train,
         fold_rms_mm=tuple(f.rms_mm for f in cv.folds),
         cv=cv,
+        fold_fourier=got.fourier,
     )
 
 
@@ -490,7 +506,7 @@ def select_model(
                     "auto",
                     f"{label} (priors x{scale:g}): held-out RMS {got.cv.rms_mm:.4f} mm",
                 )
-                cands.append(_candidate(robot, got.run, got.cv))
+                cands.append(_candidate(robot, got))
 
     run([(label, spec, 1.0) for label, spec in layouts])
     if not cands:
@@ -506,22 +522,38 @@ def select_model(
         run([(best.label, best.spec, s) for s in prior_scales if s != 1.0])
     chosen = choose_candidate(cands)
     spec = replace(chosen.spec, name=f"auto:{chosen.label}")
-    sel = Selection(
-        spec, chosen.prior_scale, cands, _warnings(cands), len(folds.test), shared
-    )
+    notes = _warnings(cands) + fourier_notes(cands, chosen)
+    sel = Selection(spec, chosen.prior_scale, cands, notes, len(folds.test), shared)
     sel.unit, sel.fold_sets, sel.scorer = folds.unit, folds, scorer
     return sel
 
 
 def choose_candidate(cands: list[Candidate]) -> Candidate:
     """The candidate the rule of :func:`select_model` chooses from a scored table
-    (marked ``chosen``)."""
+    (marked ``chosen``): the smallest within :data:`_SE_FACTOR` paired standard errors
+    of the best, but none whose Fourier terms are not reproducible across the folds
+    (:func:`_fourier_reproducible`); without those, the best of the others may admit
+    smaller candidates too."""
     best = min(cands, key=lambda c: c.cv_rms_mm)
     eligible = [c for c in cands if _within_one_se(c, best)]
+    kept = [c for c in cands if _fourier_reproducible(c, cands)]
+    if len(kept) < len(cands):
+        best = min(kept, key=lambda c: c.cv_rms_mm)
+        eligible = [
+            c for c in kept if any(c is e for e in eligible) or _within_one_se(c, best)
+        ]
     # The smallest model; among equal sizes the strongest priors (the simplest fit).
     chosen = min(eligible, key=lambda c: (c.size, -1.0 / c.prior_scale, c.cv_rms_mm))
     chosen.chosen = True
     return chosen
+
+
+def _fourier_reproducible(c: Candidate, cands: list[Candidate]) -> bool:
+    """Whether the Fourier terms ``c`` has beyond each candidate with the same physical
+    terms and fewer Fourier terms are reproducible across the folds: the mean z^2 of
+    their coefficients (delete-one-fold jackknife, :func:`._fourier.fourier_z2`) at
+    least what noise gives (:func:`._fourier.null_z2`: 2 for 5 folds)."""
+    return fourier_z2(c, cands) >= null_z2(len(c.fold_rms_mm))
 
 
 def _warnings(cands: list[Candidate]) -> list[str]:
