@@ -14,6 +14,7 @@ import pytest
 
 import kinecal.identification._normal as nm
 from kinecal.identification import calibrate, normal_equations
+from kinecal.identification._normal import normal_of
 from kinecal.measurement._residuals import ResidualBlock
 from kinecal.models import _kernel
 from tests.conftest import require_compiled_kernel
@@ -55,11 +56,11 @@ def test_the_products_of_one_jacobian_are_formed_once(rng, counted):
     J = _model_layout(rng, N, c, P)
     r = rng.normal(size=(N, c))
     cols, sc = np.arange(P), rng.uniform(0.5, 2.0, P)
-    A1, g1 = normal_equations(r, J, cols, sc)
+    A1, g1 = normal_of(r, J, cols, sc)
     assert counted["n"] == 1
-    A2, g2 = normal_equations(r, J, cols, sc)
+    A2, g2 = normal_of(r, J, cols, sc)
     sub = np.array([2, 3, 7, 11])
-    A3, g3 = normal_equations(r, J, sub, sc[sub])  # a span inside: its block
+    A3, g3 = normal_of(r, J, sub, sc[sub])  # a span inside: its block
     assert counted["n"] == 1
     np.testing.assert_array_equal(A1, A2)
     np.testing.assert_array_equal(g1, g2)
@@ -69,7 +70,7 @@ def test_the_products_of_one_jacobian_are_formed_once(rng, counted):
         np.testing.assert_allclose(g, g0, rtol=0, atol=1e-12 * abs(g0).max())
     # The caller may change what it gets: the store does not change with it.
     A2 += 1.0
-    np.testing.assert_array_equal(normal_equations(r, J, cols, sc)[0], A1)
+    np.testing.assert_array_equal(normal_of(r, J, cols, sc)[0], A1)
 
 
 def test_other_arrays_are_computed_again(rng, counted):
@@ -78,13 +79,13 @@ def test_other_arrays_are_computed_again(rng, counted):
     r = rng.normal(size=(N, c))
     cols, sc = np.arange(P), np.ones(P)
     w = rng.uniform(0.2, 1.0, N)
-    normal_equations(r, J, cols, sc)
+    normal_of(r, J, cols, sc)
     r2 = r.copy()
     r2[0, 0] += 1.0
-    _, g_r = normal_equations(r2, J, cols, sc)  # other residuals
-    A_w, g_w = normal_equations(r, J, cols, sc, w)  # row weights
+    _, g_r = normal_of(r2, J, cols, sc)  # other residuals
+    A_w, g_w = normal_of(r, J, cols, sc, w)  # row weights
     J2 = _model_layout(rng, N, c, P)
-    A_j, _ = normal_equations(r, J2, cols, sc)  # another Jacobian
+    A_j, _ = normal_of(r, J2, cols, sc)  # another Jacobian
     assert counted["n"] == 4
     np.testing.assert_allclose(g_r, _fresh(r2, J, cols, sc)[1], rtol=1e-12, atol=1e-9)
     A0, g0 = _fresh(r, J, cols, sc, w)
@@ -94,8 +95,8 @@ def test_other_arrays_are_computed_again(rng, counted):
     np.testing.assert_allclose(A_j, A0, rtol=0, atol=1e-12 * abs(A0).max())
     # A span beyond the kept one (a Jacobian's first columns, then all of them).
     J3 = _model_layout(rng, N, c, 3 * P)
-    normal_equations(r, J3, np.arange(P), np.ones(P))
-    normal_equations(r, J3, np.arange(3 * P), np.ones(3 * P))
+    normal_of(r, J3, np.arange(P), np.ones(P))
+    normal_of(r, J3, np.arange(3 * P), np.ones(3 * P))
     assert counted["n"] == 6
 
 
@@ -105,13 +106,13 @@ def test_a_calibration_forms_fewer_products_than_it_reads(rng, counted, monkeypa
     from kinecal.workflows._simulate import simulate_paper_experiment
 
     reads = {"n": 0}
-    inner = nm.normal_equations
+    inner = nm._normal_equations
 
     def counting(*a, **k):
         reads["n"] += 1
         return inner(*a, **k)
 
-    monkeypatch.setattr(nm, "normal_equations", counting)
+    monkeypatch.setattr(nm, "_normal_equations", counting)
     # ResidualBlock.normal with a held Jacobian: a product the store does not see.
     monkeypatch.setattr(
         ResidualBlock, "normal", lambda *a, **k: pytest.fail("not the shared products")
@@ -120,3 +121,25 @@ def test_a_calibration_forms_fewer_products_than_it_reads(rng, counted, monkeypa
     res = calibrate(e.truth.robot, e.train, "full")
     assert res.success
     assert counted["n"] <= reads["n"] - 6
+
+
+def test_the_public_normal_equations_form_the_products_anew(rng, counted):
+    """A library user's arrays may be written between two calls: the public function
+    keeps nothing, and the fitter's store compares the residuals and weights it kept."""
+    N, c, P = 200, 3, 10
+    J = _model_layout(rng, N, c, P)
+    r = rng.normal(size=(N, c))
+    cols, sc = np.arange(P), np.ones(P)
+    normal_equations(r, J, cols, sc)
+    J *= 2.0  # written in place
+    A, _ = normal_equations(r, J, cols, sc)
+    assert counted["n"] == 2
+    np.testing.assert_allclose(A, _fresh(r, J, cols, sc)[0], rtol=1e-12)
+    assert nm._kept == []
+    w = rng.uniform(0.2, 1.0, N)
+    normal_of(r, J, cols, sc, w)
+    r += 1.0  # the residuals written in place: not the kept ones
+    w[:] = 1.0
+    _, g = normal_of(r, J, cols, sc, w)
+    assert counted["n"] == 4
+    np.testing.assert_allclose(g, _fresh(r, J, cols, sc)[1], rtol=1e-12)

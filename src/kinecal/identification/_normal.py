@@ -37,7 +37,7 @@ def normal_of(
 ) -> tuple[Float, Float]:
     """:func:`normal_equations` of a held Jacobian, or those a block-wise one gives."""
     if isinstance(J, np.ndarray):
-        return normal_equations(r, J, cols, scales, row_weights)
+        return _normal_equations(r, J, cols, scales, row_weights, keep=True)
     return J.normal(cols, scales, row_weights)
 
 
@@ -50,7 +50,7 @@ def block_normal(
     """:func:`normal_equations` of a residual block's Jacobian, held (the products of an
     earlier call at the same point serve) or by blocks (:meth:`ResidualBlock.normal`)."""
     if blk.J is not None:
-        return normal_equations(blk.r, blk.J, cols, scales, row_weights)
+        return _normal_equations(blk.r, blk.J, cols, scales, row_weights, keep=True)
     return blk.normal(cols, scales, row_weights)
 
 
@@ -75,12 +75,28 @@ def normal_equations(
     cols : (k,) column indices.
     scales : (k,) characteristic size of each selected column.
     row_weights : (N,), optional.
+
+    The products are formed anew at every call (the fitter's own calls reuse those of
+    a Jacobian it holds: :func:`normal_of`, :func:`block_normal`).
     """
+    return _normal_equations(r, J, cols, scales, row_weights, keep=False)
+
+
+def _normal_equations(
+    r: Float,
+    J: Float,
+    cols: np.ndarray,
+    scales: Float,
+    row_weights: Float | None,
+    keep: bool,
+) -> tuple[Float, Float]:
+    """:func:`normal_equations`; ``keep``: the products of an earlier call on the same
+    Jacobian serve, and these are kept for the next (:func:`_span_products`)."""
     cols = np.asarray(cols, dtype=np.intp)
     if cols.size == 0:
         return np.zeros((0, 0)), np.zeros(0)
     lo, hi = int(cols.min()), int(cols.max()) + 1
-    A, g = _span_products(r, J, lo, hi, row_weights)
+    A, g = _span_products(r, J, lo, hi, row_weights, keep)
     sel = cols - lo
     outer = np.outer(scales, scales)
     if sel.size == A.shape[0] and (sel.size < 2 or bool((np.diff(sel) == 1).all())):
@@ -92,24 +108,32 @@ def normal_equations(
 # equations of one Jacobian several times (the solver at a stage's last point, the prior
 # adaptation, the evidence, the uncertainty, the next stage's start there), each time
 # the same product of ~0.5 ms at 2000 poses x 50 parameters. Kept by the identity of
-# the arrays (a Jacobian is never written after its evaluation), as weak references.
+# the arrays (a Jacobian is never written after its evaluation), as weak references,
+# with a copy of the residuals and row weights (a few us to compare: an array written
+# in place between two calls is not taken for the one before). Only the fitter's own
+# calls keep them; the public :func:`normal_equations` forms them anew.
 _KEEP = 8
-_kept: list[tuple[tuple[weakref.ref, ...], int, int, Float, Float]] = []
+_Kept = tuple[tuple[weakref.ref, ...], Float, Float | None, int, int, Float, Float]
+_kept: list[_Kept] = []
 
 
 def _span_products(
-    r: Float, J: Float, lo: int, hi: int, row_weights: Float | None
+    r: Float, J: Float, lo: int, hi: int, row_weights: Float | None, keep: bool = True
 ) -> tuple[Float, Float]:
     """``(Xᵀ X, Xᵀ r)`` of the columns ``lo:hi`` of ``J`` (rows weighted), from the
     products of an earlier call on the same arrays where there is one (a span that
-    holds this one serves: its block), else by the compiled kernel or BLAS."""
+    holds this one serves: its block; ``keep``), else by the compiled kernel or
+    BLAS."""
     arrays = (J, r) if row_weights is None else (J, r, row_weights)
-    for refs, a, b, A0, g0 in reversed(_kept[:]):  # (a copy: another thread may add)
+    for refs, r0, w0, a, b, A0, g0 in reversed(_kept[:]) if keep else ():
+        # (a copy of the list: another thread may add)
         if (
             a <= lo
             and hi <= b
             and len(refs) == len(arrays)
             and all(ref() is x for ref, x in zip(refs, arrays))
+            and np.array_equal(r0, r)
+            and (w0 is None or row_weights is None or np.array_equal(w0, row_weights))
         ):
             return A0[lo - a : hi - a, lo - a : hi - a], g0[lo - a : hi - a]
     lo0, hi0 = lo, hi
@@ -128,11 +152,14 @@ def _span_products(
         A, g = _products(r, J, lo, hi, row_weights)
     A.setflags(write=False)
     g.setflags(write=False)
-    try:
-        refs = tuple(weakref.ref(x) for x in arrays)
-        _kept[:] = [*_kept[-(_KEEP - 1) :], (refs, lo, hi, A, g)]
-    except TypeError:  # (an array type without weak references: not kept)
-        pass
+    if keep:
+        try:
+            refs = tuple(weakref.ref(x) for x in arrays)
+            w0 = None if row_weights is None else np.array(row_weights)
+            entry = (refs, np.array(r), w0, lo, hi, A, g)
+            _kept[:] = [*_kept[-(_KEEP - 1) :], entry]
+        except TypeError:  # (an array type without weak references: not kept)
+            pass
     return A[lo0 - lo : hi0 - lo, lo0 - lo : hi0 - lo], g[lo0 - lo : hi0 - lo]
 
 
