@@ -17,7 +17,7 @@ import pytest
 
 from kinecal.geometry import euler_zyx_to_matrix
 from kinecal.identification import Measurements, calibrate, held_out_accuracy
-from kinecal.identification.selection import _heldout
+from kinecal.identification.selection import _crossval
 from kinecal.robot import load_robot
 from kinecal.simulation import LaserTracker, experiment2
 
@@ -50,16 +50,16 @@ def test_a_large_set_is_cross_validated_on_a_sample_of_whole_poses(
     assert not any("drawn at random" in n for f in full.figures for n in f.folds.notes)
     assert sum(t.size for t in full.transfer.folds.test) == sessions.n
 
-    monkeypatch.setattr(_heldout, "CV_MAX_ROWS", 200)
+    monkeypatch.setattr(_crossval, "CV_MAX_ROWS", 200)
     seen = []
-    real = _heldout._subsample
+    real = _crossval.sample_rows
 
     def spy(meas, groups, seed):
         out = real(meas, groups, seed)
         seen.append(out[0])
         return out
 
-    monkeypatch.setattr(_heldout, "_subsample", spy)
+    monkeypatch.setattr(_crossval, "sample_rows", spy)
     held = held_out_accuracy(ROBOT, sessions, spec, 3)
     (sample,) = seen
     # About CV_MAX_ROWS rows, each set kept, the two rows of a pose kept together.
@@ -88,11 +88,34 @@ def test_the_sample_keeps_a_small_set_whole(sessions):
         set_index=np.concatenate([big.set_index, small.set_index]),
         set_labels=sessions.set_labels,
     )
-    old = _heldout.CV_MAX_ROWS
+    old = _crossval.CV_MAX_ROWS
     try:
-        _heldout.CV_MAX_ROWS = 60
-        sample, _, _ = _heldout._subsample(meas, None, 0)
+        _crossval.CV_MAX_ROWS = 60
+        sample, _, _ = _crossval.sample_rows(meas, None, 0)
     finally:
-        _heldout.CV_MAX_ROWS = old
+        _crossval.CV_MAX_ROWS = old
     assert np.count_nonzero(sample.set_index == 2) == 40  # all of the small set
     assert 50 <= np.count_nonzero(sample.set_index == 0) < 70
+
+
+def test_auto_chooses_on_the_sample_and_calibrates_on_every_row(sessions, monkeypatch):
+    """``--model auto`` on a large set: the candidates are cross-validated on the same
+    sample as ``--cv`` (its figures are the table's on the same folds), the choice is
+    calibrated on every row (the selection's shared fit is the sample's)."""
+    from kinecal.workflows import calibrate_measurements
+
+    monkeypatch.setattr(_crossval, "CV_MAX_ROWS", 200)
+    run = calibrate_measurements(ROBOT, sessions, model="auto", cv_folds=3)
+    sel = run.selection
+    assert sel is not None and sel.calibration(run.options) is None
+    assert any("drawn at random" in w for w in sel.warnings)
+    n_sample = sum(t.size for t in sel.fold_sets.test)
+    assert 150 <= n_sample <= 260
+    # The model is the calibration on every row; --cv scored on the sample's folds.
+    every = calibrate(ROBOT, sessions, run.spec, run.options).calibrated.params
+    np.testing.assert_allclose(run.result.calibrated.params, every, rtol=1e-9)
+    new = run.held_out.transfer
+    assert sum(t.size for t in new.folds.test) == n_sample
+    chosen = next(c for c in sel.candidates if c.chosen)
+    if new.folds.unit == sel.unit:
+        assert new.model.rms_mm == chosen.cv_rms_mm

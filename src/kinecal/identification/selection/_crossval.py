@@ -33,6 +33,7 @@ __all__ = [
     "pose_features",
     "region_labels",
     "relabel_sets",
+    "sample_rows",
     "train_test_split",
 ]
 
@@ -53,6 +54,17 @@ def train_test_split(
         )
     perm = np.random.default_rng(seed).permutation(n)
     return meas.subset(np.sort(perm[:k])), meas.subset(np.sort(perm[k:]))
+
+
+# Above this many rows ``--cv`` and ``--model auto`` cross-validate a random sample of
+# the poses (whole poses, every set kept): the 2K fold calibrations of ``--cv`` and the
+# nominal robot's on a million rows took 200 s of CPU and 4 GB (issue 36), while the
+# held-out figure of a model of a few dozen parameters hardly depends on the number of
+# training rows beyond this (measured on 200 000 twin poses: docs/theory.md, "Accuracy
+# on a new session").
+CV_MAX_ROWS = 20_000
+# Rows every set (session) keeps in the sample: its user frame is refitted in a fold.
+_MIN_SET_ROWS = 50
 
 
 @dataclass(frozen=True)
@@ -511,3 +523,29 @@ def compare_models(
             )
         )
     return rows
+
+
+def sample_rows(
+    meas: Measurements, groups: np.ndarray | None, seed: int
+) -> tuple[Measurements, np.ndarray | None, str]:
+    """About :data:`CV_MAX_ROWS` rows of ``meas`` drawn at random by whole poses (every
+    row of a pose kept or left alike; every set keeps at least :data:`_MIN_SET_ROWS`
+    rows, or all of its own), ``groups`` cut alike, and the note that says so."""
+    pose = meas.pose_groups()
+    u = np.random.default_rng([seed, 36]).random(int(pose.max()) + 1)
+    key = u[pose]
+    keep = key < CV_MAX_ROWS / meas.n
+    for s in range(len(meas.set_labels)):
+        in_set = meas.set_index == s if meas.set_index.size else np.ones(meas.n, bool)
+        rows = np.flatnonzero(in_set)
+        if np.count_nonzero(keep[rows]) < _MIN_SET_ROWS:
+            # a set of few rows: its first 50 rows in the random order (whole poses)
+            last = np.sort(key[rows])[min(_MIN_SET_ROWS, rows.size) - 1]
+            keep[rows] |= key[rows] <= last
+    rows = np.flatnonzero(keep)
+    note = (
+        f"cross-validated on {rows.size} of the {meas.n} rows, drawn at random by "
+        f"whole poses (above {CV_MAX_ROWS} rows the held-out figures hardly change "
+        "with more training rows, and each fold is a calibration)"
+    )
+    return meas.subset(rows), None if groups is None else groups[rows], note

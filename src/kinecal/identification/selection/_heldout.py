@@ -19,6 +19,7 @@ import numpy as np
 
 from kinecal._blas import one_blas_thread
 from kinecal.identification._calibrate import CalibrationOptions
+from kinecal.identification.selection import _crossval
 from kinecal.identification.selection._crossval import (
     CrossValidation,
     Folds,
@@ -33,16 +34,8 @@ from kinecal.measurement._measurements import Measurements
 from kinecal.models import ModelSpec
 from kinecal.robot import RobotDescription
 
-__all__ = ["CV_MAX_ROWS", "HeldOutAccuracy", "HeldOutFigure", "held_out_accuracy"]
+__all__ = ["HeldOutAccuracy", "HeldOutFigure", "held_out_accuracy"]
 
-# Above this many rows ``--cv`` cross-validates a random sample of the poses (whole
-# poses, every set kept): its 2K fold calibrations and the nominal robot's on a million
-# rows took 200 s of CPU and 4 GB (issue 36), while the held-out figure of a model of a
-# few dozen parameters hardly depends on the number of training rows beyond this
-# (measured on 200 000 twin poses: docs/theory.md, "Accuracy on a new session").
-CV_MAX_ROWS = 20_000
-# Rows every set (session) keeps in the sample: its user frame is refitted in a fold.
-_MIN_SET_ROWS = 50
 
 # What each kind of fold imitates, in words (the report's and the console's names).
 _NAMES = {
@@ -177,8 +170,8 @@ def held_out_accuracy(
     """
     opts = options or CalibrationOptions()
     sampled = None
-    if selection is None and meas.n > CV_MAX_ROWS:
-        meas, groups, sampled = _subsample(meas, groups, seed)
+    if meas.n > _crossval.CV_MAX_ROWS:  # (the selection's own sample, when it ran)
+        meas, groups, sampled = _crossval.sample_rows(meas, groups, seed)
     kw: dict[str, Any] = {"groups": groups, "group_name": group_name}
     if groups is not None:
         schemes = [("groups", "random")]
@@ -229,29 +222,3 @@ def held_out_accuracy(
             "new-session figure."
         )
     return HeldOutAccuracy(k, tuple(figures), tuple(notes))
-
-
-def _subsample(
-    meas: Measurements, groups: np.ndarray | None, seed: int
-) -> tuple[Measurements, np.ndarray | None, str]:
-    """About :data:`CV_MAX_ROWS` rows of ``meas`` drawn at random by whole poses (every
-    row of a pose kept or left alike; every set keeps at least :data:`_MIN_SET_ROWS`
-    rows, or all of its own), ``groups`` cut alike, and the note that says so."""
-    pose = meas.pose_groups()
-    u = np.random.default_rng([seed, 36]).random(int(pose.max()) + 1)
-    key = u[pose]
-    keep = key < CV_MAX_ROWS / meas.n
-    for s in range(len(meas.set_labels)):
-        in_set = meas.set_index == s if meas.set_index.size else np.ones(meas.n, bool)
-        rows = np.flatnonzero(in_set)
-        if np.count_nonzero(keep[rows]) < _MIN_SET_ROWS:
-            # a set of few rows: its first 50 rows in the random order (whole poses)
-            last = np.sort(key[rows])[min(_MIN_SET_ROWS, rows.size) - 1]
-            keep[rows] |= key[rows] <= last
-    rows = np.flatnonzero(keep)
-    note = (
-        f"cross-validated on {rows.size} of the {meas.n} rows, drawn at random by "
-        f"whole poses (above {CV_MAX_ROWS} rows the held-out figures hardly change "
-        "with more training rows, and each fold is a calibration)"
-    )
-    return meas.subset(rows), None if groups is None else groups[rows], note

@@ -29,6 +29,7 @@ from kinecal.identification._calibrate import (
     CalibrationResult,
     spec_for,
 )
+from kinecal.identification.selection import _crossval
 from kinecal.identification.selection._candidates import (
     CandidateFit,
     Shared,
@@ -490,6 +491,9 @@ def select_model(
     """
     opts = options or CalibrationOptions()
     say = progress if callable(progress) else (lambda stage, detail: None)
+    sampled = None
+    if meas.n > _crossval.CV_MAX_ROWS:  # the choice on a sample of a large set
+        meas, groups, sampled = _crossval.sample_rows(meas, groups, seed)
     folds = make_folds(
         meas, k, seed, groups=groups, group_name=group_name, scheme=scheme, robot=robot
     )
@@ -523,7 +527,11 @@ def select_model(
     chosen = choose_candidate(cands)
     spec = replace(chosen.spec, name=f"auto:{chosen.label}")
     notes = _warnings(cands) + fourier_notes(cands, chosen)
-    sel = Selection(spec, chosen.prior_scale, cands, notes, len(folds.test), shared)
+    if sampled is not None:
+        notes.append(f"{sampled}; the chosen model is calibrated on every row")
+    # (a sample's shared fit is not the calibration on every row: none to finish)
+    kept = shared if sampled is None else None
+    sel = Selection(spec, chosen.prior_scale, cands, notes, len(folds.test), kept)
     sel.unit, sel.fold_sets, sel.scorer = folds.unit, folds, scorer
     return sel
 
