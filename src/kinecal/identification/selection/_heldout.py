@@ -161,7 +161,10 @@ def held_out_accuracy(
     several sets; the user's ``groups`` alone when given).
 
     With ``selection`` (``--model auto``) the chosen candidate is scored by the
-    selection's own fits: on the folds it was chosen with, its table's figures.
+    selection's own fits: on the folds it was chosen with, its table's figures. Above
+    :data:`~kinecal.identification.selection._crossval.CV_MAX_ROWS` rows the folds are
+    those of a random sample of whole poses (the selection's own), as the folds' notes
+    say.
 
     Raises
     ------
