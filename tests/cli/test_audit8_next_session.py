@@ -5,9 +5,12 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from tests.cli_contract import run_kinecal
 
 
+@pytest.mark.slow  # (an end-to-end run: plan, simulate, calibrate, ISO 9283)
 def test_simulate_keeps_an_iso_plan_columns(capsys, tmp_path):
     """simulate --plan ISO.csv dropped iso_point/iso_cycle (and cmd_*): the simulated
     test could not go through evaluate --iso9283 ("no column 'iso_point'")."""
