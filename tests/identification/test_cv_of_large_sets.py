@@ -119,3 +119,18 @@ def test_auto_chooses_on_the_sample_and_calibrates_on_every_row(sessions, monkey
     chosen = next(c for c in sel.candidates if c.chosen)
     if new.folds.unit == sel.unit:
         assert new.model.rms_mm == chosen.cv_rms_mm
+
+
+def test_the_sample_keeps_a_rare_marker(sessions):
+    """A marker seen in a few poses only stays in the sample with its rows (its tool
+    offset is fitted on them)."""
+    marker = np.zeros(sessions.n, np.intp)
+    marker[[5, 77, 151]] = 1
+    meas = replace(sessions, marker_index=marker, marker_labels=("m1", "m2"))
+    old = _crossval.CV_MAX_ROWS
+    try:
+        _crossval.CV_MAX_ROWS = 60
+        sample, _, _ = _crossval.sample_rows(meas, None, 0)
+    finally:
+        _crossval.CV_MAX_ROWS = old
+    assert np.count_nonzero(sample.marker_index == 1) == 3

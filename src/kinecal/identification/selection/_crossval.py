@@ -63,7 +63,7 @@ def train_test_split(
 # training rows beyond this (measured on 200 000 twin poses: docs/theory.md, "Accuracy
 # on a new session").
 CV_MAX_ROWS = 20_000
-# Rows every set (session) keeps in the sample: its user frame is refitted in a fold.
+# Rows every set (session) and marker keeps in the sample: their frames are fitted.
 _MIN_SET_ROWS = 50
 
 
@@ -529,19 +529,23 @@ def sample_rows(
     meas: Measurements, groups: np.ndarray | None, seed: int
 ) -> tuple[Measurements, np.ndarray | None, str]:
     """About :data:`CV_MAX_ROWS` rows of ``meas`` drawn at random by whole poses (every
-    row of a pose kept or left alike; every set keeps at least :data:`_MIN_SET_ROWS`
-    rows, or all of its own), ``groups`` cut alike, and the note that says so."""
+    row of a pose kept or left alike; every set and every marker keeps at least
+    :data:`_MIN_SET_ROWS` rows, or all of its own), ``groups`` cut alike, and the note
+    that says so."""
     pose = meas.pose_groups()
     u = np.random.default_rng([seed, 36]).random(int(pose.max()) + 1)
     key = u[pose]
     keep = key < CV_MAX_ROWS / meas.n
-    for s in range(len(meas.set_labels)):
-        in_set = meas.set_index == s if meas.set_index.size else np.ones(meas.n, bool)
-        rows = np.flatnonzero(in_set)
-        if np.count_nonzero(keep[rows]) < _MIN_SET_ROWS:
-            # a set of few rows: its first 50 rows in the random order (whole poses)
-            last = np.sort(key[rows])[min(_MIN_SET_ROWS, rows.size) - 1]
-            keep[rows] |= key[rows] <= last
+    for index, labels in (
+        (meas.set_index, meas.set_labels),
+        (meas.marker_index, meas.marker_labels),
+    ):
+        for s in range(len(labels)):
+            rows = np.flatnonzero(index == s) if index.size else np.arange(meas.n)
+            if 0 < rows.size and np.count_nonzero(keep[rows]) < _MIN_SET_ROWS:
+                # few rows of a set (or marker): its first rows in the random order
+                last = np.sort(key[rows])[min(_MIN_SET_ROWS, rows.size) - 1]
+                keep[rows] |= key[rows] <= last
     rows = np.flatnonzero(keep)
     note = (
         f"cross-validated on {rows.size} of the {meas.n} rows, drawn at random by "
