@@ -309,9 +309,11 @@ def _default_signals() -> None:
         signal.signal(s, signal.SIG_DFL)
 
 
-def _interrupt(args: list[str], when: str, sig=signal.SIGINT, timeout=300):
+def _interrupt(args: list[str], when: str, sig=signal.SIGINT, timeout=300, late=None):
     """Run kinecal, send ``sig`` to its process group when a stderr line holds
-    ``when`` (as Ctrl-C does), return (exit code, stderr)."""
+    ``when`` (as Ctrl-C does), return (exit code, stderr). ``late``: a list that gets
+    True when the command had already ended as the line was read (a loaded machine
+    reads the pipe late: the signal then reaches nothing), else False."""
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
     p = subprocess.Popen(
         [sys.executable, "-m", "kinecal", *map(str, args)],
@@ -331,7 +333,10 @@ def _interrupt(args: list[str], when: str, sig=signal.SIGINT, timeout=300):
     for line in p.stderr:
         seen.append(line)
         if when in line:
-            os.killpg(p.pid, sig)
+            if late is not None:
+                late.append(p.poll() is not None)
+            if p.returncode is None:  # (a reaped group is gone: nothing to signal)
+                os.killpg(p.pid, sig)
             break
         assert time.monotonic() - t0 < timeout
     seen.append(p.stderr.read())
@@ -359,12 +364,16 @@ def _ctrl_c_at(stage, data, tmp_path, capsys):
         "--out",
         out,
     ]
-    code, err = _interrupt([*args, "--force"], stage)
+    sent_late: list[bool] = []
+    code, err = _interrupt([*args, "--force"], stage, late=sent_late)
     assert stage in err and "Traceback" not in err
     last = err.strip().splitlines()[-1]
-    if code == 0 or "after the results were written" in last:
+    finished = code == 0 or (code == 3 and sent_late == [True])
+    if finished or "after the results were written" in last:
         # The run finished, or was moving its results into place, before the signal
-        # came: then the new result is whole.
+        # came: then the new result is whole. (A loaded CI runner once read the 'data:'
+        # line from the pipe after the 2.7 s run had ended with exit 3, its results
+        # flagged: these jittered copies of 20 poses may not converge.)
         assert RESULT <= {p.name for p in out.iterdir()} and not leftovers(tmp_path)
         return
     # 130; seen once in CI under load at the 'data:' stage: -2 (the process ended by
