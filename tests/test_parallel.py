@@ -274,6 +274,7 @@ def _children() -> set[int]:
     return {pid for pid, parent, _ in live_processes() if parent == os.getpid()}
 
 
+@pytest.mark.slow  # (20 maps of forked workers: 1.5 s)
 @pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="counts open files")
 def test_repeated_maps_leave_no_file_open():
     before = len(os.listdir("/proc/self/fd"))

@@ -11,6 +11,7 @@ import shutil
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from kinecal.robot import robot_from_urdf
 from tests.independent_arm import random_poses, true_arm, urdf_text
@@ -23,6 +24,7 @@ def _blocks(text: str) -> list[tuple[str, str]]:
     return re.findall(r"```(sh|csv|text)\n(.*?)```", text, flags=re.S)
 
 
+@pytest.mark.slow  # (the whole tutorial, every command of it: 2 s)
 def test_tutorial_runs(tmp_path, monkeypatch, capsys):
     from kinecal.cli import main
 

@@ -262,6 +262,7 @@ def test_issue_21_simulate_and_compare_list_every_file(data, capsys, tmp_path):
 # --- progress --------------------------------------------------------------------------
 
 
+@pytest.mark.slow  # (a calibration long enough to report its stages: 1.7 s)
 def test_issue_21_long_stages_talk(capsys):
     from kinecal.cli._common import Progress
 
