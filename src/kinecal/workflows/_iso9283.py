@@ -21,6 +21,18 @@ from kinecal.robot import RobotDescription
 __all__ = ["IsoTestProgram", "IsoTestResult", "evaluate_iso_test", "iso_test_program"]
 
 POINT_COLUMN, CYCLE_COLUMN = "iso_point", "iso_cycle"
+# The command pose of each row a plan writes beside them (for the operator).
+CMD_COLUMNS = (
+    "cmd_x_mm",
+    "cmd_y_mm",
+    "cmd_z_mm",
+    "cmd_a_deg",
+    "cmd_b_deg",
+    "cmd_c_deg",
+)
+# What a plan's rows carry besides the joints (``simulate --plan`` keeps them): the
+# point and cycle under the plan's names or the plain ones, and the command pose.
+PLAN_COLUMNS = (POINT_COLUMN, CYCLE_COLUMN, "point", "cycle", *CMD_COLUMNS)
 
 Progress = Callable[[str, str], None]
 
@@ -145,15 +157,7 @@ def _plan_lines(
     ]
     f = np.array([1e3 if j.kind == "prismatic" else 180 / np.pi for j in robot.joints])
     abc = np.degrees(orientation_abc(pl.R_base_tool))
-    cmd_cols = [
-        "cmd_x_mm",
-        "cmd_y_mm",
-        "cmd_z_mm",
-        "cmd_a_deg",
-        "cmd_b_deg",
-        "cmd_c_deg",
-    ]
-    lines = [",".join([*joint_cols, POINT_COLUMN, CYCLE_COLUMN, *cmd_cols])]
+    lines = [",".join([*joint_cols, POINT_COLUMN, CYCLE_COLUMN, *CMD_COLUMNS])]
     pts_mm = pl.cube.points * 1e3
     for q, k, c in zip(pl.q_ctrl * f, pl.point_index, pl.cycle):
         cells = [f"{v:.6f}" for v in q] + [POINT_LABELS[k], str(c)]

@@ -180,20 +180,6 @@ def _check_twin_size(robot: RobotDescription, n_train: int, n_test: int) -> None
         check_payload(robot.payload_kg, robot, "--payload-kg")
 
 
-# The columns of a plan kept in train.csv (``simulate --plan``): an ISO 9283 test
-# program's point and cycle (and its command pose, for the operator), so that the
-# simulated test runs through ``evaluate --iso9283`` as a measured one would.
-PLAN_COLUMNS: tuple[str, ...] = ("iso_point", "iso_cycle", "point", "cycle")
-PLAN_COLUMNS += (
-    "cmd_x_mm",
-    "cmd_y_mm",
-    "cmd_z_mm",
-    "cmd_a_deg",
-    "cmd_b_deg",
-    "cmd_c_deg",
-)
-
-
 def write_simulation(
     sim: SimulatedData,
     out: Path,
@@ -205,7 +191,8 @@ def write_simulation(
     test.csv, targets.csv (when there are targets), truth.yaml and, with a
     ``robot_file`` (the robot simulated), robot.yaml; return them by role, named as
     they will be in ``final`` (the --out folder). ``plan``: the pose file whose rows
-    train.csv measures (``--plan``); its :data:`PLAN_COLUMNS` are kept in train.csv."""
+    train.csv measures (``--plan``); its ISO 9283 columns
+    (:data:`kinecal.workflows._iso9283.PLAN_COLUMNS`) are kept in train.csv."""
     from kinecal.demo import truth_model
     from kinecal.io import (
         atomic_write_text,
@@ -241,12 +228,15 @@ def write_simulation(
 
 
 def _with_plan_columns(train: str, plan: str) -> str:
-    """train.csv's text with the plan's :data:`PLAN_COLUMNS` added after its own (the
-    rows are the plan's, in its order)."""
+    """train.csv's text with the plan's ISO 9283 columns (an ISO test program's point
+    and cycle, its command pose) added after its own, so that the simulated test runs
+    through ``evaluate --iso9283`` as a measured one would (the rows are the plan's, in
+    its order)."""
     import csv
     import io
 
     from kinecal.io import read_table
+    from kinecal.workflows._iso9283 import PLAN_COLUMNS
 
     t = read_table(plan)
     keep = [c for c in t.header if c.strip().lower() in PLAN_COLUMNS]
