@@ -78,7 +78,7 @@ def test_a_large_set_is_cross_validated_on_a_sample_of_whole_poses(
     )
 
 
-def test_the_sample_keeps_a_small_set_whole(sessions):
+def test_the_sample_keeps_a_small_set_whole(sessions, monkeypatch):
     big = sessions.subset(np.flatnonzero(sessions.set_index < 2))
     small = sessions.subset(np.flatnonzero(sessions.set_index == 2)[:40])
     meas = Measurements(
@@ -88,12 +88,8 @@ def test_the_sample_keeps_a_small_set_whole(sessions):
         set_index=np.concatenate([big.set_index, small.set_index]),
         set_labels=sessions.set_labels,
     )
-    old = _crossval.CV_MAX_ROWS
-    try:
-        _crossval.CV_MAX_ROWS = 60
-        sample, _, _ = _crossval.sample_rows(meas, None, 0)
-    finally:
-        _crossval.CV_MAX_ROWS = old
+    monkeypatch.setattr(_crossval, "CV_MAX_ROWS", 60)
+    sample, _, _ = _crossval.sample_rows(meas, None, 0)
     assert np.count_nonzero(sample.set_index == 2) == 40  # all of the small set
     assert 50 <= np.count_nonzero(sample.set_index == 0) < 70
 
@@ -117,20 +113,16 @@ def test_auto_chooses_on_the_sample_and_calibrates_on_every_row(sessions, monkey
     new = run.held_out.transfer
     assert sum(t.size for t in new.folds.test) == n_sample
     chosen = next(c for c in sel.candidates if c.chosen)
-    if new.folds.unit == sel.unit:
-        assert new.model.rms_mm == chosen.cv_rms_mm
+    assert new.folds.unit == sel.unit == "set"  # the folds auto chose on
+    assert new.model.rms_mm == chosen.cv_rms_mm
 
 
-def test_the_sample_keeps_a_rare_marker(sessions):
+def test_the_sample_keeps_a_rare_marker(sessions, monkeypatch):
     """A marker seen in a few poses only stays in the sample with its rows (its tool
     offset is fitted on them)."""
     marker = np.zeros(sessions.n, np.intp)
     marker[[5, 77, 151]] = 1
     meas = replace(sessions, marker_index=marker, marker_labels=("m1", "m2"))
-    old = _crossval.CV_MAX_ROWS
-    try:
-        _crossval.CV_MAX_ROWS = 60
-        sample, _, _ = _crossval.sample_rows(meas, None, 0)
-    finally:
-        _crossval.CV_MAX_ROWS = old
+    monkeypatch.setattr(_crossval, "CV_MAX_ROWS", 60)
+    sample, _, _ = _crossval.sample_rows(meas, None, 0)
     assert np.count_nonzero(sample.marker_index == 1) == 3
