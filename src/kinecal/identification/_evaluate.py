@@ -80,23 +80,25 @@ def refit_diagnosed(
     names: list[str] | None = None,
 ) -> tuple[CalibratedModel, list[Diagnostic]]:
     """:func:`refit`, returning its diagnostics instead of warning."""
+    cal, found, _ = _refit(calibrated, meas, groups, names)
+    return cal, found
+
+
+def _refit(
+    calibrated: CalibratedModel,
+    meas: Measurements,
+    groups: tuple[str, ...],
+    names: list[str] | None,
+) -> tuple[CalibratedModel, list[Diagnostic], Measurements]:
+    """:func:`refit_diagnosed`, and the data relabelled to the refitted model's sets
+    and markers (:func:`session_model`)."""
     old = calibrated.model
-    spec = old.spec
     solve = (
         tuple("cam" if g == "marker" else g for g in groups) if names is None else ()
     )
-    new_sets = "base" in solve and tuple(meas.set_labels) != tuple(spec.sets)
-    if new_sets:
-        model, x, status, std = _on_sets(calibrated, tuple(meas.set_labels), None)
-        m = meas
-    else:
-        m = calibrated.align(meas)
-        used = np.unique(m.set_index)
-        if used.size == len(spec.sets):
-            model, x = old, calibrated.params.copy()
-            status, std = list(calibrated.status), calibrated.std.copy()
-        else:  # a tool or marker refit of the data of some of the model's sets
-            model, x, status, std, m = _present_sets(calibrated, m, used)
+    model, x, status, std, m = session_model(
+        calibrated, meas, new_sets="base" in solve, new_markers="cam" in solve
+    )
     layout = model.layout
     if names is None:
         free = np.isin([s.group for s in layout.specs], groups)
@@ -130,48 +132,148 @@ def refit_diagnosed(
         calibrated.reference_payload_kg,
         info={**calibrated.info, "refit": list(groups) if names is None else names},
     )
-    return cal, list(reg.diagnostics)
+    return cal, list(reg.diagnostics), m
 
 
-def _on_sets(
-    calibrated: CalibratedModel, sets: tuple[str, ...], R_ref_base: Float | None
-) -> tuple[CalibrationModel, Float, list[str], Float]:
-    """The calibrated model with the user frames ``sets`` (reference rotations
-    ``R_ref_base``, None: the identity): parameters, status and std carried over by
-    name, a new set's frame 'estimated' at 0."""
+# A marker the model lacks gets its offset fitted on at least this many distinct poses
+# (as a set's user frame: fewer, and the refitted offset absorbs their errors).
+NEW_MARKER_POSES = 3
+_HINTS = {
+    "set": " Use --refit user for a new set-up.",
+    "marker": " Use --refit marker (or tool) for a new marker: its offset is then "
+    "fitted on these rows.",
+}
+
+
+def session_model(
+    calibrated: CalibratedModel,
+    meas: Measurements,
+    *,
+    new_sets: bool = False,
+    new_markers: bool = False,
+) -> tuple[CalibrationModel, Float, list[str], Float, Measurements]:
+    """The calibrated model on the sets and markers of ``meas``, and the data
+    relabelled to it (model, parameters, status, std, data).
+
+    Sets: the model's sets the data have rows of (a set the data lack is left out: its
+    closed form failed on no rows, "set 'A' has 0 rows"); with ``new_sets`` (the user
+    frames are refitted: a new set-up) the data's own sets, whatever their labels.
+    Markers: the model's; with ``new_markers`` (the cam frames or marker offsets are
+    refitted) and a marker the model lacks (a new SMR or probe), that marker is added,
+    started from the first marker's frame (its rotation: markers are points on one
+    tool), its offset to be fitted on its rows. A frame kept carries its parameters,
+    status, std and reference rotation over by name.
+
+    Raises
+    ------
+    DataError
+        A set or marker the model lacks, its frame not refitted (the message names
+        the ``--refit`` that fits it).
+    IdentifiabilityError
+        A new marker seen in fewer than :data:`NEW_MARKER_POSES` distinct poses.
+    """
     old = calibrated.model
     spec = old.spec
-    model = CalibrationModel(old.robot, replace(spec, sets=sets)).with_references(
-        R_ref_base, old.R_ref_cam if spec.cam_rotation else None
+    sets, s_idx, R_base = _sets(meas, spec.sets, old.R_ref_base, new_sets)
+    markers, m_idx, R_cam = _markers(meas, spec.markers, old.R_ref_cam, new_markers)
+    m = replace(
+        meas,
+        set_index=s_idx,
+        set_labels=sets,
+        marker_index=m_idx,
+        marker_labels=markers,
     )
+    x, status, std = calibrated.params, list(calibrated.status), calibrated.std
+    if sets == spec.sets and markers == spec.markers and R_base is old.R_ref_base:
+        return old, x.copy(), status, std.copy(), m
+    model = CalibrationModel(
+        old.robot, replace(spec, sets=sets, markers=markers)
+    ).with_references(R_base, R_cam if spec.cam_rotation else None)
     status = [
-        calibrated.status[old.layout.index(n)] if n in old.layout else "estimated"
+        status[old.layout.index(n)] if n in old.layout else "estimated"
         for n in model.layout.names
     ]
-    return (
-        model,
-        model.layout.transfer(calibrated.params, old.layout),
-        status,
-        model.layout.transfer(calibrated.std, old.layout),
+    x, std = (
+        model.layout.transfer(x, old.layout),
+        model.layout.transfer(std, old.layout),
     )
-
-
-def _present_sets(
-    calibrated: CalibratedModel, meas: Measurements, used: np.ndarray
-) -> tuple[CalibrationModel, Float, list[str], Float, Measurements]:
-    """The model restricted to the sets ``used`` (indices of the model's sets that
-    ``meas``, aligned to it, has rows of), and the data relabelled to it: a tool or
-    marker refit of the data of one session of a model calibrated on several needs no
-    frame of the others (their closed form failed on their empty rows: "set 'A' has 0
-    rows"). As a refit of the user frames does, the refitted model then holds the
-    data's sets."""
-    old = calibrated.model
-    keep = tuple(old.spec.sets[i] for i in used)
-    model, x, status, std = _on_sets(calibrated, keep, old.R_ref_base[used])
-    remap = np.full(len(old.spec.sets), -1, np.intp)
-    remap[used] = np.arange(used.size)
-    m = replace(meas, set_index=remap[meas.set_index], set_labels=keep)
+    new = model.cam_index[len(spec.markers) :]  # added markers: the first one's frame
+    first = model.cam_index[0]
+    x[new], std[new] = x[first], std[first]  # (its rotation: points on one tool)
+    for i, k in zip(new.ravel(), np.broadcast_to(first, new.shape).ravel()):
+        status[i] = status[k]
     return model, x, status, std, m
+
+
+def _sets(
+    meas: Measurements, own: tuple[str, ...], R_ref: Float, new: bool
+) -> tuple[tuple[str, ...], np.ndarray, Float]:
+    """The sets of the model fitted to ``meas`` (``own``: the model's, ``R_ref`` their
+    reference rotations), each row's index into them and their reference rotations."""
+    from kinecal.measurement._calibrated import map_labels
+
+    labels, index = meas.set_labels, meas.set_index
+    if new and tuple(labels) != own:  # a new set-up: the data's sets, as labelled
+        used = np.unique(index)
+        remap = np.full(len(labels), -1, np.intp)
+        remap[used] = np.arange(used.size)
+        eye = np.broadcast_to(np.eye(3), (used.size, 3, 3))
+        return tuple(labels[i] for i in used), remap[index], eye
+    idx = map_labels(labels, index, own, "set", meas.source, hint=_HINTS["set"])
+    keep = np.unique(idx)
+    if keep.size == len(own):
+        return own, idx, R_ref
+    remap = np.full(len(own), -1, np.intp)
+    remap[keep] = np.arange(keep.size)
+    return tuple(own[i] for i in keep), remap[idx], R_ref[keep]
+
+
+def _markers(
+    meas: Measurements, own: tuple[str, ...], R_ref: Float, new: bool
+) -> tuple[tuple[str, ...], np.ndarray, Float]:
+    """The markers of the model fitted to ``meas`` (``own``: the model's, ``R_ref``
+    their reference rotations), each row's index into them and their reference
+    rotations; ``new``: markers the model lacks are added (identity reference)."""
+    from kinecal.errors import DataError
+    from kinecal.measurement._calibrated import map_labels
+
+    labels, index = meas.marker_labels, meas.marker_index
+    try:
+        idx = map_labels(
+            labels, index, own, "marker", meas.source, hint=_HINTS["marker"]
+        )
+        return own, idx, R_ref
+    except DataError:
+        if not new:
+            raise
+    used = [labels[i] for i in np.unique(index)]
+    added = tuple(lab for lab in used if lab not in own)
+    out = own + added
+    idx = np.array([out.index(lab) for lab in labels], np.intp)[index]
+    _check_new_markers(meas, added, out, idx)
+    first = np.broadcast_to(R_ref[0], (len(added), 3, 3))
+    return out, idx, np.concatenate([R_ref, first])
+
+
+def _check_new_markers(
+    meas: Measurements, added: tuple[str, ...], labels: tuple[str, ...], idx: np.ndarray
+) -> None:
+    """Refuse a new marker (of ``added``) seen in fewer than :data:`NEW_MARKER_POSES`
+    distinct poses: its offset, fitted on them, would match them (an RMS of about 0)."""
+    from kinecal._stats import distinct_rows
+    from kinecal.errors import IdentifiabilityError
+
+    for label in added:
+        rows = idx == labels.index(label)
+        n = distinct_rows(meas.q_ctrl[rows])
+        if n < NEW_MARKER_POSES:
+            raise IdentifiabilityError(
+                f"{meas.source}: marker {label!r} is not in the model, so its offset is "
+                f"fitted on its rows, but they hold {n} distinct pose"
+                f"{'s' if n != 1 else ''} ({int(rows.sum())} rows); a new marker needs "
+                f"at least {NEW_MARKER_POSES} (measure it at more poses, or leave its "
+                "rows out)."
+            )
 
 
 REFIT_GROUPS = {"user": "base", "tool": "cam", "marker": "marker"}
@@ -203,11 +305,15 @@ def evaluate(
             f"refit takes 'user', 'tool' and 'marker'; got {unknown[0]!r}."
         )
     found: list[Diagnostic] = []
-    cal = calibrated
+    cal, m = calibrated, meas
     if what:
         groups = tuple(REFIT_GROUPS[w] for w in what)
-        cal, found = refit_diagnosed(calibrated, meas, groups)
-    blk = cal.predict(meas)
+        cal, found, m = _refit(calibrated, meas, groups, None)
+    else:  # a set or marker the model lacks: the message names the --refit for it
+        spec, model = calibrated.model.spec, calibrated.model
+        _sets(meas, spec.sets, model.R_ref_base, False)
+        _markers(meas, spec.markers, model.R_ref_cam, False)
+    blk = cal.predict(m)
     met = metrics_from_errors(blk.raw_position, blk.raw_rotation)
     return Evaluation(
         met,

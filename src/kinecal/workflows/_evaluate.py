@@ -90,7 +90,8 @@ def evaluate_measurements(
     DataError
         Data of another robot, frame or set-up (median error over 50 mm).
     IdentifiabilityError
-        A set with fewer than 3 distinct poses to refit its frames on.
+        A set with fewer than 3 distinct poses to refit its frames on, or a marker the
+        model lacks (fitted with --refit marker or tool) with fewer than 3.
     """
     from kinecal.identification import evaluate
     from kinecal.io import check_data_for_model
@@ -121,7 +122,7 @@ def evaluate_measurements(
         said = _payload_assumed(cal)
         if said:
             emit(f"note      {data_name or meas.source}: {said}")
-    if "marker" in refit:  # a marker of one row: its refitted offset matches it exactly
+    if {"marker", "tool"} & set(refit):  # a marker of one row: its refit matches it
         from kinecal.io._checks import lone_labels
 
         found = [*found, *lone_labels(meas, ("marker",))]
