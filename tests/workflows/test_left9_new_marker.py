@@ -92,7 +92,7 @@ def test_new_marker_of_pose_data_keeps_the_tool_orientation(twin):
     """Pose data: a new marker's frame starts from the first marker's (its rotation:
     points on one tool), and --refit marker fits its offset (its rotation was the
     identity: 180 deg orientation errors)."""
-    cal, measure, truth = twin
+    _, measure, truth = twin
     from kinecal.identification import calibrate
     from kinecal.simulation import LaserTracker, experiment2
 
