@@ -82,3 +82,22 @@ def live_processes() -> list[tuple[int, int, int]]:
         if fields[0] != "Z":
             out.append((int(d.name), int(fields[1]), int(fields[2])))
     return out
+
+
+def unmarked(text: str, source: str) -> str:
+    """A program ``kinecal compensate`` wrote from ``source``, without the one comment
+    line that marks it compensated (and FANUC's LINE_COUNT, counted up for that line,
+    as in ``source``): what its bytes must equal but for the corrected numbers."""
+    import re
+
+    from kinecal.workflows._provenance import MARK
+
+    lines = text.splitlines(keepends=True)
+    kept = [ln for ln in lines if MARK not in ln]
+    assert len(kept) == len(lines) - 1, "expected one provenance comment line"
+    out = "".join(kept)
+    count = re.search(r"^LINE_COUNT[ \t]*=[ \t]*\d+", source, re.M)
+    if count is not None:
+        pattern = re.compile(r"^LINE_COUNT[ \t]*=[ \t]*\d+", re.M)
+        out = pattern.sub(count.group(0), out, count=1)
+    return out

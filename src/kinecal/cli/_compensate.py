@@ -137,9 +137,9 @@ def compensate(
     frames: --uframe/--utool/--frames) becomes the pose the nominal controller must be
     commanded for the real robot to reach it, configuration flags kept; every target is
     counted (corrected, left and why, unreachable); the rest of the program is kept byte
-    for byte.
-    Unreachable or out-of-limit rows are listed, and the command exits with code 4
-    unless --allow-unreachable.
+    for byte, but for one comment line marking it compensated (such a file, or a
+    CORRECTED.csv, is refused as input: never corrected twice). Unreachable or
+    out-of-limit rows are listed; exit code 4 unless --allow-unreachable.
     """
     from pathlib import Path
 

@@ -1,6 +1,7 @@
 """The compensation workflows of ``kinecal compensate``: corrected controller angles
 for the targets of a CSV file, or a corrected robot program (its joint targets, and its
-Cartesian targets in their user and tool frames; the rest of the program byte for byte).
+Cartesian targets in their user and tool frames; the rest of the program byte for byte
+but for the comment line that marks it compensated: :mod:`._provenance`).
 """
 
 from __future__ import annotations
@@ -189,6 +190,7 @@ def compensate_targets(
     """
     from kinecal.compensation import compensate as run_compensation
     from kinecal.io import read_compensation_targets
+    from kinecal.workflows._provenance import refuse_corrected
     from kinecal.workflows._seeds import check_seed_units
 
     need_model(cal)
@@ -199,6 +201,7 @@ def compensate_targets(
     tg = read_compensation_targets(
         targets, cal.model.robot, allow_out_of_limits=allow_out_of_limits
     )
+    refuse_corrected(str(targets), tg.table.header)  # CORRECTED.csv: not twice
     for d in tg.diagnostics:
         if d.severity == "warning":
             emit(f"warning   {d.message}")
@@ -263,6 +266,7 @@ def compensate_program(
     """
     from kinecal.io import read_program, write_program, written_joints
     from kinecal.models import ModelInputs
+    from kinecal.workflows import _provenance as provenance
     from kinecal.workflows._compensate_cartesian import (
         cartesian_run,
         settle_follows,
@@ -274,6 +278,7 @@ def compensate_program(
     scale = load_scale(cal, payload_kg)  # (a CalibratedModel: need_model)
     robot = cal.model.robot
     prog = read_program(path, fmt)
+    provenance.refuse_compensated_program(str(path), prog.text, prog.format)
     q_prog, p_t, res_j, ls = _joint_part(cal, prog, scale, tol_mm)
     run = cartesian_run(
         cal, prog, q_prog, uframes or {}, utools or {}, scale, tol_mm, decimals,
@@ -318,6 +323,7 @@ def compensate_program(
             "(the joints rounded to the file's decimals)."
         )
     where = tuple(f"line {ln} ({nm})" for ln, nm in zip(lines_, names))
+    text = provenance.mark_compensated(text, prog.format)  # after every read-back
     return ProgramCompensation(
         res, where, tuple(lines), text, report, note, run.registers_new
     )
