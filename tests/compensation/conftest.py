@@ -5,6 +5,7 @@ elbow of the LR Mate (J2 + J3 = 84 deg), calibrated with the full model."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -40,6 +41,17 @@ def stretched_poses(rng: np.random.Generator, n: int) -> np.ndarray:
     q[:, 1] = np.radians(rng.uniform(30.0, 65.0, n))
     q[:, 2] = np.radians(STRETCHED_DEG + rng.uniform(-3.0, 3.0, n)) - q[:, 1]
     return q
+
+
+def write_targets_csv(path: Path, p: np.ndarray, q: np.ndarray) -> Path:
+    """A TARGETS.csv of a 6-joint arm: tool points ``p`` (N, 3) [m] and seed joints
+    ``q`` (N, 6) [rad], in mm and deg."""
+    head = "x_mm,y_mm,z_mm," + ",".join(f"j{k}_deg" for k in range(1, 7))
+    lines = [head]
+    for pi, qi in zip(p * 1e3, np.degrees(q)):
+        lines.append(",".join(f"{v:.6f}" for v in (*pi, *qi)))
+    path.write_text("\n".join(lines) + "\n")
+    return path
 
 
 @pytest.fixture(scope="session")

@@ -12,6 +12,7 @@ from kinecal.identification import calibrate
 from kinecal.io import save_model
 from kinecal.models import solve_ik
 from kinecal.simulation import LaserTracker, experiment2, planning_model
+from tests.compensation.conftest import write_targets_csv
 
 
 @pytest.fixture(scope="module")
@@ -66,30 +67,21 @@ def test_orientation_targets_and_limits(calibrated_twin, rng):
     assert (out2.status[5:] == "ok").all()
 
 
-def _write_targets(path, p, q):
-    head = "x_mm,y_mm,z_mm," + ",".join(f"j{k}_deg" for k in range(1, 7))
-    lines = [head]
-    for pi, qi in zip(p * 1e3, np.degrees(q)):
-        lines.append(",".join(f"{v:.6f}" for v in (*pi, *qi)))
-    path.write_text("\n".join(lines) + "\n")
-
-
 def test_cli_round_trip_and_unreachable_rows(
     calibrated_twin, run_cli_compensate, tmp_path, rng
 ):
     e, res = calibrated_twin
     model = save_model(tmp_path / "model.yaml", res.calibrated)
+
+    def compensate_cli(src, out, *extra):
+        return run_cli_compensate(
+            "compensate", str(tmp_path / src), "--model", str(model),
+            "--out", str(tmp_path / out), *extra,
+        )  # fmt: skip
+
     _, p_target, seed = _targets(e, 200, rng)
-    _write_targets(tmp_path / "targets.csv", p_target, seed)
-    r = run_cli_compensate(
-        "compensate",
-        str(tmp_path / "targets.csv"),
-        "--model",
-        str(model),
-        "--out",
-        str(tmp_path / "corrected.csv"),
-        "--json",
-    )
+    write_targets_csv(tmp_path / "targets.csv", p_target, seed)
+    r = compensate_cli("targets.csv", "corrected.csv", "--json")
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["ok"] == 200
     text = (tmp_path / "corrected.csv").read_text().splitlines()
@@ -105,40 +97,18 @@ def test_cli_round_trip_and_unreachable_rows(
     # Unreachable rows: per-row report, exit 4, nothing written ...
     bad = p_target.copy()
     bad[[3, 7]] += [5.0, 0, 0]
-    _write_targets(tmp_path / "bad.csv", bad, seed)
-    r = run_cli_compensate(
-        "compensate",
-        str(tmp_path / "bad.csv"),
-        "--model",
-        str(model),
-        "--out",
-        str(tmp_path / "bad-out.csv"),
-    )
+    write_targets_csv(tmp_path / "bad.csv", bad, seed)
+    r = compensate_cli("bad.csv", "bad-out.csv")
     assert r.returncode == 4
     assert "line 5:" in r.stderr and "line 9:" in r.stderr
     assert not (tmp_path / "bad-out.csv").exists()
     # ... unless allowed, then flagged in the file.
-    r = run_cli_compensate(
-        "compensate",
-        str(tmp_path / "bad.csv"),
-        "--model",
-        str(model),
-        "--out",
-        str(tmp_path / "bad-out.csv"),
-        "--allow-unreachable",
-    )
+    r = compensate_cli("bad.csv", "bad-out.csv", "--allow-unreachable")
     assert r.returncode == 0, r.stderr
     rows = (tmp_path / "bad-out.csv").read_text().splitlines()[1:]
     flags = [row.rsplit(",", 1)[1] for row in rows]
     assert flags[3] != "ok" and flags[7] != "ok" and flags.count("ok") == 198
-    r = run_cli_compensate(
-        "compensate",
-        str(tmp_path / "targets.csv"),
-        "--model",
-        str(model),
-        "--out",
-        str(tmp_path / "corrected.csv"),
-    )
+    r = compensate_cli("targets.csv", "corrected.csv")
     assert r.returncode == 2 and "use --force" in r.stderr
 
 

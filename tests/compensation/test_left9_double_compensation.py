@@ -24,7 +24,7 @@ from kinecal.workflows._provenance import (
     mark_compensated,
     refuse_compensated_program,
 )
-from tests.compensation.conftest import box_poses
+from tests.compensation.conftest import box_poses, write_targets_csv
 from tests.helpers import unmarked
 
 PROGRAMS = Path(__file__).parents[1] / "data" / "programs"
@@ -95,13 +95,8 @@ def test_corrected_csv_is_refused_as_targets(
     tracker_twin, model_file, run_cli, tmp_path
 ):
     q = box_poses(np.random.default_rng(2), 5)
-    p_mm = tracker_twin.truth.evaluate(q)[0] * 1e3
-    head = "x_mm,y_mm,z_mm," + ",".join(f"j{k + 1}_deg" for k in range(6))
-    rows = [
-        ",".join(f"{v:.6f}" for v in (*p, *np.degrees(qq))) for p, qq in zip(p_mm, q)
-    ]
-    targets = tmp_path / "targets.csv"
-    targets.write_text("\n".join([head, *rows]) + "\n")
+    p = tracker_twin.truth.evaluate(q)[0]
+    targets = write_targets_csv(tmp_path / "targets.csv", p, q)
     out = tmp_path / "corrected.csv"
     assert run_cli("compensate", str(targets), "--model", str(model_file),
                    "--out", str(out), "--allow-unreachable").returncode == 0  # fmt: skip
