@@ -101,3 +101,39 @@ def unmarked(text: str, source: str) -> str:
         pattern = re.compile(r"^LINE_COUNT[ \t]*=[ \t]*\d+", re.M)
         out = pattern.sub(count.group(0), out, count=1)
     return out
+
+
+def kinecal_ok(capsys, *args):
+    """``kinecal ARGS`` in this process (:func:`tests.cli_contract.run_kinecal`); it
+    must exit 0. Its run (code, out, err)."""
+    from tests.cli_contract import run_kinecal
+
+    res = run_kinecal(capsys, *args)
+    assert res.code == 0, str(res)
+    return res
+
+
+def calibrate_simulated(capsys, sim, out, model: str = "kinematic"):
+    """``kinecal calibrate SIM/train.csv --robot SIM/robot.yaml`` (a ``simulate
+    --robot`` folder) into ``out``, without cross-validation; it must exit 0."""
+    return kinecal_ok(
+        capsys, "calibrate", sim / "train.csv", "--robot", sim / "robot.yaml",
+        "--model", model, "--cv", "off", "--out", out, "-q",
+    )  # fmt: skip
+
+
+def plan_lr_mate(capsys, plan, poses: int = 20):
+    """``kinecal plan`` of ``poses`` LR Mate poses into ``plan`` (100 candidates, one
+    random draw: fast); it must exit 0."""
+    return kinecal_ok(
+        capsys, "plan", "--robot", "fanuc-lrmate200id", "--poses", str(poses),
+        "--out", plan, "--n-candidates", "100", "--random-draws", "1",
+        "--model", "kinematic",
+    )  # fmt: skip
+
+
+def calibrate_args(data, robot: str, out, model: str = "kinematic") -> list[str]:
+    """The arguments of ``kinecal calibrate DATA --robot ROBOT --model MODEL --out OUT``
+    without a report or progress lines."""
+    return ["calibrate", str(data), "--robot", robot, "--model", model,
+            "--out", str(out), "--no-report", "-q"]  # fmt: skip

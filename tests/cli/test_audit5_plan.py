@@ -4,6 +4,7 @@ that parse but say two things, or name what is not there. In-process."""
 from __future__ import annotations
 
 from tests.cli_contract import failed_with, run_kinecal
+from tests.helpers import plan_lr_mate
 
 
 def test_plan_refuses_two_ranges_of_one_joint(capsys, tmp_path):
@@ -49,11 +50,7 @@ def test_a_plan_of_another_robot_is_refused(capsys, tmp_path):
     """simulate --robot ur5e --plan PLAN.csv of the LR Mate: simulated with exit 0 (the
     LR Mate's joints fit the UR5e's limits); PLAN.report.json names the robot."""
     plan = tmp_path / "plan.csv"
-    res = run_kinecal(
-        capsys, "plan", "--robot", "fanuc-lrmate200id", "--poses", "20", "--out", plan,
-        "--n-candidates", "100", "--random-draws", "1", "--model", "kinematic",
-    )  # fmt: skip
-    assert res.code == 0, str(res)
+    plan_lr_mate(capsys, plan)
     out = tmp_path / "sim"
     res = run_kinecal(
         capsys, "simulate", "--robot", "ur5e", "--plan", plan, "--out", out,

@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from tests.cli_contract import run_kinecal
+from tests.helpers import calibrate_simulated
 
 _URDF = Path(__file__).parents[1] / "data" / "vendor_urdf"
 
@@ -34,11 +35,7 @@ def test_extrapolation_names_the_data_column_of_a_named_joint(capsys, tmp_path):
     args = ["--robot", "ur5e", "--out", sim, "--n-train", "40", "--n-test", "30", "-q"]
     assert run_kinecal(capsys, "simulate", *args).code == 0
     cal = tmp_path / "cal"
-    res = run_kinecal(
-        capsys, "calibrate", sim / "train.csv", "--robot", sim / "robot.yaml",
-        "--model", "kinematic", "--cv", "off", "--out", cal, "-q",
-    )  # fmt: skip
-    assert res.code == 0, str(res)
+    calibrate_simulated(capsys, sim, cal)
     lines = (sim / "test.csv").read_text().splitlines()
     far = [lines[0]] + [ln.replace(ln.split(",")[0], "359.0", 1) for ln in lines[1:]]
     data = tmp_path / "far.csv"

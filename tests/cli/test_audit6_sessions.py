@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from tests.cli_contract import failed_with, make_point_data, run_kinecal
+from tests.helpers import plan_lr_mate
 
 _URDF = Path(__file__).parents[1] / "data" / "vendor_urdf"
 
@@ -133,11 +134,7 @@ def test_simulate_refuses_n_train_with_a_plan(capsys, tmp_path):
     unsaid. Refused: the plan's rows are the poses to calibrate (a plan is chosen as a
     whole; its first N rows are not what `plan --poses N` would choose)."""
     plan = tmp_path / "plan.csv"
-    res = run_kinecal(
-        capsys, "plan", "--robot", "fanuc-lrmate200id", "--poses", "20", "--out", plan,
-        "--n-candidates", "100", "--random-draws", "1", "--model", "kinematic",
-    )  # fmt: skip
-    assert res.code == 0, str(res)
+    plan_lr_mate(capsys, plan)
     out = tmp_path / "sim"
     args = ["simulate", "--robot", "fanuc-lrmate200id", "--plan", plan, "--out", out]
     res = run_kinecal(capsys, *args, "--n-train", "5", "--n-test", "5", "-q")

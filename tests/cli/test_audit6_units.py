@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from tests.cli_contract import failed_with, make_point_data, run_kinecal
+from tests.helpers import calibrate_simulated
 
 
 @pytest.fixture(scope="module")
@@ -66,11 +67,7 @@ def test_evaluate_payload_beyond_ten_times_the_rating_is_refused(capsys, tmp_pat
         "--n-train", "40", "--n-test", "10", "-q",
     )  # fmt: skip
     assert res.code == 0, str(res)
-    res = run_kinecal(
-        capsys, "calibrate", sim / "train.csv", "--robot", sim / "robot.yaml",
-        "--model", "kinematic", "--cv", "off", "--out", cal, "-q",
-    )  # fmt: skip
-    assert res.code == 0, str(res)
+    calibrate_simulated(capsys, sim, cal)
     lines = (sim / "test.csv").read_text().splitlines()
     k = lines[0].split(",").index("payload_kg")
 

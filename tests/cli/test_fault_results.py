@@ -348,25 +348,20 @@ def _interrupt(args: list[str], when: str, sig=signal.SIGINT, timeout=300, late=
 STAGES = ["data:", "init:", "stage 1", "stage 3", "write:", "report:"]
 
 
+def _full_fit(data, out) -> list:
+    """The arguments of a full-model calibration of ``data`` into ``out`` (no CV): one
+    that lasts long enough to be interrupted."""
+    return ["calibrate", "--cv", "off", data, "--robot", ROBOT, "--model", "full",
+            "--out", out]  # fmt: skip
+
+
 def _ctrl_c_at(stage, data, tmp_path, capsys):
     big = _big_data(tmp_path, data)
     out = tmp_path / "cal"
     assert _calibrate(capsys, data, out).code == 0  # an earlier result
     before = snapshot(out)
-    args = [
-        "calibrate",
-        "--cv",
-        "off",
-        big,
-        "--robot",
-        ROBOT,
-        "--model",
-        "full",
-        "--out",
-        out,
-    ]
     sent_late: list[bool] = []
-    code, err = _interrupt([*args, "--force"], stage, late=sent_late)
+    code, err = _interrupt([*_full_fit(big, out), "--force"], stage, late=sent_late)
     assert stage in err and "Traceback" not in err
     last = err.strip().splitlines()[-1]
     finished = code == 0 or (code == 3 and sent_late == [True])
@@ -409,20 +404,7 @@ def test_issue_21_ctrl_c_in_worker_processes(data, tmp_path, capsys):
 def test_issue_21_sigterm_removes_the_staged_result(data, tmp_path, capsys):
     big = _big_data(tmp_path, data)
     code, err = _interrupt(
-        [
-            "calibrate",
-            "--cv",
-            "off",
-            big,
-            "--robot",
-            ROBOT,
-            "--model",
-            "full",
-            "--out",
-            tmp_path / "cal",
-        ],
-        "stage 1",
-        sig=signal.SIGTERM,
+        _full_fit(big, tmp_path / "cal"), "stage 1", sig=signal.SIGTERM
     )
     if code == 0:
         return  # finished first

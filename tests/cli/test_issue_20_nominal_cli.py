@@ -9,6 +9,7 @@ import pytest
 
 from kinecal.io import measurements_to_csv
 from kinecal.robot import load_robot
+from tests.helpers import calibrate_args
 
 DATA = Path(__file__).resolve().parents[2] / "examples" / "data"
 
@@ -36,18 +37,7 @@ def test_issue_20_the_wrong_nominal_robot_is_named(run_cli, tmp_path):
     codes = {}
     for robot in ("ur10", "ur10e"):
         out = tmp_path / robot
-        res = run_cli(
-            "calibrate",
-            str(path),
-            "--robot",
-            robot,
-            "--model",
-            "kinematic",
-            "--out",
-            str(out),
-            "--no-report",
-            "-q",
-        )
+        res = run_cli(*calibrate_args(path, robot, out))
         assert res.returncode in (0, 3), res.stderr
         report = json.loads((out / "report.json").read_text())
         codes[robot] = {d["code"] for d in report["diagnostics"]}

@@ -12,6 +12,7 @@ import pytest
 from kinecal.identification import calibrate, evaluate, registered_model
 from kinecal.io import load_model, read_measurements
 from kinecal.robot import load_robot
+from tests.helpers import calibrate_args
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "real"
 FR3 = load_robot("franka-fr3")
@@ -34,21 +35,7 @@ def test_calibrate_then_score_another_setup_with_refit_user(tmp_path, run_cli):
     clearly lower errors than the nominal model."""
     a, b = REAL / "fr3_session_a.csv", REAL / "fr3_session_b_board_moved.csv"
     out = tmp_path / "cal"
-    code, _ = _cli(
-        run_cli,
-        [
-            "calibrate",
-            str(a),
-            "--robot",
-            "franka-fr3",
-            "--model",
-            "kinematic",
-            "--out",
-            str(out),
-            "--no-report",
-            "-q",
-        ],
-    )
+    code, _ = _cli(run_cli, calibrate_args(a, "franka-fr3", out))
     assert code in (0, None)
     code, text = _cli(
         run_cli,
@@ -106,23 +93,8 @@ def test_two_sessions_in_one_file_get_one_user_frame_each(tmp_path):
 def test_ur10_pose_data_from_nominal_dh(tmp_path, run_cli):
     """23 mocap poses: a clear improvement, honest warnings, a loadable model."""
     out = tmp_path / "ur10"
-    code, _ = _cli(
-        run_cli,
-        [
-            "calibrate",
-            str(REAL / "ur10_mocap.csv"),
-            "--robot",
-            "ur10",
-            "--model",
-            "full",
-            "--out",
-            str(out),
-            "--no-report",
-            "--cv",
-            "3",
-            "-q",
-        ],
-    )
+    args = calibrate_args(REAL / "ur10_mocap.csv", "ur10", out, "full")
+    code, _ = _cli(run_cli, [*args, "--cv", "3"])
     assert code in (0, None)
     report = json.loads((out / "report.json").read_text())
     text = json.dumps(report)

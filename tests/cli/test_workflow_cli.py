@@ -97,29 +97,11 @@ def test_calibrate_then_evaluate(run_cli, exp2_files, tmp_path):
         (tmp_path / "errors.csv").read_text().startswith("row,ex_mm,ey_mm,ez_mm,err_mm")
     )
     # Results are never overwritten silently.
-    again = run_cli(
-        "calibrate",
-        str(exp2_files / "train.csv"),
-        "--robot",
-        "fanuc-lrmate200id",
-        "--out",
-        str(out),
-        "-q",
-    )
+    args = ["calibrate", str(exp2_files / "train.csv"), "--robot", "fanuc-lrmate200id",
+            "--out", str(out), "-q"]  # fmt: skip
+    again = run_cli(*args)
     assert again.returncode == 2 and "use --force" in again.stderr
-    forced = run_cli(
-        "calibrate",
-        str(exp2_files / "train.csv"),
-        "--robot",
-        "fanuc-lrmate200id",
-        "--out",
-        str(out),
-        "-q",
-        "--force",
-        "--model",
-        "kinematic",
-        "--no-report",
-    )
+    forced = run_cli(*args, "--force", "--model", "kinematic", "--no-report")
     assert forced.returncode == 0, forced.stderr
     assert (
         yaml.safe_load((out / "model.yaml").read_text())["model"]["name"] == "kinematic"
@@ -264,29 +246,14 @@ def test_too_few_poses_is_a_clear_error(run_cli, exp2_files, tmp_path):
     lines = (exp2_files / "train.csv").read_text().splitlines()[:11]
     f = tmp_path / "ten.csv"
     f.write_text("\n".join(lines) + "\n")
-    res = run_cli(
-        "calibrate",
-        str(f),
-        "--robot",
-        "fanuc-lrmate200id",
-        "--model",
-        "full",
-        "--out",
-        str(tmp_path / "o"),
-    )
+    args = ["calibrate", str(f), "--robot", "fanuc-lrmate200id", "--out"]
+    res = run_cli(*args, str(tmp_path / "o"), "--model", "full")
     assert res.returncode == 2
     assert (
         "10 poses give 30 residuals" in res.stderr and "measure at least" in res.stderr
     )
     # The default (auto) cross-validates: it says how many poses its folds need.
-    res = run_cli(
-        "calibrate",
-        str(f),
-        "--robot",
-        "fanuc-lrmate200id",
-        "--out",
-        str(tmp_path / "a"),
-    )
+    res = run_cli(*args, str(tmp_path / "a"))
     assert res.returncode == 2
     assert "expected at least 13 poses" in res.stderr and "fixed --model" in res.stderr
     assert "Traceback" not in res.stderr
