@@ -65,12 +65,8 @@ def test_the_methods_are_the_ones_dataclasses_makes(cache):
         p.x_mm = 1.0
 
 
-def test_a_text_is_compiled_once_and_kept_for_the_next_run(cache, monkeypatch):
-    _codecache.install()
-    _pose_class()
-    _codecache.save()
-    assert cache.is_file()
-    monkeypatch.setattr(_codecache, "_codes", {})  # the next run
+def _count_compiles(monkeypatch) -> list[str]:
+    """The sources the code cache compiles from now on (its ``compile`` counted)."""
     compiled: list[str] = []
 
     def counted(source, *a, **k):
@@ -78,6 +74,16 @@ def test_a_text_is_compiled_once_and_kept_for_the_next_run(cache, monkeypatch):
         return builtins.compile(source, *a, **k)
 
     monkeypatch.setattr(_codecache, "compile", counted, raising=False)
+    return compiled
+
+
+def test_a_text_is_compiled_once_and_kept_for_the_next_run(cache, monkeypatch):
+    _codecache.install()
+    _pose_class()
+    _codecache.save()
+    assert cache.is_file()
+    monkeypatch.setattr(_codecache, "_codes", {})  # the next run
+    compiled = _count_compiles(monkeypatch)
     _codecache.install()
     assert _pose_class()("b").x_mm == 0.0
     assert compiled == []
@@ -139,13 +145,7 @@ def test_a_damaged_entry_is_compiled_again(cache, monkeypatch):
     key, codes = marshal.loads(cache.read_bytes())
     cache.write_bytes(marshal.dumps((key, dict.fromkeys(codes, b"\x00damaged"))))
     monkeypatch.setattr(_codecache, "_codes", {})
-    compiled: list[str] = []
-
-    def counted(source, *a, **k):
-        compiled.append(source)
-        return builtins.compile(source, *a, **k)
-
-    monkeypatch.setattr(_codecache, "compile", counted, raising=False)
+    compiled = _count_compiles(monkeypatch)
     _codecache.install()
     assert _pose_class()("d").name == "d"
     assert len(compiled) == len(codes)

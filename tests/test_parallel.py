@@ -41,20 +41,25 @@ def test_an_error_in_a_worker_is_raised_with_its_type_and_message():
         parallel_map(_square_and_pid, [1, -3, 2], jobs=2)
 
 
+def _python(code: str, **env: str) -> subprocess.CompletedProcess[str]:
+    """``python -c CODE`` in a fresh process, OPENBLAS_NUM_THREADS unset (or ``env``)."""
+    env = {
+        **{k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"},
+        **env,
+    }
+    return subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True
+    )
+
+
 def test_the_command_asks_for_one_blas_thread_unless_the_user_set_it():
     code = (
         "import os; from kinecal._parallel import single_thread_blas as s; "
         "ok = s(); import numpy; print(ok, os.environ['OPENBLAS_NUM_THREADS'], s())"
     )
-    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
-    out = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True
-    )
+    out = _python(code)
     assert out.stdout.split() == ["True", "1", "False"], out.stderr
-    env["OPENBLAS_NUM_THREADS"] = "2"
-    out = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True
-    )
+    out = _python(code, OPENBLAS_NUM_THREADS="2")
     assert out.stdout.split() == ["True", "2", "False"], out.stderr
 
 
@@ -87,10 +92,7 @@ def test_a_kinecal_command_runs_with_one_blas_thread():
         "import numpy, scipy.linalg; from kinecal._parallel import blas_threads; "
         "print('threads', *blas_threads())"
     )
-    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
-    out = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True
-    )
+    out = _python(code)
     line = [ln for ln in out.stdout.splitlines() if ln.startswith("threads")]
     assert line and set(line[0].split()[1:]) == {"1"}, out.stdout + out.stderr
 
@@ -211,16 +213,10 @@ def test_the_command_pins_one_thread_at_start_unless_the_user_set_more():
         "    inside = blas_threads() if loaded else []\n"
         "import json; print(json.dumps([loaded, inside, blas_threads()]))"
     )
-    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
-    out = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True
-    )
+    out = _python(code)
     loaded, inside, after = _three(out)
     assert not loaded and inside == [] and after and set(after) == {1}
-    env["OPENBLAS_NUM_THREADS"] = "2"
-    out = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True
-    )
+    out = _python(code, OPENBLAS_NUM_THREADS="2")
     loaded, inside, after = _three(out)
     if set(after) != {2}:
         pytest.skip("the BLAS caps its threads at 1 here")

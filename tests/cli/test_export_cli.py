@@ -55,6 +55,13 @@ def _tool_points_by_pinocchio(urdf_path, q_ctrl):
     return out
 
 
+def _export(run_cli, *args):
+    """``kinecal export-urdf ARGS``; it must exit 0. Its run."""
+    res = run_cli("export-urdf", *args)
+    assert res.returncode == 0, res.stderr
+    return res
+
+
 def test_issue_23_urdf_reproduces_kinecal_evaluate_on_held_out_points(
     run_cli, models, tmp_path
 ):
@@ -70,15 +77,14 @@ def test_issue_23_urdf_reproduces_kinecal_evaluate_on_held_out_points(
     assert res.returncode == 0, res.stderr
     rms_eval = json.loads(res.stdout)["rms_mm"]
     urdf = tmp_path / "calibrated.urdf"
-    res = run_cli(
-        "export-urdf",
+    res = _export(
+        run_cli,
         str(models / "kinematic.yaml"),
         "--out",
         str(urdf),
         "--coupling",
         "mimic",
     )
-    assert res.returncode == 0, res.stderr
     assert "geometry only" not in res.stderr  # nothing left out of a kinematic model
     rows = np.loadtxt(models / "test.csv", delimiter=",", skiprows=1)
     head = (models / "test.csv").read_text().splitlines()[0].split(",")
@@ -91,15 +97,14 @@ def test_issue_23_urdf_reproduces_kinecal_evaluate_on_held_out_points(
 
 def test_full_model_urdf_states_what_it_leaves_out(run_cli, models, tmp_path, capsys):
     urdf = tmp_path / "full.urdf"
-    res = run_cli(
-        "export-urdf",
+    res = _export(
+        run_cli,
         str(models / "full.yaml"),
         "--out",
         str(urdf),
         "--data",
         str(models / "test.csv"),
     )
-    assert res.returncode == 0, res.stderr
     assert "holds the geometry only" in res.stderr and "mm RMS" in res.stderr
     text = urdf.read_text()
     root = ET.fromstring(text)
@@ -129,15 +134,7 @@ def test_full_model_urdf_states_what_it_leaves_out(run_cli, models, tmp_path, ca
 
 def test_yaml_dh_loads_as_robot_and_fk_matches_the_model(run_cli, models, tmp_path):
     dh = tmp_path / "calibrated.yaml"
-    res = run_cli(
-        "export-urdf",
-        str(models / "full.yaml"),
-        "--out",
-        str(dh),
-        "--format",
-        "yaml-dh",
-    )
-    assert res.returncode == 0, res.stderr
+    _export(run_cli, str(models / "full.yaml"), "--out", str(dh), "--format", "yaml-dh")
     assert dh.read_text().startswith("# Kinematic part of the calibrated model")
     for joints in (
         ["10", "20", "-30", "40", "50", "60"],
