@@ -11,6 +11,7 @@ import shutil
 import pytest
 
 from tests.cli_contract import check_contract, failed_with, make_point_data, run_kinecal
+from tests.helpers import calibrate_args
 
 DEEP = '{"a": ' + "[" * 100_000 + "]" * 100_000 + "}"
 
@@ -21,9 +22,7 @@ def cal(tmp_path_factory):
     data = make_point_data(d)
     from kinecal.cli import main
 
-    assert main(["calibrate", str(data["train"]), "--robot", "fanuc-lrmate200id",
-                 "--model", "kinematic", "--out", str(d / "cal"), "--no-report",
-                 "-q"]) == 0  # fmt: skip
+    assert main(calibrate_args(data["train"], "fanuc-lrmate200id", d / "cal")) == 0
     return data, d / "cal"
 
 
