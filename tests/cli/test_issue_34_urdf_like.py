@@ -51,19 +51,15 @@ def models(tmp_path_factory):
     return d
 
 
-def _export(capsys, model, vendor, out, *extra):
-    code, stdout, err = _cli(
-        capsys,
-        "export-urdf",
-        str(model),
-        "--like",
-        str(vendor),
-        "--out",
-        str(out),
-        *extra,
-    )
+def _exported(capsys, *args) -> str:
+    """``kinecal export-urdf ARGS``; it must exit 0. Its stdout."""
+    code, stdout, err = _cli(capsys, "export-urdf", *map(str, args))
     assert code == 0, err
     return stdout
+
+
+def _export(capsys, model, vendor, out, *extra):
+    return _exported(capsys, model, "--like", vendor, "--out", out, *extra)
 
 
 def _fk_model(capsys, model, q_deg) -> dict:
@@ -256,16 +252,7 @@ def test_issue_34_ur_calibration_yaml_drops_into_ur_description(
     from kinecal import _yaml as yaml
 
     kin = tmp_path / "kinematics.yaml"
-    code, _, err = _cli(
-        capsys,
-        "export-urdf",
-        str(models / "ur.yaml"),
-        "--format",
-        "ur-calibration",
-        "--out",
-        str(kin),
-    )
-    assert code == 0, err
+    _exported(capsys, models / "ur.yaml", "--format", "ur-calibration", "--out", kin)
     doc = yaml.load(kin.read_text())["kinematics"]
     assert re.fullmatch(r"calib_\d+", doc["hash"])
     parts = ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")
@@ -445,16 +432,7 @@ def test_issue_34_plain_export_carries_velocities_never_zero(capsys, models, tmp
 
     for extra in ((), ("--coupling", "mimic")):
         out = tmp_path / "plain.urdf"
-        code, _, err = _cli(
-            capsys,
-            "export-urdf",
-            str(models / "lr_kinematic.yaml"),
-            "--out",
-            str(out),
-            "--force",
-            *extra,
-        )
-        assert code == 0, err
+        _exported(capsys, models / "lr_kinematic.yaml", "--out", out, "--force", *extra)
         lims = {
             j.get("name"): j.find("limit").attrib
             for j in ET.parse(out).getroot().findall("joint")
@@ -485,10 +463,7 @@ def test_issue_34_names_robot_uses_the_robots_joint_names(capsys, models, tmp_pa
     plain, named = tmp_path / "plain.urdf", tmp_path / "named.urdf"
     model = models / "ur_imported.yaml"
     for out, extra in ((plain, ()), (named, ("--names", "robot"))):
-        code, _, err = _cli(
-            capsys, "export-urdf", str(model), "--out", str(out), *extra
-        )
-        assert code == 0, err
+        _exported(capsys, model, "--out", out, *extra)
     links, joints = _elements(named)
     want = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint"]
     want += [f"wrist_{i}_joint" for i in (1, 2, 3)]
