@@ -715,7 +715,11 @@ def main(argv=None) -> None:
     p.add_argument("--only", default="")
     p.add_argument("--part", default="0/1")
     p.add_argument("--real", action="store_true", help="the shipped real sets, nested")
+    p.add_argument("--table", action="store_true", help="selection tables (wave 3)")
     a = p.parse_args(argv)
+    if a.table:
+        table_main(a.out, a.part, a.only, a.quick)
+        return
     if a.real:
         real_main(a.out, a.only)
         return
@@ -777,6 +781,181 @@ def real_main(out: str, only: str = "") -> None:
                 f.flush()
                 print(row, file=sys.stderr)
 
+
+
+# --- wave 3: the selection table of every case, the rules applied to it offline ----
+# ``python -m benchmarks._issue31_rules --table [--part i/m] --out FILE``: per case the
+# candidates' region-fold RMS and Fourier coefficients (what the rule sees) and every
+# candidate's and fixed model's RMS on the new session(s); :func:`choose_before` and
+# the shipped :func:`choose_candidate` pick from the same table.
+def ur10_sessions(seed: int, vary: bool = False):
+    """The issue's UR10 report as a twin: the truth with the lumped self-weight
+    compliance (0.03 deg at the largest gravity torque) and small transmission errors
+    (5e-5 rad per coefficient; ``vary``: half of them change between sessions, as the
+    ``session`` truth), 400 random poses of one half of the workspace measured with
+    0.25 mm noise per axis (in-session every model within a few percent), three later
+    sessions of 300 poses with other pose distributions (the other end; the other
+    direction; the whole workspace), each after the tracker moved and the tool was
+    re-mounted (user and tool frames refitted when scored)."""
+    from kinecal.measurement import Measurements
+    from kinecal.robot._gravity import random_joint_poses
+
+    robot = load_robot("ur10")
+    truth = robot_truth(robot, seed=seed, ntm_amplitude=5e-5, deflection=np.radians(0.03))
+    rng = np.random.default_rng([seed, 31])
+    pool = random_joint_poses(robot, 8000, rng)
+    f = pose_features(pool, robot)
+    c = f - f.mean(axis=0)
+    V = np.linalg.svd(c, full_matrices=False)[2]
+    a1, a2 = c @ V[0], c @ V[1]
+    m1, hi1, hi2 = np.median(a1), np.quantile(a1, 0.6), np.quantile(a2, 0.7)
+
+    def pick(mask, n):
+        return pool[np.sort(rng.choice(np.flatnonzero(mask), n, False))]
+
+    qs = [pick(a1 < m1, 400), pick(a1 > hi1, 300), pick((a2 > hi2) & (a1 > m1), 300)]
+    qs.append(pick(np.ones(pool.shape[0], bool), 300))
+    base, cam = truth.model.base_index.ravel(), truth.model.cam_index.ravel()
+    ntm = np.array([s.group == "ntm" for s in truth.model.layout.specs])
+    ntm &= truth.params != 0
+    tracker = LaserTracker(0.25e-3, 0.0)
+    out = []
+    for i, q in enumerate(qs):
+        x = truth.params.copy()
+        if i:  # a later session: tracker moved, tool re-mounted
+            x[base] += rng.normal(size=6) * 0.3
+            x[cam[:3]] += rng.normal(size=3) * 3e-3
+            x[cam[3:]] += rng.normal(size=3) * 0.02
+            if vary:
+                x[ntm] = 0.5 * x[ntm] + 0.87 * 5e-5 * rng.normal(size=int(ntm.sum()))
+        p, _ = replace(truth, params=x).evaluate(q)
+        p_meas, sigma = tracker.measure(p, rng)
+        rows = np.arange(1, q.shape[0] + 1)
+        out.append(
+            Measurements("point", q, p_meas, sigma=sigma, rows=rows, source="ur10 twin")
+        )
+    return robot, out[0], out[1:]
+
+
+def choose_before(cands):
+    """The rule before wave 3 (the Fourier reproducibility test only)."""
+    best = min(cands, key=lambda c: c.cv_rms_mm)
+    eligible = [c for c in cands if _select._within_one_se(c, best)]
+    kept = [c for c in cands if _select._fourier_reproducible(c, cands)]
+    if len(kept) < len(cands):
+        best = min(kept, key=lambda c: c.cv_rms_mm)
+        eligible = [
+            c for c in kept if any(c is e for e in eligible) or _select._within_one_se(c, best)
+        ]
+    return _smallest(eligible)
+
+
+def table_case(key):
+    """The selection table of one case and every candidate's new-session RMS."""
+    if key[0] == "ur10-sessions":
+        robot, train, tests = ur10_sessions(key[1], key[2] == "vary")
+    elif key == ("fr3", "a->b"):
+        robot, train, test = fr3()
+        tests = [test]
+    elif key == ("fr3", "b->a"):
+        robot, test, train = fr3()
+        tests = [test]
+    elif key[0] == "vendor":
+        robot = _load(key[1])
+        e = robot_experiment(
+            robot_truth(robot, seed=key[3]), key[3], n_train=key[2], n_test=800,
+            tracker=LaserTracker(10e-6, 0.0), new_session=True,
+        )  # fmt: skip
+        train, tests = e.train, [e.test]
+    elif key[0] == "exp2":
+        robot, train, test = exp2(key[1])
+        tests = [test]
+    else:
+        robot, train, test = twin(*key)
+        tests = [test]
+    sel = select_model(robot, train)
+    new: dict[str, list[float]] = {}
+    for c in sel.candidates:
+        opts = CalibrationOptions().tuned(prior_scale=c.prior_scale)
+        cal = calibrate(robot, train, c.spec, opts).calibrated
+        key_ = f"{c.label} x{c.prior_scale:g}"
+        new[key_] = [evaluate(cal, t, refit=REFIT).metrics.rms_mm for t in tests]
+    fx = {}
+    for m in ["kinematic", "ntm", "full"] + (["rfcm"] if robot.self_weight else []):
+        try:
+            cal = calibrate(robot, train, m).calibrated
+        except ValueError:
+            continue
+        fx[m] = [evaluate(cal, t, refit=REFIT).metrics.rms_mm for t in tests]
+    return {
+        "case": list(key),
+        "fixed": fx,
+        "new": new,
+        "table": [
+            {
+                "label": c.label,
+                "prior_scale": c.prior_scale,
+                "size": c.size,
+                "cv_rms_mm": c.cv_rms_mm,
+                "cv_se_mm": c.cv_se_mm,
+                "fold_rms_mm": list(c.fold_rms_mm),
+                "fold_fourier": {k: list(v) for k, v in c.fold_fourier.items()},
+                "spec": {
+                    "ntm_joints": list(c.spec.ntm_joints or ()),
+                    "ntm_order": c.spec.ntm_order,
+                    "load": c.spec.load,
+                    "link": c.spec.link,
+                },
+            }
+            for c in sel.candidates
+        ],
+    }
+
+
+def table_cases(quick: bool):
+    out = cases(quick)
+    out += [("ur10-sessions", s, v) for v in ("fixed", "vary") for s in range(6)]
+    return out
+
+
+def cands_of(row):
+    """The candidates of a stored table (for the rules, offline)."""
+    from kinecal.models import ModelSpec
+
+    out = []
+    for t in row["table"]:
+        s = t["spec"]
+        spec = ModelSpec(
+            name=t["label"], ntm_joints=tuple(s["ntm_joints"]), ntm_order=s["ntm_order"],
+            load=s["load"], link=s["link"],
+        )  # fmt: skip
+        out.append(
+            _select.Candidate(
+                t["label"], spec, t["prior_scale"], t["size"], t["cv_rms_mm"],
+                t["cv_se_mm"], 0.0, fold_rms_mm=tuple(t["fold_rms_mm"]),
+                fold_fourier={k: tuple(v) for k, v in t["fold_fourier"].items()},
+            )  # fmt: skip
+        )
+    return out
+
+
+def ratios(row, rule) -> list[float]:
+    """The rule's pick's RMS over the best fixed model's, per new session."""
+    c = rule(cands_of(row))
+    got = row["new"][f"{c.label} x{c.prior_scale:g}"]
+    best = [min(v[i] for v in row["fixed"].values()) for i in range(len(got))]
+    return [g / b for g, b in zip(got, best, strict=True)]
+
+
+def table_main(out: str, part: str, only: str, quick: bool) -> None:
+    i, m = map(int, part.split("/"))
+    todo = [c for c in table_cases(quick) if only in " ".join(map(str, c))][i::m]
+    with open(out, "a") as f:
+        for key in todo:
+            row = table_case(key)
+            f.write(json.dumps(row) + "\n")
+            f.flush()
+            print(key, ratios(row, choose_before), file=sys.stderr)
 
 if __name__ == "__main__":
     main()
