@@ -782,7 +782,6 @@ def real_main(out: str, only: str = "") -> None:
                 print(row, file=sys.stderr)
 
 
-
 # --- wave 3: the selection table of every case, the rules applied to it offline ----
 # ``python -m benchmarks._issue31_rules --table [--part i/m] --out FILE``: per case the
 # candidates' region-fold RMS and Fourier coefficients (what the rule sees) and every
@@ -801,7 +800,9 @@ def ur10_sessions(seed: int, vary: bool = False):
     from kinecal.robot._gravity import random_joint_poses
 
     robot = load_robot("ur10")
-    truth = robot_truth(robot, seed=seed, ntm_amplitude=5e-5, deflection=np.radians(0.03))
+    truth = robot_truth(
+        robot, seed=seed, ntm_amplitude=5e-5, deflection=np.radians(0.03)
+    )
     rng = np.random.default_rng([seed, 31])
     pool = random_joint_poses(robot, 8000, rng)
     f = pose_features(pool, robot)
@@ -845,7 +846,9 @@ def choose_before(cands):
     if len(kept) < len(cands):
         best = min(kept, key=lambda c: c.cv_rms_mm)
         eligible = [
-            c for c in kept if any(c is e for e in eligible) or _select._within_one_se(c, best)
+            c
+            for c in kept
+            if any(c is e for e in eligible) or _select._within_one_se(c, best)
         ]
     return _smallest(eligible)
 
@@ -905,6 +908,7 @@ def table_case(key):
                     "ntm_order": c.spec.ntm_order,
                     "load": c.spec.load,
                     "link": c.spec.link,
+                    "link_bodies": list(c.spec.link_bodies or ()),
                 },
             }
             for c in sel.candidates
@@ -927,14 +931,20 @@ def cands_of(row):
         s = t["spec"]
         spec = ModelSpec(
             name=t["label"], ntm_joints=tuple(s["ntm_joints"]), ntm_order=s["ntm_order"],
-            load=s["load"], link=s["link"],
+            load=s["load"], link=s["link"], link_bodies=tuple(s["link_bodies"]),
         )  # fmt: skip
         out.append(
             _select.Candidate(
-                t["label"], spec, t["prior_scale"], t["size"], t["cv_rms_mm"],
-                t["cv_se_mm"], 0.0, fold_rms_mm=tuple(t["fold_rms_mm"]),
+                t["label"],
+                spec,
+                t["prior_scale"],
+                t["size"],
+                t["cv_rms_mm"],
+                t["cv_se_mm"],
+                0.0,
+                fold_rms_mm=tuple(t["fold_rms_mm"]),
                 fold_fourier={k: tuple(v) for k, v in t["fold_fourier"].items()},
-            )  # fmt: skip
+            )
         )
     return out
 
@@ -957,5 +967,76 @@ def table_main(out: str, part: str, only: str, quick: bool) -> None:
             f.flush()
             print(key, ratios(row, choose_before), file=sys.stderr)
 
+
 if __name__ == "__main__":
     main()
+
+
+def choose_bar_cut(cands):
+    """A variant tried: every series cut below reproducible orders barred, whether or
+    not the longer series validates as well."""
+    from kinecal.identification.selection import _fourier
+
+    def cut(c, kept):
+        floor = _fourier.null_z2(len(c.fold_rms_mm))
+        n = _fourier.fourier_terms(c.spec)
+        z2 = [
+            _fourier.jackknife_z2(
+                o.fold_fourier, [k for k in o.fold_fourier if k not in c.fold_fourier]
+            )
+            for o in kept
+            if n
+            and _fourier.fourier_terms(o.spec) > n
+            and _fourier.same_physics(o.spec, c.spec)
+            and o.fold_fourier
+        ]
+        return floor > 0 and max((z for z in z2 if np.isfinite(z)), default=0) >= floor
+
+    best = min(cands, key=lambda c: c.cv_rms_mm)
+    eligible = [c for c in cands if _select._within_one_se(c, best)]
+    kept = [c for c in cands if _select._fourier_reproducible(c, cands)]
+    kept = [c for c in kept if not cut(c, kept)]
+    if len(kept) < len(cands):
+        best = min(kept, key=lambda c: c.cv_rms_mm)
+        eligible = [
+            c
+            for c in kept
+            if any(c is e for e in eligible) or _select._within_one_se(c, best)
+        ]
+    return _smallest(eligible)
+
+
+RULES = {
+    "before": choose_before,
+    "now": lambda cands: _select.choose_candidate(cands),
+    "bar_cut": choose_bar_cut,
+}
+
+
+def summarize(rows: list[dict]) -> dict:
+    """Per rule: the ratio (pick / best fixed model, per new session) over all cases,
+    how many exceed 1.05 and 1.1, the worst, and the cases over 1.05."""
+    out = {}
+    for name, rule in RULES.items():
+        per = []
+        for row in rows:
+            c = rule(cands_of(row))
+            for i, r in enumerate(ratios(row, rule)):
+                per.append((r, row["case"], i, c.label))
+        v = np.array([p[0] for p in per])
+        out[name] = {
+            "sessions": int(v.size),
+            "over_1.05": int(np.sum(v > 1.05)),
+            "over_1.1": int(np.sum(v > 1.1)),
+            "worst": round(float(v.max()), 4),
+            "median": round(float(np.median(v)), 4),
+            "geomean": round(float(np.exp(np.mean(np.log(v)))), 4),
+            "quantiles_90_95_99": [
+                round(float(x), 4) for x in np.quantile(v, [0.9, 0.95, 0.99])
+            ],
+            "over": sorted(
+                ([round(r, 4), case, i, lb] for r, case, i, lb in per if r > 1.05),
+                key=lambda x: -x[0],
+            ),
+        }
+    return out

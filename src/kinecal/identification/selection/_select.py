@@ -50,6 +50,7 @@ from kinecal.identification.selection._fourier import (
     fourier_notes,
     fourier_z2,
     null_z2,
+    truncation_z2,
 )
 from kinecal.measurement._measurements import Measurements
 from kinecal.models import CalibrationModel, ModelSpec
@@ -98,6 +99,8 @@ class Selection:
     unit: str = "pose"  # what the folds held whole (see Folds)
     fold_sets: Folds | None = field(default=None, repr=False, compare=False)
     scorer: _Scorer | None = field(default=None, repr=False, compare=False)
+    # a large set's sample the folds were made on (sample_rows: rows, groups, note)
+    sample: tuple[Any, ...] | None = field(default=None, repr=False, compare=False)
 
     def chosen_cv(self, folds: Folds) -> CrossValidation | ValueError:
         """The chosen candidate's cross-validation on ``folds``: the table's own figures
@@ -533,6 +536,7 @@ def select_model(
     kept = shared if sampled is None else None
     sel = Selection(spec, chosen.prior_scale, cands, notes, len(folds.test), kept)
     sel.unit, sel.fold_sets, sel.scorer = folds.unit, folds, scorer
+    sel.sample = None if sampled is None else (meas, groups, sampled, seed)
     return sel
 
 
@@ -540,11 +544,13 @@ def choose_candidate(cands: list[Candidate]) -> Candidate:
     """The candidate the rule of :func:`select_model` chooses from a scored table
     (marked ``chosen``): the smallest within :data:`_SE_FACTOR` paired standard errors
     of the best, but none whose Fourier terms are not reproducible across the folds
-    (:func:`_fourier_reproducible`); without those, the best of the others may admit
+    (:func:`_fourier_reproducible`) and none whose series is cut below reproducible
+    orders (:func:`_cut_short`); without those, the best of the others may admit
     smaller candidates too."""
     best = min(cands, key=lambda c: c.cv_rms_mm)
     eligible = [c for c in cands if _within_one_se(c, best)]
     kept = [c for c in cands if _fourier_reproducible(c, cands)]
+    kept = [c for c in kept if not _cut_short(c, kept)]
     if len(kept) < len(cands):
         best = min(kept, key=lambda c: c.cv_rms_mm)
         eligible = [
@@ -562,6 +568,14 @@ def _fourier_reproducible(c: Candidate, cands: list[Candidate]) -> bool:
     their coefficients (delete-one-fold jackknife, :func:`._fourier.fourier_z2`) at
     least what noise gives (:func:`._fourier.null_z2`: 2 for 5 folds)."""
     return fourier_z2(c, cands) >= null_z2(len(c.fold_rms_mm))
+
+
+def _cut_short(c: Candidate, cands: list[Candidate]) -> bool:
+    """Whether ``c``'s Fourier series stops below orders that a candidate with the same
+    physical terms has reproducibly (:func:`._fourier.truncation_z2` at least
+    :func:`._fourier.null_z2`): it aliases them and does not carry over."""
+    floor = null_z2(len(c.fold_rms_mm))
+    return floor > 0.0 and truncation_z2(c, cands) >= floor
 
 
 def _warnings(cands: list[Candidate]) -> list[str]:
