@@ -716,7 +716,11 @@ def main(argv=None) -> None:
     p.add_argument("--part", default="0/1")
     p.add_argument("--real", action="store_true", help="the shipped real sets, nested")
     p.add_argument("--table", action="store_true", help="selection tables (wave 3)")
+    p.add_argument("--merge", nargs="*", help="--table output files into the json")
     a = p.parse_args(argv)
+    if a.merge:
+        write_wave3(a.merge)
+        return
     if a.table:
         table_main(a.out, a.part, a.only, a.quick)
         return
@@ -968,10 +972,6 @@ def table_main(out: str, part: str, only: str, quick: bool) -> None:
             print(key, ratios(row, choose_before), file=sys.stderr)
 
 
-if __name__ == "__main__":
-    main()
-
-
 def choose_bar_cut(cands):
     """A variant tried: every series cut below reproducible orders barred, whether or
     not the longer series validates as well."""
@@ -1040,3 +1040,67 @@ def summarize(rows: list[dict]) -> dict:
             ),
         }
     return out
+
+
+def compact(row: dict) -> dict:
+    """What issue31-rules.json keeps of a table row: the picks and their ratios, every
+    candidate's region-fold RMS and new-session RMS, the fixed models'."""
+    cands = cands_of(row)
+    fixed = {m: [round(x, 6) for x in v] for m, v in row["fixed"].items()}
+    out = {"case": row["case"], "fixed_mm": fixed}
+    for name, rule in RULES.items():
+        got = [round(x, 4) for x in ratios(row, rule)]
+        out[name] = {"pick": rule(cands).label, "ratio": got}
+    out["candidates"] = {
+        f"{c.label} x{c.prior_scale:g}": {
+            "size": c.size,
+            "region_fold_rms_mm": [round(x, 6) for x in c.fold_rms_mm],
+            "new_mm": [
+                round(x, 6) for x in row["new"][f"{c.label} x{c.prior_scale:g}"]
+            ],
+        }
+        for c in cands
+    }
+    return out
+
+
+# The shipped real sets with the selection inside every fold (pooled held-out RMS, mm;
+# the same fits, both rules applied to each fold's table; no fold's choice changed).
+REAL_NESTED = {
+    "ur10e 5-fold": {"before": 3.6714, "now": 3.6714, "kinematic": 3.6714},
+    "ur10e leave-one-out": {"before": 3.5363, "now": 3.5363, "kinematic": 3.5363},
+    "fr3 5-fold": {"before": 1.2019, "now": 1.2019, "kinematic": 1.247},
+    "fr3 leave-one-out": {"before": 1.1854, "now": 1.1854, "kinematic": 1.2592},
+    "tiago 5-fold": {"before": 4.2759, "now": 4.2759, "kinematic": 4.2759},
+    "tiago leave-one-out": {"before": 4.1855, "now": 4.1855, "kinematic": 4.1855},
+}
+
+
+def write_wave3(
+    files: list[str], path: Path = ROOT / "benchmarks" / "issue31-rules.json"
+):
+    """Merge the table rows of ``files`` (JSON lines of ``--table``) into the results
+    file under ``wave3``."""
+    rows = [json.loads(line) for f in files for line in open(f)]
+    wave3 = {
+        "about": "python -m benchmarks._issue31_rules --table (every case's selection "
+        "table; the rules applied to it: before = the Fourier reproducibility test "
+        "only, now = also no series cut below reproducible orders that validate no "
+        "worse, bar_cut = such series barred whatever the longer one validates); "
+        "ratio: the pick's RMS on each new session / the best fixed model's "
+        "(kinematic, ntm, full, rfcm where the robot has it); ur10-sessions: the "
+        "issue's UR10 as a twin (ur10_sessions), three new sessions per case",
+        "summary": summarize(rows),
+        "real_nested": REAL_NESTED,
+    }
+    text = path.read_text().split(',\n "wave3":')[0].rstrip()
+    assert text.endswith("}")
+    lines = ",\n".join(json.dumps(compact(r), separators=(",", ":")) for r in rows)
+    head = json.dumps(wave3, separators=(",", ":"))[:-1]
+    path.write_text(
+        f'{text[:-1].rstrip()},\n "wave3": {head},"cases": [\n{lines}\n ]}}\n}}\n'
+    )
+
+
+if __name__ == "__main__":
+    main()
