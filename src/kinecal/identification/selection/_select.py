@@ -140,7 +140,8 @@ class Selection:
             "rule": "smallest model within 1.75 standard errors (of the log ratios of the "
             "fold RMS, paired over folds), or "
             "1 %, of the best validation RMS; Fourier terms only when their "
-            "coefficients are reproducible across the folds",
+            "coefficients are reproducible across the folds, and no series cut below "
+            "reproducible orders",
             "candidates": [
                 {
                     "label": c.label,
