@@ -70,7 +70,7 @@ from kinecal.identification import (
     pose_features,
     select_model,
 )
-from kinecal.identification.selection import _foldfit, _select
+from kinecal.identification.selection import _foldfit, _rule, _select
 from kinecal.io import read_measurements
 from kinecal.measurement._calibrated import CalibratedModel
 from kinecal.robot import load_robot
@@ -224,13 +224,13 @@ def _fourier(c) -> int:
 
 
 def _eligible(cands, factor):
-    old = _select._SE_FACTOR
-    _select._SE_FACTOR = factor
+    old = _rule._SE_FACTOR
+    _rule._SE_FACTOR = factor
     try:
         best = min(cands, key=lambda c: c.cv_rms_mm)
-        return [c for c in cands if _select._within_one_se(c, best)]
+        return [c for c in cands if _rule._within_one_se(c, best)]
     finally:
-        _select._SE_FACTOR = old
+        _rule._SE_FACTOR = old
 
 
 def _smallest(cs):
@@ -408,9 +408,9 @@ def _lower(c, cands):
 def _survivors(cands, keep, union: bool):
     """The current rule with some candidates barred: the best among the survivors
     decides eligibility (``union``: or the best of all, whichever admits more)."""
-    el = _eligible(keep, _select._SE_FACTOR)
+    el = _eligible(keep, _rule._SE_FACTOR)
     if union:
-        el += [c for c in _eligible(cands, _select._SE_FACTOR) if c in keep]
+        el += [c for c in _eligible(cands, _rule._SE_FACTOR) if c in keep]
     return _smallest(el)
 
 
@@ -433,7 +433,7 @@ def arc_gate(cands, arcs, factor: float, union: bool = False):
     return _survivors(cands, keep, union)
 
 
-def arc_union(cands, arcs, factor: float = _select._SE_FACTOR):
+def arc_union(cands, arcs, factor: float = _rule._SE_FACTOR):
     """The current rule on the region folds and every Fourier joint's arc folds
     together (log fold ratios, paired)."""
     tab = []
@@ -501,7 +501,7 @@ def coef_gate(cands, coefs, threshold: float, union: bool = True):
 def table_rules(cands, arcs, n: int, coefs=None) -> dict[str, object]:
     """The new rules' picks from a selection table (``arcs``: the arc-fold RMS per
     Fourier joint and label; ``n``: poses)."""
-    f = _select._SE_FACTOR
+    f = _rule._SE_FACTOR
     return {
         "arc_gate0": arc_gate(cands, arcs, 0.0),
         "arc_gate1": arc_gate(cands, arcs, 1.0),
@@ -565,7 +565,7 @@ def rules(case: Case) -> dict[str, object]:
     ]
     for f in (1.0, 2.5):
         out[f"se{f:g}"] = case.new[_smallest(_eligible(cands, f)).label]
-    el = _eligible(cands, _select._SE_FACTOR)
+    el = _eligible(cands, _rule._SE_FACTOR)
     out["physical"] = case.new[min(el, key=lambda c: (_fourier(c), c.size)).label]
     nest = case.nested
     E = [case.errors[c.label] for c in nest]
@@ -584,7 +584,7 @@ def rules(case: Case) -> dict[str, object]:
             out["nonlin_mm"], out["spread_mm"] = case.nonlinearity(w, nest)
     out["not_nested"] = [c.label for c in cands if c not in nest]
     # stacking among the candidates the current rule finds eligible only
-    el = [c for c in nest if c in _eligible(cands, _select._SE_FACTOR)]
+    el = [c for c in nest if c in _eligible(cands, _rule._SE_FACTOR)]
     w = stack_weights([case.errors[c.label] for c in el])
     out["stack_el"] = case.score(case.average(w, el, bilinear=False))
     pred = sum(wk * case.refit_errors[c.label] for wk, c in zip(w, el, strict=True))
@@ -845,14 +845,14 @@ def ur10_sessions(seed: int, vary: bool = False):
 def choose_before(cands):
     """The rule before wave 3 (the Fourier reproducibility test only)."""
     best = min(cands, key=lambda c: c.cv_rms_mm)
-    eligible = [c for c in cands if _select._within_one_se(c, best)]
-    kept = [c for c in cands if _select._fourier_reproducible(c, cands)]
+    eligible = [c for c in cands if _rule._within_one_se(c, best)]
+    kept = [c for c in cands if _rule._fourier_reproducible(c, cands)]
     if len(kept) < len(cands):
         best = min(kept, key=lambda c: c.cv_rms_mm)
         eligible = [
             c
             for c in kept
-            if any(c is e for e in eligible) or _select._within_one_se(c, best)
+            if any(c is e for e in eligible) or _rule._within_one_se(c, best)
         ]
     return _smallest(eligible)
 
@@ -993,15 +993,15 @@ def choose_bar_cut(cands):
         return floor > 0 and max((z for z in z2 if np.isfinite(z)), default=0) >= floor
 
     best = min(cands, key=lambda c: c.cv_rms_mm)
-    eligible = [c for c in cands if _select._within_one_se(c, best)]
-    kept = [c for c in cands if _select._fourier_reproducible(c, cands)]
+    eligible = [c for c in cands if _rule._within_one_se(c, best)]
+    kept = [c for c in cands if _rule._fourier_reproducible(c, cands)]
     kept = [c for c in kept if not cut(c, kept)]
     if len(kept) < len(cands):
         best = min(kept, key=lambda c: c.cv_rms_mm)
         eligible = [
             c
             for c in kept
-            if any(c is e for e in eligible) or _select._within_one_se(c, best)
+            if any(c is e for e in eligible) or _rule._within_one_se(c, best)
         ]
     return _smallest(eligible)
 
