@@ -5,7 +5,7 @@ fitted on: the folds (:func:`make_folds`: random poses, regions of the workspace
 sessions or the user's groups), k-fold cross-validation and the model comparison of the
 paper's Tables 5 and 8 (``_crossval``), ``--model auto`` (:func:`select_model`: the
 candidates' fits from one shared fit, ``_candidates``; each fold's fit from its
-candidate's, ``_foldfit``; the one-standard-error rule, ``_select``) and the held-out
+candidate's, ``_foldfit``; the one-standard-error rule, ``_rule``) and the held-out
 figures of ``--cv`` (:func:`held_out_accuracy`, ``_heldout``).
 
 The package sits above the fitter: it calibrates and evaluates through the fitter's

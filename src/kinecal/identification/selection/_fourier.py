@@ -30,6 +30,7 @@ __all__ = [
     "jackknife_z2",
     "null_z2",
     "same_physics",
+    "truncation_z2",
 ]
 
 FoldCoefficients = dict[str, tuple[float, ...]]  # parameter name -> value per fold
@@ -93,6 +94,7 @@ class Scored(Protocol):
 
     label: str
     spec: ModelSpec
+    size: int
     cv_rms_mm: float
     fold_rms_mm: tuple[float, ...]
     fold_fourier: FoldCoefficients
@@ -117,23 +119,73 @@ def fourier_z2(c: Scored, cands: Sequence[Scored]) -> float:
     )
 
 
+def truncation_z2(c: Scored, cands: Sequence[Scored]) -> float:
+    """The largest mean z^2 (:func:`jackknife_z2`) of the Fourier terms a candidate with
+    the same physical terms and more Fourier terms, validated at least as well, has
+    beyond ``c`` (0: ``c`` has no Fourier terms, or there is no such candidate with
+    fold coefficients).
+
+    A series cut below harmonics the arm has (order 1 where order 2 is reproducible
+    and predicts the held-out regions no worse) aliases them into its lower orders over
+    the arc of each joint the poses cover: its coefficients follow the pose
+    distribution, and it predicts a new one worse than the whole series or none
+    (docs/theory.md, "Accuracy on a new session")."""
+    n = fourier_terms(c.spec)
+    if n == 0:
+        return 0.0
+    z2 = [
+        jackknife_z2(
+            o.fold_fourier, [k for k in o.fold_fourier if k not in c.fold_fourier]
+        )
+        for o in cands
+        if fourier_terms(o.spec) > n
+        and same_physics(o.spec, c.spec)
+        and o.fold_fourier
+        and o.cv_rms_mm <= c.cv_rms_mm
+    ]
+    return max((z for z in z2 if np.isfinite(z)), default=0.0)
+
+
+# A smaller candidate left out within this of the chosen one's RMS gets a note.
+_AS_WELL = 1.01
+
+
 def fourier_notes(cands: Sequence[Scored], chosen: Scored) -> list[str]:
-    """A note on the candidates that validated better than ``chosen`` and were left out
-    because their Fourier coefficients are not reproducible across the folds (those
-    with the same figures in one note)."""
+    """A note on the candidates left out because their Fourier coefficients are not
+    reproducible across the folds (those that validated better than ``chosen``), or
+    because their series is cut below reproducible orders (:func:`truncation_z2`: the
+    smaller ones that validated within :data:`_AS_WELL` of it); those with the same
+    figures in one note."""
     floor = null_z2(len(chosen.fold_rms_mm))
-    left: dict[tuple[str, str], list[str]] = {}
+    left: dict[tuple[str, str, bool], list[str]] = {}
     for c in sorted(cands, key=lambda c: c.cv_rms_mm):
-        z2 = fourier_z2(c, cands)
-        if c.cv_rms_mm < chosen.cv_rms_mm and z2 < floor:
-            labels = left.setdefault((f"{c.cv_rms_mm:.4f}", f"{z2:.2f}"), [])
+        if c.cv_rms_mm >= _AS_WELL * chosen.cv_rms_mm or floor == 0.0:
+            continue
+        z2, cut = fourier_z2(c, cands), truncation_z2(c, cands)
+        if (z2 < floor and c.cv_rms_mm < chosen.cv_rms_mm) or (
+            cut >= floor and c.size < chosen.size
+        ):
+            key = (
+                f"{c.cv_rms_mm:.4f}",
+                f"{z2 if z2 < floor else cut:.2f}",
+                z2 >= floor,
+            )
+            labels = left.setdefault(key, [])
             if c.label not in labels:  # (one note per layout, not per prior strength)
                 labels.append(c.label)
     return [
-        f"{', '.join(labels)}: validated better ({rms} mm against "
-        f"{chosen.cv_rms_mm:.4f}) but the Fourier coefficients change with the region "
-        f"left out (mean z^2 {z2}; noise gives {floor:.2f}): not chosen, as such terms "
-        "did not carry over to a new session. A second session scored with evaluate "
-        "--refit user,tool tells."
-        for (rms, z2), labels in left.items()
+        f"{', '.join(labels)}: validated {'as well' if cut else 'better'} ({rms} mm "
+        f"against "
+        f"{chosen.cv_rms_mm:.4f}) but "
+        + (
+            f"the higher Fourier orders it leaves out are reproducible (mean z^2 {z2}; "
+            f"noise gives {floor:.2f}): a series cut short follows the pose "
+            "distribution. Not chosen"
+            if cut
+            else f"the Fourier coefficients change with the region left out (mean z^2 "
+            f"{z2}; noise gives {floor:.2f}): not chosen, as such terms did not carry "
+            "over to a new session"
+        )
+        + ". A second session scored with evaluate --refit user,tool tells."
+        for (rms, z2, cut), labels in left.items()
     ]

@@ -173,7 +173,10 @@ def held_out_accuracy(
     """
     opts = options or CalibrationOptions()
     sampled = None
-    if meas.n > _crossval.CV_MAX_ROWS:  # (the selection's own sample, when it ran)
+    got = None if selection is None else selection.sample
+    if got is not None and got[3] == seed:  # the selection's sample: drawn once
+        meas, groups, sampled = got[:3]
+    elif meas.n > _crossval.CV_MAX_ROWS:  # (the selection's own sample, when it ran)
         meas, groups, sampled = _crossval.sample_rows(meas, groups, seed)
     kw: dict[str, Any] = {"groups": groups, "group_name": group_name}
     if groups is not None:
