@@ -29,6 +29,7 @@ second:
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -48,7 +49,7 @@ from kinecal.identification._structure import (
 )
 from kinecal.measurement._diagnostics import Diagnostic, Outlier
 from kinecal.measurement._measurements import Measurements
-from kinecal.measurement._residuals import Weights, residuals
+from kinecal.measurement._residuals import ResidualBlock, Weights, residuals
 from kinecal.typing import Float
 
 __all__ = [
@@ -206,9 +207,12 @@ def _test_fit(root: Problem, current: State, rows: np.ndarray) -> State:
         active=None if rows.all() else rows.copy(),
         weights=Weights(s, s_rot).subset(rows),
     )
+    problem = root.on(state)
+    if current.active is None and not rows.all():
+        _start_held(root, problem, current, rows, state.weights)
     lm = warm_options(current.lm)
     state, res = run_lm(
-        root.on(state),
+        problem,
         state,
         "robust rejection: test fit",
         current.x,
@@ -219,6 +223,27 @@ def _test_fit(root: Problem, current: State, rows: np.ndarray) -> State:
         lifted=True,
     )
     return state.but(x=res.x)
+
+
+def _start_held(
+    root: Problem, sub: Problem, current: State, rows: np.ndarray, w: Weights
+) -> None:
+    """The test fit's first evaluation from the accepted fit's, kept at its solution on
+    every row (the last stage's, Jacobian with the product columns the lifted start
+    reads): its rows ``rows``, in the layout of a new pass. Each pose is evaluated on
+    its own and ``w`` holds the same sigmas, so these are the numbers a pass on the rows
+    gives; the subset's cache serves them (issue 36: one forward and one Jacobian pass
+    fewer where the probe found suspects)."""
+    cm = current.model
+    blk = root.evaluations.kept(cm, current.x, current.weights)
+    if blk is None or blk.J is None:
+        return
+    idx = np.flatnonzero(rows)
+    # J (N, c, P') is the transpose of a C-ordered (P', c, N) array: so is the new one.
+    J = np.ascontiguousarray(blk.J.transpose(2, 1, 0)[:, :, idx]).transpose(2, 1, 0)
+    rot = None if blk.raw_rotation is None else blk.raw_rotation[idx]
+    part = ResidualBlock(blk.r[idx], J, blk.raw_position[idx], rot)
+    sub.evaluations.put(cm, current.x, w, part)
 
 
 def _largest(mask: np.ndarray, z: Float, most: float) -> np.ndarray:
@@ -296,12 +321,14 @@ def _keep_enough(problem: Problem, reject: np.ndarray) -> np.ndarray:
     return out
 
 
+@functools.lru_cache(maxsize=64)
 def chi2_isf(df: int, p: float) -> float:
     """Chi-square quantile with ``P(X > x) = p`` for an integer number of degrees of freedom.
 
     The survival function has a closed form for integer ``df`` (a Poisson sum for even
     ``df``, erfc plus a half-integer sum for odd); bisection inverts it to round-off.
-    Written out so calibration does not import scipy.special (0.2 s at start-up).
+    Written out so calibration does not import scipy.special (0.2 s at start-up);
+    remembered per arguments (a calibration asks for the same quantile several times).
     """
     if df < 1 or not 0.0 < p < 1.0:
         raise ValueError(f"need df >= 1 and 0 < p < 1; got df={df}, p={p}.")
