@@ -187,7 +187,8 @@ class EvaluationCache:
         kept = self._blocks[-(self.keep - 1) :]
         out = self._blocks[: len(self._blocks) - len(kept)]
         raw = [(m, k, w, raw_errors(b, w, w)) for m, k, w, b in out]
-        self._raw = [*self._raw, *raw][-_RAW_POINTS:]
+        raw = [*self._raw, *raw]
+        self._raw = raw[max(len(raw) - _RAW_POINTS, 0) :]
         while sum(nbytes(e[3]) for e in self._raw) > RETAIN_BYTES // 4:
             self._raw.pop(0)
         self._blocks = [*kept, entry]

@@ -38,7 +38,6 @@ import numpy as np
 from kinecal._record import Record
 from kinecal._stats import present
 from kinecal.identification._options import RejectSettings
-from kinecal.identification._press import loo_position_errors, rms_mm
 from kinecal.identification._problem import Problem, Stage, State, run_stages
 from kinecal.identification._solve import run_lm, warm_options
 from kinecal.identification._stages import robust_sigma, run_shared
@@ -275,6 +274,8 @@ def _predicts_better(root: Problem, trial: State, current: State) -> bool:
     a = trial.active if trial.active is not None else np.ones(n, bool)
     b = current.active if current.active is not None else np.ones(n, bool)
     both = a & b
+    from kinecal.identification._press import loo_position_errors, rms_mm
+
     e_trial = loo_position_errors(root.on(trial), trial)[both[a]]
     e_current = loo_position_errors(root.on(current), current)[both[b]]
     return rms_mm(e_trial) < rms_mm(e_current)
