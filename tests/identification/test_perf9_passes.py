@@ -176,3 +176,29 @@ def test_layout_scales_are_formed_once_and_read_as_copies(twin500):
     names = layout.names
     names.append("x")
     assert layout.names == [sp.name for sp in layout.specs]
+
+
+def test_row_z_reads_the_errors_the_cache_keeps(twin500):
+    """The rejection's z of every row at a point the cache holds: no forward pass, the
+    numbers of a pass under the default weights."""
+    from kinecal.identification._problem import Problem
+    from kinecal.identification._robust import row_z
+
+    robot, meas = twin500
+    problem = Problem.make(robot, meas, "full")
+    state = problem.start()
+    x = state.x + 1e-7 * problem.model.layout.scales
+    state = state.but(x=x)
+    problem.evaluations(state.model, x, state.weights, jacobian=True)
+    before = pass_counts()
+    _, err, r = row_z(problem, state)
+    assert pass_counts() == before
+    fresh = residuals(
+        state.model, x, meas, Weights.default(meas), inputs=problem.inputs
+    )
+    assert np.array_equal(r, fresh.r)
+    assert np.array_equal(err, np.linalg.norm(fresh.raw_position, axis=1) * 1e3)
+    # At a point it does not hold: one pass, as before.
+    before = pass_counts()
+    row_z(problem, state.but(x=x + 1e-7 * problem.model.layout.scales))
+    assert pass_counts()["forward"] == before["forward"] + 1

@@ -9,12 +9,17 @@ point gives, to the last bit; a Jacobian's rows are rescaled by ``σ_was / σ``.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from kinecal.measurement._residuals import ResidualBlock, Weights
 
-__all__ = ["nbytes", "raw_errors", "reweighted"]
+if TYPE_CHECKING:
+    from kinecal.identification._problem import EvaluationCache
+    from kinecal.models import CalibrationModel
+
+__all__ = ["kept_errors", "nbytes", "raw_errors", "reweighted"]
 
 # The model's forward state per pose (ForwardState: about 110 numbers).
 _FORWARD_BYTES = 110 * 8
@@ -63,3 +68,16 @@ def nbytes(blk: ResidualBlock) -> int:
     arrays = (blk.r, blk.J, blk.raw_position, blk.raw_rotation)
     held = sum(a.nbytes for a in arrays if a is not None)
     return held + (_FORWARD_BYTES * blk.r.shape[0] if blk.forward is not None else 0)
+
+
+def kept_errors(
+    ev: EvaluationCache, cm: CalibrationModel, x: np.ndarray, w: Weights
+) -> ResidualBlock | None:
+    """The residuals and raw errors at ``x`` under ``w`` from a block (or raw errors)
+    the cache ``ev`` keeps at that point, whatever their weights; None where it keeps
+    none (nothing is evaluated, nothing pushed out)."""
+    key = np.asarray(x, np.float64).tobytes()
+    for m, k, was, blk in reversed([*ev._raw, *ev._blocks]):
+        if m is cm and k == key:
+            return raw_errors(blk, was, w)
+    return None

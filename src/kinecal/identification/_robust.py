@@ -39,6 +39,7 @@ from kinecal._record import Record
 from kinecal._stats import present
 from kinecal.identification._options import RejectSettings
 from kinecal.identification._problem import Problem, Stage, State, run_stages
+from kinecal.identification._reweight import kept_errors
 from kinecal.identification._solve import run_lm, warm_options
 from kinecal.identification._stages import robust_sigma, run_shared
 from kinecal.identification._structure import (
@@ -85,8 +86,11 @@ def row_z(problem: Problem, state: State) -> tuple[Float, Float, Float]:
     """
     root = problem.root or problem
     meas = root.meas
-    blk = residuals(
-        state.model, state.x, meas, Weights.default(meas), inputs=root.inputs
+    w = Weights.default(meas)
+    # The fit's own errors where the root's cache keeps them (the probe's solution):
+    # the same numbers as a pass (issue 36).
+    blk = kept_errors(root.evaluations, state.model, state.x, w) or residuals(
+        state.model, state.x, meas, w, inputs=root.inputs
     )
     active = state.active if state.active is not None else np.ones(meas.n, bool)
     r = blk.r
