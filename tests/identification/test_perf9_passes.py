@@ -134,7 +134,7 @@ def test_the_cache_keeps_raw_errors_of_points_it_pushed_out(twin500):
 
 def test_a_results_before_costs_no_forward_pass(twin500, monkeypatch):
     """The registered point's errors (the result's "before") come from the raw errors
-    kept since registration: without them one forward pass more, the same metrics."""
+    kept since registration: without them a forward pass more, the same metrics."""
     import kinecal.identification._problem as problem_mod
 
     robot, meas = twin500
@@ -144,7 +144,8 @@ def test_a_results_before_costs_no_forward_pass(twin500, monkeypatch):
     monkeypatch.setattr(problem_mod, "_RAW_POINTS", 0)
     a = pass_counts()["forward"]
     res2 = calibrate(robot, meas, "full")
-    assert pass_counts()["forward"] - a == kept + 1
+    # ... and the rejection's probe, which starts there too (the next test)
+    assert pass_counts()["forward"] - a == kept + 2
     assert res.metrics_before == res2.metrics_before
     assert np.array_equal(res.params, res2.params)
 
@@ -202,3 +203,19 @@ def test_row_z_reads_the_errors_the_cache_keeps(twin500):
     before = pass_counts()
     row_z(problem, state.but(x=x + 1e-7 * problem.model.layout.scales))
     assert pass_counts()["forward"] == before["forward"] + 1
+
+
+def test_the_probe_reads_the_registered_points_errors(twin500, monkeypatch):
+    """The rejection's robust probe (a workspace of its own) starts at the registered
+    point, whose raw errors the calibration's cache keeps: without them one forward
+    pass more, the same calibration."""
+    robot, meas = twin500
+    a = pass_counts()["forward"]
+    res = calibrate(robot, meas, "full")
+    shared = pass_counts()["forward"] - a
+    monkeypatch.setattr(robust, "share_raw", lambda src, dst: None)
+    a = pass_counts()["forward"]
+    res2 = calibrate(robot, meas, "full")
+    assert pass_counts()["forward"] - a == shared + 1
+    assert np.array_equal(res.params, res2.params)
+    assert np.array_equal(res.covariance, res2.covariance)

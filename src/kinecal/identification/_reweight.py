@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from kinecal.identification._problem import EvaluationCache
     from kinecal.models import CalibrationModel
 
-__all__ = ["kept_errors", "nbytes", "raw_errors", "reweighted"]
+__all__ = ["kept_errors", "nbytes", "raw_errors", "reweighted", "share_raw"]
 
 # The model's forward state per pose (ForwardState: about 110 numbers).
 _FORWARD_BYTES = 110 * 8
@@ -81,3 +81,10 @@ def kept_errors(
         if m is cm and k == key:
             return raw_errors(blk, was, w)
     return None
+
+
+def share_raw(src: EvaluationCache, dst: EvaluationCache) -> None:
+    """Let ``dst`` (a cache on the same rows) read the raw errors ``src`` keeps: a fit
+    with other options from a point the calibration visited (the rejection's probe
+    from the registered point) takes its errors there from them."""
+    dst._raw = [*src._raw, *dst._raw]

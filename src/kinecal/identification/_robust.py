@@ -39,7 +39,7 @@ from kinecal._record import Record
 from kinecal._stats import present
 from kinecal.identification._options import RejectSettings
 from kinecal.identification._problem import Problem, Stage, State, run_stages
-from kinecal.identification._reweight import kept_errors
+from kinecal.identification._reweight import kept_errors, share_raw
 from kinecal.identification._solve import run_lm, warm_options
 from kinecal.identification._stages import robust_sigma, run_shared
 from kinecal.identification._structure import (
@@ -153,6 +153,7 @@ class RobustRejection(Record):
         rob_problem = root.with_options(
             replace(problem.options, loss=loss if loss != "linear" else "huber")
         )
+        share_raw(root.evaluations, rob_problem.evaluations)  # its start: x_registered
         rob = run_shared(rob_problem, state, self.probe or self.fit)
         z, _, _ = row_z(rob_problem, rob)
         suspect = _largest(z > limit, z, _MAX_SUSPECT * n)
