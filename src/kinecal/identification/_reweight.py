@@ -9,15 +9,24 @@ point gives, to the last bit; a Jacobian's rows are rescaled by ``σ_was / σ``.
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from kinecal.measurement._residuals import ResidualBlock, Weights
 
 if TYPE_CHECKING:
-    from kinecal.identification._problem import EvaluationCache
     from kinecal.models import CalibrationModel
+
+Entry = tuple["CalibrationModel", bytes, Weights, ResidualBlock]
+
+
+class EvaluationCache(Protocol):
+    """What these helpers read of :class:`~._problem.EvaluationCache` (kept below it)."""
+
+    _blocks: list[Entry]
+    _raw: list[Entry]
+
 
 __all__ = ["kept_errors", "nbytes", "raw_errors", "reweighted", "share_raw"]
 
