@@ -18,6 +18,8 @@ from kinecal.measurement._residuals import ResidualBlock, Weights
 if TYPE_CHECKING:
     from kinecal.models import CalibrationModel
 
+__all__ = ["kept_errors", "nbytes", "raw_errors", "reweighted", "share_raw"]
+
 Entry = tuple["CalibrationModel", bytes, Weights, ResidualBlock]
 
 
@@ -27,8 +29,6 @@ class EvaluationCache(Protocol):
     _blocks: list[Entry]
     _raw: list[Entry]
 
-
-__all__ = ["kept_errors", "nbytes", "raw_errors", "reweighted", "share_raw"]
 
 # The model's forward state per pose (ForwardState: about 110 numbers).
 _FORWARD_BYTES = 110 * 8
