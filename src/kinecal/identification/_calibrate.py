@@ -278,7 +278,7 @@ class CalibrationResult(MutableRecord):
             prior=state.active_prior(),
             prior_factors=dict(state.prior_factors),
             identified=state.identified,
-            workspace=problem.workspace.at(cm, state.x),
+            workspace=problem.workspace.at(cm, state.x, x_reg),
         )
 
     @property

@@ -34,7 +34,6 @@ from kinecal._log import Logger
 from kinecal._record import Record
 from kinecal._stats import median, present
 from kinecal.identification._lm import Prior
-from kinecal.identification._press import loo_position_errors, rms_mm
 from kinecal.identification._problem import Problem, State
 from kinecal.identification._solve import run_lm
 from kinecal.measurement._diagnostics import Diagnostic
@@ -251,6 +250,8 @@ class NoiseModel(Record):
             or meas.sigma_rot is not None
         ):
             return _noted(state, "")
+        from kinecal.identification._press import loo_position_errors, rms_mm
+
         w = state.weights
         assert w.sigma_rot is not None
         press = {

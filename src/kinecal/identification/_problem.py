@@ -31,6 +31,7 @@ from kinecal.identification._options import (
     STOL,
     CalibrationOptions,
 )
+from kinecal.identification._reweight import nbytes, raw_errors, reweighted
 from kinecal.measurement._diagnostics import Diagnostic, Outlier, StageLog
 from kinecal.measurement._measurements import Measurements
 from kinecal.measurement._residuals import ResidualBlock, Weights, residuals
@@ -58,8 +59,9 @@ REPORT_EVERY = 1.0
 # More is not kept: the fresh memory a larger cache takes costs more (page faults) than
 # the Jacobian passes it saves (issue 36: 0.12 s of system time in the default command).
 RETAIN_BYTES = 16 * 2**20
-# The model's forward state per pose (ForwardState: about 110 numbers).
-_FORWARD_BYTES = 110 * 8
+# Points whose raw errors a cache keeps after their blocks (a quarter of RETAIN_BYTES
+# at most: 32 points of 2000 poses take 3 MB).
+_RAW_POINTS = 32
 
 
 class Ticker:
@@ -132,6 +134,9 @@ class EvaluationCache:
         self.inputs = inputs
         self.keep = keep
         self._blocks: list[tuple[CalibrationModel, bytes, Weights, ResidualBlock]] = []
+        # The raw errors of the last points pushed out of _blocks (a result's "before"
+        # at the registered point is asked for long after: issue 36, one pass fewer).
+        self._raw: list[tuple[CalibrationModel, bytes, Weights, ResidualBlock]] = []
 
     def __call__(
         self,
@@ -154,8 +159,12 @@ class EvaluationCache:
                 forward = forward or blk.forward
                 if other is None and blk.J is not None and blk.J.shape[-1] >= n_cols:
                     other = (ww, blk)
+        if not jacobian and forward is None:
+            for m, k, ww, blk in reversed(self._raw):
+                if m is cm and k == key:
+                    return raw_errors(blk, ww, w)
         if jacobian and other is not None:
-            blk = _reweighted(other[1], other[0], w)
+            blk = reweighted(other[1], other[0], w)
         else:
             blk = residuals(
                 cm,
@@ -168,26 +177,44 @@ class EvaluationCache:
                 keep=True,
                 reuse=forward,
             )
-        self._blocks = [*self._blocks[-(self.keep - 1) :], (cm, key, w, blk)]
+        self._push((cm, key, w, blk))
         return blk
 
-    def at(self, cm: CalibrationModel, x: Float, limit: int) -> EvaluationCache | None:
-        """A cache of the blocks kept at ``x`` alone, or None when there are none or
-        they take more than ``limit`` bytes."""
+    def _push(
+        self, entry: tuple[CalibrationModel, bytes, Weights, ResidualBlock]
+    ) -> None:
+        """Keep ``entry``; the raw errors of the one it pushes out stay at hand."""
+        kept = self._blocks[-(self.keep - 1) :]
+        out = self._blocks[: len(self._blocks) - len(kept)]
+        raw = [(m, k, w, raw_errors(b, w, w)) for m, k, w, b in out]
+        raw = [*self._raw, *raw]
+        self._raw = raw[max(len(raw) - _RAW_POINTS, 0) :]
+        while sum(nbytes(e[3]) for e in self._raw) > RETAIN_BYTES // 4:
+            self._raw.pop(0)
+        self._blocks = [*kept, entry]
+
+    def at(
+        self, cm: CalibrationModel, x: Float, limit: int, before: Float | None = None
+    ) -> EvaluationCache | None:
+        """A cache of the blocks kept at ``x`` alone (and the raw errors kept at
+        ``before``), or None when there are none or they take more than ``limit``
+        bytes."""
         key = np.asarray(x, np.float64).tobytes()
         mine = [e for e in self._blocks if e[0] is cm and e[1] == key]
         if not mine or sum(nbytes(e[3]) for e in mine) > limit:
             return None
         out = EvaluationCache(self.meas, self.inputs, self.keep)
         out._blocks = mine
+        if before is not None:
+            key = np.asarray(before, np.float64).tobytes()
+            out._raw = [e for e in self._raw if e[0] is cm and e[1] == key][-1:]
         return out
 
     def put(
         self, cm: CalibrationModel, x: Float, w: Weights, blk: ResidualBlock
     ) -> None:
         """Keep ``blk``, evaluated elsewhere, as the block at ``x`` under ``w``."""
-        key = np.asarray(x, np.float64).tobytes()
-        self._blocks = [*self._blocks[-(self.keep - 1) :], (cm, key, w, blk)]
+        self._push((cm, np.asarray(x, np.float64).tobytes(), w, blk))
 
     def kept(
         self, cm: CalibrationModel, x: Float, w: Weights, n_cols: int = 0
@@ -205,7 +232,7 @@ class EvaluationCache:
     def raw_position(self, cm: CalibrationModel, x: Float, w: Weights) -> Float:
         """Position errors (N, 3) at ``x`` [m], from any block kept at that point."""
         key = np.asarray(x, np.float64).tobytes()
-        for m, k, _, blk in reversed(self._blocks):
+        for m, k, _, blk in reversed([*self._raw, *self._blocks]):
             if m is cm and k == key:
                 return blk.raw_position
         return self(cm, x, w).raw_position
@@ -214,37 +241,6 @@ class EvaluationCache:
         """RMS of the 3-D position errors at ``x`` [mm]."""
         e_p = self.raw_position(cm, x, w)
         return float(np.sqrt(np.mean(np.sum(e_p**2, axis=1)))) * 1e3
-
-
-def nbytes(blk: ResidualBlock) -> int:
-    """Memory a kept block holds (its arrays and the model's forward state)."""
-    arrays = (blk.r, blk.J, blk.raw_position, blk.raw_rotation)
-    held = sum(a.nbytes for a in arrays if a is not None)
-    return held + (_FORWARD_BYTES * blk.r.shape[0] if blk.forward is not None else 0)
-
-
-def _reweighted(blk: ResidualBlock, was: Weights, w: Weights) -> ResidualBlock:
-    """``blk`` (evaluated under the weights ``was``) whitened with ``w`` instead: the
-    residuals from the raw errors, the Jacobian's rows rescaled (the same point, so no
-    new Jacobian pass; the noise re-estimation changes only the weights)."""
-    assert blk.J is not None
-    inv_s = 1.0 / w.sigma
-    ratio = was.sigma * inv_s
-    if blk.raw_rotation is None:
-        r = blk.raw_position * inv_s[:, None]
-        J = blk.J * ratio[:, None, None]
-    else:
-        assert w.sigma_rot is not None and was.sigma_rot is not None
-        inv_sr = 1.0 / w.sigma_rot
-        r = np.concatenate(
-            [blk.raw_position * inv_s[:, None], blk.raw_rotation * inv_sr[:, None]],
-            axis=1,
-        )
-        J = np.empty_like(blk.J)  # keeps the block's (parameter-major) layout
-        np.multiply(blk.J[:, :3], ratio[:, None, None], out=J[:, :3])
-        rr = was.sigma_rot * inv_sr
-        np.multiply(blk.J[:, 3:], rr[:, None, None], out=J[:, 3:])
-    return replace(blk, r=r, J=J)
 
 
 def spec_for(
@@ -299,11 +295,13 @@ class Workspace:
         self.evaluations = evaluations or EvaluationCache(meas, inputs)
         self._subsets: dict[bytes, Workspace] = {}
 
-    def at(self, cm: CalibrationModel, x: Float) -> Workspace | None:
+    def at(
+        self, cm: CalibrationModel, x: Float, before: Float | None = None
+    ) -> Workspace | None:
         """A workspace with this one's evaluations at ``x`` alone (what a result keeps
-        for fits from its solution), or None when they take more than
-        :data:`RETAIN_BYTES`."""
-        kept = self.evaluations.at(cm, x, RETAIN_BYTES)
+        for fits from its solution; with the raw errors at ``before``, its registered
+        point), or None when they take more than :data:`RETAIN_BYTES`."""
+        kept = self.evaluations.at(cm, x, RETAIN_BYTES, before)
         return None if kept is None else Workspace(self.meas, self.inputs, kept)
 
     def copy(self) -> Workspace:
@@ -311,6 +309,7 @@ class Workspace:
         change (a fit from a result's solution leaves the result's as they are)."""
         ev = EvaluationCache(self.meas, self.inputs, self.evaluations.keep)
         ev._blocks = list(self.evaluations._blocks)
+        ev._raw = list(self.evaluations._raw)
         return Workspace(self.meas, self.inputs, ev)
 
     def subset(

@@ -29,6 +29,7 @@ second:
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -37,8 +38,8 @@ import numpy as np
 from kinecal._record import Record
 from kinecal._stats import present
 from kinecal.identification._options import RejectSettings
-from kinecal.identification._press import loo_position_errors, rms_mm
 from kinecal.identification._problem import Problem, Stage, State, run_stages
+from kinecal.identification._reweight import kept_errors, share_raw
 from kinecal.identification._solve import run_lm, warm_options
 from kinecal.identification._stages import robust_sigma, run_shared
 from kinecal.identification._structure import (
@@ -48,7 +49,7 @@ from kinecal.identification._structure import (
 )
 from kinecal.measurement._diagnostics import Diagnostic, Outlier
 from kinecal.measurement._measurements import Measurements
-from kinecal.measurement._residuals import Weights, residuals
+from kinecal.measurement._residuals import ResidualBlock, Weights, residuals
 from kinecal.typing import Float
 
 __all__ = [
@@ -85,8 +86,11 @@ def row_z(problem: Problem, state: State) -> tuple[Float, Float, Float]:
     """
     root = problem.root or problem
     meas = root.meas
-    blk = residuals(
-        state.model, state.x, meas, Weights.default(meas), inputs=root.inputs
+    w = Weights.default(meas)
+    # The fit's own errors where the root's cache keeps them (the probe's solution):
+    # the same numbers as a pass (issue 36).
+    blk = kept_errors(root.evaluations, state.model, state.x, w) or residuals(
+        state.model, state.x, meas, w, inputs=root.inputs
     )
     active = state.active if state.active is not None else np.ones(meas.n, bool)
     r = blk.r
@@ -149,6 +153,7 @@ class RobustRejection(Record):
         rob_problem = root.with_options(
             replace(problem.options, loss=loss if loss != "linear" else "huber")
         )
+        share_raw(root.evaluations, rob_problem.evaluations)  # its start: x_registered
         rob = run_shared(rob_problem, state, self.probe or self.fit)
         z, _, _ = row_z(rob_problem, rob)
         suspect = _largest(z > limit, z, _MAX_SUSPECT * n)
@@ -206,9 +211,12 @@ def _test_fit(root: Problem, current: State, rows: np.ndarray) -> State:
         active=None if rows.all() else rows.copy(),
         weights=Weights(s, s_rot).subset(rows),
     )
+    problem = root.on(state)
+    if current.active is None and not rows.all():
+        _start_held(root, problem, current, rows, state.weights)
     lm = warm_options(current.lm)
     state, res = run_lm(
-        root.on(state),
+        problem,
         state,
         "robust rejection: test fit",
         current.x,
@@ -219,6 +227,27 @@ def _test_fit(root: Problem, current: State, rows: np.ndarray) -> State:
         lifted=True,
     )
     return state.but(x=res.x)
+
+
+def _start_held(
+    root: Problem, sub: Problem, current: State, rows: np.ndarray, w: Weights
+) -> None:
+    """The test fit's first evaluation from the accepted fit's, kept at its solution on
+    every row (the last stage's, Jacobian with the product columns the lifted start
+    reads): its rows ``rows``, in the layout of a new pass. Each pose is evaluated on
+    its own and ``w`` holds the same sigmas, so these are the numbers a pass on the rows
+    gives; the subset's cache serves them (issue 36: one forward and one Jacobian pass
+    fewer where the probe found suspects)."""
+    cm = current.model
+    blk = root.evaluations.kept(cm, current.x, current.weights)
+    if blk is None or blk.J is None:
+        return
+    idx = np.flatnonzero(rows)
+    # J (N, c, P') is the transpose of a C-ordered (P', c, N) array: so is the new one.
+    J = np.ascontiguousarray(blk.J.transpose(2, 1, 0)[:, :, idx]).transpose(2, 1, 0)
+    rot = None if blk.raw_rotation is None else blk.raw_rotation[idx]
+    part = ResidualBlock(blk.r[idx], J, blk.raw_position[idx], rot)
+    sub.evaluations.put(cm, current.x, w, part)
 
 
 def _largest(mask: np.ndarray, z: Float, most: float) -> np.ndarray:
@@ -250,6 +279,8 @@ def _predicts_better(root: Problem, trial: State, current: State) -> bool:
     a = trial.active if trial.active is not None else np.ones(n, bool)
     b = current.active if current.active is not None else np.ones(n, bool)
     both = a & b
+    from kinecal.identification._press import loo_position_errors, rms_mm
+
     e_trial = loo_position_errors(root.on(trial), trial)[both[a]]
     e_current = loo_position_errors(root.on(current), current)[both[b]]
     return rms_mm(e_trial) < rms_mm(e_current)
@@ -296,12 +327,14 @@ def _keep_enough(problem: Problem, reject: np.ndarray) -> np.ndarray:
     return out
 
 
+@functools.lru_cache(maxsize=64)
 def chi2_isf(df: int, p: float) -> float:
     """Chi-square quantile with ``P(X > x) = p`` for an integer number of degrees of freedom.
 
     The survival function has a closed form for integer ``df`` (a Poisson sum for even
     ``df``, erfc plus a half-integer sum for odd); bisection inverts it to round-off.
-    Written out so calibration does not import scipy.special (0.2 s at start-up).
+    Written out so calibration does not import scipy.special (0.2 s at start-up);
+    remembered per arguments (a calibration asks for the same quantile several times).
     """
     if df < 1 or not 0.0 < p < 1.0:
         raise ValueError(f"need df >= 1 and 0 < p < 1; got df={df}, p={p}.")

@@ -49,9 +49,11 @@ class Structure(Record):
 
 
 def _ranks(v: Float) -> Float:
-    order = np.argsort(v, kind="stable")
-    r = np.empty(v.size)
-    r[order] = np.arange(v.size, dtype=float)
+    """The rank of every value of ``v`` along its first axis (ties by position)."""
+    order = np.argsort(v, axis=0, kind="stable")
+    r = np.empty(v.shape)
+    place = np.arange(v.shape[0], dtype=float).reshape(-1, *[1] * (v.ndim - 1))
+    np.put_along_axis(r, order, np.broadcast_to(place, v.shape), axis=0)
     return r
 
 
@@ -59,7 +61,7 @@ def _spearman(a: Float, B: Float) -> Float:
     """Spearman correlation of ``a`` (N,) with every column of ``B`` (N, k)."""
     ra = _ranks(a)
     ra = (ra - ra.mean()) / max(ra.std(), 1e-300)
-    RB = np.column_stack([_ranks(b) for b in B.T])
+    RB = _ranks(B)  # every column's ranks at once (one stable sort: the same ranks)
     RB = (RB - RB.mean(axis=0)) / np.maximum(RB.std(axis=0), 1e-300)
     return (ra @ RB) / a.size
 
@@ -215,7 +217,9 @@ def _load_columns(problem: Problem, state: State, rows: np.ndarray) -> Float:
     ):
         lam = cm.layout.group_indices("load")
         sigma = state.weights.sigma[rows]
-        J_p = kept.J[rows][:, :3][:, :, lam] * sigma[:, None, None]  # unwhitened
+        # The load columns of the position rows first, then the rows: the same
+        # numbers without a copy of the whole Jacobian (issue 36).
+        J_p = kept.J[:, :3, lam][rows] * sigma[:, None, None]  # unwhitened
         return np.asarray(np.linalg.norm(J_p, axis=1), np.float64)
     full, xf = _transferred(cm, state.x)
     out = full.evaluate(xf, problem.inputs.subset(rows), jacobian=True)

@@ -130,6 +130,10 @@ class ParameterLayout:
         for s in self._specs:
             if s.kind not in KINDS:
                 raise ModelError(f"parameter {s.name!r} has unknown kind {s.kind!r}.")
+        # Formed once (the layout is immutable); each read gets its own copy. The
+        # calibration reads them a few hundred times (issue 36).
+        self._scales = np.array([s.unit.scale for s in self._specs])
+        self._names = [s.name for s in self._specs]
 
     # ------------------------------------------------------------------ access
     @property
@@ -138,7 +142,7 @@ class ParameterLayout:
 
     @property
     def names(self) -> list[str]:
-        return [s.name for s in self._specs]
+        return list(self._names)
 
     @property
     def size(self) -> int:
@@ -217,7 +221,7 @@ class ParameterLayout:
     @property
     def scales(self) -> Float:
         """Characteristic SI size of each parameter, shape (n,)."""
-        return np.array([s.unit.scale for s in self._specs])
+        return self._scales.copy()
 
     @property
     def to_file(self) -> Float:
