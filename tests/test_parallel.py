@@ -61,6 +61,9 @@ def test_the_command_asks_for_one_blas_thread_unless_the_user_set_it():
     assert out.stdout.split() == ["True", "1", "False"], out.stderr
     out = _python(code, OPENBLAS_NUM_THREADS="2")
     assert out.stdout.split() == ["True", "2", "False"], out.stderr
+    # Set but empty: OpenBLAS reads it as unset (a thread per core).
+    out = _python(code, OPENBLAS_NUM_THREADS="")
+    assert out.stdout.split() == ["True", "1", "False"], out.stderr
 
 
 def _threads(_: object) -> list[int]:

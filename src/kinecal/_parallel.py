@@ -67,12 +67,14 @@ def single_thread_blas() -> bool:
     """Ask the BLAS library for one thread, unless the user's environment already says.
 
     Takes effect only before numpy is first imported (BLAS reads the variables when it
-    loads); returns whether it was in time.
+    loads); returns whether it was in time. A variable set but empty says nothing (BLAS
+    reads it as unset and starts a thread per core): it is set to one as well.
     """
     if "numpy" in sys.modules:
         return False
     for var in _BLAS_THREAD_VARS:
-        os.environ.setdefault(var, "1")
+        if not os.environ.get(var, "").strip():
+            os.environ[var] = "1"
     if all(os.environ[var] == "1" for var in _BLAS_THREAD_VARS):
         pin_at_start()  # the library's own limit (one_blas_thread) has nothing to do
     return True
