@@ -37,6 +37,7 @@ from kinecal.robot._urdf_joints import (
     mimic_of,
     rates_of,
 )
+from kinecal.robot._urdf_read import read_urdf
 from kinecal.robot._urdf_tree import (
     _HOW,
     _MOVABLE,
@@ -65,6 +66,11 @@ def _limits(lim: ET.Element, where: str) -> tuple[float, float]:
     if np.isnan(lo) or np.isnan(hi) or not lo < hi:
         raise ConfigError(
             f"{where}: expected lower < upper; got lower={lo:g}, upper={hi:g}."
+        )
+    if not (np.isfinite(lo) and np.isfinite(hi)):  # (was: 'degrees given as radians?')
+        raise ConfigError(
+            f"{where}: expected finite limits; got lower={lo:g}, upper={hi:g} (a "
+            "revolute joint without limits is type 'continuous')."
         )
     return lo, hi
 
@@ -265,6 +271,26 @@ def _next_frame(
     return z, x, q + ((o_prev - q) @ z) * z
 
 
+def _check_far(
+    w: _Walk, i: int, d: float, a: float, alpha_deg: float, src: str
+) -> None:
+    """Refuse a DH row longer than a robot (:data:`_MAX_CHAIN_M`): two axes a hair from
+    parallel (an axis typed 0 1 0.001, a rounded angle) meet kilometres away, and the
+    file was read as a robot with d = 400 km (import-urdf then refused its own output
+    for a centre of mass 400 km away)."""
+    if max(abs(d), abs(a)) <= _MAX_CHAIN_M:
+        return
+    k = min(i + 1, len(w.specs) - 1)
+    pair = f"{w.specs[k - 1][0]!r} and {w.specs[k][0]!r}"
+    off = min(alpha_deg, abs(180.0 - alpha_deg))
+    raise ConfigError(
+        f"{src}: the axes of joints {pair} are {off:.3g} deg from parallel and their "
+        f"common normal lies far away (DH d = {d:.4g} m, a = {a:.4g} m); expected axes "
+        f"that are parallel or meet within {_MAX_CHAIN_M:g} m (a mistyped or rounded "
+        "<axis> or rpy?)."
+    )
+
+
 def _dh_joints(
     w: _Walk, offsets: np.ndarray, src: str
 ) -> tuple[list[JointSpec], list[np.ndarray], np.ndarray]:
@@ -289,6 +315,7 @@ def _dh_joints(
                 f"{src}: could not place DH frame {i + 1} (residual "
                 f"{np.linalg.norm(resid):.2e} m); the chain may need MDH."
             )
+        _check_far(w, i, d, a, float(np.degrees(abs(alpha))), src)
         jname, jkind, jlim = w.specs[i]
         if jkind == "revolute":
             theta += offsets[i]
@@ -307,10 +334,7 @@ def _read(path: str | Path, tip: str | None) -> tuple[ET.Element, str, str | Non
     """The URDF's root element, its text and the tip link (kinecal's own export names
     its tip: the tool links hang below it)."""
     p = Path(path)
-    try:
-        root = ET.parse(p).getroot()
-    except (OSError, ET.ParseError) as exc:
-        raise ConfigError(f"{p}: cannot read URDF ({exc}).") from exc
+    text, root = read_urdf(p)
     macro = next((el for el in root.iter() if "xacro" in str(el.tag)), None)
     if macro is not None:
         name = macro.get("name") or macro.get("filename")
@@ -322,7 +346,6 @@ def _read(path: str | Path, tip: str | None) -> tuple[ET.Element, str, str | Non
     root = _plain(root)
     if root.tag != "robot":  # an SDF, a launch file: read as a robot without joints
         raise ConfigError(f"{p}: expected a URDF <robot> document; got <{root.tag}>.")
-    text = p.read_text(errors="replace")
     if tip is None:
         m = re.search(r"kinecal tip link: (\S+)", text)
         if m is not None and any(
