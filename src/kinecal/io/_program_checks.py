@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from kinecal.errors import DataError
+from kinecal.io._cartesian_base import _line
 
 __all__ = ["check_degrees", "check_positions", "check_values"]
 
@@ -36,10 +37,6 @@ _NON_FINITE = re.compile(
     r"(?=[ \t]*(?:[,\]};]|deg\b|mm\b|$))",
     re.I | re.M,
 )
-
-
-def _line(text: str, pos: int) -> int:
-    return text.count("\n", 0, pos) + 1
 
 
 def check_values(code: str, fmt: str) -> None:

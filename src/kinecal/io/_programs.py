@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from kinecal.errors import DataError
-from kinecal.io._cartesian_base import code_only
+from kinecal.io._cartesian_base import _line, code_only
 from kinecal.io._program_checks import check_degrees, check_positions, check_values
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float
@@ -118,10 +118,6 @@ def detect_program_format(path: str | Path) -> str | None:
 def _decimals(token: str) -> int:
     m = re.match(r"[-+]?\d*\.?(\d*)", token.strip())
     return len(m.group(1)) if m and "." in token else 0
-
-
-def _line(text: str, pos: int) -> int:
-    return text.count("\n", 0, pos) + 1
 
 
 def _point(text: str, name: str, spans: list[tuple[int, int]]) -> ProgramPoint:
