@@ -35,7 +35,12 @@ import numpy as np
 
 from kinecal.errors import DataError
 from kinecal.io._cartesian_base import _line, code_only
-from kinecal.io._program_checks import check_degrees, check_positions, check_values
+from kinecal.io._program_checks import (
+    check_degrees,
+    check_fanuc_units,
+    check_positions,
+    check_values,
+)
 from kinecal.robot import RobotDescription
 from kinecal.typing import Float
 
@@ -421,6 +426,7 @@ def program_joints(
                 f"{prog.path}: line {pt.line}: {pt.name} has {len(pt.values)} joint values; "
                 f"{robot.name} has {n} joints."
             )
+    check_fanuc_units(prog, robot.prismatic, robot.name)
     q = np.array([pt.values[:n] for pt in prog.points], dtype=np.float64).reshape(-1, n)
     if check:
         check_degrees(prog, q, robot.prismatic)

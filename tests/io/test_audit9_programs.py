@@ -1,0 +1,85 @@
+"""Audit 9: robot programs handed to compensate. A KRL axis aggregate with a value that
+is no number, a decimal comma, an axis twice or a declaration without A6 was taken for
+a partial aggregate: left unread and unreported (or ``A1 15,5`` read as A1 = 15), the
+program written back with exit 0. A FANUC ``J1 = 10 mm`` on a revolute joint was read as
+10 deg. Reading a program of many targets was quadratic in its length."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+from kinecal.errors import DataError
+from kinecal.io import program_joints, read_program
+from kinecal.robot import load_robot
+
+DATA = Path(__file__).parents[1] / "data" / "programs"
+ROBOT = load_robot("fanuc-lrmate200id")
+
+
+def _dat(tmp_path: Path, old: str, new: str) -> Path:
+    text = (DATA / "pick_demo.dat").read_text()
+    assert old in text
+    p = tmp_path / "damaged.dat"
+    p.write_text(text.replace(old, new))
+    return p
+
+
+@pytest.mark.parametrize(
+    "old, new, match",
+    [
+        ("A1 15.5", "A1 abc", r"line 7: A1 'abc' is not a number"),
+        ("A1 15.5", "A1 15,5", r"line 7: '5' in the axis aggregate .* decimal comma"),
+        ("A6 45.0,", "A5 45.0,", r"line 7: A5 is given twice"),
+        ("A6 45.0,", "", r"line 7: the declared axis aggregate lacks A6"),
+        ("A1 15.5,A2 -80.25", "A2 -80.25,A1 15.5", r"line 7: .*in order"),
+    ],
+)
+def test_damaged_krl_axis_aggregates_are_named(tmp_path, old, new, match):
+    p = _dat(tmp_path, old, new)
+    with pytest.raises(DataError, match=f"{p}: {match}"):
+        read_program(p)
+
+
+def test_sound_krl_aggregates_still_read(tmp_path):
+    # a partial aggregate in a motion (the robot's other axes), a frame, FDAT / PDAT
+    p = tmp_path / "moves.src"
+    p.write_text(
+        "DEF moves()\n"
+        "  DECL FDAT FP1={TOOL_NO 1,BASE_NO 0,IPO_FRAME #BASE}\n"
+        "  DECL PDAT PP1={VEL 100,ACC 100,APO_DIST 100}\n"
+        "  PTP {A1 10, A2 -80, A3 90, A4 0, A5 30, A6 0, E1 5}\n"
+        "  PTP {A1 20}\n"
+        "  LIN {X 800, Y 0, Z 600, A 0, B 90, C 0}\n"
+        "END\n"
+    )
+    prog = read_program(p)
+    assert [pt.line for pt in prog.points] == [4]
+    assert prog.points[0].values[:6] == (10.0, -80.0, 90.0, 0.0, 30.0, 0.0)
+    assert read_program(DATA / "pick_demo.dat").points[1].values[0] == 15.5
+
+
+def test_fanuc_joint_value_in_the_other_unit(tmp_path):
+    text = (DATA / "pick_demo.ls").read_text()
+    p = tmp_path / "mm.ls"
+    p.write_text(text.replace("J1=    10.000 deg", "J1=    10.000  mm"))
+    prog = read_program(p)
+    with pytest.raises(DataError, match=rf"{p}: line 23: P\[1\] J1 = 10 mm; J1 .* "
+                       r"is revolute: expected deg"):  # fmt: skip
+        program_joints(prog, ROBOT)
+    assert program_joints(read_program(DATA / "pick_demo.ls"), ROBOT).shape == (3, 6)
+
+
+@pytest.mark.slow
+def test_many_targets_read_in_linear_time(tmp_path):
+    move = "  movej([0.1, -1.3, 1.5, -1.7, -1.5, 0.0], a=1, v=1)\n"
+    p = tmp_path / "many.script"
+    p.write_text("def p():\n" + move * 10000 + "end\n")
+    t0 = time.perf_counter()
+    prog = read_program(p)
+    took = time.perf_counter() - t0
+    assert len(prog.points) == 10000 and prog.points[-1].line == 10001
+    # counting the line ends per target (quadratic): 10 000 moves 4 s; now 0.4 s
+    assert took < 2.0, took
