@@ -99,9 +99,9 @@ def read_vendor(vendor: str | Path, text: str | None) -> tuple[str, ET.Element]:
     decoded as they are (CRLF line ends and a byte order mark stay as they were)."""
     src = str(vendor)
     try:
+        raw = Path(vendor).read_bytes().decode("utf-8") if text is None else text
         if text is None:  # the checks every URDF reader makes (entities, xacro, size)
             read_urdf(vendor)
-        raw = Path(vendor).read_bytes().decode("utf-8") if text is None else text
         root_el = ET.fromstring(raw.lstrip("\ufeff"))
     except UnicodeDecodeError as exc:  # UTF-16, Latin-1: written back as it was read
         raise ConfigError(

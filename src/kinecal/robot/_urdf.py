@@ -334,15 +334,7 @@ def _read(path: str | Path, tip: str | None) -> tuple[ET.Element, str, str | Non
     """The URDF's root element, its text and the tip link (kinecal's own export names
     its tip: the tool links hang below it)."""
     p = Path(path)
-    text, root = read_urdf(p)
-    macro = next((el for el in root.iter() if "xacro" in str(el.tag)), None)
-    if macro is not None:
-        name = macro.get("name") or macro.get("filename")
-        raise ConfigError(
-            f"{p}: holds xacro elements (<xacro:{str(macro.tag).split('}')[-1]}"
-            f"{f' {name!r}' if name else ''}>); expected a plain URDF (expand it "
-            "first: xacro FILE.xacro > FILE.urdf)."
-        )
+    text, root = read_urdf(p)  # (xacro, entities, encodings refused there)
     root = _plain(root)
     if root.tag != "robot":  # an SDF, a launch file: read as a robot without joints
         raise ConfigError(f"{p}: expected a URDF <robot> document; got <{root.tag}>.")

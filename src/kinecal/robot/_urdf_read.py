@@ -10,7 +10,7 @@ Refused, naming the file (and the line where there is one):
 - XML entity declarations (``<!ENTITY``): a URDF has none; entities expand a document
   without bound ("billion laughs") or read other files (external entities); the refusal
   does not depend on the expat version's own limits;
-- xacro: a ``xacro:`` prefix without its namespace, a ``${...}`` or ``$(...)``
+- xacro: its elements, a ``xacro:`` prefix without its namespace, a ``${...}`` or ``$(...)``
   expression left in an attribute (a ``.xacro`` file or a half-expanded one).
 
 The document is parsed in one piece (linear time).
@@ -68,8 +68,8 @@ def _no_comments(text: str) -> str:
     )
 
 
-def _check_text(text: str, p: Path) -> None:
-    """Entity declarations and xacro left in the document (see the module)."""
+def _check_entities(text: str, p: Path) -> None:
+    """Entity declarations (see the module)."""
     code = _no_comments(text)
     ent = re.search(r"<!ENTITY\s+(%\s*)?([^\s>]*)", code)
     if ent is not None:
@@ -78,6 +78,11 @@ def _check_text(text: str, p: Path) -> None:
             f"entity {ent.group(2)!r} (<!ENTITY>); expected a URDF without entities "
             "(they can expand a file without bound or read other files)."
         )
+
+
+def _check_expressions(text: str, p: Path) -> None:
+    """xacro expressions left in the document (see the module)."""
+    code = _no_comments(text)
     expr = re.search(r"\$[{(][^\"'<>]*?[})]", code)
     if expr is not None:
         raise ConfigError(
@@ -111,14 +116,22 @@ def read_urdf(path: str | Path) -> tuple[str, ET.Element]:
     text = _text(raw, p)
     if not text.strip("\ufeff \t\r\n"):
         raise ConfigError(f"{p}: the file is empty; expected a URDF <robot> document.")
-    _check_text(text, p)
+    _check_entities(text, p)
     try:
         root = ET.fromstring(raw)  # one piece: linear (ET.parse feeds 64 kB pieces)
     except ET.ParseError as exc:
         if "unbound prefix" in str(exc) and "xacro:" in text:
             raise ConfigError(
-                f"{p}: line {exc.position[0]}: a xacro element without the xacro "
-                f"namespace; expected a plain URDF ({_EXPAND})."
+                f"{p}: cannot read URDF (line {exc.position[0]}: a xacro element "
+                f"without the xacro namespace); expected a plain URDF ({_EXPAND})."
             ) from None
         raise ConfigError(f"{p}: cannot read URDF ({exc}).") from None
+    macro = next((el for el in root.iter() if "xacro" in str(el.tag)), None)
+    if macro is not None:
+        name = macro.get("name") or macro.get("filename")
+        raise ConfigError(
+            f"{p}: holds xacro elements (<xacro:{str(macro.tag).split('}')[-1]}"
+            f"{f' {name!r}' if name else ''}>); expected a plain URDF ({_EXPAND})."
+        )
+    _check_expressions(text, p)
     return text, root
