@@ -72,6 +72,20 @@ def test_fanuc_joint_value_in_the_other_unit(tmp_path):
     assert program_joints(read_program(DATA / "pick_demo.ls"), ROBOT).shape == (3, 6)
 
 
+def test_empty_and_cr_only_programs_say_so(tmp_path):
+    for name, raw, match in (
+        ("empty.ls", b" \n\n", r"empty.ls: the program is empty; expected a fanuc-ls"),
+        (
+            "mac.ls",
+            (DATA / "pick_demo.ls").read_bytes().replace(b"\n", b"\r"),
+            r"mac.ls: its lines end in CR only",  # was: line 1: ends without /END
+        ),
+    ):
+        (tmp_path / name).write_bytes(raw)
+        with pytest.raises(DataError, match=match):
+            read_program(tmp_path / name)
+
+
 @pytest.mark.slow
 def test_many_targets_read_in_linear_time(tmp_path):
     move = "  movej([0.1, -1.3, 1.5, -1.7, -1.5, 0.0], a=1, v=1)\n"

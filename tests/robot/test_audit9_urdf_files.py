@@ -153,18 +153,30 @@ def test_infinite_limits_say_continuous(tmp_path):
 
 def test_axes_a_hair_from_parallel_are_named(tmp_path, capsys):
     # j3's axis tilted by 1 mrad from j2's: the common normal 400 m away. fk --robot
-    # accepted it (d = -400 m); import-urdf refused its own output (a centre of mass
-    # 400 km away, 'check units.length').
+    # read d = -400 m without a word; 1e-7 (d = 4000 km) is beyond any robot file.
     p = _write(tmp_path, _urdf(j3={"axis": "0 1 0.001"}))
-    for args in (
-        ("fk", "--robot", p, "0", "0", "0", "0", "0", "0"),
-        ("import-urdf", p, "--out", tmp_path / "r.yaml"),
-    ):
-        failed_with(
-            run_kinecal(capsys, *args),
-            "axes of joints 'j2' and 'j3' are 0.0573 deg from parallel",
-            "d = -400 m",
-        )
+    res = run_kinecal(capsys, "fk", "--robot", p, "0", "0", "0", "0", "0", "0")
+    assert res.code == 0, str(res)
+    assert res.err.count("warning") == 1, res.err  # the first far row only
+    assert "axes of joints 'j2' and 'j3' are 0.0573 deg from parallel" in res.err
+    assert "d = -400 m" in res.err
+    p = _write(tmp_path, _urdf(j3={"axis": "0 1 1e-7"}))
+    failed_with(
+        run_kinecal(capsys, "fk", "--robot", p, "0", "0", "0", "0", "0", "0"),
+        "axes of joints 'j2' and 'j3' are 5.73e-06 deg from parallel",
+        "d = -4e+06 m",
+        "meet within 10000 m",
+    )
+    res = run_kinecal(capsys, "fk", "--robot", _write(tmp_path, _urdf()), "0", "0",
+                      "0", "0", "0", "0")  # fmt: skip
+    assert res.code == 0 and "parallel" not in res.err, str(res)
+
+
+def test_unsupported_joint_types_say_what_is_read(tmp_path):
+    text = _urdf().replace('name="j4" type="revolute"', 'name="j4" type="planar"')
+    with pytest.raises(ConfigError, match=r"joint 'j4' has unsupported type 'planar'; "
+                       r"expected revolute, continuous, prismatic or fixed"):  # fmt: skip
+        robot_from_urdf(_write(tmp_path, text))
 
 
 def test_export_like_goes_through_the_same_gate(tmp_path):

@@ -373,6 +373,13 @@ def read_program(path: str | Path, fmt: str | None = None) -> Program:
             "file is UTF-16 encoded or binary; expected a text program (UTF-8, ASCII or "
             "the controller's 8-bit encoding): save it as UTF-8."
         )
+    if not raw.strip():
+        raise DataError(f"{p}: the program is empty; expected a {fmt} program.")
+    if b"\r" in raw and b"\n" not in raw:  # (was: line 1: 'the file ends without')
+        raise DataError(
+            f"{p}: its lines end in CR only (an old Mac editor's); expected LF or CR LF "
+            "line ends, as the controller writes them."
+        )
     text = raw.decode("utf-8", errors="surrogateescape")
     try:
         code = code_only(text, fmt)

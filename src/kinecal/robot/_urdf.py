@@ -30,7 +30,7 @@ import numpy as np
 
 from kinecal.errors import ConfigError
 from kinecal.robot._description import JointSpec, LinkMass, RobotDescription
-from kinecal.robot._schema import check_travel
+from kinecal.robot._schema import MAX_LENGTH_M, check_travel
 from kinecal.robot._urdf_joints import (
     declared_coupling,
     merge_mimics,
@@ -197,7 +197,11 @@ def _walk(chain: list[ET.Element], base: str, src: str) -> _Walk:
         child = j.find("child").get("link", "")  # type: ignore[union-attr]
         if kind not in _MOVABLE:
             if kind != "fixed":
-                raise ConfigError(f"{src}: joint {jn!r} has unsupported type {kind!r}.")
+                raise ConfigError(
+                    f"{src}: joint {jn!r} has unsupported type {kind!r}; expected "
+                    "revolute, continuous, prismatic or fixed joints in the chain "
+                    "(kinecal calibrates serial arms)."
+                )
             if not w.lines:
                 w.fixed_above.append((child, T.copy()))
             w.placed.append((child, T.copy(), len(w.lines)))
@@ -273,22 +277,28 @@ def _next_frame(
 
 def _check_far(
     w: _Walk, i: int, d: float, a: float, alpha_deg: float, src: str
-) -> None:
-    """Refuse a DH row longer than a robot (:data:`_MAX_CHAIN_M`): two axes a hair from
-    parallel (an axis typed 0 1 0.001, a rounded angle) meet kilometres away, and the
-    file was read as a robot with d = 400 km (import-urdf then refused its own output
-    for a centre of mass 400 km away)."""
+) -> bool:
+    """Two axes a hair from parallel (an axis typed 0 1 0.001, a rounded angle) meet far
+    away: a DH row longer than a robot (:data:`_MAX_CHAIN_M`) is named in a warning (fk
+    --robot read d = -400 m without a word; a calibrated robot's axes may be that
+    skewed), one beyond the robot file's bound refused (import-urdf wrote a file its
+    reader refuses)."""
     if max(abs(d), abs(a)) <= _MAX_CHAIN_M:
-        return
+        return False
     k = min(i + 1, len(w.specs) - 1)
-    pair = f"{w.specs[k - 1][0]!r} and {w.specs[k][0]!r}"
     off = min(alpha_deg, abs(180.0 - alpha_deg))
-    raise ConfigError(
-        f"{src}: the axes of joints {pair} are {off:.3g} deg from parallel and their "
-        f"common normal lies far away (DH d = {d:.4g} m, a = {a:.4g} m); expected axes "
-        f"that are parallel or meet within {_MAX_CHAIN_M:g} m (a mistyped or rounded "
-        "<axis> or rpy?)."
+    text = (
+        f"{src}: the axes of joints {w.specs[k - 1][0]!r} and {w.specs[k][0]!r} are "
+        f"{off:.3g} deg from parallel and their common normal lies far away (DH d = "
+        f"{d:.4g} m, a = {a:.4g} m)"
     )
+    if max(abs(d), abs(a)) > MAX_LENGTH_M:
+        raise ConfigError(
+            f"{text}; expected axes that are parallel or meet within "
+            f"{MAX_LENGTH_M:g} m (a mistyped or rounded <axis> or rpy?)."
+        )
+    warnings.warn(f"{text}: a mistyped or rounded <axis> or rpy?", stacklevel=4)
+    return True
 
 
 def _dh_joints(
@@ -301,6 +311,7 @@ def _dh_joints(
     joints: list[JointSpec] = []
     frames: list[np.ndarray] = []
     n = len(w.lines)
+    far = False
     for i in range(n):
         nxt = w.lines[i + 1] if i + 1 < n else None
         z, x, o = _next_frame(z_prev, x_prev, o_prev, nxt, w.T_tip)
@@ -315,7 +326,8 @@ def _dh_joints(
                 f"{src}: could not place DH frame {i + 1} (residual "
                 f"{np.linalg.norm(resid):.2e} m); the chain may need MDH."
             )
-        _check_far(w, i, d, a, float(np.degrees(abs(alpha))), src)
+        if not far:  # (the first far row only: the next ones follow from it)
+            far = _check_far(w, i, d, a, float(np.degrees(abs(alpha))), src)
         jname, jkind, jlim = w.specs[i]
         if jkind == "revolute":
             theta += offsets[i]
