@@ -190,3 +190,8 @@ def test_export_like_goes_through_the_same_gate(tmp_path):
         with pytest.raises(ConfigError, match=match):
             read_vendor(p, None)
     assert read_vendor(_write(tmp_path, _urdf()), None)[1].tag == "robot"
+    latin = '<?xml version="1.0" encoding="ISO-8859-1"?>\n'
+    p = _write(tmp_path, _urdf(head=latin, name="bras_\xe9").encode("latin-1"))
+    # its text is written back: UTF-8 only, the line named (was: 'byte 61')
+    with pytest.raises(ConfigError, match=r"line 2: not UTF-8 text \(byte 0xe9\)"):
+        read_vendor(p, None)
