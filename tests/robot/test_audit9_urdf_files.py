@@ -195,3 +195,17 @@ def test_export_like_goes_through_the_same_gate(tmp_path):
     # its text is written back: UTF-8 only, the line named (was: 'byte 61')
     with pytest.raises(ConfigError, match=r"line 2: not UTF-8 text \(byte 0xe9\)"):
         read_vendor(p, None)
+
+
+def test_a_urdf_passes_the_robot_files_checks(tmp_path):
+    """--robot X.urdf took what import-urdf's YAML refuses: a coupling factor of 1e300
+    (a kinecal coupling line, a mimic multiplier) moved J3 by 1e300 J2."""
+    text = _urdf().replace(
+        "</robot>", "<!-- kinecal coupling (theta = C q_ctrl): J3 += 1e300 * J2 -->\n"
+        "</robot>"
+    )  # fmt: skip
+    with pytest.raises(ConfigError, match=r"arm.urdf: coupling\[0\].factor: 1e\+300; "
+                       r"expected a coupling factor within"):  # fmt: skip
+        load_robot(_write(tmp_path, text))
+    ok = text.replace("1e300 * J2", "1.0 * J2")
+    assert load_robot(_write(tmp_path, ok)).coupling[2, 1] == 1.0

@@ -30,7 +30,12 @@ import numpy as np
 
 from kinecal.errors import ConfigError
 from kinecal.robot._description import JointSpec, LinkMass, RobotDescription
-from kinecal.robot._schema import MAX_LENGTH_M, check_travel
+from kinecal.robot._schema import (
+    MAX_LENGTH_M,
+    check_travel,
+    dump_robot,
+    robot_from_dict,
+)
 from kinecal.robot._urdf_joints import (
     declared_coupling,
     merge_mimics,
@@ -496,7 +501,7 @@ def robot_from_urdf(
     F0 = _onto_first_axis(w, base, src) if len(w.lines) > 1 else np.eye(4)
     _check_first_axis(w, base, tip, src)
     joints, frames, T_n_flange = _dh_joints(w, offsets, src)
-    return RobotDescription(
+    robot = RobotDescription(
         name=name or root.get("name") or Path(path).stem,
         convention="dh",
         joints=tuple(joints),
@@ -508,3 +513,7 @@ def robot_from_urdf(
         link_masses=_link_masses(root, src, w.placed, frames),
         T_base_0=F0,
     )
+    # The robot file's checks, as import-urdf's YAML is read back (a coupling factor of
+    # 1e300 in a mimic or kinecal coupling line passed --robot X.urdf).
+    robot_from_dict(dump_robot(robot), source=src)
+    return robot
