@@ -97,3 +97,46 @@ def test_many_targets_read_in_linear_time(tmp_path):
     assert len(prog.points) == 10000 and prog.points[-1].line == 10001
     # counting the line ends per target (quadratic): 10 000 moves 4 s; now 0.4 s
     assert took < 2.0, took
+
+
+@pytest.mark.parametrize(
+    "name, text, needle",
+    [
+        (
+            "d2r.script",
+            "def p():\n  movej([d2r(10), d2r(-80), d2r(90), 0, 0, 0], a=1, v=1)\n"
+            "  movej([0.1, -1.3, 1.5, -1.7, -1.5, 0.0], a=1, v=1)\nend\n",
+            "line 2 (movej [d2r(10), d2r(-80), d2r(90), 0, 0, 0])",
+        ),
+        (
+            "twice.script",
+            "def p():\n  q1 = [0.1, -1.3, 1.5, -1.7, -1.5, 0.0]\n"
+            "  q1 = [0.2, -1.3, 1.5, -1.7, -1.5, 0.0]\n  movej(q1, a=1, v=1)\n"
+            "  movej([0.1, -1.3, 1.5, -1.7, -1.5, 0.0], a=1, v=1)\nend\n",
+            "line 4 (q1, assigned 2 times)",
+        ),
+        (
+            "expr.mod",
+            (DATA / "pick_demo.mod")
+            .read_text()
+            .replace("[[12.5,-20.25,35,0.5,45,-90]", "[[12.5,-20.25,35,0.5,45,-90+5]"),
+            "line 4 (jAbove [12.5,-20.25,35,0.5,45,-90+5])",
+        ),
+    ],
+)
+def test_joint_targets_that_are_expressions_are_named(tmp_path, name, text, needle):
+    """They were written back uncorrected without a word (every target 'compensated')."""
+    from kinecal.io._checks import DataWarning
+
+    p = tmp_path / name
+    p.write_text(text)
+    with pytest.warns(DataWarning, match="left as written, not numbers") as got:
+        prog = read_program(p)
+    assert needle in str(got[0].message), str(got[0].message)
+    assert prog.points  # the others are read
+
+
+def test_programs_of_numbers_warn_nothing(recwarn):
+    for name in ("pick_demo.script", "pick_demo.mod", "pick_demo.ls", "pick_demo.dat"):
+        read_program(DATA / name)
+    assert not [w for w in recwarn if "left as written" in str(w.message)]

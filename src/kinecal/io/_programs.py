@@ -287,6 +287,41 @@ def _krl(text: str) -> tuple[list[ProgramPoint], int]:
     return points, skipped
 
 
+def _unread(code: str, fmt: str) -> list[tuple[int, str]]:
+    """Joint targets the readers pass over (line, what): a URScript or RAPID joint list
+    holding expressions (``movej([d2r(10), ...])``, ``[[10+5, ...]]``), a URScript move
+    to a joint-list variable assigned more than once. They were written back
+    uncorrected without a word (the run said every target was compensated)."""
+    out = []
+    if fmt in ("urscript", "rapid"):
+        pat = (
+            r"\b(movej|movel|movep|servoj)\s*\(\s*\["
+            if fmt == "urscript"
+            else r"\bjointtarget\s+(\w+)\s*:=\s*\[\s*\[|\b(MoveAbsJ)\s*\[\s*\["
+        )
+        for m in re.finditer(pat, code, re.I):
+            if _bracket_numbers(code, m.end() - 1) is None:
+                close = code.find("]", m.end())
+                body = code[m.end() : close if close >= 0 else m.end() + 40].strip()
+                name = next(g for g in m.groups() if g)
+                out.append((_line(code, m.start()), f"{name} [{body[:40]}]"))
+    if fmt == "urscript":
+        moves = r"\b(?:movej|movel|movep|servoj)\s*\(\s*([A-Za-z_]\w*)\s*[,)]"
+        for m in re.finditer(moves, code):
+            name = m.group(1)
+            lists = re.findall(
+                rf"^[ \t]*(?:(?:global|local)\s+)?{name}\s*=\s*\[", code, re.M
+            )
+            every = re.findall(
+                rf"^[ \t]*(?:(?:global|local)\s+)?{name}\s*=(?!=)", code, re.M
+            )
+            if lists and len(every) > 1:
+                out.append(
+                    (_line(code, m.start(1)), f"{name}, assigned {len(every)} times")
+                )
+    return sorted(out)
+
+
 _PAIRS = {"(": ")", "[": "]", "{": "}"}
 # A program's closing line per opening one (format: [(opening, closing, what)]).
 _ENDS = {
@@ -389,6 +424,20 @@ def read_program(path: str | Path, fmt: str | None = None) -> Program:
         check_positions(code, fmt)
     except DataError as exc:
         raise DataError(f"{p}: {exc}") from None
+    unread = _unread(code, fmt)
+    if unread:
+        import warnings
+
+        from kinecal.io._checks import DataWarning
+
+        some = "; ".join(f"line {ln} ({what})" for ln, what in unread[:5])
+        warnings.warn(
+            f"{p}: {len(unread)} joint target(s) left as written, not numbers kinecal "
+            f"can correct: {some}{' ...' if len(unread) > 5 else ''}; write their "
+            "joint values as numbers to have them corrected.",
+            DataWarning,
+            stacklevel=2,
+        )
     if not points:
         from kinecal.io._cartesian_programs import read_cartesian
 
