@@ -113,7 +113,7 @@ def test_many_targets_read_in_linear_time(tmp_path):
             "def p():\n  q1 = [0.1, -1.3, 1.5, -1.7, -1.5, 0.0]\n"
             "  q1 = [0.2, -1.3, 1.5, -1.7, -1.5, 0.0]\n  movej(q1, a=1, v=1)\n"
             "  movej([0.1, -1.3, 1.5, -1.7, -1.5, 0.0], a=1, v=1)\nend\n",
-            "line 4 (q1, assigned 2 times)",
+            "line 2 (q1, assigned 2 times)",
         ),
         (
             "expr.mod",

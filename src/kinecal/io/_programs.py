@@ -307,18 +307,18 @@ def _unread(code: str, fmt: str) -> list[tuple[int, str]]:
                 out.append((_line(code, m.start()), f"{name} [{body[:40]}]"))
     if fmt == "urscript":
         moves = r"\b(?:movej|movel|movep|servoj)\s*\(\s*([A-Za-z_]\w*)\s*[,)]"
-        for m in re.finditer(moves, code):
-            name = m.group(1)
-            lists = re.findall(
-                rf"^[ \t]*(?:(?:global|local)\s+)?{name}\s*=\s*\[", code, re.M
-            )
-            every = re.findall(
-                rf"^[ \t]*(?:(?:global|local)\s+)?{name}\s*=(?!=)", code, re.M
-            )
+        for name in sorted(set(re.findall(moves, code))):
+            scope = rf"^[ \t]*(?:(?:global|local)\s+)?{name}\s*="
+            every = list(re.finditer(rf"{scope}(?!=)", code, re.M))
+            lists = [a for a in every if re.match(r"\s*\[", code[a.end() :])]
             if lists and len(every) > 1:
-                out.append(
-                    (_line(code, m.start(1)), f"{name}, assigned {len(every)} times")
-                )
+                out.append((_line(code, every[0].start()), f"{name}, assigned "
+                            f"{len(every)} times"))  # fmt: skip
+            elif lists:  # assigned once, a list: of numbers?
+                at = code.find("[", lists[0].end())
+                if _bracket_numbers(code, at) is None:
+                    body = code[at + 1 : code.find("]", at)].strip()
+                    out.append((_line(code, at), f"{name} [{body[:40]}]"))
     return sorted(out)
 
 
