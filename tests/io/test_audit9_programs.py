@@ -122,6 +122,13 @@ def test_many_targets_read_in_linear_time(tmp_path):
             .replace("[[12.5,-20.25,35,0.5,45,-90]", "[[12.5,-20.25,35,0.5,45,-90+5]"),
             "line 4 (jAbove [12.5,-20.25,35,0.5,45,-90+5])",
         ),
+        (
+            "undefined.mod",
+            (DATA / "pick_demo.mod")
+            .read_text()
+            .replace("MoveAbsJ jHome\\NoEOffs", "MoveAbsJ jPark\\NoEOffs"),
+            "line 7 (MoveAbsJ jPark, not defined in this module)",
+        ),
     ],
 )
 def test_joint_targets_that_are_expressions_are_named(tmp_path, name, text, needle):

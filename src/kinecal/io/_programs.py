@@ -305,6 +305,12 @@ def _unread(code: str, fmt: str) -> list[tuple[int, str]]:
                 body = code[m.end() : close if close >= 0 else m.end() + 40].strip()
                 name = next(g for g in m.groups() if g)
                 out.append((_line(code, m.start()), f"{name} [{body[:40]}]"))
+    if fmt == "rapid":  # MoveAbsJ to a jointtarget this module does not define
+        known = {n.lower() for n in re.findall(r"\bjointtarget\s+(\w+)", code, re.I)}
+        for m in re.finditer(r"\bMoveAbsJ\s+([A-Za-z_]\w*)\b", code, re.I):
+            if m.group(1).lower() not in known:
+                out.append((_line(code, m.start()), f"MoveAbsJ {m.group(1)}, not "
+                            "defined in this module"))  # fmt: skip
     if fmt == "urscript":
         moves = r"\b(?:movej|movel|movep|servoj)\s*\(\s*([A-Za-z_]\w*)\s*[,)]"
         for name in sorted(set(re.findall(moves, code))):
