@@ -23,6 +23,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from kinecal.errors import ConfigError
+from kinecal.robot._robot_file import read_bounded
 
 __all__ = ["MAX_URDF_BYTES", "read_urdf"]
 
@@ -103,14 +104,7 @@ def read_urdf(path: str | Path) -> tuple[str, ET.Element]:
     if p.is_dir():
         raise ConfigError(f"{p}: is a folder; expected a URDF file.")
     try:
-        size = p.stat().st_size
-        if size > MAX_URDF_BYTES:
-            raise ConfigError(
-                f"{p}: {size / 2**20:.1f} MB; expected a URDF of at most "
-                f"{MAX_URDF_BYTES >> 20} MB (a robot's URDF is well under 1 MB: its "
-                "meshes are separate files)."
-            )
-        raw = p.read_bytes()
+        raw = read_bounded(p, MAX_URDF_BYTES, "a URDF (its meshes are separate files)")
     except OSError as exc:
         raise ConfigError(f"{p}: cannot read URDF ({exc.strerror}).") from exc
     text = _text(raw, p)
