@@ -209,3 +209,14 @@ def test_a_urdf_passes_the_robot_files_checks(tmp_path):
         load_robot(_write(tmp_path, text))
     ok = text.replace("1e300 * J2", "1.0 * J2")
     assert load_robot(_write(tmp_path, ok)).coupling[2, 1] == 1.0
+
+
+def test_links_without_names(tmp_path):
+    """A <link/> without a name and joints whose <parent/> / <child/> name no link
+    matched each other (the empty name): read as a robot (urdfdom refuses both)."""
+    text = _urdf().replace('<link name="l3"/>', "<link/>")
+    with pytest.raises(ConfigError, match=r"link 4 \(in file order\) has no name"):
+        robot_from_urdf(_write(tmp_path, text))
+    text = _urdf().replace('<child link="l3"/>', "<child/>")
+    with pytest.raises(ConfigError, match=r"joint 'j3': <child> names no link"):
+        robot_from_urdf(_write(tmp_path, text))
