@@ -37,3 +37,26 @@ def test_a_device_without_end(capsys):
         ("import-urdf", "/dev/zero", "--out", "/nonexistent/r.yaml"),
     ):
         failed_with(run_kinecal(capsys, *args), "/dev/zero: more than", "(a device")
+
+
+def test_a_model_argument_that_is_another_file_says_what_it_is(tmp_path):
+    from kinecal import _yaml as yaml
+    from kinecal.robot import dump_robot
+
+    cases = {
+        "robot.yaml": (
+            yaml.dump(dump_robot(load_robot("fanuc-lrmate200id"))),
+            "it is a robot file: calibrate with it",
+        ),
+        "arm.urdf": ('<?xml version="1.0"?>\n<robot name="a"/>\n', "an XML document"),
+        "data.csv": ("x_mm,y_mm,z_mm,j1_deg\n1,2,3,4\n", "it is a CSV table"),
+        "report.json": (
+            '{"kinecal_version": "0.1.0", "data": {}}',
+            "it is a calibration's report.json",
+        ),
+    }
+    for name, (text, needle) in cases.items():
+        (tmp_path / name).write_text(text)
+        with pytest.raises(ConfigError, match="no 'kinecal_model' key") as exc:
+            load_model(tmp_path / name)
+        assert needle in str(exc.value), str(exc.value)

@@ -220,3 +220,10 @@ def test_links_without_names(tmp_path):
     text = _urdf().replace('<child link="l3"/>', "<child/>")
     with pytest.raises(ConfigError, match=r"joint 'j3': <child> names no link"):
         robot_from_urdf(_write(tmp_path, text))
+
+
+def test_a_urdf_argument_that_is_no_xml(tmp_path, capsys):
+    p = _write(tmp_path, "name: arm\nconvention: dh\n", "robot.urdf")
+    res = run_kinecal(capsys, "import-urdf", p, "--out", tmp_path / "r.yaml")
+    # was: 'cannot read URDF (not well-formed (invalid token): line 1, column 4)'
+    failed_with(res, "robot.urdf: not an XML document (it starts with 'name: arm')")

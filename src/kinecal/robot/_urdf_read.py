@@ -110,6 +110,13 @@ def read_urdf(path: str | Path) -> tuple[str, ET.Element]:
     text = _text(raw, p)
     if not text.strip("\ufeff \t\r\n"):
         raise ConfigError(f"{p}: the file is empty; expected a URDF <robot> document.")
+    first = text.lstrip("\ufeff \t\r\n")
+    if not first.startswith("<"):  # a robot YAML, a CSV: 'not well-formed: line 1'
+        head = first.splitlines()[0][:40] if first else ""
+        raise ConfigError(
+            f"{p}: not an XML document (it starts with {head!r}); expected a URDF "
+            "<robot> document."
+        )
     _check_entities(text, p)
     try:
         root = ET.fromstring(raw)  # one piece: linear (ET.parse feeds 64 kB pieces)
