@@ -87,6 +87,16 @@ def test_empty_and_cr_only_programs_say_so(tmp_path):
             read_program(tmp_path / name)
 
 
+def test_a_program_beyond_the_size_bound(tmp_path, monkeypatch):
+    from kinecal.errors import CalibError
+
+    p = tmp_path / "big.script"
+    p.write_text("def p():\n" + "  # comment\n" * 200_000 + "end\n")  # 2.4 MB
+    monkeypatch.setattr("kinecal.io._programs.MAX_PROGRAM_BYTES", 1 << 20)
+    with pytest.raises(CalibError, match=r"big.script: 2.3 MB; expected a urscript"):
+        read_program(p)
+
+
 @pytest.mark.slow
 def test_many_targets_read_in_linear_time(tmp_path):
     move = "  movej([0.1, -1.3, 1.5, -1.7, -1.5, 0.0], a=1, v=1)\n"

@@ -42,6 +42,7 @@ from kinecal.io._program_checks import (
     check_values,
 )
 from kinecal.robot import RobotDescription
+from kinecal.robot._robot_file import read_bounded
 from kinecal.typing import Float
 
 __all__ = [
@@ -328,6 +329,9 @@ def _unread(code: str, fmt: str) -> list[tuple[int, str]]:
     return sorted(out)
 
 
+# The largest program read [bytes]: 200 000 URScript moves are 10 MB (read in 11 s);
+# beyond, a device or a wrong file (/dev/zero filled the memory).
+MAX_PROGRAM_BYTES = 64 << 20
 _PAIRS = {"(": ")", "[": "]", "{": "}"}
 # A program's closing line per opening one (format: [(opening, closing, what)]).
 _ENDS = {
@@ -404,7 +408,7 @@ def read_program(path: str | Path, fmt: str | None = None) -> Program:
         )
     try:
         # Bytes that are not UTF-8 (Shift-JIS comments, Latin-1) survive as surrogates.
-        raw = p.read_bytes()
+        raw = read_bounded(p, MAX_PROGRAM_BYTES, f"a {fmt} program")
     except OSError as exc:
         raise DataError(f"{p}: cannot read program ({exc.strerror}).") from exc
     if b"\0" in raw:  # UTF-16 (a RobotStudio or Windows editor save) or binary
