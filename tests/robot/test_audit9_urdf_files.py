@@ -172,6 +172,19 @@ def test_axes_a_hair_from_parallel_are_named(tmp_path, capsys):
     assert res.code == 0 and "parallel" not in res.err, str(res)
 
 
+def test_far_axes_name_themselves_when_their_masses_are_refused(tmp_path):
+    # with inertials, the centre of mass lies in the DH frame 400 m away: the robot
+    # file's check refused it as 'check units.length'
+    text = _urdf(j3={"axis": "0 1 0.001"}).replace(
+        '<link name="l2"/>',
+        '<link name="l2"><inertial><mass value="5"/></inertial></link>',
+    )
+    with pytest.raises(ConfigError, match=r"axes of joints 'j2' and 'j3' are 0.0573 "
+                       r"deg from parallel.*refused: link_masses"):  # fmt: skip
+        with pytest.warns(UserWarning, match="from parallel"):
+            robot_from_urdf(_write(tmp_path, text))
+
+
 def test_unsupported_joint_types_say_what_is_read(tmp_path):
     text = _urdf().replace('name="j4" type="revolute"', 'name="j4" type="planar"')
     with pytest.raises(ConfigError, match=r"joint 'j4' has unsupported type 'planar'; "

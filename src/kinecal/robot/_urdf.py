@@ -165,6 +165,7 @@ class _Walk:
     fixed_above: list[tuple[str, np.ndarray]] = field(default_factory=list)
     placed: list[tuple[str, np.ndarray, int]] = field(default_factory=list)
     T_tip: np.ndarray = field(default_factory=lambda: np.eye(4))
+    far: str = ""  # two axes meeting far away (:func:`_check_far`)
 
 
 # The longest chain (sum of the joint origins' offsets, base to tip) a robot's URDF can
@@ -303,6 +304,7 @@ def _check_far(
             f"{MAX_LENGTH_M:g} m (a mistyped or rounded <axis> or rpy?)."
         )
     warnings.warn(f"{text}: a mistyped or rounded <axis> or rpy?", stacklevel=4)
+    w.far = text
     return True
 
 
@@ -515,5 +517,13 @@ def robot_from_urdf(
     )
     # The robot file's checks, as import-urdf's YAML is read back (a coupling factor of
     # 1e300 in a mimic or kinecal coupling line passed --robot X.urdf).
-    robot_from_dict(dump_robot(robot), source=src)
+    try:
+        robot_from_dict(dump_robot(robot), source=src)
+    except ConfigError as exc:  # a centre of mass in a DH frame 400 m away
+        if not w.far:
+            raise
+        raise ConfigError(
+            f"{w.far}: a mistyped or rounded <axis> or rpy? The DH description it "
+            f"makes is refused: {str(exc).removeprefix(src + ': ')}"
+        ) from None
     return robot
