@@ -4,6 +4,7 @@ a move takes its target at (RAPID ``Offs``/``RelTool``, FANUC ``Offset``/``Tool_
 
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass, replace
 
@@ -107,8 +108,17 @@ def code_only(text: str, fmt: str) -> str:
     return "\n".join(lines)
 
 
+@functools.lru_cache(maxsize=4)
+def _newlines(text: str) -> np.ndarray:
+    """Offsets of the line ends of ``text`` (a program's: looked up per target)."""
+    return np.array([m.start() for m in re.finditer("\n", text)], dtype=np.int64)
+
+
 def _line(text: str, pos: int) -> int:
-    return text.count("\n", 0, pos) + 1
+    """The 1-based line of offset ``pos`` in ``text``: a search in the line ends,
+    counted once per text (counting them per target took 16 s for a program of 20 000
+    moves)."""
+    return int(np.searchsorted(_newlines(text), pos)) + 1
 
 
 def _decimals(token: str) -> int:

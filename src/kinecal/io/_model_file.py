@@ -320,9 +320,27 @@ def _read_doc(p: Path) -> dict[str, Any]:
     return _checked_doc(stamp_as_written(doc, text), p)
 
 
+def _kind_of(doc: Any) -> str:
+    """What a document handed as a model is instead (a robot file, a URDF, a CSV, a
+    report), as '; it is ...' (empty when unknown)."""
+    if isinstance(doc, dict) and {"joints", "convention"} <= set(doc):
+        what = "a robot file: calibrate with it (--robot) to get a model.yaml"
+    elif isinstance(doc, str) and doc.lstrip().startswith("<"):
+        what = "an XML document (a URDF?): a robot, not a calibrated model (--robot)"
+    elif isinstance(doc, str) and "," in doc.split("\n", 1)[0]:
+        what = "a CSV table: data, not a calibrated model"
+    elif isinstance(doc, dict) and {"kinecal_version", "data"} <= set(doc):
+        what = "a calibration's report.json: its model.yaml is beside it"
+    else:
+        return ""
+    return f"; it is {what}"
+
+
 def _checked_doc(doc: Any, p: Path) -> dict[str, Any]:
     if not isinstance(doc, dict) or "kinecal_model" not in doc:
-        raise ConfigError(f"{p}: not a kinecal model file (no 'kinecal_model' key).")
+        raise ConfigError(
+            f"{p}: not a kinecal model file (no 'kinecal_model' key){_kind_of(doc)}."
+        )
     if type(doc["kinecal_model"]) is not int or doc["kinecal_model"] != FORMAT_VERSION:
         raise ConfigError(
             f"{p}: model format {doc['kinecal_model']!r} is not supported; expected "

@@ -25,8 +25,15 @@ from typing import Any
 import numpy as np
 
 from kinecal.errors import DataError
+from kinecal.io._cartesian_base import _line
 
-__all__ = ["check_degrees", "check_positions", "check_values"]
+__all__ = [
+    "check_degrees",
+    "check_fanuc_units",
+    "check_krl_axes",
+    "check_positions",
+    "check_values",
+]
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 # nan / inf where a value stands: in a list ('[', ',', '{'), after a FANUC 'Jn =' or a
@@ -38,10 +45,6 @@ _NON_FINITE = re.compile(
 )
 
 
-def _line(text: str, pos: int) -> int:
-    return text.count("\n", 0, pos) + 1
-
-
 def check_values(code: str, fmt: str) -> None:
     """Raise :class:`DataError` (``line N: ...``) for a value ``nan`` / ``inf`` or a
     FANUC joint value in another unit; ``code``: the program without its comments."""
@@ -51,6 +54,8 @@ def check_values(code: str, fmt: str) -> None:
             f"line {_line(code, m.start(1))}: {m.group(1)!r} is not a value a robot "
             "can move to; expected a finite number."
         )
+    if fmt == "krl":
+        check_krl_axes(code)
     if fmt != "fanuc-ls":
         return
     for n, at, body in _positions(code):
@@ -62,6 +67,58 @@ def check_values(code: str, fmt: str) -> None:
                     f"{j.group(2)}{unit}; expected deg (mm for a linear axis), as a "
                     "controller writes it."
                 )
+
+
+_AXIS_ITEM = re.compile(r"\b[AE]\d+\b")
+
+
+def check_krl_axes(code: str) -> None:
+    """Raise :class:`DataError` for a KRL axis aggregate (``{A1 .., A2 .., E1 ..}``)
+    whose components are not ``NAME value`` with a number (``A1 abc``; ``A1 15,5``, a
+    decimal comma, read as A1 = 15), name an axis twice or out of order, or a declared
+    one (``XP1={..}``) without all of A1..A6: the reader took such a target for a
+    partial aggregate and left it unread and unreported, or read 15,5 as 15."""
+    for m in re.finditer(r"\{([^{}]*)\}", code):
+        body = m.group(1)
+        if not _AXIS_ITEM.search(body) or re.search(r"\bX\s", body):
+            continue  # not an axis aggregate (a frame, a POS, FDAT, PDAT)
+        seen: list[str] = []
+        for item in re.finditer(r"[^,]+", body):
+            at = _line(code, m.start(1) + item.start())
+            it = re.fullmatch(r"\s*([A-Za-z_]\w*)\s+(\S.*?)\s*", item.group())
+            if it is None:
+                raise DataError(
+                    f"line {at}: {item.group().strip()!r} in the axis aggregate is no "
+                    "component 'NAME value'; expected e.g. A1 15.5 (a decimal comma?)."
+                )
+            name, value = it.group(1).upper(), it.group(2)
+            if not _AXIS_ITEM.fullmatch(name):
+                continue
+            if re.fullmatch(_NUM, value) is None:
+                raise DataError(
+                    f"line {at}: {name} {value!r} is not a number; expected the "
+                    "axis value in degrees (mm for a linear axis)."
+                )
+            if name in seen:
+                raise DataError(
+                    f"line {at}: {name} is given twice in the axis aggregate; expected "
+                    "each axis once."
+                )
+            seen.append(name)
+        axes = [int(a[1:]) for a in seen if a[0] == "A"]
+        if axes != sorted(axes):
+            raise DataError(
+                f"line {_line(code, m.start())}: the axis aggregate lists A{axes}; "
+                "expected A1, A2, ... in order."
+            )
+        head = code[max(0, m.start() - 80) : m.start()]
+        if re.search(r"\w\s*=\s*$", head) and axes and axes != list(range(1, 7)):
+            missing = sorted(set(range(1, 7)) - set(axes))
+            raise DataError(
+                f"line {_line(code, m.start())}: the declared axis aggregate lacks "
+                f"{', '.join(f'A{k}' for k in missing)}; expected A1..A6 (a "
+                "declaration holds every axis)."
+            )
 
 
 def check_positions(code: str, fmt: str) -> None:
@@ -100,6 +157,25 @@ def _positions(code: str) -> list[tuple[int, int, str]]:
         (int(m.group(1)), pos.end() + m.start(), m.group(2))
         for m in re.finditer(rec, code[pos.end() :], re.S)
     ]
+
+
+def check_fanuc_units(prog: Any, prismatic: np.ndarray, name: str) -> None:
+    """Raise :class:`DataError` for a FANUC joint value whose unit is not its joint's:
+    ``mm`` on a revolute joint or ``deg`` on a linear one (``J1 = 10.000 mm`` on an
+    arm's first axis was read as 10 deg)."""
+    if prog.format != "fanuc-ls":
+        return
+    for pt in prog.points:
+        for k, (_, b) in enumerate(pt.spans[: len(prismatic)]):
+            unit = re.match(r"\s*(deg|mm)", prog.text[b : b + 16])
+            want = "mm" if prismatic[k] else "deg"
+            if unit is not None and unit.group(1) != want:
+                kind = "linear" if prismatic[k] else "revolute"
+                raise DataError(
+                    f"{prog.path}: line {_line(prog.text, b)}: {pt.name} J{k + 1} = "
+                    f"{pt.values[k]:g} {unit.group(1)}; J{k + 1} of {name} is "
+                    f"{kind}: expected {want} (a position of another robot or group?)."
+                )
 
 
 _DEGREE_FORMATS = {"rapid": "RAPID jointtarget", "krl": "KRL axis aggregate"}

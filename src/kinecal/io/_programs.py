@@ -34,9 +34,15 @@ from pathlib import Path
 import numpy as np
 
 from kinecal.errors import DataError
-from kinecal.io._cartesian_base import code_only
-from kinecal.io._program_checks import check_degrees, check_positions, check_values
+from kinecal.io._cartesian_base import _line, code_only
+from kinecal.io._program_checks import (
+    check_degrees,
+    check_fanuc_units,
+    check_positions,
+    check_values,
+)
 from kinecal.robot import RobotDescription
+from kinecal.robot._robot_file import read_bounded
 from kinecal.typing import Float
 
 __all__ = [
@@ -118,10 +124,6 @@ def detect_program_format(path: str | Path) -> str | None:
 def _decimals(token: str) -> int:
     m = re.match(r"[-+]?\d*\.?(\d*)", token.strip())
     return len(m.group(1)) if m and "." in token else 0
-
-
-def _line(text: str, pos: int) -> int:
-    return text.count("\n", 0, pos) + 1
 
 
 def _point(text: str, name: str, spans: list[tuple[int, int]]) -> ProgramPoint:
@@ -286,6 +288,50 @@ def _krl(text: str) -> tuple[list[ProgramPoint], int]:
     return points, skipped
 
 
+def _unread(code: str, fmt: str) -> list[tuple[int, str]]:
+    """Joint targets the readers pass over (line, what): a URScript or RAPID joint list
+    holding expressions (``movej([d2r(10), ...])``, ``[[10+5, ...]]``), a URScript move
+    to a joint-list variable assigned more than once. They were written back
+    uncorrected without a word (the run said every target was compensated)."""
+    out = []
+    if fmt in ("urscript", "rapid"):
+        pat = (
+            r"\b(movej|movel|movep|servoj)\s*\(\s*\["
+            if fmt == "urscript"
+            else r"\bjointtarget\s+(\w+)\s*:=\s*\[\s*\[|\b(MoveAbsJ)\s*\[\s*\["
+        )
+        for m in re.finditer(pat, code, re.I):
+            if _bracket_numbers(code, m.end() - 1) is None:
+                close = code.find("]", m.end())
+                body = code[m.end() : close if close >= 0 else m.end() + 40].strip()
+                name = next(g for g in m.groups() if g)
+                out.append((_line(code, m.start()), f"{name} [{body[:40]}]"))
+    if fmt == "rapid":  # MoveAbsJ to a jointtarget this module does not define
+        known = {n.lower() for n in re.findall(r"\bjointtarget\s+(\w+)", code, re.I)}
+        for m in re.finditer(r"\bMoveAbsJ\s+([A-Za-z_]\w*)\b", code, re.I):
+            if m.group(1).lower() not in known:
+                out.append((_line(code, m.start()), f"MoveAbsJ {m.group(1)}, not "
+                            "defined in this module"))  # fmt: skip
+    if fmt == "urscript":
+        moves = r"\b(?:movej|movel|movep|servoj)\s*\(\s*([A-Za-z_]\w*)\s*[,)]"
+        for name in sorted(set(re.findall(moves, code))):
+            scope = rf"^[ \t]*(?:(?:global|local)\s+)?{name}\s*="
+            every = list(re.finditer(rf"{scope}(?!=)", code, re.M))
+            lists = [a for a in every if re.match(r"\s*\[", code[a.end() :])]
+            if lists and len(every) > 1:
+                out.append((_line(code, every[0].start()), f"{name}, assigned "
+                            f"{len(every)} times"))  # fmt: skip
+            elif lists:  # assigned once, a list: of numbers?
+                at = code.find("[", lists[0].end())
+                if _bracket_numbers(code, at) is None:
+                    body = code[at + 1 : code.find("]", at)].strip()
+                    out.append((_line(code, at), f"{name} [{body[:40]}]"))
+    return sorted(out)
+
+
+# The largest program read [bytes]: 200 000 URScript moves are 10 MB (read in 11 s);
+# beyond, a device or a wrong file (/dev/zero filled the memory).
+MAX_PROGRAM_BYTES = 64 << 20
 _PAIRS = {"(": ")", "[": "]", "{": "}"}
 # A program's closing line per opening one (format: [(opening, closing, what)]).
 _ENDS = {
@@ -362,7 +408,7 @@ def read_program(path: str | Path, fmt: str | None = None) -> Program:
         )
     try:
         # Bytes that are not UTF-8 (Shift-JIS comments, Latin-1) survive as surrogates.
-        raw = p.read_bytes()
+        raw = read_bounded(p, MAX_PROGRAM_BYTES, f"a {fmt} program")
     except OSError as exc:
         raise DataError(f"{p}: cannot read program ({exc.strerror}).") from exc
     if b"\0" in raw:  # UTF-16 (a RobotStudio or Windows editor save) or binary
@@ -371,6 +417,13 @@ def read_program(path: str | Path, fmt: str | None = None) -> Program:
             f"{p}: line {line}: a NUL byte: the "
             "file is UTF-16 encoded or binary; expected a text program (UTF-8, ASCII or "
             "the controller's 8-bit encoding): save it as UTF-8."
+        )
+    if not raw.strip():
+        raise DataError(f"{p}: the program is empty; expected a {fmt} program.")
+    if b"\r" in raw and b"\n" not in raw:  # (was: line 1: 'the file ends without')
+        raise DataError(
+            f"{p}: its lines end in CR only (an old Mac editor's); expected LF or CR LF "
+            "line ends, as the controller writes them."
         )
     text = raw.decode("utf-8", errors="surrogateescape")
     try:
@@ -381,6 +434,20 @@ def read_program(path: str | Path, fmt: str | None = None) -> Program:
         check_positions(code, fmt)
     except DataError as exc:
         raise DataError(f"{p}: {exc}") from None
+    unread = _unread(code, fmt)
+    if unread:
+        import warnings
+
+        from kinecal.io._checks import DataWarning
+
+        some = "; ".join(f"line {ln} ({what})" for ln, what in unread[:5])
+        warnings.warn(
+            f"{p}: {len(unread)} joint target(s) left as written, not numbers kinecal "
+            f"can correct: {some}{' ...' if len(unread) > 5 else ''}; write their "
+            "joint values as numbers to have them corrected.",
+            DataWarning,
+            stacklevel=2,
+        )
     if not points:
         from kinecal.io._cartesian_programs import read_cartesian
 
@@ -425,6 +492,7 @@ def program_joints(
                 f"{prog.path}: line {pt.line}: {pt.name} has {len(pt.values)} joint values; "
                 f"{robot.name} has {n} joints."
             )
+    check_fanuc_units(prog, robot.prismatic, robot.name)
     q = np.array([pt.values[:n] for pt in prog.points], dtype=np.float64).reshape(-1, n)
     if check:
         check_degrees(prog, q, robot.prismatic)

@@ -13,6 +13,7 @@ import numpy as np
 
 from kinecal.errors import ConfigError
 from kinecal.geometry import matrix_to_rpy
+from kinecal.robot._urdf_read import read_urdf
 from kinecal.robot._urdf_tree import _floats, _plain
 from kinecal.typing import Float, Pose
 
@@ -98,13 +99,17 @@ def read_vendor(vendor: str | Path, text: str | None) -> tuple[str, ET.Element]:
     decoded as they are (CRLF line ends and a byte order mark stay as they were)."""
     src = str(vendor)
     try:
-        raw = Path(vendor).read_bytes().decode("utf-8") if text is None else text
+        data = Path(vendor).read_bytes() if text is None else b""
+        raw = data.decode("utf-8") if text is None else text
+        if text is None:  # the checks every URDF reader makes (entities, xacro, size)
+            read_urdf(vendor)
         root_el = ET.fromstring(raw.lstrip("\ufeff"))
     except UnicodeDecodeError as exc:  # UTF-16, Latin-1: written back as it was read
+        line = data.count(b"\n", 0, exc.start) + 1
         raise ConfigError(
-            f"{src}: not UTF-8 text (byte {exc.start}); expected a UTF-8 URDF for "
-            "--like (its text is written back with the calibrated joints): save it as "
-            "UTF-8."
+            f"{src}: line {line}: not UTF-8 text (byte 0x{data[exc.start]:02x}); "
+            "expected a UTF-8 URDF for --like (its text is written back with the "
+            "calibrated joints): save it as UTF-8."
         ) from None
     except (OSError, ET.ParseError) as exc:
         raise ConfigError(f"{src}: cannot read URDF ({exc}).") from exc

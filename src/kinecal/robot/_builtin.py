@@ -85,7 +85,7 @@ def load_robot(name_or_path: str | Path) -> RobotDescription:
     if s in builtin_robot_names():
         return _load_builtin(s)
     p = Path(s)
-    if p.suffix.lower() in (".urdf", ".xacro"):  # a xacro file: refused as one
+    if p.suffix.lower() in (".urdf", ".xacro") or _xml(p):  # (xacro: refused as one)
         if not p.exists():
             raise ConfigError(f"{p}: URDF file not found.")
         from kinecal.robot._urdf import robot_from_urdf
@@ -100,6 +100,19 @@ def load_robot(name_or_path: str | Path) -> RobotDescription:
         f"unknown robot {s!r}: not a built-in ({', '.join(builtin_robot_names())}) "
         "and not a YAML or URDF file."
     )
+
+
+def _xml(p: Path) -> bool:
+    """Whether the file ``p`` (of another extension, or none) starts as an XML document
+    (a URDF saved as robot.txt or robot: read as YAML, it was "expected a mapping; got
+    str")."""
+    try:
+        with p.open("rb") as f:
+            head = f.read(512)
+    except OSError:
+        return False
+    head = head.removeprefix(b"\xef\xbb\xbf").lstrip()
+    return head.startswith((b"<?xml", b"<robot", b"<!--", b"<!DOCTYPE"))
 
 
 def _not_a_robot_file(p: Path) -> None:

@@ -11,7 +11,28 @@ from kinecal.errors import ConfigError
 from kinecal.robot._description import RobotDescription
 from kinecal.robot._schema import robot_from_dict
 
-__all__ = ["load_robot_file", "read_text_file"]
+__all__ = ["MAX_TEXT_BYTES", "load_robot_file", "read_bounded", "read_text_file"]
+
+# The largest robot or model YAML read [bytes]: a model of 100 sets and markers is
+# about 100 kB; PyYAML reads about 0.5 MB/s with kinecal's duplicate-key checks.
+MAX_TEXT_BYTES = 8 << 20
+
+
+def read_bounded(p: Path, limit: int, what: str) -> bytes:
+    """The bytes of ``p``, at most ``limit`` of them (ConfigError beyond: 3.4 MB of
+    YAML took 6.5 s to read, 200 MB minutes; /dev/zero never ended, it filled the
+    memory). OSError is left to the caller."""
+    with p.open("rb") as f:
+        raw = f.read(limit + 1)
+    if len(raw) > limit:
+        size = f"more than {limit >> 20} MB (a device or a pipe)"
+        if p.is_file():
+            size = f"{p.stat().st_size / 2**20:.1f} MB"
+        raise ConfigError(
+            f"{p}: {size}; expected {what} of at most {limit >> 20} MB (kinecal's own "
+            "and robots' are well under 1 MB)."
+        )
+    return raw
 
 
 def read_text_file(p: Path, what: str) -> str:
@@ -19,7 +40,7 @@ def read_text_file(p: Path, what: str) -> str:
     ``p`` and the line for UTF-16 or bytes that are not UTF-8. ``what``: the file
     expected ('a robot YAML (or a URDF)', 'a model.yaml'). OSError is left to the
     caller."""
-    raw = p.read_bytes()
+    raw = read_bounded(p, MAX_TEXT_BYTES, what)
     if raw[:2] in (b"\xff\xfe", b"\xfe\xff") or b"\0" in raw[:4096]:
         raise ConfigError(
             f"{p}: UTF-16 encoded (or binary); expected {what} as UTF-8 text: save it "

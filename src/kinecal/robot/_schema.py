@@ -70,6 +70,7 @@ _REQUIRED_TOP = ("name", "convention", "units", "joints")
 # Longer DH lengths and offsets are typing errors (and break the numerics). Far below,
 # a DH d of tens of metres is real: the common normal of nearly parallel axes.
 _MAX_LENGTH_M = 1e4
+MAX_LENGTH_M = _MAX_LENGTH_M  # (the URDF import's bound of a DH row)
 _JOINT_KEYS = {
     "name",
     "theta_offset",

@@ -30,13 +30,19 @@ import numpy as np
 
 from kinecal.errors import ConfigError
 from kinecal.robot._description import JointSpec, LinkMass, RobotDescription
-from kinecal.robot._schema import check_travel
+from kinecal.robot._schema import (
+    MAX_LENGTH_M,
+    check_travel,
+    dump_robot,
+    robot_from_dict,
+)
 from kinecal.robot._urdf_joints import (
     declared_coupling,
     merge_mimics,
     mimic_of,
     rates_of,
 )
+from kinecal.robot._urdf_read import read_urdf
 from kinecal.robot._urdf_tree import (
     _HOW,
     _MOVABLE,
@@ -65,6 +71,11 @@ def _limits(lim: ET.Element, where: str) -> tuple[float, float]:
     if np.isnan(lo) or np.isnan(hi) or not lo < hi:
         raise ConfigError(
             f"{where}: expected lower < upper; got lower={lo:g}, upper={hi:g}."
+        )
+    if not (np.isfinite(lo) and np.isfinite(hi)):  # (was: 'degrees given as radians?')
+        raise ConfigError(
+            f"{where}: expected finite limits; got lower={lo:g}, upper={hi:g} (a "
+            "revolute joint without limits is type 'continuous')."
         )
     return lo, hi
 
@@ -154,6 +165,7 @@ class _Walk:
     fixed_above: list[tuple[str, np.ndarray]] = field(default_factory=list)
     placed: list[tuple[str, np.ndarray, int]] = field(default_factory=list)
     T_tip: np.ndarray = field(default_factory=lambda: np.eye(4))
+    far: str = ""  # two axes meeting far away (:func:`_check_far`)
 
 
 # The longest chain (sum of the joint origins' offsets, base to tip) a robot's URDF can
@@ -191,7 +203,11 @@ def _walk(chain: list[ET.Element], base: str, src: str) -> _Walk:
         child = j.find("child").get("link", "")  # type: ignore[union-attr]
         if kind not in _MOVABLE:
             if kind != "fixed":
-                raise ConfigError(f"{src}: joint {jn!r} has unsupported type {kind!r}.")
+                raise ConfigError(
+                    f"{src}: joint {jn!r} has unsupported type {kind!r}; expected "
+                    "revolute, continuous, prismatic or fixed joints in the chain "
+                    "(kinecal calibrates serial arms)."
+                )
             if not w.lines:
                 w.fixed_above.append((child, T.copy()))
             w.placed.append((child, T.copy(), len(w.lines)))
@@ -265,6 +281,33 @@ def _next_frame(
     return z, x, q + ((o_prev - q) @ z) * z
 
 
+def _check_far(
+    w: _Walk, i: int, d: float, a: float, alpha_deg: float, src: str
+) -> bool:
+    """Two axes a hair from parallel (an axis typed 0 1 0.001, a rounded angle) meet far
+    away: a DH row longer than a robot (:data:`_MAX_CHAIN_M`) is named in a warning (fk
+    --robot read d = -400 m without a word; a calibrated robot's axes may be that
+    skewed), one beyond the robot file's bound refused (import-urdf wrote a file its
+    reader refuses)."""
+    if max(abs(d), abs(a)) <= _MAX_CHAIN_M:
+        return False
+    k = min(i + 1, len(w.specs) - 1)
+    off = min(alpha_deg, abs(180.0 - alpha_deg))
+    text = (
+        f"{src}: the axes of joints {w.specs[k - 1][0]!r} and {w.specs[k][0]!r} are "
+        f"{off:.3g} deg from parallel and their common normal lies far away (DH d = "
+        f"{d:.4g} m, a = {a:.4g} m)"
+    )
+    if max(abs(d), abs(a)) > MAX_LENGTH_M:
+        raise ConfigError(
+            f"{text}; expected axes that are parallel or meet within "
+            f"{MAX_LENGTH_M:g} m (a mistyped or rounded <axis> or rpy?)."
+        )
+    warnings.warn(f"{text}: a mistyped or rounded <axis> or rpy?", stacklevel=4)
+    w.far = text
+    return True
+
+
 def _dh_joints(
     w: _Walk, offsets: np.ndarray, src: str
 ) -> tuple[list[JointSpec], list[np.ndarray], np.ndarray]:
@@ -275,6 +318,7 @@ def _dh_joints(
     joints: list[JointSpec] = []
     frames: list[np.ndarray] = []
     n = len(w.lines)
+    far = False
     for i in range(n):
         nxt = w.lines[i + 1] if i + 1 < n else None
         z, x, o = _next_frame(z_prev, x_prev, o_prev, nxt, w.T_tip)
@@ -289,6 +333,8 @@ def _dh_joints(
                 f"{src}: could not place DH frame {i + 1} (residual "
                 f"{np.linalg.norm(resid):.2e} m); the chain may need MDH."
             )
+        if not far:  # (the first far row only: the next ones follow from it)
+            far = _check_far(w, i, d, a, float(np.degrees(abs(alpha))), src)
         jname, jkind, jlim = w.specs[i]
         if jkind == "revolute":
             theta += offsets[i]
@@ -307,22 +353,10 @@ def _read(path: str | Path, tip: str | None) -> tuple[ET.Element, str, str | Non
     """The URDF's root element, its text and the tip link (kinecal's own export names
     its tip: the tool links hang below it)."""
     p = Path(path)
-    try:
-        root = ET.parse(p).getroot()
-    except (OSError, ET.ParseError) as exc:
-        raise ConfigError(f"{p}: cannot read URDF ({exc}).") from exc
-    macro = next((el for el in root.iter() if "xacro" in str(el.tag)), None)
-    if macro is not None:
-        name = macro.get("name") or macro.get("filename")
-        raise ConfigError(
-            f"{p}: holds xacro elements (<xacro:{str(macro.tag).split('}')[-1]}"
-            f"{f' {name!r}' if name else ''}>); expected a plain URDF (expand it "
-            "first: xacro FILE.xacro > FILE.urdf)."
-        )
+    text, root = read_urdf(p)  # (xacro, entities, encodings refused there)
     root = _plain(root)
     if root.tag != "robot":  # an SDF, a launch file: read as a robot without joints
         raise ConfigError(f"{p}: expected a URDF <robot> document; got <{root.tag}>.")
-    text = p.read_text(errors="replace")
     if tip is None:
         m = re.search(r"kinecal tip link: (\S+)", text)
         if m is not None and any(
@@ -469,7 +503,7 @@ def robot_from_urdf(
     F0 = _onto_first_axis(w, base, src) if len(w.lines) > 1 else np.eye(4)
     _check_first_axis(w, base, tip, src)
     joints, frames, T_n_flange = _dh_joints(w, offsets, src)
-    return RobotDescription(
+    robot = RobotDescription(
         name=name or root.get("name") or Path(path).stem,
         convention="dh",
         joints=tuple(joints),
@@ -481,3 +515,15 @@ def robot_from_urdf(
         link_masses=_link_masses(root, src, w.placed, frames),
         T_base_0=F0,
     )
+    # The robot file's checks, as import-urdf's YAML is read back (a coupling factor of
+    # 1e300 in a mimic or kinecal coupling line passed --robot X.urdf).
+    try:
+        robot_from_dict(dump_robot(robot), source=src)
+    except ConfigError as exc:  # a centre of mass in a DH frame 400 m away
+        if not w.far:
+            raise
+        raise ConfigError(
+            f"{w.far}: a mistyped or rounded <axis> or rpy? The DH description it "
+            f"makes is refused: {str(exc).removeprefix(src + ': ')}"
+        ) from None
+    return robot

@@ -93,8 +93,13 @@ def _tree(
     trees: every joint's links defined, no link below two joints (a closed loop), no
     cycle."""
     links: set[str] = set()
-    for el in root.findall("link"):
+    for k, el in enumerate(root.findall("link")):
         name = el.get("name", "")
+        if not name.strip():  # (urdfdom refuses it; joints without links matched it)
+            raise ConfigError(
+                f"{src}: link {k + 1} (in file order) has no name; expected "
+                '<link name="...">.'
+            )
         if name in links:
             raise ConfigError(
                 f"{src}: link {name!r} is defined twice; expected unique names."
@@ -127,6 +132,11 @@ def _tree(
             raise ConfigError(f"{src}: joint {jn!r} lacks parent or child.")
         p, c = parent.get("link", ""), child.get("link", "")
         for role, name in (("parent", p), ("child", c)):
+            if not name:
+                raise ConfigError(
+                    f"{src}: joint {jn!r}: <{role}> names no link; expected "
+                    f'<{role} link="..."/>.'
+                )
             if name not in links:
                 raise ConfigError(
                     f"{src}: joint {jn!r}: {role} link {name!r} is not defined; expected "
