@@ -417,7 +417,7 @@ def diagnostics(res: CompensationResult, i: int) -> list[str]:
     """The diagnostic columns of row i: every one numeric, the status last."""
     return [
         f"{np.degrees(res.rotation_error[i]):.6f}",
-        f"{dq_deg(res)[i]:.6f}",
+        f"{np.degrees(np.abs(res.q_ctrl[i] - res.q_program[i])).max():.6f}",  # dq_deg
         f"{res.cond[i]:.4g}",
         str(int(res.limit_joint[i]) + 1),  # 1-based; 0: none
         f"{res.error[i] * 1e3:.6f}",
