@@ -233,8 +233,10 @@ def test_issue_26_compensate_diagnostic_columns_equal_the_per_row_ones(rng):
         limit_joint=rng.integers(-1, 6, n),
         error=rng.uniform(0, 1e-6, n),
         status=np.array(["ok", "unreachable", "limit"] * (n // 3) + ["ok"] * (n % 3)),
-        joint_change=rng.normal(0, 1e-3, (n, 6)),
+        q_program=rng.uniform(-3, 3, (n, 6)),
     )
+    res.q_ctrl = res.q_program + rng.normal(0, 1e-3, (n, 6))
+    res.joint_change = res.q_ctrl - res.q_program  # as CompensationResult's
     cols = _diagnostic_columns(res)
     text = csv_text(cols).splitlines()
     assert text[0] == ",".join(name for name, _ in cols)
