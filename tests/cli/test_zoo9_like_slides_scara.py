@@ -48,8 +48,13 @@ def _track_ur5e() -> str:
         ("-0.3922 0 0.1333", "0 0 0"), ("0 -0.0997 0", f"{_H} 0 0"),
         ("0 0.0996 0", f"{-_H} 0 0"),
     ]  # fmt: skip
-    js = [_joint("track", "prismatic", "world", "l0", "0 0 0.3", axis="1 0 0", lim=(0, 3))]
-    js += [_joint(f"j{i + 1}", "revolute", f"l{i}", f"l{i + 1}", *o) for i, o in enumerate(ur)]
+    js = [
+        _joint("track", "prismatic", "world", "l0", "0 0 0.3", axis="1 0 0", lim=(0, 3))
+    ]
+    js += [
+        _joint(f"j{i + 1}", "revolute", f"l{i}", f"l{i + 1}", *o)
+        for i, o in enumerate(ur)
+    ]
     js.append(_joint("tool0_fixed", "fixed", "l6", "tool0", "0 0 0.05"))
     return _urdf("track_ur5e", js)
 
@@ -66,7 +71,9 @@ def _scara() -> str:
 @pytest.mark.parametrize(
     ("make", "base", "tip"), [(_track_ur5e, "world", "tool0"), (_scara, "base", "tool")]
 )
-def test_zoo9_like_export_of_slides_and_parallel_axes(make, base, tip, tmp_path, capsys):
+def test_zoo9_like_export_of_slides_and_parallel_axes(
+    make, base, tip, tmp_path, capsys
+):
     src = tmp_path / "vendor.urdf"
     src.write_text(make())
     with warnings.catch_warnings():
@@ -80,7 +87,9 @@ def test_zoo9_like_export_of_slides_and_parallel_axes(make, base, tip, tmp_path,
     res = run_kinecal(capsys, "export-urdf", f, "--like", src, "--out", out)
     assert res.code == 0, str(res)
     lim = robot.limits
-    for q in np.random.default_rng(2).uniform(lim[:, 0], lim[:, 1], (3, robot.n_joints)):
+    for q in np.random.default_rng(2).uniform(
+        lim[:, 0], lim[:, 1], (3, robot.n_joints)
+    ):
         ctrl = np.where(robot.prismatic, q * 1e3, np.degrees(q))
         m = run_kinecal(capsys, "fk", "--model", f, "--json", "--", *map(str, ctrl))
         assert m.code == 0, str(m)

@@ -162,7 +162,8 @@ def _directions(
     if np.linalg.matrix_rank(dirs_m, tol=1e-6) >= 2:
         return dirs_m, dirs_v
     rev = [k for k, kind in enumerate(kinds) if kind != "prismatic"]
-    extra_m, extra_v = [], []
+    extra_m: list[Float] = []
+    extra_v: list[Float] = []
     for k in rev[1:]:
         for T, u, out in ((J0, dirs_m[0], extra_m), (U0, dirs_v[0], extra_v)):
             w = T[k][:3, 3] - T[rev[0]][:3, 3]
