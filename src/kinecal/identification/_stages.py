@@ -191,10 +191,10 @@ class Identify(Record):
                 Diagnostic(
                     "frames_undetermined",
                     f"the poses do not determine {', '.join(lost)}: the user frame and "
-                    "the tool offset trade off (too little variation of the tool "
-                    "orientation). They are kept at their starting values; predictions "
-                    "at orientations unlike the calibration poses can be far off. "
-                    "Measure with varied orientations.",
+                    f"the tool offset trade off ({_why_frames_trade(cm.robot)}). They "
+                    "are kept at their starting values; predictions at orientations "
+                    "unlike the calibration poses can be far off. "
+                    + _what_to_measure(cm.robot),
                     parameters=lost,
                     stage=self.name,
                 )
@@ -453,3 +453,23 @@ def run_shared(problem: Problem, state: State, stages: Sequence[Stage]) -> State
     ):
         return run_stages(problem, start, stages[2:])
     return run_stages(problem, problem.start(), stages)
+
+
+def _axes_parallel(robot) -> bool:
+    """All joint axes parallel (a SCARA, a planar arm): the tool turns about them only."""
+    return bool(np.allclose(np.sin(robot.dh_chain().alpha), 0.0, atol=1e-9))
+
+
+def _why_frames_trade(robot) -> str:
+    if _axes_parallel(robot):
+        return "the robot's joint axes are all parallel: the tool turns about them only"
+    return "too little variation of the tool orientation"
+
+
+def _what_to_measure(robot) -> str:
+    if _axes_parallel(robot):
+        return (
+            "No poses of this robot can: set the tool offset along its axes from a "
+            "measured tool length."
+        )
+    return "Measure with varied orientations."
