@@ -456,13 +456,23 @@ def run_shared(problem: Problem, state: State, stages: Sequence[Stage]) -> State
 
 
 def _axes_parallel(robot) -> bool:
-    """All joint axes parallel (a SCARA, a planar arm): the tool turns about them only."""
-    return bool(np.allclose(np.sin(robot.dh_chain().alpha), 0.0, atol=1e-9))
+    """All turning joint axes parallel (a SCARA, a gantry with one rotary axis, a planar
+    arm): the tool turns about them only."""
+    from kinecal.robot import dh_transforms
+
+    ch = robot.dh_chain()
+    rows = dh_transforms(ch.theta_offset, ch.d, ch.a, ch.alpha)[:, :3, :3]
+    R, axes = np.eye(3), []
+    for k in range(len(rows)):  # joint k turns about z of DH frame k - 1
+        if not ch.prismatic[k]:
+            axes.append(R[:, 2])
+        R = R @ rows[k]
+    return len(axes) < 2 or bool(np.linalg.matrix_rank(np.array(axes), tol=1e-9) < 2)
 
 
 def _why_frames_trade(robot) -> str:
     if _axes_parallel(robot):
-        return "the robot's joint axes are all parallel: the tool turns about them only"
+        return "the robot turns the tool about parallel axes only"
     return "too little variation of the tool orientation"
 
 
