@@ -179,7 +179,7 @@ def compensate(
     bad = np.flatnonzero(~ok)
     if bad.size:  # which of the missed targets a joint limit stops
         blamed, joint = _blame_limits(
-            model, calibrated.params, res, p, bad, R_target, set_index,
+            model, calibrated.params, res, p, q0, bad, R_target, set_index,
             marker_index, ls, p_cam, tol, tol_rotation, max_iter,
         )  # fmt: skip
         limit_joint[bad[blamed]] = joint
@@ -244,29 +244,43 @@ def _by_chunks(
 
 
 def _blame_limits(
-    model, params, res, p, bad, R_target, set_index, marker_index, ls, p_cam, tol,
+    model, params, res, p, q0, bad, R_target, set_index, marker_index, ls, p_cam, tol,
     tol_rotation, max_iter,
 ):  # fmt: skip
     """Beyond the limits or out of reach? The failed rows ``bad`` solved again without
-    limits: where that meets the target, the joint furthest outside its limit is to
-    blame. Returns (blamed (B,) bool over ``bad``, their 0-based joints)."""
+    limits, from the seeds ``q0`` (a program's joints beyond a limit: the limited
+    solution can sit on a branch that no longer reaches) and from the limited solution:
+    where either meets the target (or comes a thousand times nearer), the joint
+    furthest outside its limit is to blame.
+    Returns (blamed (B,) bool over ``bad``, their 0-based joints)."""
 
     def cut(v):
         return None if v is None else np.asarray(v)[bad]
 
-    free = solve_ik_lm(
-        model, params, p[bad], res.q_ctrl[bad], R_target=cut(R_target),
-        point_only=R_target is None, set_index=cut(set_index),
-        marker_index=cut(marker_index), load_scale=cut(ls),
-        limits=np.tile([-np.inf, np.inf], (model.n_joints, 1)), p_cam=cut(p_cam),
-        tol_position=min(tol, 1e-11), tol_rotation=min(tol_rotation, 1e-10),
-        max_iter=max_iter,
-    )  # fmt: skip
+    def solve(start):
+        return solve_ik_lm(
+            model, params, p[bad], start, R_target=cut(R_target),
+            point_only=R_target is None, set_index=cut(set_index),
+            marker_index=cut(marker_index), load_scale=cut(ls),
+            limits=np.tile([-np.inf, np.inf], (model.n_joints, 1)), p_cam=cut(p_cam),
+            tol_position=min(tol, 1e-11), tol_rotation=min(tol_rotation, 1e-10),
+            max_iter=max_iter,
+        )  # fmt: skip
+
+    def met(r):  # or a thousand times nearer than within the limits: a singular
+        # pose (a wrist at 0 deg, a home position) converges slowly
+        e_p, e_r = res.position_error[bad], res.rotation_error[bad]
+        ok = r.position_error <= np.maximum(tol, 1e-3 * e_p)
+        if R_target is not None:
+            ok &= r.rotation_error <= np.maximum(tol_rotation, 1e-3 * e_r)
+        return ok
+
+    free, again = solve(q0[bad]), solve(res.q_ctrl[bad])
+    use = ~met(free) & met(again)
+    q_free = np.where(use[:, None], again.q_ctrl, free.q_ctrl)
     lim = model.robot.limits
-    outside = np.maximum(lim[:, 0] - free.q_ctrl, free.q_ctrl - lim[:, 1])
-    reached = free.position_error <= tol
-    if R_target is not None:
-        reached &= free.rotation_error <= tol_rotation
+    outside = np.maximum(lim[:, 0] - q_free, q_free - lim[:, 1])
+    reached = met(free) | met(again)
     blame = reached & (outside.max(axis=1) > 0)
     return blame, np.argmax(outside[blame], axis=1)
 

@@ -191,10 +191,10 @@ class Identify(Record):
                 Diagnostic(
                     "frames_undetermined",
                     f"the poses do not determine {', '.join(lost)}: the user frame and "
-                    "the tool offset trade off (too little variation of the tool "
-                    "orientation). They are kept at their starting values; predictions "
-                    "at orientations unlike the calibration poses can be far off. "
-                    "Measure with varied orientations.",
+                    f"the tool offset trade off ({_why_frames_trade(cm.robot)}). They "
+                    "are kept at their starting values; predictions at orientations "
+                    "unlike the calibration poses can be far off. "
+                    + _what_to_measure(cm.robot),
                     parameters=lost,
                     stage=self.name,
                 )
@@ -453,3 +453,33 @@ def run_shared(problem: Problem, state: State, stages: Sequence[Stage]) -> State
     ):
         return run_stages(problem, start, stages[2:])
     return run_stages(problem, problem.start(), stages)
+
+
+def _axes_parallel(robot) -> bool:
+    """All turning joint axes parallel (a SCARA, a gantry with one rotary axis, a planar
+    arm): the tool turns about them only."""
+    from kinecal.robot import dh_transforms
+
+    ch = robot.dh_chain()
+    rows = dh_transforms(ch.theta_offset, ch.d, ch.a, ch.alpha)[:, :3, :3]
+    R, axes = np.eye(3), []
+    for k in range(len(rows)):  # joint k turns about z of DH frame k - 1
+        if not ch.prismatic[k]:
+            axes.append(R[:, 2])
+        R = R @ rows[k]
+    return len(axes) < 2 or bool(np.linalg.matrix_rank(np.array(axes), tol=1e-9) < 2)
+
+
+def _why_frames_trade(robot) -> str:
+    if _axes_parallel(robot):
+        return "the robot turns the tool about parallel axes only"
+    return "too little variation of the tool orientation"
+
+
+def _what_to_measure(robot) -> str:
+    if _axes_parallel(robot):
+        return (
+            "No poses of this robot can: set the tool offset along its axes from a "
+            "measured tool length."
+        )
+    return "Measure with varied orientations."

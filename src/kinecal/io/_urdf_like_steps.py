@@ -131,13 +131,14 @@ def place_base(
     """(B, resid): the model's robot base in the vendor's root, from the joint axis
     lines of the zero pose (directions by Kabsch, the point by least squares across
     the revolute axes), and the largest distance of an axis from its counterpart."""
-    dirs_m = np.array([J[:3, 2] for J in J0])
+    dirs_m, dirs_u = _directions(J0, U0, dirs_v, kinds)
     if np.linalg.matrix_rank(dirs_m, tol=1e-6) < 2:
         raise ConfigError(
-            f"{src}: all joint axes are parallel; --like cannot place the robot base in "
-            "the vendor's root frame (use export-urdf without --like)."
+            f"{src}: all joint axes are parallel and the turning ones coincide; --like "
+            "cannot place the robot base in the vendor's root frame (use export-urdf "
+            "without --like)."
         )
-    R = kabsch(dirs_m, dirs_v)
+    R = kabsch(dirs_m, dirs_u)
     rows, rhs = [], []
     for J, U, u, kind in zip(J0, U0, dirs_v, kinds):
         if kind == "prismatic":
@@ -149,14 +150,32 @@ def place_base(
     B = np.eye(4)
     B[:3, :3], B[:3, 3] = R, t
     resid = 0.0
-    for J, U, u in zip(J0, U0, dirs_v):
+    for J, U, u, kind in zip(J0, U0, dirs_v, kinds):
         w = U[:3, 3] - (B @ J)[:3, 3]
-        resid = max(
-            resid,
-            float(np.linalg.norm(w - (w @ u) * u)),
-            float(np.linalg.norm(R @ J[:3, 2] - u)),
-        )
+        off = 0.0 if kind == "prismatic" else float(np.linalg.norm(w - (w @ u) * u))
+        resid = max(resid, off, float(np.linalg.norm(R @ J[:3, 2] - u)))
     return B, resid
+
+
+def _directions(
+    J0: list[Pose], U0: list[Pose], dirs_v: Float, kinds: list[str]
+) -> tuple[Float, Float]:
+    """(model, vendor) directions that fix the base's rotation: the joint axes and,
+    when these are all parallel (a SCARA), the common perpendiculars from the first
+    turning axis to the others (a prismatic axis has a direction, not a line)."""
+    dirs_m = np.array([J[:3, 2] for J in J0])
+    if np.linalg.matrix_rank(dirs_m, tol=1e-6) >= 2:
+        return dirs_m, dirs_v
+    rev = [k for k, kind in enumerate(kinds) if kind != "prismatic"]
+    extra_m: list[Float] = []
+    extra_v: list[Float] = []
+    for k in rev[1:]:
+        for T, u, out in ((J0, dirs_m[0], extra_m), (U0, dirs_v[0], extra_v)):
+            w = T[k][:3, 3] - T[rev[0]][:3, 3]
+            out.append(w - (w @ u) * u)
+    if not extra_m:
+        return dirs_m, dirs_v
+    return np.vstack([dirs_m, extra_m]), np.vstack([dirs_v, extra_v])
 
 
 def new_origins(

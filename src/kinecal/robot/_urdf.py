@@ -366,6 +366,15 @@ def _read(path: str | Path, tip: str | None) -> tuple[ET.Element, str, str | Non
     return root, text, tip
 
 
+def _declared_base(text: str, root: ET.Element) -> str | None:
+    """The robot base link kinecal's own export names (its root is the measurement
+    frame 'user'; the link on the first axis can be a turned frame of its own)."""
+    m = re.search(r"kinecal base link: (\S+)", text)
+    if m is None or not any(el.get("name") == m.group(1) for el in root.iter("link")):
+        return None
+    return m.group(1)
+
+
 def _check_first_axis(w: _Walk, base: str, tip: str, src: str) -> None:
     """A chain of at least 2 joints whose first axis is the base link's z axis."""
     p1, u1 = w.lines[0]
@@ -475,6 +484,7 @@ def robot_from_urdf(
     declared = re.search(
         r"kinecal coupling \(theta = C q_ctrl\): (.*?)\s*(?:-->|$)", text, re.M
     )
+    base = _declared_base(text, root) if base is None else base
     auto_base = base is None
     base, tip, chain = _chain(root, base, tip, src)
     w = _walk(chain, base, src)

@@ -255,6 +255,7 @@ def _urdf_text(
     notes.append(
         "kinecal tip link: flange (the robot's flange, for import-urdf and --robot)."
     )
+    notes.append("kinecal base link: base (the robot base: the frame of kinecal fk).")
     notes.append(_limits_note(robot))
     err = check_chain(cal, chain, set_label, rng_q)
     if err > 1e-9:  # pragma: no cover - a defect, not a user error
