@@ -9,8 +9,13 @@ import json
 import pytest
 
 from kinecal.identification import calibrate
-from kinecal.report import calibration_summary, pose_errors, render_calibration_report
-from kinecal.report import _calibration, _format
+from kinecal.report import (
+    _calibration,
+    _format,
+    calibration_summary,
+    pose_errors,
+    render_calibration_report,
+)
 from kinecal.simulation import LaserTracker, experiment2
 
 
