@@ -19,7 +19,7 @@ from kinecal._log import Logger
 from kinecal.io._json_read import loads
 from kinecal.report import _figures as F
 from kinecal.report._certificate import certificate_html
-from kinecal.report._format import details, e, figure, num, page, ratio, table
+from kinecal.report._format import details, e, figure, num, page_parts, ratio, table
 from kinecal.report._headline import accuracy_html
 from kinecal.report._poses import (
     FIGURE_POSES,
@@ -269,7 +269,14 @@ def _identifiability(ident: Mapping[str, Any]) -> list[str]:
 def render_calibration_report(
     summary: Mapping[str, Any], cal: Any, poses: PoseErrors | None
 ) -> str:
-    """The HTML text of a calibration report.
+    """The HTML text of a calibration report (:func:`_report_parts` joined)."""
+    return "".join(_report_parts(summary, cal, poses))
+
+
+def _report_parts(
+    summary: Mapping[str, Any], cal: Any, poses: PoseErrors | None
+) -> list[str]:
+    """The HTML text of a calibration report, in pieces (:func:`page_parts`).
 
     Parameters
     ----------
@@ -293,8 +300,12 @@ def render_calibration_report(
         summary.get("outliers", []), "Outliers (kept in the data, reported here)", "row"
     )
     body.append("<h2>Figures</h2>")
-    body += _figures(summary, poses)
-    return page(f"kinecal calibration report: {summary.get('robot')}", "\n".join(body))
+    figures = "".join("\n" + f for f in _figures(summary, poses))
+    return page_parts(
+        f"kinecal calibration report: {summary.get('robot')}",
+        "\n".join(body),
+        [figures],
+    )
 
 
 def _summary_box(summary: Mapping[str, Any], n_par: int) -> list[str]:
@@ -502,7 +513,7 @@ def write_report(
         ``out`` exists and ``force`` is False.
     """
     from kinecal.errors import DataError
-    from kinecal.io import atomic_write_text, load_model
+    from kinecal.io import atomic_write_bytes, atomic_write_text, load_model
     from kinecal.report._summary_check import check_manifest, check_summary
 
     d = Path(folder)
@@ -538,9 +549,8 @@ def write_report(
         poses = poses.as_read(res, sample=FIGURE_POSES)
     elif res.is_file():
         poses = read_pose_errors(res, sample=FIGURE_POSES)
-    return atomic_write_text(
-        target, render_calibration_report(summary, cal, poses), force=True
-    )
+    parts = _report_parts(summary, cal, poses)
+    return atomic_write_bytes(target, [p.encode("utf-8") for p in parts], force=True)
 
 
 def write_calibration_report(

@@ -165,8 +165,19 @@ def pose_errors(result, meas) -> PoseErrors:
     inputs = meas.model_inputs(cal.reference_payload_kg)
     # Every row of the data, the rejected ones too (raw errors need no weights).
     w = Weights.default(meas)
-    before = residuals(m, result.registered, meas, w, inputs=inputs)
-    after = residuals(m, cal.params, meas, w, inputs=inputs)
+    # The fit's own evaluations where they are of these rows and inputs (its cache
+    # keeps the raw errors at the registered point and the solution: no pass).
+    ws = getattr(result, "workspace", None)
+    if (
+        ws is not None
+        and ws.meas is meas
+        and np.array_equal(ws.inputs.load_scale, inputs.load_scale)
+    ):
+        before = ws.evaluations(m, result.registered, w)
+        after = ws.evaluations(m, cal.params, w)
+    else:
+        before = residuals(m, result.registered, meas, w, inputs=inputs)
+        after = residuals(m, cal.params, meas, w, inputs=inputs)
     prismatic = np.array([j.kind == "prismatic" for j in m.robot.joints])
     rows = meas.rows if meas.rows.size == meas.n else np.arange(meas.n)
     return PoseErrors(
