@@ -52,6 +52,8 @@ def test_issue_21_force_replaces_the_whole_result(data, capsys, tmp_path):
     out = tmp_path / "cal"
     res = _calibrate(capsys, data, out)
     assert res.code == 0 and (out / "report.html").is_file(), str(res)
+    listed = json.loads((out / "manifest.json").read_text())["files"]
+    assert sorted(listed) == sorted(p.name for p in out.iterdir()), listed  # once each
     (out / "notes.txt").write_text("mine\n")  # a file of the user's: kept
     res = _calibrate(capsys, data, out, "--force", "--no-report")
     assert res.code == 0, str(res)

@@ -35,7 +35,12 @@ def manifest(
         "python": sys.version.split()[0],
         "config": config,
         "inputs": hashes,
-        "files": [*(files or []), *([] if files is None else ["manifest.json"])],
+        # each once (a caller may list manifest.json already)
+        "files": list(
+            dict.fromkeys(
+                [*(files or []), *([] if files is None else ["manifest.json"])]
+            )
+        ),
         **(
             {}
             if folder is None
