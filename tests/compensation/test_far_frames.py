@@ -39,6 +39,8 @@ def _program(tracker_twin, tmp_path):
         (("X", "5e5"), "(P[1]): the target lies 500 m from its origin"),
         (("X", "1e308"), "(P[1]): [1e+308, "),
         (("X", "1e400"), "(P[1]): [inf, "),
+        (("--utool", "1=0,0,100,900,0,0"), "angle 900 deg; expected the three angles"),
+        (("--uframe", "1=0,0,0,0,-400,0"), "angle -400 deg; expected the three angles"),
     ],
 )
 def test_far_or_infinite_frames_and_targets_refused(
@@ -76,3 +78,19 @@ def test_a_frames_file_in_a_folder_named_tools_keeps_the_frame_limit(
         "--frames", d / "frames.yaml", "--allow-unreachable",
     )  # fmt: skip
     assert res.returncode == 0, res.stderr
+
+
+def test_a_frames_file_not_in_utf8_names_the_byte(
+    tracker_twin, model_file, run_cli, tmp_path
+):
+    src = _program(tracker_twin, tmp_path)
+    uf, ut = (a.split("=", 1)[1] for a in FRAME_ARGS["fanuc-ls"]()[1::2])
+    text = f"# r\u00e9glage\nuframe:\n  1: [{uf}]\nutool:\n  1: [{ut}]\n"
+    (tmp_path / "frames.yaml").write_bytes(text.encode("latin-1"))
+    res = run_cli(
+        "compensate", src, "--model", model_file, "--out", tmp_path / "o.ls",
+        "--frames", tmp_path / "frames.yaml",
+    )  # fmt: skip
+    assert res.returncode == 2, res.stderr
+    assert "line 1: byte 0xe9 is not UTF-8" in res.stderr, res.stderr
+    assert "Traceback" not in res.stderr and not (tmp_path / "o.ls").exists()

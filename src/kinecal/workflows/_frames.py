@@ -24,6 +24,7 @@ __all__ = [
 ]
 
 _FRAME_NUMBERS = {"fanuc-ls": 6, "krl": 6, "rapid": 7, "urscript": 6}
+_EULER = ("fanuc-ls", "krl")  # x, y, z [mm] then three angles [deg]
 # The farthest a user frame or a taught target may lie from its origin, and a tool from
 # the flange [m]: beyond them a value is in the wrong units or damaged (1e308 mm ended in
 # an overflow inside the inverse kinematics).
@@ -70,6 +71,12 @@ def parse_frames(
             raise DataError(
                 f"{option} {spec!r}: expected ID={','.join(['v'] * k)} ({k} finite "
                 f"numbers in the {fmt} program's units)."
+            )
+        turned = [v for v in vals[3:] if abs(v) > 360.0] if fmt in _EULER else []
+        if turned:  # (W = 900 was taken as 180: a typing error, not an angle)
+            raise DataError(
+                f"{option} {spec!r}: angle {turned[0]:g} deg; expected the "
+                "three angles in degrees within +-360."
             )
         try:
             T = point_pose(fmt, tuple(vals))
@@ -181,9 +188,11 @@ def load_frames_file(path: str, fmt: str) -> tuple[dict, dict, dict]:
               for d in (uf, ut)]  # fmt: skip
         return (parse_frames(va[0], fmt, f"{path}: $MNUFRAME"),
                 parse_frames(va[1], fmt, f"{path}: $MNUTOOL"), {})  # fmt: skip
+    from kinecal.robot._robot_file import read_text_file  # (names a byte not UTF-8)
+
     try:
-        doc = yaml.load(Path(path).read_text(encoding="utf-8")) or {}
-    except (OSError, yaml.YAMLError, UnicodeDecodeError) as exc:
+        doc = yaml.load(read_text_file(Path(path), "a frames YAML")) or {}
+    except (OSError, yaml.YAMLError) as exc:
         raise DataError(f"{path}: cannot read the frames file ({exc}).") from None
     if not isinstance(doc, dict) or set(doc) - {"uframe", "utool", "posreg"}:
         raise DataError(
