@@ -69,26 +69,29 @@ def _no_comments(text: str) -> str:
     )
 
 
-def _check_entities(text: str, p: Path) -> None:
-    """Entity declarations (see the module)."""
-    code = _no_comments(text)
+def _line(code: str, at: int) -> int:
+    return code.count("\n", 0, at) + 1
+
+
+def _check_entities(code: str, p: Path) -> None:
+    """Entity declarations (see the module) in ``code``: the text without comments."""
     ent = re.search(r"<!ENTITY\s+(%\s*)?([^\s>]*)", code)
     if ent is not None:
         raise ConfigError(
-            f"{p}: line {code.count(chr(10), 0, ent.start()) + 1}: declares the XML "
-            f"entity {ent.group(2)!r} (<!ENTITY>); expected a URDF without entities "
-            "(they can expand a file without bound or read other files)."
+            f"{p}: line {_line(code, ent.start())}: declares the XML entity "
+            f"{ent.group(2)!r} (<!ENTITY>); expected a URDF without entities (they can "
+            "expand a file without bound or read other files)."
         )
 
 
-def _check_expressions(text: str, p: Path) -> None:
-    """xacro expressions left in the document (see the module)."""
-    code = _no_comments(text)
+def _check_expressions(code: str, p: Path) -> None:
+    """xacro expressions left in ``code``, the text without comments (see the
+    module)."""
     expr = re.search(r"\$[{(][^\"'<>]*?[})]", code)
     if expr is not None:
         raise ConfigError(
-            f"{p}: line {code.count(chr(10), 0, expr.start()) + 1}: {expr.group()!r} is "
-            f"a xacro expression; expected a plain URDF ({_EXPAND})."
+            f"{p}: line {_line(code, expr.start())}: {expr.group()!r} is a xacro "
+            f"expression; expected a plain URDF ({_EXPAND})."
         )
 
 
@@ -117,7 +120,8 @@ def read_urdf(path: str | Path) -> tuple[str, ET.Element]:
             f"{p}: not an XML document (it starts with {head!r}); expected a URDF "
             "<robot> document."
         )
-    _check_entities(text, p)
+    code = _no_comments(text)  # (once: both checks read it)
+    _check_entities(code, p)
     try:
         root = ET.fromstring(raw)  # one piece: linear (ET.parse feeds 64 kB pieces)
     except ET.ParseError as exc:
@@ -134,5 +138,5 @@ def read_urdf(path: str | Path) -> tuple[str, ET.Element]:
             f"{p}: holds xacro elements (<xacro:{str(macro.tag).split('}')[-1]}"
             f"{f' {name!r}' if name else ''}>); expected a plain URDF ({_EXPAND})."
         )
-    _check_expressions(text, p)
+    _check_expressions(code, p)
     return text, root
