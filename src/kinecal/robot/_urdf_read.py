@@ -69,7 +69,7 @@ def _no_comments(text: str) -> str:
     )
 
 
-def _line(code: str, at: int) -> int:
+def _code_line(code: str, at: int) -> int:
     return code.count("\n", 0, at) + 1
 
 
@@ -78,7 +78,7 @@ def _check_entities(code: str, p: Path) -> None:
     ent = re.search(r"<!ENTITY\s+(%\s*)?([^\s>]*)", code)
     if ent is not None:
         raise ConfigError(
-            f"{p}: line {_line(code, ent.start())}: declares the XML entity "
+            f"{p}: line {_code_line(code, ent.start())}: declares the XML entity "
             f"{ent.group(2)!r} (<!ENTITY>); expected a URDF without entities (they can "
             "expand a file without bound or read other files)."
         )
@@ -90,7 +90,7 @@ def _check_expressions(code: str, p: Path) -> None:
     expr = re.search(r"\$[{(][^\"'<>]*?[})]", code)
     if expr is not None:
         raise ConfigError(
-            f"{p}: line {_line(code, expr.start())}: {expr.group()!r} is a xacro "
+            f"{p}: line {_code_line(code, expr.start())}: {expr.group()!r} is a xacro "
             f"expression; expected a plain URDF ({_EXPAND})."
         )
 
