@@ -844,17 +844,8 @@ def ur10_sessions(seed: int, vary: bool = False):
 
 def choose_before(cands):
     """The rule before wave 3 (the Fourier reproducibility test only)."""
-    best = min(cands, key=lambda c: c.cv_rms_mm)
-    eligible = [c for c in cands if _rule._within_one_se(c, best)]
     kept = [c for c in cands if _rule._fourier_reproducible(c, cands)]
-    if len(kept) < len(cands):
-        best = min(kept, key=lambda c: c.cv_rms_mm)
-        eligible = [
-            c
-            for c in kept
-            if any(c is e for e in eligible) or _rule._within_one_se(c, best)
-        ]
-    return _smallest(eligible)
+    return _smallest(_rule.eligible_among(cands, kept))
 
 
 def table_case(key):
@@ -992,18 +983,9 @@ def choose_bar_cut(cands):
         ]
         return floor > 0 and max((z for z in z2 if np.isfinite(z)), default=0) >= floor
 
-    best = min(cands, key=lambda c: c.cv_rms_mm)
-    eligible = [c for c in cands if _rule._within_one_se(c, best)]
     kept = [c for c in cands if _rule._fourier_reproducible(c, cands)]
     kept = [c for c in kept if not cut(c, kept)]
-    if len(kept) < len(cands):
-        best = min(kept, key=lambda c: c.cv_rms_mm)
-        eligible = [
-            c
-            for c in kept
-            if any(c is e for e in eligible) or _rule._within_one_se(c, best)
-        ]
-    return _smallest(eligible)
+    return _smallest(_rule.eligible_among(cands, kept))
 
 
 RULES = {

@@ -87,19 +87,27 @@ def choose_candidate(cands: list[Candidate]) -> Candidate:
     (:func:`_fourier_reproducible`) and none whose series is cut below reproducible
     orders (:func:`_cut_short`); without those, the best of the others may admit
     smaller candidates too."""
-    best = min(cands, key=lambda c: c.cv_rms_mm)
-    eligible = [c for c in cands if _within_one_se(c, best)]
     kept = [c for c in cands if _fourier_reproducible(c, cands)]
     kept = [c for c in kept if not _cut_short(c, kept)]
+    eligible = eligible_among(cands, kept)
+    # The smallest model; among equal sizes the strongest priors (the simplest fit).
+    chosen = min(eligible, key=lambda c: (c.size, -1.0 / c.prior_scale, c.cv_rms_mm))
+    chosen.chosen = True
+    return chosen
+
+
+def eligible_among(cands: list[Candidate], kept: list[Candidate]) -> list[Candidate]:
+    """The candidates within :data:`_SE_FACTOR` paired standard errors of the best;
+    where ``kept`` (a sublist) leaves some out, those of ``kept`` that were, or are
+    within it of the best of ``kept``."""
+    best = min(cands, key=lambda c: c.cv_rms_mm)
+    eligible = [c for c in cands if _within_one_se(c, best)]
     if len(kept) < len(cands):
         best = min(kept, key=lambda c: c.cv_rms_mm)
         eligible = [
             c for c in kept if any(c is e for e in eligible) or _within_one_se(c, best)
         ]
-    # The smallest model; among equal sizes the strongest priors (the simplest fit).
-    chosen = min(eligible, key=lambda c: (c.size, -1.0 / c.prior_scale, c.cv_rms_mm))
-    chosen.chosen = True
-    return chosen
+    return eligible
 
 
 def _fourier_reproducible(c: Row, cands: list[Candidate]) -> bool:
