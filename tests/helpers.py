@@ -137,3 +137,14 @@ def calibrate_args(data, robot: str, out, model: str = "kinematic") -> list[str]
     without a report or progress lines."""
     return ["calibrate", str(data), "--robot", robot, "--model", model,
             "--out", str(out), "--no-report", "-q"]  # fmt: skip
+
+
+def perturbed_kinematic(robot, seed: int, std: float = 5e-4):
+    """A calibrated kinematic model of ``robot``: its nominal parameters plus normal
+    noise of ``std`` (seeded), every one 'estimated' without a covariance."""
+    from kinecal.measurement import CalibratedModel
+    from kinecal.models import CalibrationModel, ModelSpec
+
+    model = CalibrationModel(robot, ModelSpec.preset("kinematic"))
+    x = model.nominal + np.random.default_rng(seed).normal(0.0, std, model.size)
+    return CalibratedModel(model, x, np.zeros(model.size), ["estimated"] * model.size)

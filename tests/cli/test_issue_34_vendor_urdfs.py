@@ -21,10 +21,9 @@ import pytest
 
 from kinecal.errors import ConfigError
 from kinecal.io import save_model
-from kinecal.measurement import CalibratedModel
-from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import robot_from_urdf
 from tests.cli_contract import run_kinecal
+from tests.helpers import perturbed_kinematic
 from tests.urdf_reference import urdf_chain_fk
 
 VENDOR = Path(__file__).resolve().parents[1] / "data" / "vendor_urdf"
@@ -92,9 +91,7 @@ def _like(path: Path, tmp_path: Path, capsys, **chain) -> Path:
     """export-urdf --like ``path`` of a perturbed model of it (its chain: ``chain``,
     base and tip), checked; the copy."""
     robot = _import(path, **chain)
-    model = CalibrationModel(robot, ModelSpec.preset("kinematic"))
-    x = model.nominal + np.random.default_rng(5).normal(0.0, 5e-4, model.size)
-    cal = CalibratedModel(model, x, np.zeros(model.size), ["estimated"] * model.size)
+    cal = perturbed_kinematic(robot, 5)
     f = save_model(tmp_path / "model.yaml", cal)
     out = tmp_path / "cal.urdf"
     res = run_kinecal(

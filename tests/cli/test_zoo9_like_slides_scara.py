@@ -17,10 +17,9 @@ import numpy as np
 import pytest
 
 from kinecal.io import save_model
-from kinecal.measurement import CalibratedModel
-from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import robot_from_urdf
 from tests.cli_contract import run_kinecal
+from tests.helpers import perturbed_kinematic
 from tests.urdf_reference import urdf_chain_fk
 
 _H = math.pi / 2
@@ -79,9 +78,7 @@ def test_zoo9_like_export_of_slides_and_parallel_axes(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the base turned into frame0: reported
         robot = robot_from_urdf(src)
-    model = CalibrationModel(robot, ModelSpec.preset("kinematic"))
-    x = model.nominal + np.random.default_rng(5).normal(0.0, 5e-4, model.size)
-    cal = CalibratedModel(model, x, np.zeros(model.size), ["estimated"] * model.size)
+    cal = perturbed_kinematic(robot, 5)
     f = save_model(tmp_path / "model.yaml", cal)
     out = tmp_path / "cal.urdf"
     res = run_kinecal(capsys, "export-urdf", f, "--like", src, "--out", out)

@@ -10,13 +10,10 @@ from __future__ import annotations
 import warnings
 from pathlib import Path
 
-import numpy as np
-
 from kinecal.io import save_model
-from kinecal.measurement import CalibratedModel
-from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import robot_from_urdf
 from tests.cli_contract import run_kinecal
+from tests.helpers import perturbed_kinematic
 
 KR210 = Path(__file__).resolve().parents[1] / "data" / "vendor_urdf" / "kuka_kr210.urdf"
 
@@ -28,9 +25,7 @@ def test_zoo9_program_target_beyond_a_limit_at_a_singular_wrist(tmp_path, capsys
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the first axis off base_link's z: reported
         robot = robot_from_urdf(KR210)
-    model = CalibrationModel(robot, ModelSpec.preset("kinematic"))
-    x = model.nominal + np.random.default_rng(3).normal(0.0, 2e-4, model.size)
-    cal = CalibratedModel(model, x, np.zeros(model.size), ["estimated"] * model.size)
+    cal = perturbed_kinematic(robot, 3, 2e-4)
     f = save_model(tmp_path / "model.yaml", cal)
     prog = tmp_path / "home.dat"
     prog.write_text(_DAT.format(_AXIS.format(a5="0.0"), _AXIS.format(a5="10.0")))

@@ -12,10 +12,9 @@ import warnings
 import numpy as np
 
 from kinecal.io import save_model
-from kinecal.measurement import CalibratedModel
-from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import robot_from_urdf
 from tests.cli_contract import run_kinecal
+from tests.helpers import perturbed_kinematic
 
 _J = (
     '<joint name="{0}" type="{1}"><parent link="{2}"/><child link="{3}"/>'
@@ -39,9 +38,7 @@ def test_zoo9_plain_export_reimports_with_the_model_base(tmp_path, capsys):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # frame0 turned onto the first axis: reported
         robot = robot_from_urdf(src)
-    model = CalibrationModel(robot, ModelSpec.preset("kinematic"))
-    x = model.nominal + np.random.default_rng(4).normal(0.0, 5e-4, model.size)
-    cal = CalibratedModel(model, x, np.zeros(model.size), ["estimated"] * model.size)
+    cal = perturbed_kinematic(robot, 4)
     f = save_model(tmp_path / "model.yaml", cal)
     out = tmp_path / "cal.urdf"
     res = run_kinecal(capsys, "export-urdf", f, "--out", out)

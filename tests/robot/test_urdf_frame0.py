@@ -27,6 +27,7 @@ from kinecal.measurement import CalibratedModel
 from kinecal.models import CalibrationModel, ModelSpec
 from kinecal.robot import dump_robot, load_robot, robot_from_dict, robot_from_urdf
 from kinecal.simulation import robot_experiment, robot_truth
+from tests.helpers import perturbed_kinematic
 from tests.independent_arm import UR6, urdf_text
 from tests.urdf_reference import urdf_chain_fk
 
@@ -286,12 +287,6 @@ def test_calibration_is_the_same_with_the_base_link_as_robot_base(which, tmp_pat
     assert abs(again.max_mm - old_m.max_mm) < 1e-12
 
 
-def _perturbed(robot, seed=5):
-    model = CalibrationModel(robot, ModelSpec.preset("kinematic"))
-    x = model.nominal + np.random.default_rng(seed).normal(0.0, 5e-4, model.size)
-    return CalibratedModel(model, x, np.zeros(model.size), ["estimated"] * model.size)
-
-
 def test_exports_of_a_moved_base_model_keep_the_base_link(tmp_path, run_cli_here):
     """`export-urdf` (its `base` link), `--format yaml-dh` (with frame0) and `--like`:
     read back as robots, their flange is `fk --model`'s kinematic flange (in the base
@@ -299,7 +294,7 @@ def test_exports_of_a_moved_base_model_keep_the_base_link(tmp_path, run_cli_here
     joint origins back."""
     path = _fixture(tmp_path, "flipped")
     robot = _import(path)
-    f = save_model(tmp_path / "model.yaml", _perturbed(robot))
+    f = save_model(tmp_path / "model.yaml", perturbed_kinematic(robot, 5))
     outs = {
         "urdf": tmp_path / "cal.urdf",
         "yaml-dh": tmp_path / "cal.yaml",
@@ -324,7 +319,7 @@ def test_exports_of_a_moved_base_model_keep_the_base_link(tmp_path, run_cli_here
             np.testing.assert_allclose(got["flange_mm"], kin["flange_mm"], atol=1e-9)
             np.testing.assert_allclose(got["wpr_deg"], kin["wpr_deg"], atol=1e-9)
     # The nominal model --like the vendor's file: the vendor's own origins.
-    nominal = _perturbed(robot)
+    nominal = perturbed_kinematic(robot, 5)
     nominal = replace(nominal, params=nominal.model.nominal.copy())
     g = save_model(tmp_path / "nominal.yaml", nominal)
     out = tmp_path / "nominal_like.urdf"
@@ -348,7 +343,7 @@ def test_dh_description_of_a_moved_base_model_keeps_frame0(tmp_path):
     from kinecal.models import ModelInputs
 
     robot = _import(_fixture(tmp_path, "turned"))
-    cal = _perturbed(robot)
+    cal = perturbed_kinematic(robot, 5)
     desc, T_user_base = dh_description(cal)
     np.testing.assert_array_equal(desc.T_base_0, robot.T_base_0)
     q = _poses(robot, 10, seed=4)
@@ -376,7 +371,7 @@ def test_like_copy_does_not_depend_on_frame0(name, tip):
     from kinecal.workflows import export_model
 
     robot = _import(VENDOR / name, tip)
-    new = _perturbed(robot)
+    new = perturbed_kinematic(robot, 5)
     old_model = CalibrationModel(_old_import(robot), ModelSpec.preset("kinematic"))
     old = CalibratedModel(old_model, new.params, new.std, list(new.status))
     texts = [
